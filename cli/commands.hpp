@@ -1,0 +1,14 @@
+// commands.hpp — the subcommands of the `ivr` tool; each registers itself on the CLI11 app.
+#pragma once
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace ivr::cli {
+
+// Adds the subcommand to `app`; the returned function runs it and gives the exit status.
+using Runner = std::function<int()>;
+Runner add_devices_command(CLI::App& app);
+Runner add_render_command(CLI::App& app);
+
+}  // namespace ivr::cli

@@ -1,0 +1,34 @@
+// main.cpp — the `ivr` command-line tool: parses the subcommand and turns every error into one
+// line on stderr and a non-zero exit status.
+#include <cstdio>
+#include <iostream>
+
+#include "commands.hpp"
+#include "ivr/ivr.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"ivr " IVR_VERSION_STRING " — differentiable volume rendering on OpenCL"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", IVR_VERSION_STRING);
+  const ivr::cli::Runner devices = ivr::cli::add_devices_command(app);
+  const ivr::cli::Runner render = ivr::cli::add_render_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (app.got_subcommand("devices")) return devices();
+    if (app.got_subcommand("render")) return render();
+  } catch (const ivr::Error& e) {
+    std::cerr << "ivr: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "ivr: error: out of host memory\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "ivr: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 1;
+}

@@ -1,0 +1,46 @@
+// ivr/device.hpp — OpenCL devices as ivr sees them: listing, selecting, and a handle that owns a
+// context, a queue and the compiled kernels for one device.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ivr/export.h"
+
+namespace ivr {
+
+struct DeviceInfo {
+  int index = 0;           // position in list_devices()
+  int platform_index = 0;  // OpenCL platform number
+  int device_index = 0;    // device number within its platform
+  std::string platform, name, vendor, type, version, driver;  // type: cpu, gpu, accelerator
+  bool fp64 = false;
+  std::uint64_t global_memory = 0, max_allocation = 0;
+  int compute_units = 0;
+};
+
+// Every device of every platform; throws ivr::Error(no_device) if there is no OpenCL platform.
+IVR_API std::vector<DeviceInfo> list_devices();
+
+// A selected device with its context, in-order profiling queue and program cache.
+// Selector: "" uses $IVR_DEVICE, else the first GPU, else the first device; "cpu", "gpu" or
+// "accelerator" take the first of that type; "N" the N-th of list_devices(); "P:D" platform P's
+// device D; anything else is a case-insensitive substring of "platform device-name".
+class IVR_API Device {
+ public:
+  explicit Device(const std::string& selector = "");
+  ~Device();
+  Device(Device&&) noexcept;
+  Device& operator=(Device&&) noexcept;
+
+  const DeviceInfo& info() const;
+
+  struct Impl;
+  Impl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ivr

@@ -1,0 +1,53 @@
+// ivr/render.hpp — the forward renderer: every view of a scene in one kernel launch.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ivr/device.hpp"
+#include "ivr/export.h"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+enum class Precision { f32, f64 };
+
+struct RenderOptions {
+  Precision precision = Precision::f32;
+  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+};
+
+// Images of shape (views, height, width, channels), float32, row 0 at the top.
+// channels: 1 (absorption: I) or 4 (emission-absorption: premultiplied RGB over the background, A).
+struct Image {
+  int views = 0, height = 0, width = 0, channels = 0;
+  std::vector<float> pixels;
+  float at(int view, int y, int x, int c) const {
+    return pixels[((std::size_t(view) * height + y) * width + x) * channels + c];
+  }
+};
+
+struct RenderStats {
+  double kernel_seconds = 0;   // device time of the render kernel (profiling events)
+  double build_seconds = 0;    // program lookup/compile time (0 when cached in-process)
+  std::uint64_t samples = 0;   // density samples taken over all rays
+  std::string variant;         // the compiled feature set, e.g. "model=ea tf=gaussian f32"
+};
+
+// Validates the scene and renders it; throws ivr::Error.
+IVR_API Image render(Device& device, const Scene& scene, const RenderOptions& options = {},
+                     RenderStats* stats = nullptr);
+
+// Writes the images as float32 .npy (views, H, W, C).
+IVR_API void save_image_npy(const std::string& path, const Image& image);
+
+// Writes one view as EXR/PNG/TIFF by the file extension through OpenImageIO. EXR and TIFF keep
+// the float values and every channel; PNG is 8-bit, tone-mapped by tone_map_8bit().
+IVR_API void save_image_file(const std::string& path, const Image& image, int view = 0);
+
+// The documented PNG rule: clamp to [0, 1], then the sRGB transfer curve, then round to 8 bits.
+// Emission-absorption writes RGB (already composited over the background) and drops alpha;
+// absorption writes one grey channel, I itself (I_in = background, 1 by default).
+IVR_API unsigned char tone_map_8bit(double linear);
+
+}  // namespace ivr

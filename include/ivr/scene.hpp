@@ -1,0 +1,102 @@
+// ivr/scene.hpp — the host-side scene: volume, box, optical model, transfer function, cameras,
+// integrator and background, with the exact conventions of DESIGN.md.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+
+#include "ivr/export.h"
+
+namespace ivr {
+
+// Densities of shape (nz, ny, nx), x fastest; values sit at cell centres.
+struct Volume {
+  int nx = 0, ny = 0, nz = 0;
+  std::vector<float> data;
+  glm::dvec3 spacing{1.0, 1.0, 1.0};  // physical voxel size; only shapes the default box
+  std::size_t voxel_count() const { return std::size_t(nx) * ny * nz; }
+  float at(int x, int y, int z) const { return data[(std::size_t(z) * ny + y) * nx + x]; }
+};
+
+enum class Model { absorption, emission_absorption };
+enum class TfKind { identity, piecewise_linear, table, gaussian };
+
+struct TfPoint {
+  double density = 0;
+  glm::dvec3 color{0.0};
+  double extinction = 0;
+};
+
+struct TfGaussian {
+  double mean = 0, width = 1;
+  glm::dvec3 color{1.0};
+  double extinction = 0;
+};
+
+// sigma(d) and colour(d); which fields are used depends on kind (see DESIGN.md).
+struct TransferFunction {
+  TfKind kind = TfKind::identity;
+  double extinction_scale = 1.0, color_scale = 1.0;  // identity
+  std::vector<TfPoint> points;                        // piecewise_linear, sorted by density
+  glm::dvec2 range{0.0, 1.0};                         // table
+  std::vector<glm::dvec4> entries;                    // table rows [r, g, b, sigma]
+  std::vector<TfGaussian> gaussians;                  // gaussian
+};
+
+enum class Projection { perspective, orthographic };
+
+struct Camera {
+  glm::dvec3 eye{0.0, 0.0, 2.0}, target{0.0}, up{0.0, 1.0, 0.0};
+  double fov_y = 40.0;  // full vertical angle in degrees (perspective)
+  Projection projection = Projection::perspective;
+  double ortho_height = 1.0;  // world units (orthographic)
+  int width = 256, height = 256;
+};
+
+struct Integrator {
+  std::string scheme = "midpoint";
+  double step = 0.5;                // in units of the smallest voxel edge
+  double min_transmittance = 1e-4;  // early ray termination threshold; 0 turns it off
+};
+
+struct Scene {
+  Volume volume;
+  glm::dvec3 box_min{-0.5}, box_max{0.5};
+  Model model = Model::emission_absorption;
+  TransferFunction tf;
+  std::optional<glm::dvec3> background;  // unset: 1 (absorption I_in) or black (emission)
+  std::vector<Camera> cameras;
+  Integrator integrator;
+
+  glm::dvec3 effective_background() const {
+    return background ? *background : glm::dvec3(model == Model::absorption ? 1.0 : 0.0);
+  }
+  // h = (box_max - box_min) / (nx, ny, nz)
+  glm::dvec3 voxel_size() const {
+    return (box_max - box_min) / glm::dvec3(volume.nx, volume.ny, volume.nz);
+  }
+  int channels() const { return model == Model::absorption ? 1 : 4; }
+};
+
+// Box centred at the origin, longest side 1, proportional to dims x spacing.
+IVR_API void set_default_box(Scene& scene);
+
+// Built-in test volumes of any size, densities in [0, 1]: "sphere" (a smooth ball with a soft
+// shell), "marschner_lobb" (the classic band-limited test signal, f_M = 6, alpha = 0.25).
+IVR_API Volume synthetic_volume(const std::string& name, int nx, int ny, int nz);
+
+// Throws ivr::Error(invalid_argument) naming the first problem: sizes, cameras, TF, step, data.
+IVR_API void validate(const Scene& scene);
+
+// Reads a scene file (DESIGN.md's JSON); relative volume paths resolve against its folder.
+IVR_API Scene load_scene(const std::string& path);
+// Parses scene JSON text; `base_dir` resolves relative paths; `where` names the source in errors.
+IVR_API Scene parse_scene(const std::string& json_text, const std::string& base_dir,
+                          const std::string& where = "scene");
+
+}  // namespace ivr

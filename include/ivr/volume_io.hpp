@@ -1,0 +1,43 @@
+// ivr/volume_io.hpp — reading density volumes (.npy, NRRD, raw, DiffDVR .cvol) and writing .npy.
+#pragma once
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include "ivr/export.h"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+// How to read a volume file. For raw files dims and type are required; for the other formats
+// they come from the file's header. Integer data maps to [0, 1] by its type's range unless
+// `range` is given (then d = (v - lo) / (hi - lo)). `spacing` overrides the file's spacing.
+struct VolumeSource {
+  std::string path;
+  std::string format;  // "" = from the extension: .npy, .nrrd/.nhdr, .raw, .cvol
+  std::optional<glm::ivec3> dims;  // raw: (X, Y, Z)
+  std::string type;                // raw: uint8, int8, uint16, int16, uint32, int32, float32, float64
+  std::string endian = "little";   // raw: little or big
+  std::optional<glm::dvec2> range;
+  std::optional<glm::dvec3> spacing;
+};
+
+// Reads and maps a volume; throws ivr::Error(io) for missing/unreadable/malformed files and
+// ivr::Error(invalid_argument) for sizes that do not match, NaN/Inf or negative densities.
+IVR_API Volume load_volume(const VolumeSource& source);
+
+// Writes a float32 .npy of the given shape (C order), through a temporary file and a rename.
+IVR_API void save_npy(const std::string& path, const std::vector<std::size_t>& shape,
+                      const float* data);
+
+// A .npy read back as float64 with its shape (tests, tools); throws ivr::Error(io).
+struct NpyArray {
+  std::vector<std::size_t> shape;
+  std::vector<double> data;
+};
+IVR_API NpyArray load_npy(const std::string& path);
+
+}  // namespace ivr

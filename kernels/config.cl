@@ -1,0 +1,46 @@
+// config.cl — feature switches and the `real` type; the host's generated preamble sets them, and
+// these defaults let every kernel file compile on its own (e.g. offline with -I kernels).
+#ifndef IVR_CONFIG_CL
+#define IVR_CONFIG_CL
+
+#define IVR_MODEL_ABSORPTION 0
+#define IVR_MODEL_EMISSION_ABSORPTION 1
+
+#define IVR_TF_IDENTITY 0
+#define IVR_TF_PIECEWISE_LINEAR 1
+#define IVR_TF_TABLE 2
+#define IVR_TF_GAUSSIAN 3
+
+#ifndef IVR_MODEL
+#define IVR_MODEL IVR_MODEL_EMISSION_ABSORPTION
+#endif
+#ifndef IVR_TF
+#define IVR_TF IVR_TF_PIECEWISE_LINEAR
+#endif
+#ifndef IVR_F64
+#define IVR_F64 0
+#endif
+#ifndef IVR_EARLY_TERMINATION  // 1: stop a ray once its transmittance < min_transmittance
+#define IVR_EARLY_TERMINATION 1
+#endif
+
+#if IVR_F64
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+typedef double real;
+typedef double3 real3;
+typedef double4 real4;
+#define convert_real3 convert_double3
+#else
+typedef float real;
+typedef float3 real3;
+typedef float4 real4;
+#define convert_real3 convert_float3
+#endif
+
+#define IVR_EMISSION (IVR_MODEL == IVR_MODEL_EMISSION_ABSORPTION)
+
+// Values per view in the camera buffer: eye, forward, right and up scaled to the image plane
+// (tan(fov/2)·aspect·right, tan(fov/2)·up' — or ortho half-extents), orthographic flag.
+#define IVR_CAMERA_STRIDE 16
+
+#endif

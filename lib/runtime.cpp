@@ -1,0 +1,241 @@
+// runtime.cpp — OpenCL platform/device discovery, selection by index/type/name/$IVR_DEVICE,
+// context and queue creation, and readable OpenCL errors.
+#include "runtime.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <sstream>
+
+namespace ivr {
+
+const char* cl_error_name(int code) {
+  switch (code) {
+#define IVR_CL_CASE(name) \
+  case name:              \
+    return #name;
+    IVR_CL_CASE(CL_SUCCESS)
+    IVR_CL_CASE(CL_DEVICE_NOT_FOUND)
+    IVR_CL_CASE(CL_DEVICE_NOT_AVAILABLE)
+    IVR_CL_CASE(CL_COMPILER_NOT_AVAILABLE)
+    IVR_CL_CASE(CL_MEM_OBJECT_ALLOCATION_FAILURE)
+    IVR_CL_CASE(CL_OUT_OF_RESOURCES)
+    IVR_CL_CASE(CL_OUT_OF_HOST_MEMORY)
+    IVR_CL_CASE(CL_PROFILING_INFO_NOT_AVAILABLE)
+    IVR_CL_CASE(CL_MEM_COPY_OVERLAP)
+    IVR_CL_CASE(CL_IMAGE_FORMAT_MISMATCH)
+    IVR_CL_CASE(CL_IMAGE_FORMAT_NOT_SUPPORTED)
+    IVR_CL_CASE(CL_BUILD_PROGRAM_FAILURE)
+    IVR_CL_CASE(CL_MAP_FAILURE)
+    IVR_CL_CASE(CL_MISALIGNED_SUB_BUFFER_OFFSET)
+    IVR_CL_CASE(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST)
+    IVR_CL_CASE(CL_COMPILE_PROGRAM_FAILURE)
+    IVR_CL_CASE(CL_LINKER_NOT_AVAILABLE)
+    IVR_CL_CASE(CL_LINK_PROGRAM_FAILURE)
+    IVR_CL_CASE(CL_DEVICE_PARTITION_FAILED)
+    IVR_CL_CASE(CL_KERNEL_ARG_INFO_NOT_AVAILABLE)
+    IVR_CL_CASE(CL_INVALID_VALUE)
+    IVR_CL_CASE(CL_INVALID_DEVICE_TYPE)
+    IVR_CL_CASE(CL_INVALID_PLATFORM)
+    IVR_CL_CASE(CL_INVALID_DEVICE)
+    IVR_CL_CASE(CL_INVALID_CONTEXT)
+    IVR_CL_CASE(CL_INVALID_QUEUE_PROPERTIES)
+    IVR_CL_CASE(CL_INVALID_COMMAND_QUEUE)
+    IVR_CL_CASE(CL_INVALID_HOST_PTR)
+    IVR_CL_CASE(CL_INVALID_MEM_OBJECT)
+    IVR_CL_CASE(CL_INVALID_IMAGE_FORMAT_DESCRIPTOR)
+    IVR_CL_CASE(CL_INVALID_IMAGE_SIZE)
+    IVR_CL_CASE(CL_INVALID_SAMPLER)
+    IVR_CL_CASE(CL_INVALID_BINARY)
+    IVR_CL_CASE(CL_INVALID_BUILD_OPTIONS)
+    IVR_CL_CASE(CL_INVALID_PROGRAM)
+    IVR_CL_CASE(CL_INVALID_PROGRAM_EXECUTABLE)
+    IVR_CL_CASE(CL_INVALID_KERNEL_NAME)
+    IVR_CL_CASE(CL_INVALID_KERNEL_DEFINITION)
+    IVR_CL_CASE(CL_INVALID_KERNEL)
+    IVR_CL_CASE(CL_INVALID_ARG_INDEX)
+    IVR_CL_CASE(CL_INVALID_ARG_VALUE)
+    IVR_CL_CASE(CL_INVALID_ARG_SIZE)
+    IVR_CL_CASE(CL_INVALID_KERNEL_ARGS)
+    IVR_CL_CASE(CL_INVALID_WORK_DIMENSION)
+    IVR_CL_CASE(CL_INVALID_WORK_GROUP_SIZE)
+    IVR_CL_CASE(CL_INVALID_WORK_ITEM_SIZE)
+    IVR_CL_CASE(CL_INVALID_GLOBAL_OFFSET)
+    IVR_CL_CASE(CL_INVALID_EVENT_WAIT_LIST)
+    IVR_CL_CASE(CL_INVALID_EVENT)
+    IVR_CL_CASE(CL_INVALID_OPERATION)
+    IVR_CL_CASE(CL_INVALID_GL_OBJECT)
+    IVR_CL_CASE(CL_INVALID_BUFFER_SIZE)
+    IVR_CL_CASE(CL_INVALID_MIP_LEVEL)
+    IVR_CL_CASE(CL_INVALID_GLOBAL_WORK_SIZE)
+    IVR_CL_CASE(CL_INVALID_PROPERTY)
+    IVR_CL_CASE(CL_INVALID_IMAGE_DESCRIPTOR)
+    IVR_CL_CASE(CL_INVALID_COMPILER_OPTIONS)
+    IVR_CL_CASE(CL_INVALID_LINKER_OPTIONS)
+    IVR_CL_CASE(CL_INVALID_DEVICE_PARTITION_COUNT)
+#undef IVR_CL_CASE
+    case -1001:
+      return "CL_PLATFORM_NOT_FOUND_KHR";
+    default:
+      return "CL_UNKNOWN_ERROR";
+  }
+}
+
+[[noreturn]] void throw_cl(const cl::Error& e, const std::string& doing) {
+  const int code = e.err();
+  Status status = Status::opencl;
+  if (code == CL_MEM_OBJECT_ALLOCATION_FAILURE || code == CL_OUT_OF_RESOURCES ||
+      code == CL_OUT_OF_HOST_MEMORY || code == CL_INVALID_BUFFER_SIZE)
+    status = Status::out_of_memory;
+  if (code == -1001 || code == CL_DEVICE_NOT_FOUND) status = Status::no_device;
+  std::ostringstream msg;
+  msg << e.what() << " failed with " << cl_error_name(code) << " (" << code << ") while " << doing;
+  throw Error(status, msg.str());
+}
+
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+std::string trim(std::string s) {
+  while (!s.empty() && (std::isspace((unsigned char)s.back()) || s.back() == '\0')) s.pop_back();
+  std::size_t i = 0;
+  while (i < s.size() && std::isspace((unsigned char)s[i])) ++i;
+  return s.substr(i);
+}
+
+struct Found {
+  DeviceInfo info;
+  cl::Platform platform;
+  cl::Device device;
+};
+
+std::vector<Found> discover() {
+  std::vector<cl::Platform> platforms;
+  try {
+    cl::Platform::get(&platforms);
+  } catch (const cl::Error& e) {
+    if (e.err() == -1001 || e.err() == CL_INVALID_VALUE)
+      throw Error(Status::no_device,
+                  "no OpenCL platform found (is an ICD such as pocl-opencl-icd installed?)");
+    throw_cl(e, "listing OpenCL platforms");
+  }
+  if (platforms.empty())
+    throw Error(Status::no_device,
+                "no OpenCL platform found (is an ICD such as pocl-opencl-icd installed?)");
+  std::vector<Found> found;
+  for (std::size_t p = 0; p < platforms.size(); ++p) {
+    std::vector<cl::Device> devices;
+    try {
+      platforms[p].getDevices(CL_DEVICE_TYPE_ALL, &devices);
+    } catch (const cl::Error&) {
+      continue;  // a platform without devices is not an error
+    }
+    for (std::size_t d = 0; d < devices.size(); ++d) {
+      const cl::Device& dev = devices[d];
+      DeviceInfo info;
+      info.index = int(found.size());
+      info.platform_index = int(p);
+      info.device_index = int(d);
+      info.platform = trim(platforms[p].getInfo<CL_PLATFORM_NAME>());
+      info.name = trim(dev.getInfo<CL_DEVICE_NAME>());
+      info.vendor = trim(dev.getInfo<CL_DEVICE_VENDOR>());
+      info.version = trim(dev.getInfo<CL_DEVICE_VERSION>());
+      info.driver = trim(dev.getInfo<CL_DRIVER_VERSION>());
+      const cl_device_type type = dev.getInfo<CL_DEVICE_TYPE>();
+      info.type = (type & CL_DEVICE_TYPE_GPU)           ? "gpu"
+                  : (type & CL_DEVICE_TYPE_CPU)         ? "cpu"
+                  : (type & CL_DEVICE_TYPE_ACCELERATOR) ? "accelerator"
+                                                        : "other";
+      info.fp64 = dev.getInfo<CL_DEVICE_DOUBLE_FP_CONFIG>() != 0;
+      info.global_memory = dev.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
+      info.max_allocation = dev.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
+      info.compute_units = int(dev.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+      found.push_back({info, platforms[p], dev});
+    }
+  }
+  if (found.empty()) throw Error(Status::no_device, "no OpenCL device found on any platform");
+  return found;
+}
+
+bool all_digits(const std::string& s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c); });
+}
+
+const Found& select(const std::vector<Found>& all, const std::string& selector_in) {
+  std::string selector = trim(selector_in);
+  std::string origin = "device selector";
+  if (selector.empty()) {
+    const char* env = std::getenv("IVR_DEVICE");
+    if (env && *env) {
+      selector = trim(env);
+      origin = "IVR_DEVICE";
+    }
+  }
+  if (selector.empty()) {
+    for (const Found& f : all)
+      if (f.info.type == "gpu") return f;
+    return all.front();
+  }
+  const std::string key = lower(selector);
+  const std::size_t colon = key.find(':');
+  for (const Found& f : all) {
+    if (all_digits(key) && f.info.index == std::stoi(key)) return f;
+    if (colon != std::string::npos && all_digits(key.substr(0, colon)) &&
+        all_digits(key.substr(colon + 1)) && f.info.platform_index == std::stoi(key.substr(0, colon)) &&
+        f.info.device_index == std::stoi(key.substr(colon + 1)))
+      return f;
+    if (key == f.info.type) return f;
+  }
+  for (const Found& f : all)
+    if (lower(f.info.platform + " " + f.info.name).find(key) != std::string::npos) return f;
+  std::ostringstream msg;
+  msg << "no OpenCL device matches " << origin << " '" << selector << "'; available:";
+  for (const Found& f : all)
+    msg << " [" << f.info.index << "] " << f.info.name << " (" << f.info.type << ", " << f.info.platform
+        << ")";
+  throw Error(Status::no_device, msg.str());
+}
+
+}  // namespace
+
+std::vector<DeviceInfo> list_devices() {
+  std::vector<DeviceInfo> out;
+  for (const Found& f : discover()) out.push_back(f.info);
+  return out;
+}
+
+Device::Device(const std::string& selector) : impl_(std::make_unique<Impl>()) {
+  const std::vector<Found> all = discover();
+  const Found& f = select(all, selector);
+  impl_->info = f.info;
+  impl_->platform = f.platform;
+  impl_->device = f.device;
+  cl_call("creating a context and queue on " + f.info.name, [&] {
+    impl_->context = cl::Context(f.device);
+    impl_->queue = cl::CommandQueue(impl_->context, f.device, CL_QUEUE_PROFILING_ENABLE);
+  });
+}
+
+Device::~Device() = default;
+Device::Device(Device&&) noexcept = default;
+Device& Device::operator=(Device&&) noexcept = default;
+const DeviceInfo& Device::info() const { return impl_->info; }
+
+cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const void* host,
+                                const char* what) {
+  if (bytes > info.max_allocation) {
+    std::ostringstream msg;
+    msg << what << " needs " << bytes << " bytes, more than the " << info.max_allocation
+        << "-byte largest allocation of " << info.name;
+    throw Error(Status::out_of_memory, msg.str());
+  }
+  if (host) flags |= CL_MEM_COPY_HOST_PTR;
+  return cl_call(std::string("allocating ") + what,
+                 [&] { return cl::Buffer(context, flags, std::max<std::size_t>(bytes, 1), const_cast<void*>(host)); });
+}
+
+}  // namespace ivr

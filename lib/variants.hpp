@@ -1,0 +1,24 @@
+// variants.hpp — "model only what a scene needs": the feature set a kernel is compiled for, and
+// the generated #define preamble that selects it.
+#pragma once
+#include <string>
+
+#include "ivr/render.hpp"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+struct RenderVariant {
+  Model model = Model::emission_absorption;
+  TfKind tf = TfKind::identity;
+  Precision precision = Precision::f32;
+  bool early_termination = true;
+
+  static RenderVariant of(const Scene& scene, const Integrator& integrator, Precision precision);
+  std::string preamble() const;  // "#define IVR_MODEL 1\n..." for kernels/config.cl
+  std::string label() const;     // "render model=ea tf=gaussian f32 ert=on"
+};
+
+const char* tf_kind_name(TfKind kind);
+
+}  // namespace ivr

@@ -1,0 +1,75 @@
+// test_support.cpp — temp folders, scene builders, the shared device and running the CLI.
+#include "test_support.hpp"
+
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace ivr::test {
+
+std::string temp_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("ivr_test_" + std::to_string(::getpid())) / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  static const bool cleanup = [] {
+    std::atexit([] {
+      std::error_code ec;
+      fs::remove_all(fs::temp_directory_path() / ("ivr_test_" + std::to_string(::getpid())), ec);
+    });
+    return true;
+  }();
+  (void)cleanup;
+  return dir.string();
+}
+
+std::string write_file(const std::string& path, const std::string& text) {
+  fs::create_directories(fs::path(path).parent_path());
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+Device& device() {
+  static Device d;
+  return d;
+}
+
+Scene constant_scene(float density, int n, int image) {
+  Scene s;
+  s.volume.nx = s.volume.ny = s.volume.nz = n;
+  s.volume.data.assign(std::size_t(n) * n * n, density);
+  set_default_box(s);
+  s.model = Model::absorption;
+  s.tf.kind = TfKind::identity;
+  Camera c;
+  c.projection = Projection::orthographic;
+  c.eye = {0, 0, 2};
+  c.target = {0, 0, 0};
+  c.ortho_height = 1.0;
+  c.width = c.height = image;
+  s.cameras = {c};
+  s.integrator.min_transmittance = 0;
+  return s;
+}
+
+CliResult run_cli(const std::string& args, const std::string& env) {
+  const std::string dir = temp_dir("cli_capture");
+  const std::string out = dir + "/stdout", err = dir + "/stderr";
+  const std::string cmd = env + " " + IVR_CLI_PATH + " " + args + " >" + out + " 2>" + err;
+  const int raw = std::system(cmd.c_str());
+  CliResult r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  std::ifstream o(out), e(err);
+  std::stringstream so, se;
+  so << o.rdbuf();
+  se << e.rdbuf();
+  r.out = so.str();
+  r.err = se.str();
+  return r;
+}
+
+}  // namespace ivr::test

@@ -17,27 +17,39 @@ namespace volfile {
 std::size_t scalar_size(ScalarType type) {
   switch (type) {
     case ScalarType::uint8:
-    case ScalarType::int8: return 1;
+    case ScalarType::int8:
+      return 1;
     case ScalarType::uint16:
-    case ScalarType::int16: return 2;
+    case ScalarType::int16:
+      return 2;
     case ScalarType::uint32:
     case ScalarType::int32:
-    case ScalarType::float32: return 4;
-    case ScalarType::float64: return 8;
+    case ScalarType::float32:
+      return 4;
+    case ScalarType::float64:
+      return 8;
   }
   return 0;
 }
 
 const char* scalar_name(ScalarType type) {
   switch (type) {
-    case ScalarType::uint8: return "uint8";
-    case ScalarType::int8: return "int8";
-    case ScalarType::uint16: return "uint16";
-    case ScalarType::int16: return "int16";
-    case ScalarType::uint32: return "uint32";
-    case ScalarType::int32: return "int32";
-    case ScalarType::float32: return "float32";
-    case ScalarType::float64: return "float64";
+    case ScalarType::uint8:
+      return "uint8";
+    case ScalarType::int8:
+      return "int8";
+    case ScalarType::uint16:
+      return "uint16";
+    case ScalarType::int16:
+      return "int16";
+    case ScalarType::uint32:
+      return "uint32";
+    case ScalarType::int32:
+      return "int32";
+    case ScalarType::float32:
+      return "float32";
+    case ScalarType::float64:
+      return "float64";
   }
   return "?";
 }
@@ -58,21 +70,36 @@ std::optional<ScalarType> parse_scalar_type(const std::string& name) {
   }
   if (!key.empty() && key.back() == ' ') key.pop_back();
   static const std::pair<const char*, ScalarType> kNames[] = {
-      {"uint8", ScalarType::uint8},        {"uint8_t", ScalarType::uint8},
-      {"uchar", ScalarType::uint8},        {"unsigned char", ScalarType::uint8},
-      {"int8", ScalarType::int8},          {"int8_t", ScalarType::int8},
-      {"signed char", ScalarType::int8},   {"uint16", ScalarType::uint16},
-      {"uint16_t", ScalarType::uint16},    {"ushort", ScalarType::uint16},
-      {"unsigned short", ScalarType::uint16}, {"unsigned short int", ScalarType::uint16},
-      {"int16", ScalarType::int16},        {"int16_t", ScalarType::int16},
-      {"short", ScalarType::int16},        {"short int", ScalarType::int16},
-      {"signed short", ScalarType::int16}, {"signed short int", ScalarType::int16},
-      {"uint32", ScalarType::uint32},      {"uint32_t", ScalarType::uint32},
-      {"uint", ScalarType::uint32},        {"unsigned int", ScalarType::uint32},
-      {"int32", ScalarType::int32},        {"int32_t", ScalarType::int32},
-      {"int", ScalarType::int32},          {"signed int", ScalarType::int32},
-      {"float32", ScalarType::float32},    {"float", ScalarType::float32},
-      {"float64", ScalarType::float64},    {"double", ScalarType::float64},
+      {"uint8", ScalarType::uint8},
+      {"uint8_t", ScalarType::uint8},
+      {"uchar", ScalarType::uint8},
+      {"unsigned char", ScalarType::uint8},
+      {"int8", ScalarType::int8},
+      {"int8_t", ScalarType::int8},
+      {"signed char", ScalarType::int8},
+      {"uint16", ScalarType::uint16},
+      {"uint16_t", ScalarType::uint16},
+      {"ushort", ScalarType::uint16},
+      {"unsigned short", ScalarType::uint16},
+      {"unsigned short int", ScalarType::uint16},
+      {"int16", ScalarType::int16},
+      {"int16_t", ScalarType::int16},
+      {"short", ScalarType::int16},
+      {"short int", ScalarType::int16},
+      {"signed short", ScalarType::int16},
+      {"signed short int", ScalarType::int16},
+      {"uint32", ScalarType::uint32},
+      {"uint32_t", ScalarType::uint32},
+      {"uint", ScalarType::uint32},
+      {"unsigned int", ScalarType::uint32},
+      {"int32", ScalarType::int32},
+      {"int32_t", ScalarType::int32},
+      {"int", ScalarType::int32},
+      {"signed int", ScalarType::int32},
+      {"float32", ScalarType::float32},
+      {"float", ScalarType::float32},
+      {"float64", ScalarType::float64},
+      {"double", ScalarType::float64},
   };
   for (const auto& [n, t] : kNames)
     if (key == n) return t;
@@ -92,9 +119,10 @@ std::size_t checked_count(const std::vector<std::size_t>& shape, std::size_t lim
   for (std::size_t n : shape) {
     if (n != 0 && count > limit / n) {
       std::string dims;
-      for (std::size_t m : shape) dims += (dims.empty() ? "" : "x") + std::to_string(m);
-      throw Error(Status::invalid_argument, "volume '" + path + "' of shape " + dims + " has more than " +
-                                                std::to_string(limit) + " elements");
+      for (std::size_t m : shape) dims += (dims.empty() ? "" : ", ") + std::to_string(m);
+      throw Error(Status::invalid_argument, "array of shape (" + dims + ") has more than " +
+                                                std::to_string(limit) + " elements: '" + path +
+                                                "'");
     }
     count *= n;
   }
@@ -245,14 +273,14 @@ bool parse_descr(const std::string& descr, ScalarType* type, bool* big_endian) {
 
 std::string shape_text(const std::vector<std::size_t>& shape) {
   std::string text = "(";
-  for (std::size_t i = 0; i < shape.size(); ++i)
-    text += (i ? ", " : "") + std::to_string(shape[i]);
+  for (std::size_t i = 0; i < shape.size(); ++i) text += (i ? ", " : "") + std::to_string(shape[i]);
   return text + (shape.size() == 1 ? ",)" : ")");
 }
 
 // Reorders Fortran-order elements (first index fastest) into C order (last index fastest).
-std::vector<unsigned char> fortran_to_c(const unsigned char* src, const std::vector<std::size_t>& shape,
-                                        std::size_t count, std::size_t elem) {
+std::vector<unsigned char> fortran_to_c(const unsigned char* src,
+                                        const std::vector<std::size_t>& shape, std::size_t count,
+                                        std::size_t elem) {
   std::vector<unsigned char> dst(count * elem);
   const std::size_t n = shape.size();
   if (count == 0 || n == 0) {
@@ -284,8 +312,9 @@ TypedArray read_npy(const std::string& path) {
   a.bytes = read_binary_file(path, ".npy file");
   const std::vector<unsigned char>& b = a.bytes;
   static const unsigned char kMagic[6] = {0x93, 'N', 'U', 'M', 'P', 'Y'};
-  if (b.size() < 8 || std::memcmp(b.data(), kMagic, 6) != 0)
+  if (b.size() < 6 || std::memcmp(b.data(), kMagic, 6) != 0)
     fail(path, "not a .npy file (bad magic, expected \\x93NUMPY)");
+  if (b.size() < 8) fail(path, "truncated .npy header");
   const int major = b[6];
   std::size_t header_len = 0, start = 0;
   if (major == 1) {
@@ -337,9 +366,9 @@ TypedArray read_npy(const std::string& path) {
   }
   if (too_big || count * elem != avail) {
     const bool truncated = too_big || count * elem > avail;
-    fail(path, std::string(truncated ? "truncated .npy" : "trailing bytes in .npy") + " (data has " +
-                   std::to_string(avail) + " bytes but shape " + shape_text(a.shape) + " of " +
-                   scalar_name(a.type) + " needs " +
+    fail(path, std::string(truncated ? "truncated .npy" : "trailing bytes in .npy") +
+                   " (data has " + std::to_string(avail) + " bytes but shape " +
+                   shape_text(a.shape) + " of " + scalar_name(a.type) + " needs " +
                    (too_big ? "more" : std::to_string(count * elem)) + ")");
   }
   a.offset = start + header_len;
@@ -380,7 +409,7 @@ void save_npy(const std::string& path, const std::vector<std::size_t>& shape, co
 
   write_atomically(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw Error(Status::io, "cannot open for writing: '" + tmp + "'");
+    if (!out) throw Error(Status::io, "cannot open a temporary file to write .npy: '" + path + "'");
     out.write(head.data(), std::streamsize(head.size()));
     if (!volfile::host_is_big_endian()) {
       out.write(reinterpret_cast<const char*>(data), std::streamsize(count * sizeof(float)));

@@ -1,14 +1,14 @@
-// npy.hpp — internal: element types shared by the volume readers, typed arrays, and the .npy reader.
+// npy.hpp — internal: element types shared by the volume readers, typed arrays, and the .npy
+// reader.
 #pragma once
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <glm/vec3.hpp>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <glm/vec3.hpp>
 
 namespace ivr::volfile {
 
@@ -67,14 +67,22 @@ void for_each_value(const TypedArray& a, std::size_t count, F&& f) {
       f(i, static_cast<double>(load_scalar<T>(p + i * sizeof(T), swap)));
   };
   switch (a.type) {
-    case ScalarType::uint8: return run(std::uint8_t{});
-    case ScalarType::int8: return run(std::int8_t{});
-    case ScalarType::uint16: return run(std::uint16_t{});
-    case ScalarType::int16: return run(std::int16_t{});
-    case ScalarType::uint32: return run(std::uint32_t{});
-    case ScalarType::int32: return run(std::int32_t{});
-    case ScalarType::float32: return run(float{});
-    case ScalarType::float64: return run(double{});
+    case ScalarType::uint8:
+      return run(std::uint8_t{});
+    case ScalarType::int8:
+      return run(std::int8_t{});
+    case ScalarType::uint16:
+      return run(std::uint16_t{});
+    case ScalarType::int16:
+      return run(std::int16_t{});
+    case ScalarType::uint32:
+      return run(std::uint32_t{});
+    case ScalarType::int32:
+      return run(std::int32_t{});
+    case ScalarType::float32:
+      return run(float{});
+    case ScalarType::float64:
+      return run(double{});
   }
 }
 

@@ -1,6 +1,8 @@
 // nrrd.cpp — NRRD volumes: header parsing, detached data files, raw/gzip/ascii encodings.
 #include "nrrd.hpp"
 
+#include <zlib.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -12,8 +14,6 @@
 #include <map>
 #include <sstream>
 #include <type_traits>
-
-#include <zlib.h>
 
 #include "files.hpp"
 #include "ivr/error.hpp"
@@ -80,7 +80,8 @@ std::vector<std::optional<double>> axis_spacings(const std::map<std::string, std
         ++i;
       } else if (v[i] == '(') {
         const std::size_t close = v.find(')', i);
-        if (close == std::string::npos) fail(path, "malformed NRRD 'space directions' (missing ')')");
+        if (close == std::string::npos)
+          fail(path, "malformed NRRD 'space directions' (missing ')')");
         tokens.push_back(v.substr(i, close - i + 1));
         i = close + 1;
       } else {
@@ -200,20 +201,37 @@ std::vector<unsigned char> parse_ascii(const unsigned char* data, std::size_t si
       if constexpr (std::is_integral_v<T>) {
         if (!(v >= double(std::numeric_limits<T>::min()) &&
               v <= double(std::numeric_limits<T>::max())))
-          fail(path, "ascii NRRD value " + std::to_string(v) + " does not fit " + scalar_name(type));
+          fail(path,
+               "ascii NRRD value " + std::to_string(v) + " does not fit " + scalar_name(type));
       }
       const T t = static_cast<T>(v);
       std::memcpy(dst, &t, sizeof(T));
     };
     switch (type) {
-      case ScalarType::uint8: store(std::uint8_t{}); break;
-      case ScalarType::int8: store(std::int8_t{}); break;
-      case ScalarType::uint16: store(std::uint16_t{}); break;
-      case ScalarType::int16: store(std::int16_t{}); break;
-      case ScalarType::uint32: store(std::uint32_t{}); break;
-      case ScalarType::int32: store(std::int32_t{}); break;
-      case ScalarType::float32: store(float{}); break;
-      case ScalarType::float64: store(double{}); break;
+      case ScalarType::uint8:
+        store(std::uint8_t{});
+        break;
+      case ScalarType::int8:
+        store(std::int8_t{});
+        break;
+      case ScalarType::uint16:
+        store(std::uint16_t{});
+        break;
+      case ScalarType::int16:
+        store(std::int16_t{});
+        break;
+      case ScalarType::uint32:
+        store(std::uint32_t{});
+        break;
+      case ScalarType::int32:
+        store(std::int32_t{});
+        break;
+      case ScalarType::float32:
+        store(float{});
+        break;
+      case ScalarType::float64:
+        store(double{});
+        break;
     }
   }
   if (n < count)
@@ -268,7 +286,8 @@ TypedArray read_nrrd(const std::string& path) {
       fail(path, "NRRD field '" + key + "' appears twice");
   }
   for (const char* required : {"type", "dimension", "sizes", "encoding"})
-    if (!fields.count(required)) fail(path, std::string("NRRD header lacks the '") + required + "' field");
+    if (!fields.count(required))
+      fail(path, std::string("NRRD header lacks the '") + required + "' field");
 
   const std::optional<ScalarType> type = parse_scalar_type(fields["type"]);
   if (!type)
@@ -301,8 +320,8 @@ TypedArray read_nrrd(const std::string& path) {
   }
   a.shape = {sizes[2], sizes[1], sizes[0]};
   if (spacings[0] || spacings[1] || spacings[2])
-    a.spacing = glm::dvec3(spacings[0].value_or(1.0), spacings[1].value_or(1.0),
-                           spacings[2].value_or(1.0));
+    a.spacing =
+        glm::dvec3(spacings[0].value_or(1.0), spacings[1].value_or(1.0), spacings[2].value_or(1.0));
   const std::size_t count = checked_count(a.shape, kMaxVoxels, path);
   const std::size_t need = count * scalar_size(a.type);
 
@@ -320,7 +339,8 @@ TypedArray read_nrrd(const std::string& path) {
   } else if (encoding == "ascii" || encoding == "text" || encoding == "txt") {
     enc = ascii;
   } else if (encoding == "bzip2" || encoding == "bz2" || encoding == "hex" || encoding == "zrl") {
-    fail(path, "NRRD encoding '" + fields["encoding"] + "' is not supported (raw, gzip, ascii are)");
+    fail(path,
+         "NRRD encoding '" + fields["encoding"] + "' is not supported (raw, gzip, ascii are)");
   } else {
     fail(path, "unknown NRRD encoding '" + fields["encoding"] + "'");
   }
@@ -329,8 +349,7 @@ TypedArray read_nrrd(const std::string& path) {
     fail(path, "malformed NRRD line skip '" + fields["line skip"] + "'");
   if (fields.count("byte skip") && !parse_int(fields["byte skip"], -1, &byte_skip))
     fail(path, "malformed NRRD byte skip '" + fields["byte skip"] + "'");
-  if (byte_skip == -1 && enc != raw)
-    fail(path, "NRRD byte skip -1 only works with raw encoding");
+  if (byte_skip == -1 && enc != raw) fail(path, "NRRD byte skip -1 only works with raw encoding");
   if (byte_skip != 0 && enc == ascii) fail(path, "NRRD byte skip does not apply to ascii encoding");
 
   // The data: the rest of this file, or a detached file named relative to this header's folder.
@@ -369,7 +388,8 @@ TypedArray read_nrrd(const std::string& path) {
     a.bytes = std::move(file);
     a.offset = pos;
   } else if (enc == gzip) {
-    a.bytes = gunzip(file.data() + pos, file.size() - pos, std::size_t(byte_skip) + need, data_path);
+    a.bytes =
+        gunzip(file.data() + pos, file.size() - pos, std::size_t(byte_skip) + need, data_path);
     a.offset = std::size_t(byte_skip);
   } else {
     a.bytes = parse_ascii(file.data() + pos, file.size() - pos, count, a.type, data_path);

@@ -3,10 +3,12 @@
 #include "ivr/render.hpp"
 
 #include <cmath>
+#include <cstdlib>
 #include <numeric>
 
 #include <glm/geometric.hpp>
 
+#include "device_params.hpp"
 #include "kernel_sources.hpp"
 #include "runtime.hpp"
 #include "scene_checks.hpp"
@@ -15,6 +17,12 @@
 namespace ivr {
 
 namespace {
+
+// $IVR_BUILD_OPTIONS: extra OpenCL compiler options for experiments (part of the cache key).
+std::string extra_build_options() {
+  const char* extra = std::getenv("IVR_BUILD_OPTIONS");
+  return extra ? extra : "";
+}
 
 template <class Real>
 struct ClVec;
@@ -125,7 +133,7 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
   const RenderVariant variant = RenderVariant::of(scene, integrator, precision);
   double build_seconds = 0;
   const cl::Program program = dev.programs.get(dev.context, dev.device, dev.info,
-                                               variant.preamble() + assemble_kernel("render.cl"), "",
+                                               variant.preamble() + assemble_kernel("render.cl"), extra_build_options(),
                                                "render.cl [" + variant.label() + "]", &build_seconds);
 
   const glm::dvec3 h = scene.voxel_size();
@@ -151,8 +159,16 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
     k.setArg(a++, Real(integrator.min_transmittance));
     k.setArg(a++, out_image);
     k.setArg(a++, out_samples);
-    dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(image.width, image.height, image.views),
-                                   cl::NullRange, nullptr, &done);
+    const LaunchParams launch = launch_params(dev.info, "render");
+    if (launch.local_x > 0) {  // global size rounded up; the kernel skips the padding
+      const int lx = launch.local_x, ly = launch.local_y;
+      const int gx = (image.width + lx - 1) / lx * lx, gy = (image.height + ly - 1) / ly * ly;
+      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, image.views), cl::NDRange(lx, ly, 1),
+                                     nullptr, &done);
+    } else {
+      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(image.width, image.height, image.views),
+                                     cl::NullRange, nullptr, &done);
+    }
     done.wait();
   });
 

@@ -71,9 +71,8 @@ TypedArray read_raw(const VolumeSource& s) {
                     s.path + "'");
   const std::string endian = lower(s.endian);
   if (!endian.empty() && endian != "little" && endian != "big")
-    throw Error(Status::invalid_argument,
-                "raw volume endian must be 'little' or 'big', not '" + s.endian + "': '" + s.path +
-                    "'");
+    throw Error(Status::invalid_argument, "raw volume endian must be 'little' or 'big', not '" +
+                                              s.endian + "': '" + s.path + "'");
   const glm::ivec3 d = *s.dims;
   const std::string dims = dims_text(d.x, d.y, d.z);
   if (d.x < 1 || d.y < 1 || d.z < 1)
@@ -117,7 +116,8 @@ TypedArray read_cvol(const std::string& path) {
     dims[i] = volfile::load_scalar<std::uint64_t>(&b[4 + 8 * i], volfile::host_is_big_endian());
     voxel[i] = volfile::load_scalar<double>(&b[28 + 8 * i], volfile::host_is_big_endian());
   }
-  const std::int32_t code = volfile::load_scalar<std::int32_t>(&b[52], volfile::host_is_big_endian());
+  const std::int32_t code =
+      volfile::load_scalar<std::int32_t>(&b[52], volfile::host_is_big_endian());
   if (b[56] != 0) throw fail("compressed .cvol (LZ4) is not supported; save it uncompressed");
   if (code == 0) {
     a.type = ScalarType::uint8;
@@ -131,10 +131,9 @@ TypedArray read_cvol(const std::string& path) {
   }
   for (int i = 0; i < 3; ++i) {
     if (dims[i] < 1 || dims[i] > volfile::kMaxVoxels)
-      throw Error(Status::invalid_argument, ".cvol dims " + std::to_string(dims[0]) + "x" +
-                                                std::to_string(dims[1]) + "x" +
-                                                std::to_string(dims[2]) +
-                                                " must each be in [1, 2^31]: '" + path + "'");
+      throw Error(Status::invalid_argument,
+                  ".cvol dims " + std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
+                      std::to_string(dims[2]) + " must each be in [1, 2^31]: '" + path + "'");
     if (!(std::isfinite(voxel[i]) && voxel[i] > 0))
       throw fail("malformed .cvol voxel size (" + num(voxel[0]) + ", " + num(voxel[1]) + ", " +
                  num(voxel[2]) + ")");
@@ -156,14 +155,45 @@ TypedArray read_cvol(const std::string& path) {
 // Integer-type range mapped to [0, 1] by default.
 void type_range(ScalarType type, double* lo, double* hi) {
   switch (type) {
-    case ScalarType::uint8: *lo = 0, *hi = 255; return;
-    case ScalarType::int8: *lo = -128, *hi = 127; return;
-    case ScalarType::uint16: *lo = 0, *hi = 65535; return;
-    case ScalarType::int16: *lo = -32768, *hi = 32767; return;
-    case ScalarType::uint32: *lo = 0, *hi = 4294967295.0; return;
-    case ScalarType::int32: *lo = -2147483648.0, *hi = 2147483647.0; return;
+    case ScalarType::uint8:
+      *lo = 0, *hi = 255;
+      return;
+    case ScalarType::int8:
+      *lo = -128, *hi = 127;
+      return;
+    case ScalarType::uint16:
+      *lo = 0, *hi = 65535;
+      return;
+    case ScalarType::int16:
+      *lo = -32768, *hi = 32767;
+      return;
+    case ScalarType::uint32:
+      *lo = 0, *hi = 4294967295.0;
+      return;
+    case ScalarType::int32:
+      *lo = -2147483648.0, *hi = 2147483647.0;
+      return;
     case ScalarType::float32:
-    case ScalarType::float64: *lo = 0, *hi = 1; return;
+    case ScalarType::float64:
+      *lo = 0, *hi = 1;
+      return;
+  }
+}
+
+// Range and spacing overrides are checked before any file is read.
+void check_overrides(const VolumeSource& s) {
+  if (s.range &&
+      !(std::isfinite(s.range->x) && std::isfinite(s.range->y) && s.range->y > s.range->x))
+    throw Error(Status::invalid_argument, "volume range [" + num(s.range->x) + ", " +
+                                              num(s.range->y) + "] needs finite lo < hi: '" +
+                                              s.path + "'");
+  if (s.spacing) {
+    const glm::dvec3 sp = *s.spacing;
+    for (int i = 0; i < 3; ++i)
+      if (!(std::isfinite(sp[i]) && sp[i] > 0))
+        throw Error(Status::invalid_argument,
+                    "volume spacing (" + num(sp.x) + ", " + num(sp.y) + ", " + num(sp.z) +
+                        ") must be positive and finite: '" + s.path + "'");
   }
 }
 
@@ -172,14 +202,14 @@ Volume to_volume(const TypedArray& a, const VolumeSource& s) {
   if (a.shape.size() != 3) {
     std::string shape;
     for (std::size_t n : a.shape) shape += (shape.empty() ? "" : ", ") + std::to_string(n);
-    throw Error(Status::invalid_argument, "volume must be 3-D (Z, Y, X) but has shape (" + shape +
-                                              "): '" + path + "'");
+    throw Error(Status::invalid_argument,
+                "volume must be 3-D (Z, Y, X) but has shape (" + shape + "): '" + path + "'");
   }
   for (std::size_t n : a.shape)
     if (n < 1 || n > std::size_t(INT_MAX))
       throw Error(Status::invalid_argument,
                   "volume dims " + dims_text(a.shape[2], a.shape[1], a.shape[0]) +
-                      " (X x Y x Z) must each be in [1, 2^31): '" + path + "'");
+                      " (X x Y x Z) must each be >= 1 and < 2^31: '" + path + "'");
   const std::size_t count = volfile::checked_count(a.shape, volfile::kMaxVoxels, path);
 
   double lo = 0, hi = 1;
@@ -187,9 +217,6 @@ Volume to_volume(const TypedArray& a, const VolumeSource& s) {
   if (s.range) {
     lo = s.range->x;
     hi = s.range->y;
-    if (!(std::isfinite(lo) && std::isfinite(hi) && hi > lo))
-      throw Error(Status::invalid_argument, "volume range [" + num(lo) + ", " + num(hi) +
-                                                "] needs finite lo < hi: '" + path + "'");
   }
   const bool identity = lo == 0 && hi == 1;
 
@@ -231,16 +258,7 @@ Volume to_volume(const TypedArray& a, const VolumeSource& s) {
                                               ") in volume '" + path + "'");
   }
 
-  v.spacing = a.spacing.value_or(glm::dvec3(1.0));
-  if (s.spacing) {
-    const glm::dvec3 sp = *s.spacing;
-    for (int i = 0; i < 3; ++i)
-      if (!(std::isfinite(sp[i]) && sp[i] > 0))
-        throw Error(Status::invalid_argument, "volume spacing (" + num(sp.x) + ", " + num(sp.y) +
-                                                  ", " + num(sp.z) +
-                                                  ") must be positive and finite: '" + path + "'");
-    v.spacing = sp;
-  }
+  v.spacing = s.spacing.value_or(a.spacing.value_or(glm::dvec3(1.0)));
   return v;
 }
 
@@ -248,6 +266,7 @@ Volume to_volume(const TypedArray& a, const VolumeSource& s) {
 
 Volume load_volume(const VolumeSource& source) {
   const std::string format = format_of(source);
+  check_overrides(source);
   TypedArray a;
   if (format == "npy") {
     a = volfile::read_npy(source.path);

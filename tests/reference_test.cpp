@@ -42,7 +42,7 @@ TEST(Reference, TrilinearBetweenCentresAverages) {
   const Scene s = random_scene(5, 4, 3, 2);
   // Half-way along x: the mean of two neighbours; the middle of a cell of 8 centres: their mean.
   EXPECT_NEAR(reference::density(s, centre(s, 1.5, 2, 1)),
-              0.5 * (s.volume.at(1, 2, 1) + s.volume.at(2, 2, 1)), 1e-12);
+              0.5 * (double(s.volume.at(1, 2, 1)) + s.volume.at(2, 2, 1)), 1e-12);
   double mean = 0;
   for (int c = 0; c < 8; ++c) mean += s.volume.at(2 + (c & 1), 1 + (c >> 1 & 1), 0 + (c >> 2 & 1));
   EXPECT_NEAR(reference::density(s, centre(s, 2.5, 1.5, 0.5)), mean / 8, 1e-12);
@@ -67,7 +67,8 @@ TEST(Reference, ClampsInTheBorderHalfVoxel) {
   // Clamped along x only, still interpolated along y.
   glm::dvec3 p = centre(s, 4, 1.5, 1);
   p.x = s.box_max.x - 0.2 * h.x;
-  EXPECT_NEAR(reference::density(s, p), 0.5 * (s.volume.at(4, 1, 1) + s.volume.at(4, 2, 1)), 1e-12);
+  EXPECT_NEAR(reference::density(s, p),
+              0.5 * (double(s.volume.at(4, 1, 1)) + s.volume.at(4, 2, 1)), 1e-12);
   // The box corner takes the corner voxel.
   EXPECT_NEAR(reference::density(s, s.box_min), s.volume.at(0, 0, 0), 1e-12);
 }
@@ -163,10 +164,10 @@ TEST(Reference, ConstantBoxBeerLambert) {
 }
 
 TEST(Reference, ConstantEmission) {
-  Scene s = test::constant_scene(0.8f, 3, 4);
+  Scene s = test::constant_scene(0.5f, 3, 4);  // densities exact in float and double
   s.model = Model::emission_absorption;
-  s.tf.extinction_scale = 2.5;  // sigma = 2
-  s.tf.color_scale = 0.75;      // colour = 0.6
+  s.tf.extinction_scale = 4;  // sigma = 2
+  s.tf.color_scale = 1.2;     // colour = 0.6
   const glm::dvec3 bg(0.2, 0.3, 0.4);
   s.background = bg;
   const double T = std::exp(-2.0);
@@ -174,7 +175,7 @@ TEST(Reference, ConstantEmission) {
   // error at two steps and its second-order decay.
   double err[2];
   for (int k = 0; k < 2; ++k) {
-    const double step = k == 0 ? 0.02 : 0.01;
+    const double step = k == 0 ? 1.0 / 60 : 1.0 / 120;  // divides the centre-plane pieces
     const auto img = reference::render(s, step);
     err[k] = 0;
     for (int p = 0; p < 16; ++p) {
@@ -183,23 +184,23 @@ TEST(Reference, ConstantEmission) {
       EXPECT_NEAR(img[p * 4 + 3], 1 - T, 1e-14);
     }
   }
-  EXPECT_LT(err[1], 0.6 * (0.01 * 2) * (0.01 * 2) / 24 * 1.01);
+  EXPECT_LT(err[1], 0.6 * std::pow(2.0 / 120, 2) / 24 * 1.01);
   EXPECT_NEAR(err[0] / err[1], 4.0, 0.01);
 }
 
-// Voxels d_i = 0.1 + 0.2 i along x (constant along y, z), identity TF: optical depths follow
+// Voxels d_i = 0.125 + 0.25 i (exact in float) along x (constant along y, z), identity TF: optical depths follow
 // from the clamped linear profile in closed form.
 TEST(Reference, LinearRampOpticalDepth) {
   const int n = 6;
   Scene s = test::constant_scene(0.f, n, 12);
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) s.volume.data[(k * n + j) * n + i] = float(0.1 + 0.2 * i);
+      for (int i = 0; i < n; ++i) s.volume.data[(k * n + j) * n + i] = float(0.125 + 0.25 * i);
   s.tf.extinction_scale = 2;
   const double h = 1.0 / n, x0 = -0.5;
   auto d_of_x = [&](double x) {  // the continuous profile, clamped in the border half-voxels
     const double u = std::min(std::max((x - x0) / h - 0.5, 0.0), double(n - 1));
-    return 0.1 + 0.2 * u;
+    return 0.125 + 0.25 * u;
   };
   // Ortho rays along -z: tau = 2 * d(x) * 1, pixel centres at x = -0.5 + (p + 0.5)/12.
   auto img = reference::render(s, 0.05);
@@ -213,7 +214,7 @@ TEST(Reference, LinearRampOpticalDepth) {
   c.target = {1, 0.01, -0.02};
   c.width = c.height = 1;
   s.cameras = {c};
-  const double d0 = 0.1, d1 = 0.1 + 0.2 * (n - 1);
+  const double d0 = 0.125, d1 = 0.125 + 0.25 * (n - 1);
   const double tau = 2 * ((0.5 - 0.2) * h * d0 + (n - 1) * h * 0.5 * (d0 + d1) + 0.5 * h * d1);
   img = reference::render(s, 0.05);
   EXPECT_NEAR(img[0], std::exp(-tau), 1e-13);

@@ -181,7 +181,8 @@ void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec
   for (std::size_t p = 0; p + 1 < cuts.size() && !stop; ++p) {
     const double len = cuts[p + 1] - cuts[p];
     if (len <= 0) continue;
-    const long m = std::max(1L, long(std::ceil(len / step)));
+    // The slack keeps a piece that is an exact multiple of the step from gaining a sliver.
+    const long m = std::max(1L, long(std::ceil(len / step * (1 - 1e-12))));
     const double dt = len / double(m);
     for (long i = 0; i < m; ++i) {
       const double t = cuts[p] + (i + 0.5) * dt;

@@ -1,0 +1,142 @@
+// render_bench.cpp — forward-render benchmark: ivr vs the native C++/OpenMP marcher on the same
+// scenes (128³/256³ volumes, 256²/512² images, steps 0.5/0.25), medians of repeated runs, speed
+// next to the error against a fine-step float64 reference. Prints one JSON document.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "ivr/ivr.hpp"
+#include "native_marcher.hpp"
+
+using nlohmann::json;
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+template <class F>
+double wall_seconds(F&& f) {
+  const auto start = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// RMS and max of |a - b| over the colour channels (alpha is compared too).
+json compare(const std::vector<float>& a, const std::vector<float>& b) {
+  double sum = 0, worst = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double d = std::abs(double(a[i]) - double(b[i]));
+    sum += d * d;
+    worst = std::max(worst, d);
+  }
+  return {{"rms", std::sqrt(sum / double(a.size()))}, {"max", worst}};
+}
+
+ivr::Scene bench_scene(int n, int image) {
+  ivr::Scene s;
+  s.volume = ivr::synthetic_volume("marschner_lobb", n, n, n);
+  ivr::set_default_box(s);
+  s.model = ivr::Model::emission_absorption;
+  s.tf.kind = ivr::TfKind::piecewise_linear;
+  s.tf.points = {{0.0, {0, 0, 0}, 0},
+                 {0.35, {0.1, 0.3, 0.9}, 2},
+                 {0.55, {0.9, 0.6, 0.2}, 10},
+                 {0.8, {1, 1, 0.9}, 30}};
+  s.background = glm::dvec3(0.05);
+  ivr::Camera c;
+  c.eye = {1.1, 0.8, 1.5};
+  c.target = {0, 0, 0};
+  c.fov_y = 38;
+  c.width = c.height = image;
+  s.cameras = {c};
+  s.integrator.min_transmittance = 1e-4;
+  return s;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ivr forward-render benchmark against the native C++/OpenMP marcher"};
+  std::string device_sel, out_path;
+  int repeats = 5;
+  double ref_step = 1.0 / 16;
+  bool quick = false;
+  app.add_option("--device", device_sel, "Device selector (default: $IVR_DEVICE)");
+  app.add_option("--repeats", repeats, "Timed runs per configuration (median reported)")->check(CLI::Range(1, 100));
+  app.add_option("--reference-step", ref_step, "Step of the float64 reference in voxels (0: skip the error)");
+  app.add_option("-o,--output", out_path, "Also write the JSON here");
+  app.add_flag("--quick", quick, "Only the 128³ volume and 256² image");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    ivr::Device device(device_sel);
+    json configs = json::array();
+    std::vector<double> kernel_ratios, total_ratios;
+    for (int n : quick ? std::vector<int>{128} : std::vector<int>{128, 256}) {
+      for (int image : quick ? std::vector<int>{256} : std::vector<int>{256, 512}) {
+        const ivr::Scene scene = bench_scene(n, image);
+        std::vector<float> reference;
+        if (ref_step > 0) {
+          ivr::RenderOptions ro{ivr::Precision::f64, ref_step};
+          reference = ivr::render(device, scene, ro).pixels;
+        }
+        for (double step : {0.5, 0.25}) {
+          ivr::RenderOptions options{ivr::Precision::f32, step};
+          ivr::RenderStats stats;
+          ivr::Image img = ivr::render(device, scene, options, &stats);  // warm-up, compiles
+          std::vector<double> kernel_s, total_s, native_s;
+          for (int r = 0; r < repeats; ++r) {
+            total_s.push_back(wall_seconds([&] { img = ivr::render(device, scene, options, &stats); }));
+            kernel_s.push_back(stats.kernel_seconds);
+          }
+          std::vector<float> native;
+          std::size_t native_samples = ivr::bench::native_render(scene, step, native);  // warm-up
+          for (int r = 0; r < repeats; ++r)
+            native_s.push_back(wall_seconds([&] { native_samples = ivr::bench::native_render(scene, step, native); }));
+          const double k = median(kernel_s), t = median(total_s), nat = median(native_s);
+          json c = {{"volume", n}, {"image", image}, {"step", step}, {"samples", stats.samples},
+                    {"native_samples", native_samples},
+                    {"ivr", {{"kernel_ms", 1e3 * k}, {"total_ms", 1e3 * t}, {"samples_per_s", stats.samples / k}}},
+                    {"native", {{"ms", 1e3 * nat}, {"samples_per_s", native_samples / nat}}},
+                    {"speed_ratio_kernel", nat / k}, {"speed_ratio_total", nat / t},
+                    {"ivr_vs_native", compare(img.pixels, native)}};
+          if (!reference.empty())
+            c["error_vs_reference"] = {{"ivr", compare(img.pixels, reference)}, {"native", compare(native, reference)},
+                                       {"reference_step", ref_step}};
+          kernel_ratios.push_back(nat / k);
+          total_ratios.push_back(nat / t);
+          std::cerr << "volume " << n << "³ image " << image << "² step " << step << ": ivr " << 1e3 * k
+                    << " ms (kernel), " << 1e3 * t << " ms (total); native " << 1e3 * nat << " ms; ratio "
+                    << nat / k << "\n";
+          configs.push_back(c);
+        }
+      }
+    }
+    auto geomean = [](const std::vector<double>& v) {
+      double s = 0;
+      for (double x : v) s += std::log(x);
+      return std::exp(s / double(v.size()));
+    };
+    const json result = {{"benchmark", "render"}, {"ivr_version", IVR_VERSION_STRING},
+                         {"device", device.info().name}, {"platform", device.info().platform},
+                         {"repeats", repeats}, {"statistic", "median"}, {"configs", configs},
+                         {"geomean_speed_ratio_kernel", geomean(kernel_ratios)},
+                         {"geomean_speed_ratio_total", geomean(total_ratios)},
+                         {"min_speed_ratio_kernel", *std::min_element(kernel_ratios.begin(), kernel_ratios.end())}};
+    std::cout << result.dump(2) << "\n";
+    if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
+  } catch (const ivr::Error& e) {
+    std::cerr << "ivr_bench: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

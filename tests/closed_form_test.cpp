@@ -1,11 +1,10 @@
-// closed_form_test.cpp — the renderer against closed forms (Beer–Lambert, ramps, constant emission, every TF kind), f32 and f64.
+// closed_form_test.cpp — the renderer against closed-form answers, in float32 and float64.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
-
 #include <glm/geometric.hpp>
+#include <sstream>
 
 #include "test_support.hpp"
 
@@ -73,8 +72,10 @@ TfValue design_tf(const TransferFunction& tf, double d) {
     }
     case TfKind::table: {
       const auto& e = tf.entries;
-      const double u = std::clamp((d - tf.range.x) / (tf.range.y - tf.range.x), 0.0, 1.0) * double(e.size() - 1);
-      const std::size_t i = std::min(std::size_t(u), e.size() - 1), j = std::min(i + 1, e.size() - 1);
+      const double u =
+          std::clamp((d - tf.range.x) / (tf.range.y - tf.range.x), 0.0, 1.0) * double(e.size() - 1);
+      const std::size_t i = std::min(std::size_t(u), e.size() - 1),
+                        j = std::min(i + 1, e.size() - 1);
       const glm::dvec4 row = e[i] + (u - double(i)) * (e[j] - e[i]);
       return {row.w, glm::dvec3(row)};
     }
@@ -96,7 +97,7 @@ TfValue design_tf(const TransferFunction& tf, double d) {
 // Error budget. f64: the float32 image store only (relative 2^-24, doubled). f32: the relative
 // error of I is the absolute error of tau, made of (a) positions along the ray rounded at
 // magnitude t (~eps·sigma·t per operation, a few operations) and (b) a few ulp per sample from
-// exp() (OpenCL allows 3 ulp) and the running products. 1e-6 is the floor the brief asks for.
+// exp() (OpenCL allows 3 ulp) and the running products. 1e-6 is the floor.
 double rel_tol(Precision p, double sigma_t, double samples) {
   if (p == Precision::f64) return kEps32;
   return 1e-6 + kEps32 * (4 * sigma_t + 4 * samples);
@@ -107,7 +108,9 @@ std::vector<Precision> precisions() {
   if (test::device().info().fp64) p.push_back(Precision::f64);
   return p;
 }
-const char* name(Precision p) { return p == Precision::f64 ? "f64" : "f32"; }
+const char* name(Precision p) {
+  return p == Precision::f64 ? "f64" : "f32";
+}
 
 Camera ortho(glm::dvec3 eye, glm::dvec3 up, int w, int h, double height) {
   Camera c;
@@ -129,7 +132,8 @@ Image render_checked(const Scene& s, Precision p, double step = 0) {
   EXPECT_EQ(img.width, s.cameras[0].width);
   EXPECT_EQ(img.channels, s.channels());
   EXPECT_EQ(img.pixels.size(), std::size_t(img.views) * img.height * img.width * img.channels);
-  const auto bad = std::count_if(img.pixels.begin(), img.pixels.end(), [](float v) { return !std::isfinite(v); });
+  const auto bad = std::count_if(img.pixels.begin(), img.pixels.end(),
+                                 [](float v) { return !std::isfinite(v); });
   EXPECT_EQ(bad, 0) << "NaN/Inf pixels (" << name(p) << ")";
   return img;
 }
@@ -179,6 +183,9 @@ TEST(ClosedForm, BeerLambertAxisAlignedOrthographic) {
   for (Precision p : precisions())
     for (double sigma : {0.5, 3.0, 20.0}) {
       s.tf.extinction_scale = sigma / 0.5;
+      // Entry/exit distances, dt = 1/4 and sigma·dt are exact binary numbers here, so only exp()
+      // and the products round: 4 samples x <= 3.5 ulp stay under 1e-6 in f32.
+      const double exact_geometry_tol = p == Precision::f32 ? 1e-6 : kEps32;
       const Image img = render_checked(s, p, 1.0);
       for (int v = 0; v < img.views; ++v)
         for (int y = 0; y < img.height; ++y)
@@ -186,7 +193,8 @@ TEST(ClosedForm, BeerLambertAxisAlignedOrthographic) {
             const double L = chord(design_ray(s.cameras[v], x, y), s.box_min, s.box_max);
             ASSERT_TRUE(L == 0 || std::abs(L - 1) < 1e-12) << L;  // setup: the full side or nothing
             const double want = 0.7 * std::exp(-sigma * L);
-            EXPECT_NEAR(img.at(v, y, x, 0), want, rel_tol(p, sigma * L, 4) * want) << where(p, v, y, x, sigma);
+            EXPECT_NEAR(img.at(v, y, x, 0), want, exact_geometry_tol * want)
+                << where(p, v, y, x, sigma);
           }
     }
 }
@@ -204,7 +212,7 @@ TEST(ClosedForm, BeerLambertObliquePerspective) {
         max_len = std::max(max_len, L);
         (L > 0 ? hits : misses)++;
       }
-  ASSERT_GT(hits, 50);   // the views cover the box ...
+  ASSERT_GT(hits, 50);    // the views cover the box ...
   ASSERT_GT(misses, 10);  // ... and some background around it
   for (Precision p : precisions())
     for (double sigma : {0.5, 3.0, 20.0 / max_len}) {  // the longest chord reaches sigma·L = 20
@@ -229,10 +237,11 @@ struct Ramp {
   Scene scene;
   std::vector<double> v;
   double a = 2, h = 0.125, slope = 0.125;  // sigma = a·d; voxel edge; dv per voxel
-  // tau of a ray running the whole box along x (the brief's closed form).
+  // tau of a ray running the whole box along x, in closed form.
   double tau_full() const {
     const std::size_t X = v.size();
-    return a * (h / 2 * v.front() + double(X - 1) * h * (v.front() + v.back()) / 2 + h / 2 * v.back());
+    return a *
+           (h / 2 * v.front() + double(X - 1) * h * (v.front() + v.back()) / 2 + h / 2 * v.back());
   }
   // DESIGN.md's density at world x: linear between centres, clamped to the edge centres.
   double density(double x) const {
@@ -284,7 +293,8 @@ TEST(ClosedForm, RampAlongXAlignedStepIsExact) {
     for (int v = 0; v < 2; ++v)
       for (int y = 0; y < 2; ++y)
         for (int x = 0; x < 2; ++x)
-          EXPECT_NEAR(img.at(v, y, x, 0), want, rel_tol(p, r.tau_full(), 16) * want) << where(p, v, y, x);
+          EXPECT_NEAR(img.at(v, y, x, 0), want, rel_tol(p, r.tau_full(), 16) * want)
+              << where(p, v, y, x);
   }
 }
 
@@ -295,8 +305,8 @@ TEST(ClosedForm, RampAlongXAlignedStepIsExact) {
 // the bound bite.
 TEST(ClosedForm, RampNonAlignedStepWithinMidpointBound) {
   Ramp r = ramp_along_x();
-  r.scene.cameras = {ortho({-2, 0, 0}, {0, 0, 1}, 16, 2, 0.25),    // along +x
-                     ortho({-2, -1, 0}, {0, 0, 1}, 16, 2, 0.25),   // direction (2, 1, 0)/sqrt(5)
+  r.scene.cameras = {ortho({-2, 0, 0}, {0, 0, 1}, 16, 2, 0.25),     // along +x
+                     ortho({-2, -1, 0}, {0, 0, 1}, 16, 2, 0.25),    // direction (2, 1, 0)/sqrt(5)
                      ortho({2, -1.5, 0}, {0, 0, 1}, 16, 2, 0.25)};  // direction (-4, 3, 0)/5
   for (Precision p : precisions())
     for (double step : {0.3, 0.7}) {
@@ -309,8 +319,10 @@ TEST(ClosedForm, RampNonAlignedStepWithinMidpointBound) {
             double t_far = 0;
             const double L = chord(ray, r.scene.box_min, r.scene.box_max, &t_far);
             const double dx = std::abs(ray.dir.x);
-            const double x0 = ray.origin.x + (t_far - L) * ray.dir.x, x1 = ray.origin.x + t_far * ray.dir.x;
-            const double tau = L > 0 ? r.a / dx * r.integral(std::min(x0, x1), std::max(x0, x1)) : 0;
+            const double x0 = ray.origin.x + (t_far - L) * ray.dir.x,
+                         x1 = ray.origin.x + t_far * ray.dir.x;
+            const double tau =
+                L > 0 ? r.a / dx * r.integral(std::min(x0, x1), std::max(x0, x1)) : 0;
             const double bound = 2 * r.a * (r.slope / r.h) * dx * dt * dt / 8;
             const double got = -std::log(img.at(v, y, x, 0) / 1.3);
             EXPECT_NEAR(got, tau, bound + rel_tol(p, r.a * 1.125 * t_far, std::ceil(L / dt) + 1))
@@ -321,7 +333,8 @@ TEST(ClosedForm, RampNonAlignedStepWithinMidpointBound) {
 
 // Emission–absorption of a constant medium: C = c(1 - e^{-sigma L}) + e^{-sigma L} B,
 // A = 1 - e^{-sigma L}. Checks every channel against `tf` evaluated at d.
-void expect_constant_emission(const Scene& s, const Image& img, Precision p, double d, double step_voxels) {
+void expect_constant_emission(const Scene& s, const Image& img, Precision p, double d,
+                              double step_voxels) {
   const TfValue f = design_tf(s.tf, d);
   const glm::dvec3 bg = s.effective_background();
   const double hmin = std::min({s.voxel_size().x, s.voxel_size().y, s.voxel_size().z});
@@ -335,10 +348,12 @@ void expect_constant_emission(const Scene& s, const Image& img, Precision p, dou
         const double r = rel_tol(p, f.sigma * t_far, std::ceil(L / (step_voxels * hmin)) + 1);
         for (int c = 0; c < 3; ++c) {
           const double want = f.color[c] * (1 - T) + T * bg[c];
-          EXPECT_NEAR(img.at(v, y, x, c), want, r * (std::abs(want) + std::abs(f.color[c]) + std::abs(bg[c])) + 1e-12)
+          EXPECT_NEAR(img.at(v, y, x, c), want,
+                      r * (std::abs(want) + std::abs(f.color[c]) + std::abs(bg[c])) + 1e-12)
               << where(p, v, y, x, d) << " channel " << c;
         }
-        EXPECT_NEAR(img.at(v, y, x, 3), 1 - T, r * T + kEps32 * (1 - T) + 1e-12) << where(p, v, y, x, d) << " alpha";
+        EXPECT_NEAR(img.at(v, y, x, 3), 1 - T, r * T + kEps32 * (1 - T) + 1e-12)
+            << where(p, v, y, x, d) << " alpha";
       }
 }
 
@@ -426,7 +441,8 @@ TEST(ClosedForm, ConstantMediumDoesNotDependOnStep) {
               const double L = chord(design_ray(s.cameras[v], x, y), s.box_min, s.box_max, &t_far);
               const double want = 0.7 * std::exp(-4 * L);
               const double n = std::ceil(L / (step * 0.2)) + 1;
-              EXPECT_NEAR(img.at(v, y, x, 0), want, rel_tol(p, 4 * t_far, n) * want) << where(p, v, y, x, step);
+              EXPECT_NEAR(img.at(v, y, x, 0), want, rel_tol(p, 4 * t_far, n) * want)
+                  << where(p, v, y, x, step);
             }
       }
   }

@@ -1,13 +1,13 @@
 // reference_test.cpp — checks the CPU reference itself against closed forms, so that the kernels
 // can be judged by it: Beer–Lambert, constant emission, a linear ramp, trilinear/clamping rules.
+#include "reference/reference.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <random>
 
-#include <glm/geometric.hpp>
-
-#include "reference/reference.hpp"
 #include "test_support.hpp"
 
 namespace ivr {
@@ -44,7 +44,7 @@ TEST(Reference, TrilinearBetweenCentresAverages) {
   EXPECT_NEAR(reference::density(s, centre(s, 1.5, 2, 1)),
               0.5 * (double(s.volume.at(1, 2, 1)) + s.volume.at(2, 2, 1)), 1e-12);
   double mean = 0;
-  for (int c = 0; c < 8; ++c) mean += s.volume.at(2 + (c & 1), 1 + (c >> 1 & 1), 0 + (c >> 2 & 1));
+  for (int c = 0; c < 8; ++c) mean += s.volume.at(2 + (c & 1), 1 + (c >> 1 & 1), c >> 2 & 1);
   EXPECT_NEAR(reference::density(s, centre(s, 2.5, 1.5, 0.5)), mean / 8, 1e-12);
   // A quarter of the way along y weights the neighbours 3:1.
   EXPECT_NEAR(reference::density(s, centre(s, 3, 0.25, 2)),
@@ -67,8 +67,8 @@ TEST(Reference, ClampsInTheBorderHalfVoxel) {
   // Clamped along x only, still interpolated along y.
   glm::dvec3 p = centre(s, 4, 1.5, 1);
   p.x = s.box_max.x - 0.2 * h.x;
-  EXPECT_NEAR(reference::density(s, p),
-              0.5 * (double(s.volume.at(4, 1, 1)) + s.volume.at(4, 2, 1)), 1e-12);
+  EXPECT_NEAR(reference::density(s, p), 0.5 * (double(s.volume.at(4, 1, 1)) + s.volume.at(4, 2, 1)),
+              1e-12);
   // The box corner takes the corner voxel.
   EXPECT_NEAR(reference::density(s, s.box_min), s.volume.at(0, 0, 0), 1e-12);
 }
@@ -188,8 +188,8 @@ TEST(Reference, ConstantEmission) {
   EXPECT_NEAR(err[0] / err[1], 4.0, 0.01);
 }
 
-// Voxels d_i = 0.125 + 0.25 i (exact in float) along x (constant along y, z), identity TF: optical depths follow
-// from the clamped linear profile in closed form.
+// Voxels d_i = 0.125 + 0.25 i (exact in float) along x (constant along y, z), identity TF: optical
+// depths follow from the clamped linear profile in closed form.
 TEST(Reference, LinearRampOpticalDepth) {
   const int n = 6;
   Scene s = test::constant_scene(0.f, n, 12);

@@ -68,7 +68,9 @@ inline double rms_diff(const ivr::Image& got, const std::vector<double>& want) {
 inline ivr::Volume smooth_volume(int nx, int ny, int nz, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  struct Wave { double kx, ky, kz, phase, amp; };
+  struct Wave {
+    double kx, ky, kz, phase, amp;
+  };
   std::vector<Wave> waves;
   for (int i = 0; i < 4; ++i)
     waves.push_back({u(rng) * 1.5, u(rng) * 1.5, u(rng) * 1.5, u(rng) * 6.283185307179586, u(rng)});
@@ -80,8 +82,9 @@ inline ivr::Volume smooth_volume(int nx, int ny, int nz, unsigned seed) {
       for (int x = 0; x < nx; ++x) {
         double s = 0;
         for (const Wave& w : waves)
-          s += w.amp * std::cos(w.kx * x / nx * 6.283185307179586 + w.ky * y / ny * 6.283185307179586 +
-                                w.kz * z / nz * 6.283185307179586 + w.phase);
+          s +=
+              w.amp * std::cos(6.283185307179586 * (w.kx * x / nx + w.ky * y / ny + w.kz * z / nz) +
+                               w.phase);
         f.push_back(s);
       }
   double lo = f[0], hi = f[0];

@@ -5,18 +5,19 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <stdexcept>
 #include <thread>
-
-#include <glm/geometric.hpp>
 
 namespace ivr::reference {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-double lerp(double a, double b, double w) { return a + (b - a) * w; }
+double lerp(double a, double b, double w) {
+  return a + (b - a) * w;
+}
 
 }  // namespace
 
@@ -149,8 +150,8 @@ namespace {
 // Integrates one ray. The interval is split where the ray crosses a plane through voxel centres:
 // between those the trilinear density is a cubic in t, so the midpoint rule sees a smooth
 // integrand on every piece (TF kinks aside) and converges cleanly at second order.
-void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec3& dir,
-                   double step, bool early, double* out) {
+void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec3& dir, double step,
+                   bool early, double* out) {
   const bool ea = scene.model == ivr::Model::emission_absorption;
   const glm::dvec3 bg = scene.effective_background();
   double t0, t1;

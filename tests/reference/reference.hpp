@@ -1,9 +1,8 @@
 // reference.hpp — an independent double-precision CPU evaluation of DESIGN.md's continuous model
 // (density, camera rays, transfer functions, both optical models), the yardstick for the kernels.
 #pragma once
-#include <vector>
-
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "ivr/scene.hpp"
 

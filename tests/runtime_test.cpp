@@ -118,7 +118,7 @@ TEST(ProgramCache, MemoryThenDiskThenCompiledAfterCorruption) {
   EXPECT_EQ(fresh.last_origin(), "disk");
   // The program from disk works.
   std::vector<float> x{1, 2, 3};
-  cl::Buffer buf(dev.context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, 12, x.data());
+  cl::Buffer buf(dev.context, cl_mem_flags(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR), std::size_t(12), x.data());
   cl::Kernel k(program, "twice");
   k.setArg(0, buf);
   dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(3));
@@ -216,6 +216,27 @@ TEST(Variants, PreambleSelectsOnlyWhatTheSceneUses) {
   RenderStats stats;
   render(device(), a, {}, &stats);
   EXPECT_EQ(stats.variant, "render model=absorption tf=identity f32 ert=off");
+}
+
+}  // namespace
+}  // namespace ivr::test
+
+namespace ivr::test {
+namespace {
+
+TEST(Runtime, Float64OnADeviceWithoutFp64IsUnsupported) {
+  // PoCL has fp64, so pretend it has not: the check must happen before any kernel is built.
+  DeviceInfo& info = device().impl().info;
+  const bool had = info.fp64;
+  info.fp64 = false;
+  try {
+    render(device(), constant_scene(0.5f), {Precision::f64});
+    ADD_FAILURE() << "rendered in f64 on a device without fp64";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.status(), Status::unsupported);
+    EXPECT_NE(std::string(e.what()).find("no float64 support"), std::string::npos) << e.what();
+  }
+  info.fp64 = had;
 }
 
 }  // namespace

@@ -3,53 +3,18 @@
 
 #include <algorithm>
 #include <cmath>
-#include <glm/geometric.hpp>
-#include <sstream>
 
+#include "design_formulas.hpp"
 #include "test_support.hpp"
 
-namespace ivr {
+namespace ivr::test {
 namespace {
 
 constexpr double kEps32 = 1.1920928955078125e-07;  // float32 machine epsilon
 
 // ---------------------------------------------------------------------------------------------
-// DESIGN.md formulas, re-derived here in double precision independently of the kernels.
-
-struct Ray {
-  glm::dvec3 origin, dir;
-};
-
-// The ray through the centre of pixel (x, y), row 0 at the top.
-Ray design_ray(const Camera& c, int x, int y) {
-  const glm::dvec3 fwd = glm::normalize(c.target - c.eye);
-  const glm::dvec3 right = glm::normalize(glm::cross(fwd, c.up));
-  const glm::dvec3 up = glm::cross(right, fwd);
-  const double sx = 2.0 * (x + 0.5) / c.width - 1, sy = 1 - 2.0 * (y + 0.5) / c.height;
-  const double aspect = double(c.width) / c.height;
-  if (c.projection == Projection::orthographic) {
-    const double half = 0.5 * c.ortho_height;
-    return {c.eye + sx * half * aspect * right + sy * half * up, fwd};
-  }
-  const double t = std::tan(0.5 * c.fov_y * M_PI / 180.0);
-  return {c.eye, glm::normalize(fwd + sx * t * aspect * right + sy * t * up)};
-}
-
-// Length of the ray inside the box (from its origin on), slab method; *t_far = exit distance.
-double chord(const Ray& r, const glm::dvec3& lo, const glm::dvec3& hi, double* t_far = nullptr) {
-  double t0 = 0, t1 = INFINITY;
-  for (int a = 0; a < 3; ++a) {
-    if (r.dir[a] == 0) {
-      if (r.origin[a] < lo[a] || r.origin[a] > hi[a]) return 0;
-      continue;
-    }
-    const double ta = (lo[a] - r.origin[a]) / r.dir[a], tb = (hi[a] - r.origin[a]) / r.dir[a];
-    t0 = std::max(t0, std::min(ta, tb));
-    t1 = std::min(t1, std::max(ta, tb));
-  }
-  if (t_far) *t_far = t1 > t0 ? t1 : 0;
-  return t1 > t0 ? t1 - t0 : 0;
-}
+// DESIGN.md's transfer functions, re-derived here in double precision independently of the
+// kernels (rays and chords: design_formulas.hpp).
 
 // sigma(d) and colour(d) of every TF kind exactly as DESIGN.md defines them.
 struct TfValue {
@@ -107,42 +72,6 @@ std::vector<Precision> precisions() {
   std::vector<Precision> p{Precision::f32};
   if (test::device().info().fp64) p.push_back(Precision::f64);
   return p;
-}
-const char* name(Precision p) {
-  return p == Precision::f64 ? "f64" : "f32";
-}
-
-Camera ortho(glm::dvec3 eye, glm::dvec3 up, int w, int h, double height) {
-  Camera c;
-  c.projection = Projection::orthographic;
-  c.eye = eye;
-  c.target = {0, 0, 0};
-  c.up = up;
-  c.width = w;
-  c.height = h;
-  c.ortho_height = height;
-  return c;
-}
-
-// Renders and checks the shape and that no pixel is NaN/Inf.
-Image render_checked(const Scene& s, Precision p, double step = 0) {
-  const Image img = render(test::device(), s, RenderOptions{p, step});
-  EXPECT_EQ(img.views, int(s.cameras.size()));
-  EXPECT_EQ(img.height, s.cameras[0].height);
-  EXPECT_EQ(img.width, s.cameras[0].width);
-  EXPECT_EQ(img.channels, s.channels());
-  EXPECT_EQ(img.pixels.size(), std::size_t(img.views) * img.height * img.width * img.channels);
-  const auto bad = std::count_if(img.pixels.begin(), img.pixels.end(),
-                                 [](float v) { return !std::isfinite(v); });
-  EXPECT_EQ(bad, 0) << "NaN/Inf pixels (" << name(p) << ")";
-  return img;
-}
-
-std::string where(Precision p, int v, int y, int x, double extra = NAN) {
-  std::ostringstream s;
-  s << name(p) << " view " << v << " pixel (x=" << x << ", y=" << y << ")";
-  if (!std::isnan(extra)) s << " [" << extra << "]";
-  return s.str();
 }
 
 // Constant density d in the default box of a non-cubic volume (box 0.8 x 0.6 x 1, smallest
@@ -449,4 +378,4 @@ TEST(ClosedForm, ConstantMediumDoesNotDependOnStep) {
 }
 
 }  // namespace
-}  // namespace ivr
+}  // namespace ivr::test

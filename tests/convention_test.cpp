@@ -5,85 +5,16 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
-#include <sstream>
 
+#include "design_formulas.hpp"
 #include "test_support.hpp"
 
-namespace ivr {
+namespace ivr::test {
 namespace {
 
 // Absolute tolerance on f32 images with values <= 1 and optical depths <= 1.5 along exactly
 // placed rays: a few ulp per sample plus the float store.
 constexpr double kTol = 2e-6;
-
-// ---------------------------------------------------------------------------------------------
-// DESIGN.md formulas, re-derived here in double precision independently of the kernels.
-
-struct Ray {
-  glm::dvec3 origin, dir;
-};
-
-// The ray through the centre of pixel (x, y), row 0 at the top.
-Ray design_ray(const Camera& c, int x, int y) {
-  const glm::dvec3 fwd = glm::normalize(c.target - c.eye);
-  const glm::dvec3 right = glm::normalize(glm::cross(fwd, c.up));
-  const glm::dvec3 up = glm::cross(right, fwd);
-  const double sx = 2.0 * (x + 0.5) / c.width - 1, sy = 1 - 2.0 * (y + 0.5) / c.height;
-  const double aspect = double(c.width) / c.height;
-  if (c.projection == Projection::orthographic) {
-    const double half = 0.5 * c.ortho_height;
-    return {c.eye + sx * half * aspect * right + sy * half * up, fwd};
-  }
-  const double t = std::tan(0.5 * c.fov_y * M_PI / 180.0);
-  return {c.eye, glm::normalize(fwd + sx * t * aspect * right + sy * t * up)};
-}
-
-// Length of the ray inside the box (from its origin on), slab method.
-double chord(const Ray& r, const glm::dvec3& lo, const glm::dvec3& hi) {
-  double t0 = 0, t1 = INFINITY;
-  for (int a = 0; a < 3; ++a) {
-    if (r.dir[a] == 0) {
-      if (r.origin[a] < lo[a] || r.origin[a] > hi[a]) return 0;
-      continue;
-    }
-    const double ta = (lo[a] - r.origin[a]) / r.dir[a], tb = (hi[a] - r.origin[a]) / r.dir[a];
-    t0 = std::max(t0, std::min(ta, tb));
-    t1 = std::min(t1, std::max(ta, tb));
-  }
-  return t1 > t0 ? t1 - t0 : 0;
-}
-
-Camera ortho(glm::dvec3 eye, glm::dvec3 up, int w, int h, double height) {
-  Camera c;
-  c.projection = Projection::orthographic;
-  c.eye = eye;
-  c.target = {0, 0, 0};
-  c.up = up;
-  c.width = w;
-  c.height = h;
-  c.ortho_height = height;
-  return c;
-}
-
-// Renders (f32) and checks the shape and that no pixel is NaN/Inf.
-Image render_checked(const Scene& s, double step = 0) {
-  const Image img = render(test::device(), s, RenderOptions{Precision::f32, step});
-  EXPECT_EQ(img.views, int(s.cameras.size()));
-  EXPECT_EQ(img.height, s.cameras[0].height);
-  EXPECT_EQ(img.width, s.cameras[0].width);
-  EXPECT_EQ(img.channels, s.channels());
-  EXPECT_EQ(img.pixels.size(), std::size_t(img.views) * img.height * img.width * img.channels);
-  const auto bad = std::count_if(img.pixels.begin(), img.pixels.end(),
-                                 [](float v) { return !std::isfinite(v); });
-  EXPECT_EQ(bad, 0) << "NaN/Inf pixels";
-  return img;
-}
-
-std::string where(int v, int y, int x) {
-  std::ostringstream s;
-  s << "view " << v << " pixel (x=" << x << ", y=" << y << ")";
-  return s.str();
-}
 
 // A zero volume with one voxel of density 1, absorption, sigma = a·d.
 Scene single_voxel_scene(glm::ivec3 dims, glm::ivec3 at, double a) {
@@ -162,7 +93,7 @@ TEST(Convention, SingleVoxelLandsOnTheRightPixelForEachAxis) {
   };
   for (const Case& c : cases) {
     s.cameras = {c.cam};
-    const Image img = render_checked(s, 0.5);
+    const Image img = render_checked(s, Precision::f32, 0.5);
     EXPECT_EQ(expect_single_voxel_image(s, img, 0, at), c.pixel)
         << "eye " << c.cam.eye.x << "," << c.cam.eye.y << "," << c.cam.eye.z;
     EXPECT_NEAR(img.at(0, c.pixel.y, c.pixel.x, 0), std::exp(-4.0 / 8), kTol);  // tau = a·h
@@ -191,7 +122,7 @@ TEST(Convention, ValuesSitAtCellCentres) {
   Scene s = ramp_scene();
   ASSERT_EQ(s.box_max, glm::dvec3(0.5, 0.125, 0.25));
   s.cameras = {ortho({0, 0, 2}, {0, 1, 0}, 8, 2, 0.25)};  // width 0.25·8/2 = 1
-  const Image img = render_checked(s);
+  const Image img = render_checked(s, Precision::f32);
   for (int y = 0; y < 2; ++y)
     for (int x = 0; x < 8; ++x) {
       ASSERT_NEAR(design_ray(s.cameras[0], x, y).origin.x, -0.5 + (x + 0.5) / 8, 1e-15);
@@ -205,7 +136,7 @@ TEST(Convention, ValuesSitAtCellCentres) {
 TEST(Convention, CellBoundariesSeeTheAverage) {
   Scene s = ramp_scene();
   s.cameras = {ortho({0, 0, 2}, {0, 1, 0}, 17, 1, 1.0625 / 17)};
-  const Image img = render_checked(s);
+  const Image img = render_checked(s, Precision::f32);
   auto v = [](int i) { return 0.25 + 0.125 * i; };
   for (int k = 1; k < 16; ++k) {  // k = 0 and 16 graze the faces x = ±0.5
     ASSERT_NEAR(design_ray(s.cameras[0], k, 0).origin.x, -0.5 + k / 16.0, 1e-15);
@@ -264,7 +195,7 @@ TEST(Convention, DefaultBoxSilhouetteIsNotTransposed) {
   s.tf.extinction_scale = 1.5;
   s.integrator.min_transmittance = 0;
   s.cameras = {ortho({0, 0, 2}, {0, 1, 0}, 8, 8, 1.0)};
-  const Image img = render_checked(s);
+  const Image img = render_checked(s, Precision::f32);
   for (int y = 0; y < 8; ++y)
     for (int x = 0; x < 8; ++x) {
       const double L = chord(design_ray(s.cameras[0], x, y), s.box_min, s.box_max);
@@ -304,7 +235,7 @@ TEST(Convention, PerspectiveCornerRayAndAspect) {
     const Ray corner = design_ray(cam, 0, 0);
     const glm::dvec3 at_z0 = corner.origin + (2 / -corner.dir.z) * corner.dir;
     ASSERT_NEAR(glm::length(at_z0 - c.hit), 0, 1e-12);  // the hand value matches DESIGN.md's ray
-    const Image img = render_checked(s);
+    const Image img = render_checked(s, Precision::f32);
     for (int y = 0; y < c.h; ++y)
       for (int x = 0; x < c.w; ++x) {
         const double L = chord(design_ray(cam, x, y), s.box_min, s.box_max);
@@ -326,7 +257,7 @@ TEST(Convention, ViewsComeOutInCameraOrderAndNpyShape) {
                ortho({2, 0, 0}, {0, 1, 0}, 4, 4, 1),    // dark at (col Z-1-z=2, row 3)
                ortho({0, 2, 0}, {0, 0, -1}, 4, 4, 1)};  // dark at (x=3, row z=1)
   const glm::ivec2 want[] = {{3, 3}, {2, 3}, {3, 1}};
-  const Image img = render_checked(s, 0.5);
+  const Image img = render_checked(s, Precision::f32, 0.5);
   ASSERT_EQ(img.views, 3);
   ASSERT_EQ(img.channels, 1);
   for (int v = 0; v < 3; ++v)
@@ -343,7 +274,7 @@ TEST(Convention, ViewsComeOutInCameraOrderAndNpyShape) {
   // Emission–absorption gives four channels in the same layout.
   s.model = Model::emission_absorption;
   s.cameras.resize(2);
-  const Image rgba = render_checked(s, 0.5);
+  const Image rgba = render_checked(s, Precision::f32, 0.5);
   save_image_npy(path, rgba);
   EXPECT_EQ(load_npy(path).shape, (std::vector<std::size_t>{2, 4, 4, 4}));
 }
@@ -414,7 +345,7 @@ TEST(Convention, PngAndExrReadBackThroughOpenImageIO) {
     s.tf.color_scale = 3;
     // Misses show the background: > 1 (clamped), mid-grey and tiny (linear sRGB segment).
     s.background = m == Model::absorption ? glm::dvec3(1.5) : glm::dvec3(1.5, 0.4, 0.002);
-    const Image img = render_checked(s);
+    const Image img = render_checked(s, Precision::f32);
     for (int view : {0, 1}) {
       const std::string stem = dir + "/m" + std::to_string(int(m)) + "v" + std::to_string(view);
       save_image_file(stem + ".png", img, view);
@@ -450,4 +381,4 @@ TEST(Convention, PngAndExrReadBackThroughOpenImageIO) {
 }
 
 }  // namespace
-}  // namespace ivr
+}  // namespace ivr::test

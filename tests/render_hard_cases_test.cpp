@@ -17,33 +17,23 @@ namespace {
 
 using reference::all_finite;
 using reference::close;
+using test::name;
+using test::render_at;
 
-Image render_at(const Scene& scene, Precision precision, double step,
-                RenderStats* stats = nullptr) {
-  RenderOptions o;
-  o.precision = precision;
-  o.step = step;
-  return render(test::device(), scene, o, stats);
-}
-
-const char* name(Precision p) {
-  return p == Precision::f64 ? "f64" : "f32";
-}
-
+// test::constant_scene (default box, identity TF, one square image, no early termination) with
+// a smooth anisotropic volume and a narrow perspective view instead.
 Scene smooth_scene(int n, Model model, int image) {
-  Scene s;
+  Scene s = test::constant_scene(0.f, 1, image);
   s.volume = reference::smooth_volume(n + 2, n, n - 1, 5);
   s.volume.spacing = {1.0, 1.2, 1.4};
   set_default_box(s);
   s.model = model;
-  s.tf.kind = TfKind::identity;
   s.background = glm::dvec3(0.2, 0.3, 0.4);
-  Camera c;
+  Camera& c = s.cameras[0];
+  c = Camera{};  // perspective, looking at the origin
   c.eye = {0.3, 0.7, 1.9};
   c.fov_y = 20;
   c.width = c.height = image;
-  s.cameras = {c};
-  s.integrator.min_transmittance = 0;
   return s;
 }
 

@@ -18,6 +18,8 @@ namespace ivr {
 namespace {
 
 using reference::close;
+using test::name;
+using test::render_at;
 
 TransferFunction make_tf(TfKind kind) {
   TransferFunction tf;
@@ -71,18 +73,6 @@ Scene smooth_scene(TfKind kind, Model model, Projection projection) {
   }
   s.integrator.min_transmittance = 0;
   return s;
-}
-
-const char* name(Precision p) {
-  return p == Precision::f64 ? "f64" : "f32";
-}
-
-Image render_at(const Scene& scene, Precision precision, double step,
-                RenderStats* stats = nullptr) {
-  RenderOptions o;
-  o.precision = precision;
-  o.step = step;
-  return render(test::device(), scene, o, stats);
 }
 
 // Kernel step (voxels) for the accuracy comparisons: fine enough that its O(step^2) error, TF and

@@ -1,8 +1,10 @@
 // test_support.cpp — temp folders, scene builders, the shared device and running the CLI.
 #include "test_support.hpp"
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -54,6 +56,55 @@ Scene constant_scene(float density, int n, int image) {
   s.cameras = {c};
   s.integrator.min_transmittance = 0;
   return s;
+}
+
+Camera ortho(glm::dvec3 eye, glm::dvec3 up, int w, int h, double height) {
+  Camera c;
+  c.projection = Projection::orthographic;
+  c.eye = eye;
+  c.target = {0, 0, 0};
+  c.up = up;
+  c.width = w;
+  c.height = h;
+  c.ortho_height = height;
+  return c;
+}
+
+const char* name(Precision p) {
+  return p == Precision::f64 ? "f64" : "f32";
+}
+
+Image render_at(const Scene& scene, Precision precision, double step, RenderStats* stats) {
+  RenderOptions o;
+  o.precision = precision;
+  o.step = step;
+  return render(device(), scene, o, stats);
+}
+
+Image render_checked(const Scene& s, Precision p, double step) {
+  const Image img = render_at(s, p, step);
+  EXPECT_EQ(img.views, int(s.cameras.size()));
+  EXPECT_EQ(img.height, s.cameras[0].height);
+  EXPECT_EQ(img.width, s.cameras[0].width);
+  EXPECT_EQ(img.channels, s.channels());
+  EXPECT_EQ(img.pixels.size(), std::size_t(img.views) * img.height * img.width * img.channels);
+  const auto bad = std::count_if(img.pixels.begin(), img.pixels.end(),
+                                 [](float v) { return !std::isfinite(v); });
+  EXPECT_EQ(bad, 0) << "NaN/Inf pixels (" << name(p) << ")";
+  return img;
+}
+
+std::string where(int v, int y, int x) {
+  std::ostringstream s;
+  s << "view " << v << " pixel (x=" << x << ", y=" << y << ")";
+  return s.str();
+}
+
+std::string where(Precision p, int v, int y, int x, double extra) {
+  std::ostringstream s;
+  s << name(p) << " " << where(v, y, x);
+  if (!std::isnan(extra)) s << " [" << extra << "]";
+  return s.str();
 }
 
 CliResult run_cli(const std::string& args, const std::string& env) {

@@ -1,5 +1,6 @@
 // test_support.hpp — shared helpers for the test suite: temp folders, scene builders, the CLI.
 #pragma once
+#include <cmath>
 #include <string>
 
 #include "ivr/ivr.hpp"
@@ -18,6 +19,22 @@ Device& device();
 // A scene of a constant-density volume filling the default unit box, one orthographic camera
 // looking down -z through the whole box, identity TF. Tests tweak fields from here.
 Scene constant_scene(float density, int n = 4, int image = 8);
+
+// An orthographic w x h camera at eye looking at the origin, `height` world units tall.
+Camera ortho(glm::dvec3 eye, glm::dvec3 up, int w, int h, double height);
+
+// "f32" or "f64", for failure messages.
+const char* name(Precision p);
+
+// Renders on the shared device at the given precision and step (voxels; 0: the scene's own).
+Image render_at(const Scene& scene, Precision precision, double step, RenderStats* stats = nullptr);
+
+// render_at, then checks the image shape and that no pixel is NaN/Inf (non-fatal failures).
+Image render_checked(const Scene& s, Precision p, double step = 0);
+
+// "view v pixel (x=.., y=..)", optionally prefixed by the precision and followed by " [extra]".
+std::string where(int v, int y, int x);
+std::string where(Precision p, int v, int y, int x, double extra = NAN);
 
 // Runs the ivr CLI with the arguments (a shell-quoted string); captures stdout and stderr.
 struct CliResult {

@@ -1,5 +1,6 @@
 // render_command.cpp — `ivr render SCENE.json -o OUT`: renders every view to .npy or images.
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 
@@ -47,9 +48,9 @@ Runner add_render_command(CLI::App& app) {
       ->required();
   cmd->add_option("--device", args->device, "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
   cmd->add_option("--precision", args->precision, "Arithmetic precision")->check(CLI::IsMember({"f32", "f64"}));
-  cmd->add_option("--step", args->step, "Integrator step in voxel units (overrides the scene)");
+  CLI::Option* step = cmd->add_option("--step", args->step, "Integrator step in voxel units (overrides the scene)");
   cmd->add_flag("--json", args->json, "Print one JSON object with device, timings and sample counts");
-  return [args] {
+  return [args, step] {
     // Check the output name before any work, so that a bad name wastes nothing and writes nothing.
     const std::string ext = lower_ext(args->output);
     if (ext != ".npy" && ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff")
@@ -58,7 +59,7 @@ Runner add_render_command(CLI::App& app) {
     const fs::path folder = fs::path(args->output).has_parent_path() ? fs::path(args->output).parent_path() : ".";
     if (!fs::is_directory(folder))
       throw Error(Status::io, "output folder '" + folder.string() + "' does not exist");
-    if (args->step != 0 && !(args->step > 0))
+    if (step->count() > 0 && !(args->step > 0 && std::isfinite(args->step)))
       throw Error(Status::invalid_argument, "--step must be > 0, got " + std::to_string(args->step));
 
     const Scene scene = load_scene(args->scene);

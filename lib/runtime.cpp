@@ -161,8 +161,11 @@ std::vector<Found> discover() {
   return found;
 }
 
-bool all_digits(const std::string& s) {
-  return !s.empty() && std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c); });
+// A non-negative index written in decimal, or -1 if `s` is not one (or absurdly large).
+int parse_index(const std::string& s) {
+  if (s.empty() || s.size() > 6 || !std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c); }))
+    return -1;
+  return std::stoi(s);
 }
 
 const Found& select(const std::vector<Found>& all, const std::string& selector_in) {
@@ -182,12 +185,12 @@ const Found& select(const std::vector<Found>& all, const std::string& selector_i
   }
   const std::string key = lower(selector);
   const std::size_t colon = key.find(':');
+  const int index = parse_index(key);
+  const int platform = colon == std::string::npos ? -1 : parse_index(key.substr(0, colon));
+  const int device = colon == std::string::npos ? -1 : parse_index(key.substr(colon + 1));
   for (const Found& f : all) {
-    if (all_digits(key) && f.info.index == std::stoi(key)) return f;
-    if (colon != std::string::npos && all_digits(key.substr(0, colon)) &&
-        all_digits(key.substr(colon + 1)) && f.info.platform_index == std::stoi(key.substr(0, colon)) &&
-        f.info.device_index == std::stoi(key.substr(colon + 1)))
-      return f;
+    if (index >= 0 && f.info.index == index) return f;
+    if (platform >= 0 && device >= 0 && f.info.platform_index == platform && f.info.device_index == device) return f;
     if (key == f.info.type) return f;
   }
   for (const Found& f : all)

@@ -149,6 +149,7 @@ TEST_F(CliErrors, Steps) {
     EXPECT_NE(expect_failure(j).find("integrator.step: must be > 0"), std::string::npos) << step;
   }
   EXPECT_NE(expect_failure(scene_, "--step -0.5").find("--step must be > 0"), std::string::npos);
+  EXPECT_NE(expect_failure(scene_, "--step 0").find("--step must be > 0"), std::string::npos);
   EXPECT_NE(expect_failure(scene_, "--step 1e-12").find("samples per ray"), std::string::npos);
 }
 
@@ -194,6 +195,8 @@ TEST_F(CliErrors, NoMatchingDevice) {
   EXPECT_NE(err.find("no OpenCL device matches device selector 'no-such-device-xyz'"), std::string::npos) << err;
   err = expect_failure(scene_.dump(), "", "IVR_DEVICE=99");
   EXPECT_NE(err.find("IVR_DEVICE '99'"), std::string::npos) << err;
+  err = expect_failure(scene_.dump(), "--device 99999999999999999999");
+  EXPECT_NE(err.find("no OpenCL device matches"), std::string::npos) << err;
 }
 
 TEST_F(CliErrors, KernelBuildFailureCarriesTheLog) {

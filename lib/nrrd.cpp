@@ -1,8 +1,6 @@
 // nrrd.cpp — NRRD volumes: header parsing, detached data files, raw/gzip/ascii encodings.
 #include "nrrd.hpp"
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -16,6 +14,7 @@
 #include <type_traits>
 
 #include "files.hpp"
+#include "gzip.hpp"
 #include "ivr/error.hpp"
 
 namespace ivr::volfile {
@@ -126,49 +125,6 @@ std::vector<std::optional<double>> axis_spacings(const std::map<std::string, std
   for (const auto& s : result)
     if (s && *s == 0) fail(path, "NRRD states a zero spacing");
   return result;
-}
-
-// Decompresses gzip data (concatenated members too) into `want` bytes. It inflates on to the end
-// of the member that completes the data, so the CRC is checked; extra output is discarded. The
-// buffer grows as data arrives, so a lying header cannot allocate memory the data does not fill.
-std::vector<unsigned char> gunzip(const unsigned char* data, std::size_t size, std::size_t want,
-                                  const std::string& path) {
-  z_stream zs{};
-  if (inflateInit2(&zs, 16 + MAX_WBITS) != Z_OK) fail(path, "cannot initialise zlib to read");
-  struct End {
-    z_stream* z;
-    ~End() { inflateEnd(z); }
-  } end{&zs};
-  std::vector<unsigned char> out(std::min(want, std::max<std::size_t>(1 << 20, size * 4)));
-  unsigned char spill[16384];
-  std::size_t in_done = 0, produced = 0;
-  constexpr std::size_t kChunk = std::size_t(1) << 30;  // z_stream counts are 32-bit
-  while (true) {
-    if (produced == out.size() && out.size() < want) out.resize(std::min(want, out.size() * 2));
-    const bool full = produced == want;
-    zs.next_in = const_cast<Bytef*>(data + in_done);
-    zs.avail_in = uInt(std::min(size - in_done, kChunk));
-    zs.next_out = full ? spill : out.data() + produced;
-    zs.avail_out = uInt(full ? sizeof(spill) : std::min(out.size() - produced, kChunk));
-    const uInt in_before = zs.avail_in, out_before = zs.avail_out;
-    const int ret = inflate(&zs, Z_NO_FLUSH);
-    in_done += in_before - zs.avail_in;
-    if (!full) produced += out_before - zs.avail_out;
-    if (ret == Z_STREAM_END) {
-      if (produced == want || in_done == size) break;
-      inflateReset(&zs);  // another gzip member follows
-    } else if (ret == Z_BUF_ERROR && in_done == size) {
-      fail(path, "truncated gzip data in NRRD (the stream ends after " + std::to_string(produced) +
-                     " of the " + std::to_string(want) + " bytes the header needs)");
-    } else if (ret != Z_OK) {
-      const std::string why = zs.msg ? zs.msg : "zlib error " + std::to_string(ret);
-      fail(path, "corrupted gzip data in NRRD (" + why + ")");
-    }
-  }
-  if (produced < want)
-    fail(path, "truncated gzip data in NRRD (it inflates to " + std::to_string(produced) +
-                   " bytes but the header needs " + std::to_string(want) + ")");
-  return out;
 }
 
 // Parses whitespace (or comma) separated numbers into `count` elements of `type`, host order.
@@ -388,8 +344,8 @@ TypedArray read_nrrd(const std::string& path) {
     a.bytes = std::move(file);
     a.offset = pos;
   } else if (enc == gzip) {
-    a.bytes =
-        gunzip(file.data() + pos, file.size() - pos, std::size_t(byte_skip) + need, data_path);
+    a.bytes = gunzip(file.data() + pos, file.size() - pos, std::size_t(byte_skip) + need, data_path,
+                     "NRRD");
     a.offset = std::size_t(byte_skip);
   } else {
     a.bytes = parse_ascii(file.data() + pos, file.size() - pos, count, a.type, data_path);

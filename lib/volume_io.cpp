@@ -11,6 +11,7 @@
 
 #include "files.hpp"
 #include "ivr/error.hpp"
+#include "nifti.hpp"
 #include "npy.hpp"
 #include "nrrd.hpp"
 
@@ -37,25 +38,31 @@ std::string dims_text(long long x, long long y, long long z) {
   return std::to_string(x) + "x" + std::to_string(y) + "x" + std::to_string(z);
 }
 
-// "npy", "nrrd", "raw" or "cvol", from `format` when given, else from the extension.
+// "npy", "nrrd", "nifti", "raw" or "cvol", from `format` when given, else from the extension.
 std::string format_of(const VolumeSource& s) {
   std::string f = lower(s.format);
   if (!f.empty() && f[0] == '.') f.erase(0, 1);
   if (!f.empty()) {
-    if (f == "npy" || f == "nrrd" || f == "raw" || f == "cvol") return f;
+    if (f == "npy" || f == "nrrd" || f == "nifti" || f == "raw" || f == "cvol") return f;
     if (f == "nhdr") return "nrrd";
+    if (f == "nii" || f == "nii.gz") return "nifti";
     throw Error(Status::invalid_argument, "unknown volume format '" + s.format +
-                                              "' (use npy, nrrd, nhdr, raw or cvol): '" + s.path +
-                                              "'");
+                                              "' (use npy, nrrd, nhdr, nifti, raw or cvol): '" +
+                                              s.path + "'");
   }
-  const std::string ext = lower(std::filesystem::path(s.path).extension().string());
+  const std::filesystem::path p(s.path);
+  const std::string ext = lower(p.extension().string());
+  // .nii.gz and .hdr.gz: the extension before ".gz" decides (gzip is detected by its magic).
+  const std::string inner = ext == ".gz" ? lower(p.stem().extension().string()) : ext;
   if (ext == ".npy") return "npy";
   if (ext == ".nrrd" || ext == ".nhdr") return "nrrd";
+  if (inner == ".nii" || inner == ".hdr") return "nifti";
   if (ext == ".raw") return "raw";
   if (ext == ".cvol") return "cvol";
-  throw Error(Status::invalid_argument,
-              "cannot tell the volume format from the extension '" + ext +
-                  "' (use .npy, .nrrd, .nhdr, .raw or .cvol, or give a format): '" + s.path + "'");
+  throw Error(Status::invalid_argument, "cannot tell the volume format from the extension '" + ext +
+                                            "' (use .npy, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .raw "
+                                            "or .cvol, or give a format): '" +
+                                            s.path + "'");
 }
 
 TypedArray read_raw(const VolumeSource& s) {
@@ -272,6 +279,8 @@ Volume load_volume(const VolumeSource& source) {
     a = volfile::read_npy(source.path);
   } else if (format == "nrrd") {
     a = volfile::read_nrrd(source.path);
+  } else if (format == "nifti") {
+    a = volfile::read_nifti(source.path);
   } else if (format == "raw") {
     a = read_raw(source);
   } else {

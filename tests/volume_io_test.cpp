@@ -600,8 +600,8 @@ TEST_F(VolumeIoTest, BadCvolAndUnknownExtension) {
   load_error(magic, Status::io, {"magic"});
   const std::string zero = write("0.cvol", cvol(2, 0, 4, 1, 1, 1, 0, ""));
   load_error(zero, Status::invalid_argument, {"2x0x4"});
-  const std::string nii = write("brain.nii.gz", "not read");
-  load_error(nii, Status::invalid_argument, {"'.gz'", "extension"});
+  const std::string vti = write("brain.vti.gz", "not read");
+  load_error(vti, Status::invalid_argument, {"'.gz'", "extension"});
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// ivr/volume_io.hpp — reading density volumes (.npy, NRRD, raw, DiffDVR .cvol) and writing .npy.
+// ivr/volume_io.hpp — reading volumes (.npy, NRRD, NIfTI-1, raw, DiffDVR .cvol), writing .npy.
 #pragma once
 #include <optional>
 #include <string>
@@ -15,9 +15,11 @@ namespace ivr {
 // How to read a volume file. For raw files dims and type are required; for the other formats
 // they come from the file's header. Integer data maps to [0, 1] by its type's range unless
 // `range` is given (then d = (v - lo) / (hi - lo)). `spacing` overrides the file's spacing.
+// NIfTI data with a scl_slope (other than 0 or 1 with scl_inter 0) is scaled to float as it is
+// read, so it is used as is, or mapped by `range`.
 struct VolumeSource {
   std::string path;
-  std::string format;  // "" = from the extension: .npy, .nrrd/.nhdr, .raw, .cvol
+  std::string format;  // "" = from the extension: .npy, .nrrd/.nhdr, .nii(.gz)/.hdr, .raw, .cvol
   std::optional<glm::ivec3> dims;  // raw: (X, Y, Z)
   std::string type;                // raw: uint8, int8, uint16, int16, uint32, int32, float32, float64
   std::string endian = "little";   // raw: little or big

@@ -35,18 +35,21 @@ inline void slab(float o, float d, float lo, float hi, float& t0, float& t1) {
   }
 }
 
+inline float lerp(float a, float b, float t) { return a + (b - a) * t; }
+
+// As kernels/geometry.cl's trilinear_at: clamped to the edge centres, one base address and the
+// neighbours' offsets (0 on the clamped upper edge).
 inline float trilinear(const float* vol, int nx, int ny, int nz, V3 u) {
   u.x = std::clamp(u.x, 0.f, float(nx - 1));
   u.y = std::clamp(u.y, 0.f, float(ny - 1));
   u.z = std::clamp(u.z, 0.f, float(nz - 1));
   const int x0 = int(u.x), y0 = int(u.y), z0 = int(u.z);
-  const int x1 = std::min(x0 + 1, nx - 1), y1 = std::min(y0 + 1, ny - 1), z1 = std::min(z0 + 1, nz - 1);
   const float fx = u.x - x0, fy = u.y - y0, fz = u.z - z0;
-  const std::size_t sxy = std::size_t(nx) * ny;
-  auto at = [&](int x, int y, int z) { return vol[z * sxy + std::size_t(y) * nx + x]; };
-  auto lerp = [](float a, float b, float t) { return a + (b - a) * t; };
-  const float c00 = lerp(at(x0, y0, z0), at(x1, y0, z0), fx), c10 = lerp(at(x0, y1, z0), at(x1, y1, z0), fx);
-  const float c01 = lerp(at(x0, y0, z1), at(x1, y0, z1), fx), c11 = lerp(at(x0, y1, z1), at(x1, y1, z1), fx);
+  const std::ptrdiff_t sxy = std::ptrdiff_t(nx) * ny;
+  const std::ptrdiff_t ox = x0 + 1 < nx ? 1 : 0, oy = y0 + 1 < ny ? nx : 0, oz = z0 + 1 < nz ? sxy : 0;
+  const float* p = vol + (z0 * sxy + std::ptrdiff_t(y0) * nx + x0);
+  const float c00 = lerp(p[0], p[ox], fx), c10 = lerp(p[oy], p[oy + ox], fx);
+  const float c01 = lerp(p[oz], p[oz + ox], fx), c11 = lerp(p[oz + oy], p[oz + oy + ox], fx);
   return lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz);
 }
 
@@ -91,6 +94,7 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
           const unsigned n = std::max(1u, unsigned(std::ceil(length / step)));
           const float dt = length / float(n);
           const V3 u0 = mul(eye - bmin, inv_h) + V3{-0.5f, -0.5f, -0.5f}, du = mul(dir, inv_h);
+          int segment = 0;  // the TF search's cursor, carried along the ray as in kernels/tf.cl
           for (unsigned i = 0; i < n; ++i) {
             const float t = t0 + (float(i) + 0.5f) * dt;
             const float d = trilinear(vol.data.data(), vol.nx, vol.ny, vol.nz, u0 + t * du);
@@ -100,21 +104,30 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
             if (d >= tf[n_points - 1].d) {
               a = b = &tf[n_points - 1];
             } else if (d > tf[0].d) {
-              int k = 0;
+              int k = segment;
+              while (k > 0 && tf[k].d > d) --k;
               while (tf[k + 1].d <= d) ++k;
+              segment = k;
               a = &tf[k];
               b = &tf[k + 1];
               w = (d - a->d) / (b->d - a->d);
             }
-            const float sigma = a->sigma + (b->sigma - a->sigma) * w;
+            const float sigma = lerp(a->sigma, b->sigma, w);
             const float tau = sigma * dt;
-            const float decay = std::exp(-tau);  // the kernel's float32 arithmetic, see render.cl
-            const float frac = tau < 0.1f ? 1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120))))
-                                          : (1.0f - decay) / tau;
+            // The kernel's float32 arithmetic (kernels/render.cl, decay_and_fraction): a series and
+            // exp(-tau) = 1 - tau·frac below 0.1, one exp above.
+            float decay, frac;
+            if (tau < 0.1f) {
+              frac = 1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120))));
+              decay = 1.0f - tau * frac;
+            } else {
+              decay = std::exp(-tau);
+              frac = (1.0f - decay) / tau;
+            }
             const float k = T * dt * frac * sigma;
-            cr += k * (a->r + (b->r - a->r) * w);
-            cg += k * (a->g + (b->g - a->g) * w);
-            cb += k * (a->b + (b->b - a->b) * w);
+            cr += k * lerp(a->r, b->r, w);
+            cg += k * lerp(a->g, b->g, w);
+            cb += k * lerp(a->b, b->b, w);
             T *= decay;
             ++total;
             if (T < min_t) break;

@@ -51,20 +51,30 @@ inline bool clip_box(Ray r, real3 bmin, real3 bmax, real* t0, real* t1) {
   return *t0 < *t1;
 }
 
-// Trilinear density at continuous voxel coordinates u (voxel centre i at u = i), clamped to the
-// edge centres: the value is constant in the outer half-voxel.
-inline real trilinear(__global const real* vol, int4 dims, real3 u) {
-  u = clamp(u, (real3)(0), convert_real3(dims.xyz - 1));
-  const int3 i0 = convert_int3(u);  // u >= 0, so truncation is floor
-  const int3 i1 = min(i0 + 1, dims.xyz - 1);
-  const real3 f = u - convert_real3(i0);
+// Trilinear density at continuous voxel coordinates (ux, uy, uz) (voxel centre i at u = i),
+// clamped to the edge centres: the value is constant in the outer half-voxel. Scalar on purpose:
+// PoCL compiles float3 arithmetic into 4-wide vectors plus lane shuffles.
+__attribute__((always_inline)) inline real trilinear_at(__global const real* vol, int4 dims, real ux, real uy,
+                                                         real uz) {
+  ux = fmin(fmax(ux, (real)0), (real)(dims.x - 1));
+  uy = fmin(fmax(uy, (real)0), (real)(dims.y - 1));
+  uz = fmin(fmax(uz, (real)0), (real)(dims.z - 1));
+  const int ix = (int)ux, iy = (int)uy, iz = (int)uz;  // u >= 0, so truncation is floor
+  const real fx = ux - (real)ix, fy = uy - (real)iy, fz = uz - (real)iz;
   const int sx = dims.x, sxy = dims.x * dims.y;
-  const int z0 = i0.z * sxy, z1 = i1.z * sxy, y0 = i0.y * sx, y1 = i1.y * sx;
-  const real c00 = mix(vol[z0 + y0 + i0.x], vol[z0 + y0 + i1.x], f.x);
-  const real c10 = mix(vol[z0 + y1 + i0.x], vol[z0 + y1 + i1.x], f.x);
-  const real c01 = mix(vol[z1 + y0 + i0.x], vol[z1 + y0 + i1.x], f.x);
-  const real c11 = mix(vol[z1 + y1 + i0.x], vol[z1 + y1 + i1.x], f.x);
-  return mix(mix(c00, c10, f.y), mix(c01, c11, f.y), f.z);
+  // One base address and the neighbours' offsets (0 on the clamped upper edge).
+  const int ox = ix + 1 < dims.x ? 1 : 0;
+  const int oy = iy + 1 < dims.y ? sx : 0;
+  const int oz = iz + 1 < dims.z ? sxy : 0;
+  __global const real* p = vol + (iz * sxy + iy * sx + ix);
+  const real c00 = lerp(p[0], p[ox], fx);
+  const real c10 = lerp(p[oy], p[oy + ox], fx);
+  const real c01 = lerp(p[oz], p[oz + ox], fx);
+  const real c11 = lerp(p[oz + oy], p[oz + oy + ox], fx);
+  return lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz);
 }
+
+// Trilinear density at continuous voxel coordinates u.
+inline real trilinear(__global const real* vol, int4 dims, real3 u) { return trilinear_at(vol, dims, u.x, u.y, u.z); }
 
 #endif

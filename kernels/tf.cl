@@ -13,11 +13,18 @@
 #define IVR_TF_STRIDE_TABLE 4
 #define IVR_TF_STRIDE_GAUSSIAN 6
 
-inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, real3* emission) {
+// sigma(d), and with IVR_EMISSION the premultiplied emission in (*er, *eg, *eb). Scalars rather
+// than real3 because PoCL compiles real3 into padded 4-wide vectors with lane shuffles around them.
+// *segment is the piecewise-linear search's cursor: a marching loop starts it at 0 and passes it
+// from one sample to the next; densities along a ray are continuous, so the search mostly stays
+// put or moves one segment instead of scanning from the first point. The segment found, and so
+// the value, is the same from any start. Other kinds ignore it.
+__attribute__((always_inline)) inline real tf_sample(real d, __global const real* tf, int count, real4 scalars,
+                                                      int* segment, real* er, real* eg, real* eb) {
 #if IVR_TF == IVR_TF_IDENTITY
   const real sigma = scalars.x * d;
 #if IVR_EMISSION
-  *emission = (real3)(sigma * scalars.y * d);
+  *er = *eg = *eb = sigma * scalars.y * d;
 #endif
   return sigma;
 
@@ -28,16 +35,20 @@ inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, r
   real w = (real)0;
   if (d >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
     a = b = tf + (count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR;
-  } else if (d > tf[0]) {
-    int k = 0;
+  } else if (d > tf[0]) {  // so count >= 2, and the k with d_k <= d < d_k+1 exists
+    int k = *segment;
+    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
     while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
+    *segment = k;
     a = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
     b = a + IVR_TF_STRIDE_PIECEWISE_LINEAR;
     w = (d - a[0]) / (b[0] - a[0]);  // b[0] > d >= a[0], never zero
   }
-  const real sigma = mix(a[4], b[4], w);
+  const real sigma = lerp(a[4], b[4], w);
 #if IVR_EMISSION
-  *emission = sigma * mix((real3)(a[1], a[2], a[3]), (real3)(b[1], b[2], b[3]), w);
+  *er = sigma * lerp(a[1], b[1], w);
+  *eg = sigma * lerp(a[2], b[2], w);
+  *eb = sigma * lerp(a[3], b[3], w);
 #endif
   return sigma;
 
@@ -49,33 +60,50 @@ inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, r
   const real w = u - (real)i0;
   __global const real* a = tf + i0 * IVR_TF_STRIDE_TABLE;
   __global const real* b = tf + i1 * IVR_TF_STRIDE_TABLE;
-  const real sigma = mix(a[3], b[3], w);
+  const real sigma = lerp(a[3], b[3], w);
 #if IVR_EMISSION
-  *emission = sigma * mix((real3)(a[0], a[1], a[2]), (real3)(b[0], b[1], b[2]), w);
+  *er = sigma * lerp(a[0], b[0], w);
+  *eg = sigma * lerp(a[1], b[1], w);
+  *eb = sigma * lerp(a[2], b[2], w);
 #endif
   return sigma;
 
 #elif IVR_TF == IVR_TF_GAUSSIAN
   real sigma = (real)0;
 #if IVR_EMISSION
-  real3 e = (real3)(0);
+  real r = (real)0, g = (real)0, bl = (real)0;
 #endif
   for (int k = 0; k < count; ++k) {
-    __global const real* g = tf + k * IVR_TF_STRIDE_GAUSSIAN;
-    const real z = (d - g[0]) / g[1];
-    const real s = g[5] * exp((real)-0.5 * z * z);
+    __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
+    const real z = (d - p[0]) / p[1];
+    const real s = p[5] * exp((real)-0.5 * z * z);
     sigma += s;
 #if IVR_EMISSION
-    e += s * (real3)(g[2], g[3], g[4]);
+    r += s * p[2];
+    g += s * p[3];
+    bl += s * p[4];
 #endif
   }
 #if IVR_EMISSION
-  *emission = e;
+  *er = r;
+  *eg = g;
+  *eb = bl;
 #endif
   return sigma;
 #else
 #error "unknown IVR_TF"
 #endif
+}
+
+// sigma(d), and with IVR_EMISSION the premultiplied emission in *emission (absorption: untouched).
+inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, real3* emission) {
+  int segment = 0;
+  real r, g, b;
+  const real sigma = tf_sample(d, tf, count, scalars, &segment, &r, &g, &b);
+#if IVR_EMISSION
+  *emission = (real3)(r, g, b);
+#endif
+  return sigma;
 }
 
 #endif

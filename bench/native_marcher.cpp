@@ -4,9 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
-
 #include <glm/geometric.hpp>
+#include <stdexcept>
 
 namespace ivr::bench {
 
@@ -15,11 +14,21 @@ namespace {
 struct V3 {
   float x, y, z;
 };
-inline V3 operator+(V3 a, V3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline V3 operator-(V3 a, V3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline V3 operator*(float s, V3 a) { return {s * a.x, s * a.y, s * a.z}; }
-inline V3 mul(V3 a, V3 b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
-V3 v3(const glm::dvec3& v) { return {float(v.x), float(v.y), float(v.z)}; }
+inline V3 operator+(V3 a, V3 b) {
+  return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+inline V3 operator-(V3 a, V3 b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+inline V3 operator*(float s, V3 a) {
+  return {s * a.x, s * a.y, s * a.z};
+}
+inline V3 mul(V3 a, V3 b) {
+  return {a.x * b.x, a.y * b.y, a.z * b.z};
+}
+V3 v3(const glm::dvec3& v) {
+  return {float(v.x), float(v.y), float(v.z)};
+}
 
 struct Point {
   float d, r, g, b, sigma;
@@ -35,7 +44,9 @@ inline void slab(float o, float d, float lo, float hi, float& t0, float& t1) {
   }
 }
 
-inline float lerp(float a, float b, float t) { return a + (b - a) * t; }
+inline float lerp(float a, float b, float t) {
+  return a + (b - a) * t;
+}
 
 // As kernels/geometry.cl's trilinear_at: clamped to the edge centres, one base address and the
 // neighbours' offsets (0 on the clamped upper edge).
@@ -46,7 +57,8 @@ inline float trilinear(const float* vol, int nx, int ny, int nz, V3 u) {
   const int x0 = int(u.x), y0 = int(u.y), z0 = int(u.z);
   const float fx = u.x - x0, fy = u.y - y0, fz = u.z - z0;
   const std::ptrdiff_t sxy = std::ptrdiff_t(nx) * ny;
-  const std::ptrdiff_t ox = x0 + 1 < nx ? 1 : 0, oy = y0 + 1 < ny ? nx : 0, oz = z0 + 1 < nz ? sxy : 0;
+  const std::ptrdiff_t ox = x0 + 1 < nx ? 1 : 0, oy = y0 + 1 < ny ? nx : 0,
+                       oz = z0 + 1 < nz ? sxy : 0;
   const float* p = vol + (z0 * sxy + std::ptrdiff_t(y0) * nx + x0);
   const float c00 = lerp(p[0], p[ox], fx), c10 = lerp(p[oy], p[oy + ox], fx);
   const float c01 = lerp(p[oz], p[oz + ox], fx), c11 = lerp(p[oz + oy], p[oz + oy + ox], fx);
@@ -57,10 +69,12 @@ inline float trilinear(const float* vol, int nx, int ny, int nz, V3 u) {
 
 std::size_t native_render(const Scene& scene, double step_voxels, std::vector<float>& image) {
   if (scene.model != Model::emission_absorption || scene.tf.kind != TfKind::piecewise_linear)
-    throw std::runtime_error("the native baseline renders emission_absorption with piecewise_linear only");
+    throw std::runtime_error(
+        "the native baseline renders emission_absorption with piecewise_linear only");
   std::vector<Point> tf;
   for (const TfPoint& p : scene.tf.points)
-    tf.push_back({float(p.density), float(p.color.x), float(p.color.y), float(p.color.z), float(p.extinction)});
+    tf.push_back({float(p.density), float(p.color.x), float(p.color.y), float(p.color.z),
+                  float(p.extinction)});
   const int n_points = int(tf.size());
   const Volume& vol = scene.volume;
   const glm::dvec3 h = scene.voxel_size();
@@ -68,13 +82,15 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
   const V3 bmin = v3(scene.box_min), bmax = v3(scene.box_max), inv_h = v3(1.0 / h);
   const V3 bg = v3(scene.effective_background());
   const float min_t = float(scene.integrator.min_transmittance);
-  const int W = scene.cameras[0].width, H = scene.cameras[0].height, views = int(scene.cameras.size());
+  const int W = scene.cameras[0].width, H = scene.cameras[0].height,
+            views = int(scene.cameras.size());
   image.assign(std::size_t(views) * W * H * 4, 0.f);
   std::size_t total = 0;
 
   for (int v = 0; v < views; ++v) {
     const Camera& c = scene.cameras[v];
-    const glm::dvec3 fwd = glm::normalize(c.target - c.eye), right = glm::normalize(glm::cross(fwd, c.up));
+    const glm::dvec3 fwd = glm::normalize(c.target - c.eye),
+                     right = glm::normalize(glm::cross(fwd, c.up));
     const glm::dvec3 up = glm::cross(right, fwd);
     const double half = std::tan(0.5 * c.fov_y * M_PI / 180.0);
     const V3 eye = v3(c.eye), f = v3(fwd), r = v3(half * double(W) / H * right), u = v3(half * up);
@@ -118,7 +134,8 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
             // exp(-tau) = 1 - tau·frac below 0.1, one exp above.
             float decay, frac;
             if (tau < 0.1f) {
-              frac = 1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120))));
+              frac =
+                  1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120))));
               decay = 1.0f - tau * frac;
             } else {
               decay = std::exp(-tau);

@@ -1,13 +1,12 @@
 // render_bench.cpp — forward-render benchmark: ivr vs the native C++/OpenMP marcher on the same
 // scenes (128³/256³ volumes, 256²/512² images, steps 0.5/0.25), medians of repeated runs, speed
 // next to the error against a fine-step float64 reference. Prints one JSON document.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
-
-#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "ivr/ivr.hpp"
@@ -71,8 +70,10 @@ int main(int argc, char** argv) {
   double ref_step = 1.0 / 16;
   bool quick = false;
   app.add_option("--device", device_sel, "Device selector (default: $IVR_DEVICE)");
-  app.add_option("--repeats", repeats, "Timed runs per configuration (median reported)")->check(CLI::Range(1, 100));
-  app.add_option("--reference-step", ref_step, "Step of the float64 reference in voxels (0: skip the error)");
+  app.add_option("--repeats", repeats, "Timed runs per configuration (median reported)")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--reference-step", ref_step,
+                 "Step of the float64 reference in voxels (0: skip the error)");
   app.add_option("-o,--output", out_path, "Also write the JSON here");
   app.add_flag("--quick", quick, "Only the 128³ volume and 256² image");
   CLI11_PARSE(app, argc, argv);
@@ -98,25 +99,35 @@ int main(int argc, char** argv) {
           // Interleaved, so that a burst of load from elsewhere on this shared machine hits both.
           std::vector<double> kernel_s, total_s, native_s;
           for (int r = 0; r < repeats; ++r) {
-            total_s.push_back(wall_seconds([&] { img = ivr::render(device, scene, options, &stats); }));
+            total_s.push_back(
+                wall_seconds([&] { img = ivr::render(device, scene, options, &stats); }));
             kernel_s.push_back(stats.kernel_seconds);
-            native_s.push_back(wall_seconds([&] { native_samples = ivr::bench::native_render(scene, step, native); }));
+            native_s.push_back(wall_seconds(
+                [&] { native_samples = ivr::bench::native_render(scene, step, native); }));
           }
           const double k = median(kernel_s), t = median(total_s), nat = median(native_s);
-          json c = {{"volume", n}, {"image", image}, {"step", step}, {"samples", stats.samples},
+          json c = {{"volume", n},
+                    {"image", image},
+                    {"step", step},
+                    {"samples", stats.samples},
                     {"native_samples", native_samples},
-                    {"ivr", {{"kernel_ms", 1e3 * k}, {"total_ms", 1e3 * t}, {"samples_per_s", stats.samples / k}}},
+                    {"ivr",
+                     {{"kernel_ms", 1e3 * k},
+                      {"total_ms", 1e3 * t},
+                      {"samples_per_s", stats.samples / k}}},
                     {"native", {{"ms", 1e3 * nat}, {"samples_per_s", native_samples / nat}}},
-                    {"speed_ratio_kernel", nat / k}, {"speed_ratio_total", nat / t},
+                    {"speed_ratio_kernel", nat / k},
+                    {"speed_ratio_total", nat / t},
                     {"ivr_vs_native", compare(img.pixels, native)}};
           if (!reference.empty())
-            c["error_vs_reference"] = {{"ivr", compare(img.pixels, reference)}, {"native", compare(native, reference)},
+            c["error_vs_reference"] = {{"ivr", compare(img.pixels, reference)},
+                                       {"native", compare(native, reference)},
                                        {"reference_step", ref_step}};
           kernel_ratios.push_back(nat / k);
           total_ratios.push_back(nat / t);
-          std::cerr << "volume " << n << "³ image " << image << "² step " << step << ": ivr " << 1e3 * k
-                    << " ms (kernel), " << 1e3 * t << " ms (total); native " << 1e3 * nat << " ms; ratio "
-                    << nat / k << "\n";
+          std::cerr << "volume " << n << "³ image " << image << "² step " << step << ": ivr "
+                    << 1e3 * k << " ms (kernel), " << 1e3 * t << " ms (total); native " << 1e3 * nat
+                    << " ms; ratio " << nat / k << "\n";
           configs.push_back(c);
         }
       }
@@ -126,12 +137,17 @@ int main(int argc, char** argv) {
       for (double x : v) s += std::log(x);
       return std::exp(s / double(v.size()));
     };
-    const json result = {{"benchmark", "render"}, {"ivr_version", IVR_VERSION_STRING},
-                         {"device", device.info().name}, {"platform", device.info().platform},
-                         {"repeats", repeats}, {"statistic", "median"}, {"configs", configs},
-                         {"geomean_speed_ratio_kernel", geomean(kernel_ratios)},
-                         {"geomean_speed_ratio_total", geomean(total_ratios)},
-                         {"min_speed_ratio_kernel", *std::min_element(kernel_ratios.begin(), kernel_ratios.end())}};
+    const json result = {
+        {"benchmark", "render"},
+        {"ivr_version", IVR_VERSION_STRING},
+        {"device", device.info().name},
+        {"platform", device.info().platform},
+        {"repeats", repeats},
+        {"statistic", "median"},
+        {"configs", configs},
+        {"geomean_speed_ratio_kernel", geomean(kernel_ratios)},
+        {"geomean_speed_ratio_total", geomean(total_ratios)},
+        {"min_speed_ratio_kernel", *std::min_element(kernel_ratios.begin(), kernel_ratios.end())}};
     std::cout << result.dump(2) << "\n";
     if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
   } catch (const ivr::Error& e) {

@@ -1,8 +1,7 @@
 // commands.hpp — the subcommands of the `ivr` tool; each registers itself on the CLI11 app.
 #pragma once
-#include <functional>
-
 #include <CLI/CLI.hpp>
+#include <functional>
 
 namespace ivr::cli {
 

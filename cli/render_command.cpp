@@ -3,7 +3,6 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
-
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
@@ -23,7 +22,8 @@ struct RenderArgs {
 
 std::string lower_ext(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   return ext;
 }
 
@@ -33,7 +33,9 @@ std::vector<std::string> output_paths(const std::string& out, int views) {
   const fs::path p(out);
   std::vector<std::string> paths;
   for (int v = 0; v < views; ++v)
-    paths.push_back((p.parent_path() / (p.stem().string() + "_" + std::to_string(v) + p.extension().string())).string());
+    paths.push_back(
+        (p.parent_path() / (p.stem().string() + "_" + std::to_string(v) + p.extension().string()))
+            .string());
   return paths;
 }
 
@@ -44,23 +46,31 @@ Runner add_render_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("render", "Render every view of a scene");
   cmd->add_option("scene", args->scene, "Scene JSON file (see DESIGN.md)")->required();
   cmd->add_option("-o,--output", args->output,
-                  "Output: .npy (views, H, W, C) float32, or .png/.exr/.tif (one file per view: OUT_<v>.ext)")
+                  "Output: .npy (views, H, W, C) float32, or .png/.exr/.tif (one file per view: "
+                  "OUT_<v>.ext)")
       ->required();
-  cmd->add_option("--device", args->device, "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
-  cmd->add_option("--precision", args->precision, "Arithmetic precision")->check(CLI::IsMember({"f32", "f64"}));
-  CLI::Option* step = cmd->add_option("--step", args->step, "Integrator step in voxel units (overrides the scene)");
-  cmd->add_flag("--json", args->json, "Print one JSON object with device, timings and sample counts");
+  cmd->add_option("--device", args->device,
+                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+  cmd->add_option("--precision", args->precision, "Arithmetic precision")
+      ->check(CLI::IsMember({"f32", "f64"}));
+  CLI::Option* step =
+      cmd->add_option("--step", args->step, "Integrator step in voxel units (overrides the scene)");
+  cmd->add_flag("--json", args->json,
+                "Print one JSON object with device, timings and sample counts");
   return [args, step] {
     // Check the output name before any work, so that a bad name wastes nothing and writes nothing.
     const std::string ext = lower_ext(args->output);
     if (ext != ".npy" && ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff")
-      throw Error(Status::invalid_argument, "output '" + args->output +
-                                                "' needs the extension .npy, .png, .exr, .tif or .tiff");
-    const fs::path folder = fs::path(args->output).has_parent_path() ? fs::path(args->output).parent_path() : ".";
+      throw Error(
+          Status::invalid_argument,
+          "output '" + args->output + "' needs the extension .npy, .png, .exr, .tif or .tiff");
+    const fs::path folder =
+        fs::path(args->output).has_parent_path() ? fs::path(args->output).parent_path() : ".";
     if (!fs::is_directory(folder))
       throw Error(Status::io, "output folder '" + folder.string() + "' does not exist");
     if (step->count() > 0 && !(args->step > 0 && std::isfinite(args->step)))
-      throw Error(Status::invalid_argument, "--step must be > 0, got " + std::to_string(args->step));
+      throw Error(Status::invalid_argument,
+                  "--step must be > 0, got " + std::to_string(args->step));
 
     const Scene scene = load_scene(args->scene);
     Device device(args->device);
@@ -71,24 +81,37 @@ Runner add_render_command(CLI::App& app) {
     const Image image = render(device, scene, options, &stats);
 
     const std::vector<std::string> paths = output_paths(args->output, image.views);
-    if (ext == ".npy") save_image_npy(paths[0], image);
+    if (ext == ".npy")
+      save_image_npy(paths[0], image);
     else
       for (int v = 0; v < int(paths.size()); ++v) save_image_file(paths[v], image, v);
 
-    const double rate = stats.kernel_seconds > 0 ? double(stats.samples) / stats.kernel_seconds : 0.0;
+    const double rate =
+        stats.kernel_seconds > 0 ? double(stats.samples) / stats.kernel_seconds : 0.0;
     if (args->json) {
       const DeviceInfo& d = device.info();
-      nlohmann::json out = {{"device", d.name}, {"platform", d.platform}, {"device_type", d.type},
-                            {"precision", args->precision}, {"variant", stats.variant},
-                            {"views", image.views}, {"width", image.width}, {"height", image.height},
-                            {"channels", image.channels}, {"step", options.step > 0 ? options.step : scene.integrator.step},
-                            {"kernel_seconds", stats.kernel_seconds}, {"build_seconds", stats.build_seconds},
-                            {"samples", stats.samples}, {"samples_per_second", rate}, {"outputs", paths}};
+      nlohmann::json out = {{"device", d.name},
+                            {"platform", d.platform},
+                            {"device_type", d.type},
+                            {"precision", args->precision},
+                            {"variant", stats.variant},
+                            {"views", image.views},
+                            {"width", image.width},
+                            {"height", image.height},
+                            {"channels", image.channels},
+                            {"step", options.step > 0 ? options.step : scene.integrator.step},
+                            {"kernel_seconds", stats.kernel_seconds},
+                            {"build_seconds", stats.build_seconds},
+                            {"samples", stats.samples},
+                            {"samples_per_second", rate},
+                            {"outputs", paths}};
       std::cout << out.dump() << "\n";
     } else {
-      std::cout << "rendered " << image.views << " view(s) of " << image.width << "x" << image.height << " on "
-                << device.info().name << ": " << stats.kernel_seconds * 1e3 << " ms, " << stats.samples
-                << " samples (" << rate / 1e6 << " M/s) -> " << paths[0] << (paths.size() > 1 ? " ..." : "") << "\n";
+      std::cout << "rendered " << image.views << " view(s) of " << image.width << "x"
+                << image.height << " on " << device.info().name << ": "
+                << stats.kernel_seconds * 1e3 << " ms, " << stats.samples << " samples ("
+                << rate / 1e6 << " M/s) -> " << paths[0] << (paths.size() > 1 ? " ..." : "")
+                << "\n";
     }
     return 0;
   };

@@ -1,7 +1,6 @@
 // render_example.cpp — the smallest ivr program: load a scene, render it, save a PNG.
 // Usage: render_example SCENE.json OUT.png
 #include <iostream>
-
 #include <ivr/ivr.hpp>
 
 int main(int argc, char** argv) {
@@ -15,7 +14,8 @@ int main(int argc, char** argv) {
     ivr::RenderStats stats;
     const ivr::Image image = ivr::render(device, scene, {}, &stats);
     ivr::save_image_file(argv[2], image, 0);
-    std::cout << "rendered on " << device.info().name << " in " << stats.kernel_seconds * 1e3 << " ms\n";
+    std::cout << "rendered on " << device.info().name << " in " << stats.kernel_seconds * 1e3
+              << " ms\n";
   } catch (const ivr::Error& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;

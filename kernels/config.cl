@@ -41,7 +41,9 @@ typedef float4 real4;
 
 // a + (b - a)·t, written out so that it contracts into one fused multiply-add (OpenCL's default
 // FP_CONTRACT); PoCL's mix() builtin is a separate multiply and add.
-inline real lerp(real a, real b, real t) { return a + (b - a) * t; }
+inline real lerp(real a, real b, real t) {
+  return a + (b - a) * t;
+}
 
 // Values per view in the camera buffer: eye, forward, right and up scaled to the image plane
 // (tan(fov/2)·aspect·right, tan(fov/2)·up' — or ortho half-extents), orthographic flag.

@@ -54,8 +54,8 @@ inline bool clip_box(Ray r, real3 bmin, real3 bmax, real* t0, real* t1) {
 // Trilinear density at continuous voxel coordinates (ux, uy, uz) (voxel centre i at u = i),
 // clamped to the edge centres: the value is constant in the outer half-voxel. Scalar on purpose:
 // PoCL compiles float3 arithmetic into 4-wide vectors plus lane shuffles.
-__attribute__((always_inline)) inline real trilinear_at(__global const real* vol, int4 dims, real ux, real uy,
-                                                         real uz) {
+__attribute__((always_inline)) inline real trilinear_at(__global const real* vol, int4 dims,
+                                                        real ux, real uy, real uz) {
   ux = fmin(fmax(ux, (real)0), (real)(dims.x - 1));
   uy = fmin(fmax(uy, (real)0), (real)(dims.y - 1));
   uz = fmin(fmax(uz, (real)0), (real)(dims.z - 1));
@@ -75,6 +75,8 @@ __attribute__((always_inline)) inline real trilinear_at(__global const real* vol
 }
 
 // Trilinear density at continuous voxel coordinates u.
-inline real trilinear(__global const real* vol, int4 dims, real3 u) { return trilinear_at(vol, dims, u.x, u.y, u.z); }
+inline real trilinear(__global const real* vol, int4 dims, real3 u) {
+  return trilinear_at(vol, dims, u.x, u.y, u.z);
+}
 
 #endif

@@ -27,8 +27,8 @@ inline real decay_and_fraction(real x, real* fraction) {
 #endif
 }
 
-__kernel void render(__global const real* restrict volume, const int4 dims,
-                     const real4 box_min, const real4 box_max, const real4 inv_voxel,
+__kernel void render(__global const real* restrict volume, const int4 dims, const real4 box_min,
+                     const real4 box_max, const real4 inv_voxel,
                      __global const real* restrict cameras, const int width, const int height,
                      __global const real* restrict tf, const int tf_count, const real4 tf_scalars,
                      const real4 background, const real step, const real min_transmittance,
@@ -53,7 +53,8 @@ __kernel void render(__global const real* restrict volume, const int4 dims,
     const real u0x = (ray.origin.x - box_min.x) * inv_voxel.x - (real)0.5;
     const real u0y = (ray.origin.y - box_min.y) * inv_voxel.y - (real)0.5;
     const real u0z = (ray.origin.z - box_min.z) * inv_voxel.z - (real)0.5;
-    const real dux = ray.dir.x * inv_voxel.x, duy = ray.dir.y * inv_voxel.y, duz = ray.dir.z * inv_voxel.z;
+    const real dux = ray.dir.x * inv_voxel.x, duy = ray.dir.y * inv_voxel.y,
+               duz = ray.dir.z * inv_voxel.z;
     int segment = 0;  // the transfer function's search cursor (tf_sample)
     for (uint i = 0; i < n; ++i) {
       const real t = t0 + ((real)i + (real)0.5) * dt;

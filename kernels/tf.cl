@@ -19,8 +19,9 @@
 // from one sample to the next; densities along a ray are continuous, so the search mostly stays
 // put or moves one segment instead of scanning from the first point. The segment found, and so
 // the value, is the same from any start. Other kinds ignore it.
-__attribute__((always_inline)) inline real tf_sample(real d, __global const real* tf, int count, real4 scalars,
-                                                      int* segment, real* er, real* eg, real* eb) {
+__attribute__((always_inline)) inline real tf_sample(real d, __global const real* tf, int count,
+                                                     real4 scalars, int* segment, real* er,
+                                                     real* eg, real* eb) {
 #if IVR_TF == IVR_TF_IDENTITY
   const real sigma = scalars.x * d;
 #if IVR_EMISSION
@@ -54,7 +55,8 @@ __attribute__((always_inline)) inline real tf_sample(real d, __global const real
 
 #elif IVR_TF == IVR_TF_TABLE
   // R entries at evenly spaced densities lo..hi, linear in between, constant beyond.
-  const real u = clamp((d - scalars.x) / (scalars.y - scalars.x), (real)0, (real)1) * (real)(count - 1);
+  const real u =
+      clamp((d - scalars.x) / (scalars.y - scalars.x), (real)0, (real)1) * (real)(count - 1);
   const int i0 = min((int)u, count - 1);
   const int i1 = min(i0 + 1, count - 1);
   const real w = u - (real)i0;

@@ -27,7 +27,9 @@ constexpr Entry kDatabase[] = {
     {"", "", "", 0, 0},  // default
 };
 
-bool contains(const std::string& text, const char* part) { return text.find(part) != std::string::npos; }
+bool contains(const std::string& text, const char* part) {
+  return text.find(part) != std::string::npos;
+}
 
 }  // namespace
 
@@ -36,13 +38,16 @@ LaunchParams launch_params(const DeviceInfo& device, const std::string& kernel) 
   if (const char* env = std::getenv("IVR_LOCAL_SIZE"); env && *env) {
     if (std::sscanf(env, "%dx%d", &p.local_x, &p.local_y) != 2 || p.local_x < 1 || p.local_y < 1 ||
         p.local_x * p.local_y > 4096)
-      throw Error(Status::invalid_argument,
-                  std::string("IVR_LOCAL_SIZE must look like 16x8 (at most 4096 work-items), got '") + env + "'");
+      throw Error(
+          Status::invalid_argument,
+          std::string("IVR_LOCAL_SIZE must look like 16x8 (at most 4096 work-items), got '") + env +
+              "'");
     p.source = "env";
     return p;
   }
   for (const Entry& e : kDatabase) {
-    if ((*e.kernel && kernel != e.kernel) || !contains(device.vendor, e.vendor) || !contains(device.name, e.device))
+    if ((*e.kernel && kernel != e.kernel) || !contains(device.vendor, e.vendor) ||
+        !contains(device.name, e.device))
       continue;
     p.local_x = e.local_x;
     p.local_y = e.local_y;

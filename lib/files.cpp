@@ -28,8 +28,10 @@ void check_readable(const std::string& path, const std::string& what) {
 std::vector<unsigned char> read_binary_file(const std::string& path, const std::string& what) {
   check_readable(path, what);
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(Status::io, "cannot read " + what + " '" + path + "': " + std::strerror(errno));
-  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!in)
+    throw Error(Status::io, "cannot read " + what + " '" + path + "': " + std::strerror(errno));
+  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                   std::istreambuf_iterator<char>());
   if (in.bad()) throw Error(Status::io, "cannot read " + what + " '" + path + "': read error");
   return bytes;
 }
@@ -39,17 +41,21 @@ std::string read_text_file(const std::string& path, const std::string& what) {
   return std::string(bytes.begin(), bytes.end());
 }
 
-void write_atomically(const std::string& path, const std::function<void(const std::string&)>& write) {
+void write_atomically(const std::string& path,
+                      const std::function<void(const std::string&)>& write) {
   const fs::path target(path);
-  if (target.filename().empty()) throw Error(Status::io, "cannot write '" + path + "': not a file name");
+  if (target.filename().empty())
+    throw Error(Status::io, "cannot write '" + path + "': not a file name");
   std::error_code ec;
-  if (fs::is_directory(target, ec)) throw Error(Status::io, "cannot write '" + path + "': it is a directory");
+  if (fs::is_directory(target, ec))
+    throw Error(Status::io, "cannot write '" + path + "': it is a directory");
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   if (!fs::is_directory(dir, ec))
-    throw Error(Status::io, "cannot write '" + path + "': folder '" + dir.string() + "' does not exist");
+    throw Error(Status::io,
+                "cannot write '" + path + "': folder '" + dir.string() + "' does not exist");
   std::random_device rd;
-  const fs::path tmp = dir / ("." + target.stem().string() + ".tmp" + std::to_string(rd() % 1000000) +
-                              target.extension().string());
+  const fs::path tmp = dir / ("." + target.stem().string() + ".tmp" +
+                              std::to_string(rd() % 1000000) + target.extension().string());
   try {
     write(tmp.string());
     fs::rename(tmp, target);

@@ -13,7 +13,8 @@ std::string read_text_file(const std::string& path, const std::string& what);
 // Calls write(tmp) with a temporary path in the same folder that keeps `path`'s extension, then
 // renames it over `path`; on any failure removes the temporary file and rethrows, so a reader
 // never sees a half-written file.
-void write_atomically(const std::string& path, const std::function<void(const std::string&)>& write);
+void write_atomically(const std::string& path,
+                      const std::function<void(const std::string&)>& write);
 
 // Folder part of a path ("." when there is none).
 std::string parent_dir(const std::string& path);

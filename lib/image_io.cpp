@@ -1,10 +1,10 @@
 // image_io.cpp — rendered images out: float32 .npy of every view, or one view as EXR/PNG/TIFF
 // through OpenImageIO, with PNG tone-mapped by the documented rule.
+#include <OpenImageIO/imageio.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-
-#include <OpenImageIO/imageio.h>
 
 #include "files.hpp"
 #include "ivr/error.hpp"
@@ -28,14 +28,16 @@ void save_image_npy(const std::string& path, const Image& image) {
 
 void save_image_file(const std::string& path, const Image& image, int view) {
   if (view < 0 || view >= image.views)
-    throw Error(Status::invalid_argument, "view " + std::to_string(view) + " does not exist (the image has " +
+    throw Error(Status::invalid_argument, "view " + std::to_string(view) +
+                                              " does not exist (the image has " +
                                               std::to_string(image.views) + ")");
   std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   const bool png = ext == ".png";
   if (!png && ext != ".exr" && ext != ".tif" && ext != ".tiff")
-    throw Error(Status::invalid_argument,
-                "cannot write '" + path + "': unknown image format '" + ext + "' (use .npy, .png, .exr, .tif)");
+    throw Error(Status::invalid_argument, "cannot write '" + path + "': unknown image format '" +
+                                              ext + "' (use .npy, .png, .exr, .tif)");
 
   const std::size_t count = std::size_t(image.height) * image.width;
   const float* src = image.pixels.data() + std::size_t(view) * count * image.channels;
@@ -46,12 +48,14 @@ void save_image_file(const std::string& path, const Image& image, int view) {
   if (png) {
     bytes.resize(count * channels);
     for (std::size_t i = 0; i < count; ++i)
-      for (int c = 0; c < channels; ++c) bytes[i * channels + c] = tone_map_8bit(src[i * image.channels + c]);
+      for (int c = 0; c < channels; ++c)
+        bytes[i * channels + c] = tone_map_8bit(src[i * image.channels + c]);
   }
   write_atomically(path, [&](const std::string& tmp) {
     auto out = OIIO::ImageOutput::create(tmp);
     if (!out) throw Error(Status::io, "cannot write '" + path + "': " + OIIO::geterror());
-    OIIO::ImageSpec spec(image.width, image.height, channels, png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+    OIIO::ImageSpec spec(image.width, image.height, channels,
+                         png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
     if (!png && channels == 4) spec.alpha_channel = 3;
     const bool ok = out->open(tmp, spec) &&
                     (png ? out->write_image(OIIO::TypeDesc::UINT8, bytes.data())

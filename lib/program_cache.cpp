@@ -45,7 +45,8 @@ namespace {
 std::string build_log(const cl::Program& program, const cl::Device& device) {
   try {
     std::string log = program.getBuildInfo<CL_PROGRAM_BUILD_LOG>(device);
-    while (!log.empty() && (log.back() == '\n' || log.back() == '\0' || log.back() == ' ')) log.pop_back();
+    while (!log.empty() && (log.back() == '\n' || log.back() == '\0' || log.back() == ' '))
+      log.pop_back();
     return log;
   } catch (const cl::Error&) {
     return "(no build log)";
@@ -53,13 +54,14 @@ std::string build_log(const cl::Program& program, const cl::Device& device) {
 }
 
 // Loads and builds a cached binary; any problem means "not cached" (empty program).
-cl::Program load_binary(const cl::Context& context, const cl::Device& device, const std::string& file,
-                        const std::string& options) {
+cl::Program load_binary(const cl::Context& context, const cl::Device& device,
+                        const std::string& file, const std::string& options) {
   std::error_code ec;
   if (file.empty() || !fs::is_regular_file(file, ec)) return cl::Program();
   try {
     std::ifstream in(file, std::ios::binary);
-    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                     std::istreambuf_iterator<char>());
     if (!in.good() && !in.eof()) return cl::Program();
     if (bytes.empty()) return cl::Program();
     cl::Program::Binaries binaries{bytes};
@@ -81,7 +83,8 @@ void store_binary(const cl::Program& program, const std::string& file) {
     fs::create_directories(fs::path(file).parent_path(), ec);
     write_atomically(file, [&](const std::string& tmp) {
       std::ofstream out(tmp, std::ios::binary);
-      out.write(reinterpret_cast<const char*>(binaries[0].data()), std::streamsize(binaries[0].size()));
+      out.write(reinterpret_cast<const char*>(binaries[0].data()),
+                std::streamsize(binaries[0].size()));
       if (!out) throw Error(Status::io, "cannot write kernel cache file");
     });
   } catch (...) {
@@ -91,9 +94,10 @@ void store_binary(const cl::Program& program, const std::string& file) {
 
 }  // namespace
 
-cl::Program ProgramCache::get(const cl::Context& context, const cl::Device& device, const DeviceInfo& info,
-                              const std::string& source, const std::string& options,
-                              const std::string& label, double* seconds) {
+cl::Program ProgramCache::get(const cl::Context& context, const cl::Device& device,
+                              const DeviceInfo& info, const std::string& source,
+                              const std::string& options, const std::string& label,
+                              double* seconds) {
   const auto start = std::chrono::steady_clock::now();
   std::uint64_t h = fnv1a64(source);
   for (const std::string& part : {options, info.platform, info.name, info.version, info.driver,
@@ -105,7 +109,8 @@ cl::Program ProgramCache::get(const cl::Context& context, const cl::Device& devi
   std::lock_guard<std::mutex> lock(mutex_);
   auto done = [&](const cl::Program& p, const char* origin) {
     last_origin_ = origin;
-    if (seconds) seconds[0] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (seconds)
+      seconds[0] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return p;
   };
   if (auto it = programs_.find(key); it != programs_.end()) return done(it->second, "memory");
@@ -117,11 +122,13 @@ cl::Program ProgramCache::get(const cl::Context& context, const cl::Device& devi
     return done(cached, "disk");
   }
 
-  cl::Program program = cl_call("creating program " + label, [&] { return cl::Program(context, source); });
+  cl::Program program =
+      cl_call("creating program " + label, [&] { return cl::Program(context, source); });
   try {
     program.build({device}, options.c_str());
   } catch (const cl::Error& e) {
-    if (e.err() != CL_BUILD_PROGRAM_FAILURE && e.err() != CL_INVALID_BUILD_OPTIONS) throw_cl(e, "building " + label);
+    if (e.err() != CL_BUILD_PROGRAM_FAILURE && e.err() != CL_INVALID_BUILD_OPTIONS)
+      throw_cl(e, "building " + label);
     std::ostringstream msg;
     msg << "building kernel " << label << " failed on " << info.name << " with "
         << cl_error_name(e.err()) << "; build log:\n"

@@ -1,11 +1,10 @@
 // program_cache.hpp — compiled OpenCL programs, cached in process and as binaries on disk.
 #pragma once
+#include <CL/opencl.hpp>
 #include <cstdint>
 #include <map>
 #include <mutex>
 #include <string>
-
-#include <CL/opencl.hpp>
 
 #include "ivr/device.hpp"
 

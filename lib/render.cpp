@@ -4,9 +4,8 @@
 
 #include <cmath>
 #include <cstdlib>
-#include <numeric>
-
 #include <glm/geometric.hpp>
+#include <numeric>
 
 #include "device_params.hpp"
 #include "kernel_sources.hpp"
@@ -60,8 +59,9 @@ std::vector<Real> pack_cameras(const std::vector<Camera>& cameras) {
     const bool ortho = c.projection == Projection::orthographic;
     const double half = ortho ? 0.5 * c.ortho_height : std::tan(0.5 * c.fov_y * M_PI / 180.0);
     const glm::dvec3 r = half * aspect * right, u = half * up;
-    const double values[13] = {c.eye.x, c.eye.y, c.eye.z, fwd.x, fwd.y, fwd.z, r.x, r.y, r.z,
-                               u.x,     u.y,     u.z,     ortho ? 1.0 : 0.0};
+    const double values[13] = {
+        c.eye.x, c.eye.y, c.eye.z,          fwd.x, fwd.y, fwd.z, r.x, r.y, r.z, u.x,
+        u.y,     u.z,     ortho ? 1.0 : 0.0};
     for (int k = 0; k < 13; ++k) out[i * stride + k] = Real(values[k]);
   }
   return out;
@@ -81,19 +81,21 @@ std::vector<Real> pack_tf(const TransferFunction& tf, int* count, double scalars
       break;
     case TfKind::piecewise_linear:
       for (const TfPoint& p : tf.points)
-        out.insert(out.end(), {Real(p.density), Real(p.color.x), Real(p.color.y), Real(p.color.z), Real(p.extinction)});
+        out.insert(out.end(), {Real(p.density), Real(p.color.x), Real(p.color.y), Real(p.color.z),
+                               Real(p.extinction)});
       *count = int(tf.points.size());
       break;
     case TfKind::table:
-      for (const glm::dvec4& e : tf.entries) out.insert(out.end(), {Real(e.x), Real(e.y), Real(e.z), Real(e.w)});
+      for (const glm::dvec4& e : tf.entries)
+        out.insert(out.end(), {Real(e.x), Real(e.y), Real(e.z), Real(e.w)});
       scalars[0] = tf.range.x;
       scalars[1] = tf.range.y;
       *count = int(tf.entries.size());
       break;
     case TfKind::gaussian:
       for (const TfGaussian& g : tf.gaussians)
-        out.insert(out.end(), {Real(g.mean), Real(g.width), Real(g.color.x), Real(g.color.y), Real(g.color.z),
-                               Real(g.extinction)});
+        out.insert(out.end(), {Real(g.mean), Real(g.width), Real(g.color.x), Real(g.color.y),
+                               Real(g.color.z), Real(g.extinction)});
       *count = int(tf.gaussians.size());
       break;
   }
@@ -101,8 +103,8 @@ std::vector<Real> pack_tf(const TransferFunction& tf, int* count, double scalars
 }
 
 template <class Real>
-Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator, Precision precision,
-                RenderStats* stats) {
+Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
+                Precision precision, RenderStats* stats) {
   const Camera& cam0 = scene.cameras.front();
   Image image;
   image.views = int(scene.cameras.size());
@@ -112,29 +114,35 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
   const std::size_t pixels = std::size_t(image.views) * image.height * image.width;
 
   // Device buffers first: their size checks fail before any large host allocation.
-  cl::Buffer out_image = dev.buffer(CL_MEM_WRITE_ONLY, pixels * image.channels * sizeof(float), nullptr, "the image");
-  cl::Buffer out_samples = dev.buffer(CL_MEM_WRITE_ONLY, pixels * sizeof(cl_uint), nullptr, "the sample counts");
+  cl::Buffer out_image =
+      dev.buffer(CL_MEM_WRITE_ONLY, pixels * image.channels * sizeof(float), nullptr, "the image");
+  cl::Buffer out_samples =
+      dev.buffer(CL_MEM_WRITE_ONLY, pixels * sizeof(cl_uint), nullptr, "the sample counts");
   std::vector<Real> converted;
   const void* volume_host = scene.volume.data.data();
   if constexpr (!std::is_same_v<Real, float>) {
     if (scene.volume.voxel_count() * sizeof(Real) > dev.info.max_allocation)
-      dev.buffer(CL_MEM_READ_ONLY, scene.volume.voxel_count() * sizeof(Real), nullptr, "the volume");  // throws
+      dev.buffer(CL_MEM_READ_ONLY, scene.volume.voxel_count() * sizeof(Real), nullptr,
+                 "the volume");  // throws
     converted.assign(scene.volume.data.begin(), scene.volume.data.end());
     volume_host = converted.data();
   }
-  cl::Buffer volume = dev.buffer(CL_MEM_READ_ONLY, scene.volume.voxel_count() * sizeof(Real), volume_host, "the volume");
+  cl::Buffer volume = dev.buffer(CL_MEM_READ_ONLY, scene.volume.voxel_count() * sizeof(Real),
+                                 volume_host, "the volume");
   const std::vector<Real> cams = pack_cameras<Real>(scene.cameras);
-  cl::Buffer cameras = dev.buffer(CL_MEM_READ_ONLY, cams.size() * sizeof(Real), cams.data(), "the cameras");
+  cl::Buffer cameras =
+      dev.buffer(CL_MEM_READ_ONLY, cams.size() * sizeof(Real), cams.data(), "the cameras");
   int tf_count = 0;
   double tf_scalars[2];
   const std::vector<Real> tf = pack_tf<Real>(scene.tf, &tf_count, tf_scalars);
-  cl::Buffer tf_buffer = dev.buffer(CL_MEM_READ_ONLY, tf.size() * sizeof(Real), tf.data(), "the transfer function");
+  cl::Buffer tf_buffer =
+      dev.buffer(CL_MEM_READ_ONLY, tf.size() * sizeof(Real), tf.data(), "the transfer function");
 
   const RenderVariant variant = RenderVariant::of(scene, integrator, precision);
   double build_seconds = 0;
-  const cl::Program program = dev.programs.get(dev.context, dev.device, dev.info,
-                                               variant.preamble() + assemble_kernel("render.cl"), extra_build_options(),
-                                               "render.cl [" + variant.label() + "]", &build_seconds);
+  const cl::Program program = dev.programs.get(
+      dev.context, dev.device, dev.info, variant.preamble() + assemble_kernel("render.cl"),
+      extra_build_options(), "render.cl [" + variant.label() + "]", &build_seconds);
 
   const glm::dvec3 h = scene.voxel_size();
   const double step = integrator.step * std::min(h.x, std::min(h.y, h.z));
@@ -163,10 +171,11 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
     if (launch.local_x > 0) {  // global size rounded up; the kernel skips the padding
       const int lx = launch.local_x, ly = launch.local_y;
       const int gx = (image.width + lx - 1) / lx * lx, gy = (image.height + ly - 1) / ly * ly;
-      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, image.views), cl::NDRange(lx, ly, 1),
-                                     nullptr, &done);
+      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, image.views),
+                                     cl::NDRange(lx, ly, 1), nullptr, &done);
     } else {
-      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(image.width, image.height, image.views),
+      dev.queue.enqueueNDRangeKernel(k, cl::NullRange,
+                                     cl::NDRange(image.width, image.height, image.views),
                                      cl::NullRange, nullptr, &done);
     }
     done.wait();
@@ -175,8 +184,10 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
   image.pixels.resize(pixels * image.channels);
   std::vector<cl_uint> samples(pixels);
   cl_call("reading the image back", [&] {
-    dev.queue.enqueueReadBuffer(out_image, CL_TRUE, 0, image.pixels.size() * sizeof(float), image.pixels.data());
-    dev.queue.enqueueReadBuffer(out_samples, CL_TRUE, 0, samples.size() * sizeof(cl_uint), samples.data());
+    dev.queue.enqueueReadBuffer(out_image, CL_TRUE, 0, image.pixels.size() * sizeof(float),
+                                image.pixels.data());
+    dev.queue.enqueueReadBuffer(out_samples, CL_TRUE, 0, samples.size() * sizeof(cl_uint),
+                                samples.data());
   });
   if (stats) {
     stats->kernel_seconds = 1e-9 * double(done.getProfilingInfo<CL_PROFILING_COMMAND_END>() -
@@ -197,7 +208,8 @@ Image render(Device& device, const Scene& scene, const RenderOptions& options, R
   Device::Impl& dev = device.impl();
   if (options.precision == Precision::f64) {
     if (!dev.info.fp64)
-      throw Error(Status::unsupported, "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
+      throw Error(Status::unsupported,
+                  "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
     return render_as<double>(dev, scene, integrator, options.precision, stats);
   }
   return render_as<float>(dev, scene, integrator, options.precision, stats);

@@ -163,7 +163,8 @@ std::vector<Found> discover() {
 
 // A non-negative index written in decimal, or -1 if `s` is not one (or absurdly large).
 int parse_index(const std::string& s) {
-  if (s.empty() || s.size() > 6 || !std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c); }))
+  if (s.empty() || s.size() > 6 ||
+      !std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c); }))
     return -1;
   return std::stoi(s);
 }
@@ -190,7 +191,9 @@ const Found& select(const std::vector<Found>& all, const std::string& selector_i
   const int device = colon == std::string::npos ? -1 : parse_index(key.substr(colon + 1));
   for (const Found& f : all) {
     if (index >= 0 && f.info.index == index) return f;
-    if (platform >= 0 && device >= 0 && f.info.platform_index == platform && f.info.device_index == device) return f;
+    if (platform >= 0 && device >= 0 && f.info.platform_index == platform &&
+        f.info.device_index == device)
+      return f;
     if (key == f.info.type) return f;
   }
   for (const Found& f : all)
@@ -198,8 +201,8 @@ const Found& select(const std::vector<Found>& all, const std::string& selector_i
   std::ostringstream msg;
   msg << "no OpenCL device matches " << origin << " '" << selector << "'; available:";
   for (const Found& f : all)
-    msg << " [" << f.info.index << "] " << f.info.name << " (" << f.info.type << ", " << f.info.platform
-        << ")";
+    msg << " [" << f.info.index << "] " << f.info.name << " (" << f.info.type << ", "
+        << f.info.platform << ")";
   throw Error(Status::no_device, msg.str());
 }
 
@@ -226,7 +229,9 @@ Device::Device(const std::string& selector) : impl_(std::make_unique<Impl>()) {
 Device::~Device() = default;
 Device::Device(Device&&) noexcept = default;
 Device& Device::operator=(Device&&) noexcept = default;
-const DeviceInfo& Device::info() const { return impl_->info; }
+const DeviceInfo& Device::info() const {
+  return impl_->info;
+}
 
 cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const void* host,
                                 const char* what) {
@@ -237,8 +242,9 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
     throw Error(Status::out_of_memory, msg.str());
   }
   if (host) flags |= CL_MEM_COPY_HOST_PTR;
-  return cl_call(std::string("allocating ") + what,
-                 [&] { return cl::Buffer(context, flags, std::max<std::size_t>(bytes, 1), const_cast<void*>(host)); });
+  return cl_call(std::string("allocating ") + what, [&] {
+    return cl::Buffer(context, flags, std::max<std::size_t>(bytes, 1), const_cast<void*>(host));
+  });
 }
 
 }  // namespace ivr

@@ -1,9 +1,8 @@
 // runtime.hpp — the OpenCL layer: error translation, device discovery and the Device internals.
 #pragma once
+#include <CL/opencl.hpp>
 #include <string>
 #include <vector>
-
-#include <CL/opencl.hpp>
 
 #include "ivr/device.hpp"
 #include "ivr/error.hpp"

@@ -1,13 +1,13 @@
 // scene.cpp — default box, built-in synthetic volumes and scene validation.
+#include "ivr/scene.hpp"
+
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <sstream>
 
-#include <glm/geometric.hpp>
-
 #include "ivr/error.hpp"
-#include "ivr/scene.hpp"
 #include "scene_checks.hpp"
 
 namespace ivr {
@@ -21,7 +21,9 @@ constexpr double kMaxSamplesPerRay = 1e9;
   throw Error(Status::invalid_argument, where + ": " + what);
 }
 
-bool finite(const glm::dvec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool finite(const glm::dvec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 std::string str(double v) {
   std::ostringstream s;
@@ -31,7 +33,8 @@ std::string str(double v) {
 
 void validate_tf(const TransferFunction& tf) {
   auto check_sigma = [](const std::string& where, double sigma) {
-    if (!std::isfinite(sigma) || sigma < 0) fail(where, "extinction must be finite and >= 0, got " + str(sigma));
+    if (!std::isfinite(sigma) || sigma < 0)
+      fail(where, "extinction must be finite and >= 0, got " + str(sigma));
   };
   auto check_color = [](const std::string& where, const glm::dvec3& c) {
     if (!finite(c)) fail(where, "color must be finite");
@@ -42,7 +45,8 @@ void validate_tf(const TransferFunction& tf) {
       if (!std::isfinite(tf.color_scale)) fail("tf.color_scale", "must be finite");
       break;
     case TfKind::piecewise_linear:
-      if (tf.points.empty()) fail("tf.points", "a piecewise_linear transfer function needs at least one point");
+      if (tf.points.empty())
+        fail("tf.points", "a piecewise_linear transfer function needs at least one point");
       for (std::size_t i = 0; i < tf.points.size(); ++i) {
         const std::string w = "tf.points[" + std::to_string(i) + "]";
         if (!std::isfinite(tf.points[i].density)) fail(w, "density must be finite");
@@ -54,9 +58,11 @@ void validate_tf(const TransferFunction& tf) {
       }
       break;
     case TfKind::table:
-      if (tf.entries.empty()) fail("tf.entries", "a table transfer function needs at least one entry");
+      if (tf.entries.empty())
+        fail("tf.entries", "a table transfer function needs at least one entry");
       if (!std::isfinite(tf.range.x) || !std::isfinite(tf.range.y) || !(tf.range.y > tf.range.x))
-        fail("tf.range", "must be [lo, hi] with lo < hi, got [" + str(tf.range.x) + ", " + str(tf.range.y) + "]");
+        fail("tf.range", "must be [lo, hi] with lo < hi, got [" + str(tf.range.x) + ", " +
+                             str(tf.range.y) + "]");
       for (std::size_t i = 0; i < tf.entries.size(); ++i) {
         const std::string w = "tf.entries[" + std::to_string(i) + "]";
         check_color(w, glm::dvec3(tf.entries[i]));
@@ -64,12 +70,14 @@ void validate_tf(const TransferFunction& tf) {
       }
       break;
     case TfKind::gaussian:
-      if (tf.gaussians.empty()) fail("tf.gaussians", "a gaussian transfer function needs at least one Gaussian");
+      if (tf.gaussians.empty())
+        fail("tf.gaussians", "a gaussian transfer function needs at least one Gaussian");
       for (std::size_t i = 0; i < tf.gaussians.size(); ++i) {
         const std::string w = "tf.gaussians[" + std::to_string(i) + "]";
         const TfGaussian& g = tf.gaussians[i];
         if (!std::isfinite(g.mean)) fail(w, "mean must be finite");
-        if (!std::isfinite(g.width) || !(g.width > 0)) fail(w, "width must be > 0, got " + str(g.width));
+        if (!std::isfinite(g.width) || !(g.width > 0))
+          fail(w, "width must be > 0, got " + str(g.width));
         check_sigma(w, g.extinction);
         check_color(w, g.color);
       }
@@ -78,10 +86,12 @@ void validate_tf(const TransferFunction& tf) {
 }
 
 void validate_camera(const Camera& c, const std::string& w) {
-  if (!finite(c.eye) || !finite(c.target) || !finite(c.up)) fail(w, "eye, target and up must be finite");
+  if (!finite(c.eye) || !finite(c.target) || !finite(c.up))
+    fail(w, "eye, target and up must be finite");
   const glm::dvec3 view = c.target - c.eye;
   const double dist = glm::length(view);
-  if (!(dist > 1e-12 * (1.0 + glm::length(c.eye)))) fail(w, "eye equals target, so there is no view direction");
+  if (!(dist > 1e-12 * (1.0 + glm::length(c.eye))))
+    fail(w, "eye equals target, so there is no view direction");
   if (!(glm::length(c.up) > 0)) fail(w, "up is the zero vector");
   const double sine = glm::length(glm::cross(view / dist, glm::normalize(c.up)));
   if (!(sine > 1e-9)) fail(w, "up is parallel to the view direction (target - eye)");
@@ -108,13 +118,15 @@ void set_default_box(Scene& scene) {
   scene.box_min = -scene.box_max;
 }
 
-void validate(const Scene& s) { validate_with(s, s.integrator); }
+void validate(const Scene& s) {
+  validate_with(s, s.integrator);
+}
 
 void validate_with(const Scene& s, const Integrator& it) {
   const Volume& v = s.volume;
   if (v.nx < 1 || v.ny < 1 || v.nz < 1)
-    fail("volume", "dims must be >= 1, got " + std::to_string(v.nx) + "x" + std::to_string(v.ny) + "x" +
-                       std::to_string(v.nz));
+    fail("volume", "dims must be >= 1, got " + std::to_string(v.nx) + "x" + std::to_string(v.ny) +
+                       "x" + std::to_string(v.nz));
   if (v.data.size() != v.voxel_count())
     fail("volume", "holds " + std::to_string(v.data.size()) + " values but dims need " +
                        std::to_string(v.voxel_count()));
@@ -129,8 +141,9 @@ void validate_with(const Scene& s, const Integrator& it) {
       const float d = v.data[i];
       if (d >= 0.0f && d <= FLT_MAX) continue;
       const std::size_t x = i % v.nx, y = (i / v.nx) % v.ny, z = i / (std::size_t(v.nx) * v.ny);
-      fail("volume", "density at (x, y, z) = (" + std::to_string(x) + ", " + std::to_string(y) + ", " +
-                         std::to_string(z) + ") is " + str(d) + "; densities must be finite and >= 0");
+      fail("volume", "density at (x, y, z) = (" + std::to_string(x) + ", " + std::to_string(y) +
+                         ", " + std::to_string(z) + ") is " + str(d) +
+                         "; densities must be finite and >= 0");
     }
   }
   if (!finite(s.box_min) || !finite(s.box_max) || !(s.box_max.x > s.box_min.x) ||
@@ -143,12 +156,15 @@ void validate_with(const Scene& s, const Integrator& it) {
     const std::string w = "cameras[" + std::to_string(i) + "]";
     validate_camera(s.cameras[i], w);
     if (s.cameras[i].width != s.cameras[0].width || s.cameras[i].height != s.cameras[0].height)
-      fail(w, "all cameras must share width and height (" + std::to_string(s.cameras[i].width) + "x" +
-                  std::to_string(s.cameras[i].height) + " vs " + std::to_string(s.cameras[0].width) +
-                  "x" + std::to_string(s.cameras[0].height) + ")");
+      fail(w, "all cameras must share width and height (" + std::to_string(s.cameras[i].width) +
+                  "x" + std::to_string(s.cameras[i].height) + " vs " +
+                  std::to_string(s.cameras[0].width) + "x" + std::to_string(s.cameras[0].height) +
+                  ")");
   }
-  if (it.scheme != "midpoint") fail("integrator.scheme", "unknown scheme '" + it.scheme + "' (known: midpoint)");
-  if (!std::isfinite(it.step) || !(it.step > 0)) fail("integrator.step", "must be > 0, got " + str(it.step));
+  if (it.scheme != "midpoint")
+    fail("integrator.scheme", "unknown scheme '" + it.scheme + "' (known: midpoint)");
+  if (!std::isfinite(it.step) || !(it.step > 0))
+    fail("integrator.step", "must be > 0, got " + str(it.step));
   if (!std::isfinite(it.min_transmittance) || it.min_transmittance < 0 || it.min_transmittance >= 1)
     fail("integrator.min_transmittance", "must be in [0, 1), got " + str(it.min_transmittance));
   const glm::dvec3 h = s.voxel_size();
@@ -172,19 +188,22 @@ Volume synthetic_volume(const std::string& name, int nx, int ny, int nz) {
     for (int y = 0; y < ny; ++y)
       for (int x = 0; x < nx; ++x) {
         // Cell-centre coordinates in [-1, 1].
-        const double px = 2.0 * (x + 0.5) / nx - 1, py = 2.0 * (y + 0.5) / ny - 1, pz = 2.0 * (z + 0.5) / nz - 1;
+        const double px = 2.0 * (x + 0.5) / nx - 1, py = 2.0 * (y + 0.5) / ny - 1,
+                     pz = 2.0 * (z + 0.5) / nz - 1;
         double d;
         if (name == "sphere") {
           const double r = std::sqrt(px * px + py * py + pz * pz);
-          const double core = 0.5 * (1 - std::tanh((r - 0.55) / 0.06));    // solid ball
+          const double core = 0.5 * (1 - std::tanh((r - 0.55) / 0.06));         // solid ball
           const double shell = 0.6 * std::exp(-std::pow((r - 0.8) / 0.05, 2));  // thin shell
           d = std::min(1.0, 0.45 * core + shell);
         } else if (name == "marschner_lobb") {
           const double alpha = 0.25, fm = 6.0;
-          const double rho = std::cos(2 * pi * fm * std::cos(pi * std::sqrt(px * px + py * py) / 2));
+          const double rho =
+              std::cos(2 * pi * fm * std::cos(pi * std::sqrt(px * px + py * py) / 2));
           d = (1 - std::sin(pi * pz / 2) + alpha * (1 + rho)) / (2 * (1 + alpha));
         } else {
-          fail("volume.synthetic", "unknown synthetic volume '" + name + "' (known: sphere, marschner_lobb)");
+          fail("volume.synthetic",
+               "unknown synthetic volume '" + name + "' (known: sphere, marschner_lobb)");
         }
         v.data[(std::size_t(z) * ny + y) * nx + x] = float(std::max(0.0, d));
       }

@@ -1,9 +1,8 @@
 // scene_json.cpp — scene files: DESIGN.md's JSON, exact field names, unknown keys and values
 // rejected with the path of the offending field.
 #include <filesystem>
-#include <set>
-
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "files.hpp"
 #include "ivr/error.hpp"
@@ -26,14 +25,16 @@ class Reader {
     throw Error(Status::invalid_argument, where_ + ": " + path + ": " + what);
   }
 
-  void only_keys(const json& obj, const std::string& path, std::initializer_list<const char*> keys) const {
+  void only_keys(const json& obj, const std::string& path,
+                 std::initializer_list<const char*> keys) const {
     if (!obj.is_object()) fail(path, "expected an object");
     const std::set<std::string> known(keys.begin(), keys.end());
     for (const auto& item : obj.items())
       if (!known.count(item.key())) {
         std::string list;
         for (const char* k : keys) list += (list.empty() ? "" : ", ") + std::string(k);
-        fail(path.empty() ? item.key() : path + "." + item.key(), "unknown key (known: " + list + ")");
+        fail(path.empty() ? item.key() : path + "." + item.key(),
+             "unknown key (known: " + list + ")");
       }
   }
 
@@ -43,7 +44,8 @@ class Reader {
   }
 
   int integer(const json& j, const std::string& path) const {
-    if (!j.is_number_integer() && !(j.is_number() && j.get<double>() == std::floor(j.get<double>())))
+    if (!j.is_number_integer() &&
+        !(j.is_number() && j.get<double>() == std::floor(j.get<double>())))
       fail(path, "expected an integer");
     const double v = j.get<double>();
     if (v < -2147483648.0 || v > 2147483647.0) fail(path, "integer out of range");
@@ -56,9 +58,11 @@ class Reader {
   }
 
   std::vector<double> numbers(const json& j, const std::string& path, std::size_t n) const {
-    if (!j.is_array() || j.size() != n) fail(path, "expected an array of " + std::to_string(n) + " numbers");
+    if (!j.is_array() || j.size() != n)
+      fail(path, "expected an array of " + std::to_string(n) + " numbers");
     std::vector<double> out;
-    for (std::size_t i = 0; i < n; ++i) out.push_back(number(j[i], path + "[" + std::to_string(i) + "]"));
+    for (std::size_t i = 0; i < n; ++i)
+      out.push_back(number(j[i], path + "[" + std::to_string(i) + "]"));
     return out;
   }
 
@@ -77,7 +81,8 @@ class Reader {
 };
 
 Volume read_volume(const Reader& r, const json& j, const std::string& base_dir) {
-  r.only_keys(j, "volume", {"file", "format", "dims", "type", "endian", "range", "spacing", "synthetic"});
+  r.only_keys(j, "volume",
+              {"file", "format", "dims", "type", "endian", "range", "spacing", "synthetic"});
   if (j.contains("synthetic")) {
     if (j.contains("file")) r.fail("volume", "give either 'file' or 'synthetic', not both");
     const json dims = j.contains("dims") ? j["dims"] : json::array({64, 64, 64});
@@ -85,7 +90,8 @@ Volume read_volume(const Reader& r, const json& j, const std::string& base_dir) 
     for (int i = 0; i < 3; ++i)
       if (d[i] < 1 || d[i] > 4096 || d[i] != std::floor(d[i]))
         r.fail("volume.dims", "each dim must be an integer in 1..4096");
-    Volume v = synthetic_volume(r.string(j["synthetic"], "volume.synthetic"), int(d[0]), int(d[1]), int(d[2]));
+    Volume v = synthetic_volume(r.string(j["synthetic"], "volume.synthetic"), int(d[0]), int(d[1]),
+                                int(d[2]));
     if (j.contains("spacing")) v.spacing = r.vec3(j["spacing"], "volume.spacing");
     return v;
   }
@@ -97,7 +103,8 @@ Volume read_volume(const Reader& r, const json& j, const std::string& base_dir) 
   if (j.contains("dims")) {
     const auto d = r.numbers(j["dims"], "volume.dims", 3);
     for (int i = 0; i < 3; ++i)
-      if (d[i] < 1 || d[i] != std::floor(d[i]) || d[i] > 1e6) r.fail("volume.dims", "each dim must be a positive integer");
+      if (d[i] < 1 || d[i] != std::floor(d[i]) || d[i] > 1e6)
+        r.fail("volume.dims", "each dim must be a positive integer");
     src.dims = glm::ivec3(int(d[0]), int(d[1]), int(d[2]));
   }
   if (j.contains("type")) src.type = r.string(j["type"], "volume.type");
@@ -117,7 +124,8 @@ TransferFunction read_tf(const Reader& r, const json& j) {
   if (type == "identity") {
     r.only_keys(j, "tf", {"type", "extinction_scale", "color_scale"});
     tf.kind = TfKind::identity;
-    if (j.contains("extinction_scale")) tf.extinction_scale = r.number(j["extinction_scale"], "tf.extinction_scale");
+    if (j.contains("extinction_scale"))
+      tf.extinction_scale = r.number(j["extinction_scale"], "tf.extinction_scale");
     if (j.contains("color_scale")) tf.color_scale = r.number(j["color_scale"], "tf.color_scale");
   } else if (type == "piecewise_linear") {
     r.only_keys(j, "tf", {"type", "points"});
@@ -129,7 +137,8 @@ TransferFunction read_tf(const Reader& r, const json& j) {
       r.only_keys(pts[i], p, {"density", "color", "extinction"});
       for (const char* k : {"density", "color", "extinction"})
         if (!pts[i].contains(k)) r.fail(p, std::string("missing '") + k + "'");
-      tf.points.push_back({r.number(pts[i]["density"], p + ".density"), r.vec3(pts[i]["color"], p + ".color"),
+      tf.points.push_back({r.number(pts[i]["density"], p + ".density"),
+                           r.vec3(pts[i]["color"], p + ".color"),
                            r.number(pts[i]["extinction"], p + ".extinction")});
     }
   } else if (type == "table") {
@@ -155,8 +164,9 @@ TransferFunction read_tf(const Reader& r, const json& j) {
       r.only_keys(gs[i], p, {"mean", "width", "color", "extinction"});
       for (const char* k : {"mean", "width", "color", "extinction"})
         if (!gs[i].contains(k)) r.fail(p, std::string("missing '") + k + "'");
-      tf.gaussians.push_back({r.number(gs[i]["mean"], p + ".mean"), r.number(gs[i]["width"], p + ".width"),
-                              r.vec3(gs[i]["color"], p + ".color"), r.number(gs[i]["extinction"], p + ".extinction")});
+      tf.gaussians.push_back(
+          {r.number(gs[i]["mean"], p + ".mean"), r.number(gs[i]["width"], p + ".width"),
+           r.vec3(gs[i]["color"], p + ".color"), r.number(gs[i]["extinction"], p + ".extinction")});
     }
   } else {
     r.fail("tf.type", "unknown transfer function type '" + type +
@@ -166,7 +176,8 @@ TransferFunction read_tf(const Reader& r, const json& j) {
 }
 
 Camera read_camera(const Reader& r, const json& j, const std::string& p) {
-  r.only_keys(j, p, {"eye", "target", "up", "fov_y", "projection", "ortho_height", "width", "height"});
+  r.only_keys(j, p,
+              {"eye", "target", "up", "fov_y", "projection", "ortho_height", "width", "height"});
   Camera c;
   if (j.contains("eye")) c.eye = r.vec3(j["eye"], p + ".eye");
   if (j.contains("target")) c.target = r.vec3(j["target"], p + ".target");
@@ -177,9 +188,13 @@ Camera read_camera(const Reader& r, const json& j, const std::string& p) {
   if (j.contains("height")) c.height = r.integer(j["height"], p + ".height");
   if (j.contains("projection")) {
     const std::string proj = r.string(j["projection"], p + ".projection");
-    if (proj == "perspective") c.projection = Projection::perspective;
-    else if (proj == "orthographic") c.projection = Projection::orthographic;
-    else r.fail(p + ".projection", "unknown projection '" + proj + "' (known: perspective, orthographic)");
+    if (proj == "perspective")
+      c.projection = Projection::perspective;
+    else if (proj == "orthographic")
+      c.projection = Projection::orthographic;
+    else
+      r.fail(p + ".projection",
+             "unknown projection '" + proj + "' (known: perspective, orthographic)");
   }
   return c;
 }
@@ -194,7 +209,8 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
     // e.what() reads "[json.exception.parse_error.101] parse error at line 3, column 5: ..."
     std::string what = e.what();
     const std::size_t cut = what.find("] ");
-    throw Error(Status::io, where + ": malformed JSON: " + (cut == std::string::npos ? what : what.substr(cut + 2)));
+    throw Error(Status::io, where + ": malformed JSON: " +
+                                (cut == std::string::npos ? what : what.substr(cut + 2)));
   }
   const Reader r(where);
   r.only_keys(j, "", {"volume", "box", "model", "tf", "background", "cameras", "integrator"});
@@ -209,13 +225,17 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
   }
   if (j.contains("model")) {
     const std::string m = r.string(j["model"], "model");
-    if (m == "absorption") s.model = Model::absorption;
-    else if (m == "emission_absorption") s.model = Model::emission_absorption;
-    else r.fail("model", "unknown optical model '" + m + "' (known: absorption, emission_absorption)");
+    if (m == "absorption")
+      s.model = Model::absorption;
+    else if (m == "emission_absorption")
+      s.model = Model::emission_absorption;
+    else
+      r.fail("model", "unknown optical model '" + m + "' (known: absorption, emission_absorption)");
   }
   if (j.contains("box")) {
     r.only_keys(j["box"], "box", {"min", "max"});
-    if (!j["box"].contains("min") || !j["box"].contains("max")) r.fail("box", "needs 'min' and 'max'");
+    if (!j["box"].contains("min") || !j["box"].contains("max"))
+      r.fail("box", "needs 'min' and 'max'");
     s.box_min = r.vec3(j["box"]["min"], "box.min");
     s.box_max = r.vec3(j["box"]["max"], "box.max");
   } else {
@@ -224,9 +244,12 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
   if (j.contains("tf")) s.tf = read_tf(r, j["tf"]);
   if (j.contains("background")) {
     const json& b = j["background"];
-    if (b.is_number()) s.background = glm::dvec3(b.get<double>());
-    else if (b.is_array() && b.size() == 1) s.background = glm::dvec3(r.number(b[0], "background[0]"));
-    else s.background = r.vec3(b, "background");
+    if (b.is_number())
+      s.background = glm::dvec3(b.get<double>());
+    else if (b.is_array() && b.size() == 1)
+      s.background = glm::dvec3(r.number(b[0], "background[0]"));
+    else
+      s.background = r.vec3(b, "background");
   }
   if (!j.contains("cameras")) r.fail("cameras", "a scene needs at least one camera");
   const json& cams = r.array(j["cameras"], "cameras");
@@ -238,7 +261,8 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
     if (it.contains("scheme")) s.integrator.scheme = r.string(it["scheme"], "integrator.scheme");
     if (it.contains("step")) s.integrator.step = r.number(it["step"], "integrator.step");
     if (it.contains("min_transmittance"))
-      s.integrator.min_transmittance = r.number(it["min_transmittance"], "integrator.min_transmittance");
+      s.integrator.min_transmittance =
+          r.number(it["min_transmittance"], "integrator.min_transmittance");
   }
   try {
     validate(s);

@@ -7,15 +7,20 @@ namespace ivr {
 
 const char* tf_kind_name(TfKind kind) {
   switch (kind) {
-    case TfKind::identity: return "identity";
-    case TfKind::piecewise_linear: return "piecewise_linear";
-    case TfKind::table: return "table";
-    case TfKind::gaussian: return "gaussian";
+    case TfKind::identity:
+      return "identity";
+    case TfKind::piecewise_linear:
+      return "piecewise_linear";
+    case TfKind::table:
+      return "table";
+    case TfKind::gaussian:
+      return "gaussian";
   }
   return "?";
 }
 
-RenderVariant RenderVariant::of(const Scene& scene, const Integrator& integrator, Precision precision) {
+RenderVariant RenderVariant::of(const Scene& scene, const Integrator& integrator,
+                                Precision precision) {
   RenderVariant v;
   v.model = scene.model;
   v.tf = scene.tf.kind;

@@ -4,7 +4,6 @@
 
 #include <filesystem>
 #include <fstream>
-
 #include <nlohmann/json.hpp>
 
 #include "test_support.hpp"
@@ -30,7 +29,8 @@ class CliErrors : public ::testing::Test {
   }
 
   // Runs `ivr render` on `text` and checks the failure contract; returns stderr.
-  std::string expect_failure(const std::string& text, const std::string& extra = "", const std::string& env = "") {
+  std::string expect_failure(const std::string& text, const std::string& extra = "",
+                             const std::string& env = "") {
     const std::string scene = write_file(dir_ + "/scene.json", text);
     const std::string out = dir_ + "/out.npy";
     const CliResult r = run_cli("render " + scene + " -o " + out + " " + extra, env);
@@ -42,7 +42,9 @@ class CliErrors : public ::testing::Test {
       EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos) << entry.path();
     return r.err;
   }
-  std::string expect_failure(const json& j, const std::string& extra = "") { return expect_failure(j.dump(), extra); }
+  std::string expect_failure(const json& j, const std::string& extra = "") {
+    return expect_failure(j.dump(), extra);
+  }
 
   static bool one_line(const std::string& err) { return err.find('\n') == err.size() - 1; }
 
@@ -55,7 +57,8 @@ TEST_F(CliErrors, ValidSceneRenders) {
   const CliResult r = run_cli("render " + scene + " -o " + dir_ + "/ok.npy --json");
   ASSERT_EQ(r.status, 0) << r.err;
   const json j = json::parse(r.out);
-  for (const char* key : {"device", "kernel_seconds", "samples", "samples_per_second"}) EXPECT_TRUE(j.contains(key)) << key;
+  for (const char* key : {"device", "kernel_seconds", "samples", "samples_per_second"})
+    EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_GT(j["samples"].get<double>(), 0);
   EXPECT_TRUE(fs::exists(dir_ + "/ok.npy"));
 }
@@ -97,7 +100,8 @@ TEST_F(CliErrors, UnknownValuesAndKeys) {
   EXPECT_NE(expect_failure(j).find("unknown optical model 'scattering'"), std::string::npos);
   j = scene_;
   j["cameras"][0]["projection"] = "fisheye";
-  EXPECT_NE(expect_failure(j).find("cameras[0].projection: unknown projection 'fisheye'"), std::string::npos);
+  EXPECT_NE(expect_failure(j).find("cameras[0].projection: unknown projection 'fisheye'"),
+            std::string::npos);
   j = scene_;
   j["camera"] = j["cameras"];
   EXPECT_NE(expect_failure(j).find("camera: unknown key"), std::string::npos);
@@ -118,7 +122,8 @@ TEST_F(CliErrors, RawSizeMismatch) {
 }
 
 TEST_F(CliErrors, NonFiniteAndNegativeDensities) {
-  for (float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -0.25f}) {
+  for (float bad :
+       {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -0.25f}) {
     std::vector<float> v(4 * 4 * 4, 0.5f);
     v[(2 * 4 + 1) * 4 + 3] = bad;  // (x, y, z) = (3, 1, 2)
     save_npy(dir_ + "/bad.npy", {4, 4, 4}, v.data());
@@ -176,7 +181,8 @@ TEST_F(CliErrors, BadTransferFunctions) {
   j["tf"] = json::parse(R"({"type": "piecewise_linear", "points": [
       {"density": 0.5, "color": [1,1,1], "extinction": 1}, {"density": 0.1, "color": [1,1,1], "extinction": 1}]})");
   EXPECT_NE(expect_failure(j).find("sorted by density"), std::string::npos);
-  j["tf"] = json::parse(R"({"type": "gaussian", "gaussians": [{"mean": 0.5, "width": 0, "color": [1,1,1], "extinction": 1}]})");
+  j["tf"] = json::parse(
+      R"({"type": "gaussian", "gaussians": [{"mean": 0.5, "width": 0, "color": [1,1,1], "extinction": 1}]})");
   EXPECT_NE(expect_failure(j).find("width must be > 0"), std::string::npos);
   j["tf"] = json::parse(R"({"type": "table", "range": [1, 0], "entries": [[1,1,1,1]]})");
   EXPECT_NE(expect_failure(j).find("lo < hi"), std::string::npos);
@@ -192,7 +198,9 @@ TEST_F(CliErrors, NoPlatform) {
 
 TEST_F(CliErrors, NoMatchingDevice) {
   std::string err = expect_failure(scene_.dump(), "--device no-such-device-xyz");
-  EXPECT_NE(err.find("no OpenCL device matches device selector 'no-such-device-xyz'"), std::string::npos) << err;
+  EXPECT_NE(err.find("no OpenCL device matches device selector 'no-such-device-xyz'"),
+            std::string::npos)
+      << err;
   err = expect_failure(scene_.dump(), "", "IVR_DEVICE=99");
   EXPECT_NE(err.find("IVR_DEVICE '99'"), std::string::npos) << err;
   err = expect_failure(scene_.dump(), "--device 99999999999999999999");
@@ -202,14 +210,18 @@ TEST_F(CliErrors, NoMatchingDevice) {
 TEST_F(CliErrors, KernelBuildFailureCarriesTheLog) {
   // A kernel folder whose render.cl does not compile.
   const std::string kdir = temp_dir("broken_kernels");
-  for (const auto& f : fs::directory_iterator(IVR_KERNELS_DIR)) fs::copy_file(f.path(), kdir + "/" + f.path().filename().string());
-  write_file(kdir + "/render.cl", "#include \"config.cl\"\n__kernel void render(__global float* x) { x[0] = undeclared_thing; }\n");
+  for (const auto& f : fs::directory_iterator(IVR_KERNELS_DIR))
+    fs::copy_file(f.path(), kdir + "/" + f.path().filename().string());
+  write_file(kdir + "/render.cl",
+             "#include \"config.cl\"\n__kernel void render(__global float* x) { x[0] = "
+             "undeclared_thing; }\n");
   const std::string scene = write_file(dir_ + "/scene.json", scene_.dump());
   const CliResult r = run_cli("render " + scene + " -o " + dir_ + "/out.npy",
                               "IVR_KERNEL_DIR=" + kdir + " IVR_KERNEL_CACHE=0");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.err.find("building kernel render.cl"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("undeclared_thing"), std::string::npos) << "the build log is missing: " << r.err;
+  EXPECT_NE(r.err.find("undeclared_thing"), std::string::npos)
+      << "the build log is missing: " << r.err;
   EXPECT_FALSE(fs::exists(dir_ + "/out.npy"));
 }
 

@@ -1,5 +1,7 @@
 // runtime_test.cpp — the OpenCL layer: device listing and selection, readable errors, the
 // in-process and on-disk program caches, kernel files and variants.
+#include "runtime.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -8,7 +10,6 @@
 
 #include "kernel_sources.hpp"
 #include "program_cache.hpp"
-#include "runtime.hpp"
 #include "test_support.hpp"
 #include "variants.hpp"
 
@@ -37,8 +38,8 @@ TEST(Runtime, ListsDevicesWithConsistentIndices) {
   for (std::size_t i = 0; i < devices.size(); ++i) {
     EXPECT_EQ(devices[i].index, int(i));
     EXPECT_FALSE(devices[i].name.empty());
-    EXPECT_TRUE(devices[i].type == "cpu" || devices[i].type == "gpu" || devices[i].type == "accelerator" ||
-                devices[i].type == "other");
+    EXPECT_TRUE(devices[i].type == "cpu" || devices[i].type == "gpu" ||
+                devices[i].type == "accelerator" || devices[i].type == "other");
     EXPECT_GT(devices[i].max_allocation, 0u);
   }
 }
@@ -46,7 +47,9 @@ TEST(Runtime, ListsDevicesWithConsistentIndices) {
 TEST(Runtime, SelectsByIndexPairTypeAndName) {
   const DeviceInfo first = list_devices().front();
   EXPECT_EQ(Device("0").info().name, first.name);
-  EXPECT_EQ(Device(std::to_string(first.platform_index) + ":" + std::to_string(first.device_index)).info().name,
+  EXPECT_EQ(Device(std::to_string(first.platform_index) + ":" + std::to_string(first.device_index))
+                .info()
+                .name,
             first.name);
   EXPECT_EQ(Device(first.type).info().type, first.type);
   // Case-insensitive substring of "platform name".
@@ -67,7 +70,8 @@ TEST(Runtime, SelectorFromEnvironmentAndUnknownSelector) {
       FAIL() << "selected " << d.info().name;
     } catch (const Error& e) {
       EXPECT_EQ(e.status(), Status::no_device);
-      EXPECT_NE(std::string(e.what()).find("IVR_DEVICE 'no-such-device'"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("IVR_DEVICE 'no-such-device'"), std::string::npos)
+          << e.what();
       EXPECT_NE(std::string(e.what()).find("available: [0]"), std::string::npos) << e.what();
     }
   }
@@ -78,11 +82,13 @@ TEST(Runtime, ErrorNamesTheCallAndTheCode) {
   EXPECT_STREQ(cl_error_name(-11), "CL_BUILD_PROGRAM_FAILURE");
   EXPECT_STREQ(cl_error_name(-9999), "CL_UNKNOWN_ERROR");
   try {
-    throw_cl(cl::Error(CL_MEM_OBJECT_ALLOCATION_FAILURE, "clCreateBuffer"), "allocating the volume");
+    throw_cl(cl::Error(CL_MEM_OBJECT_ALLOCATION_FAILURE, "clCreateBuffer"),
+             "allocating the volume");
   } catch (const Error& e) {
     EXPECT_EQ(e.status(), Status::out_of_memory);
     EXPECT_STREQ(e.what(),
-                 "clCreateBuffer failed with CL_MEM_OBJECT_ALLOCATION_FAILURE (-4) while allocating the volume");
+                 "clCreateBuffer failed with CL_MEM_OBJECT_ALLOCATION_FAILURE (-4) while "
+                 "allocating the volume");
   }
 }
 
@@ -118,7 +124,8 @@ TEST(ProgramCache, MemoryThenDiskThenCompiledAfterCorruption) {
   EXPECT_EQ(fresh.last_origin(), "disk");
   // The program from disk works.
   std::vector<float> x{1, 2, 3};
-  cl::Buffer buf(dev.context, cl_mem_flags(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR), std::size_t(12), x.data());
+  cl::Buffer buf(dev.context, cl_mem_flags(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR),
+                 std::size_t(12), x.data());
   cl::Kernel k(program, "twice");
   k.setArg(0, buf);
   dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(3));
@@ -152,7 +159,8 @@ TEST(ProgramCache, UnwritableCacheFallsBackToCompiling) {
   ScopedEnv env("IVR_CACHE_DIR", "/proc/ivr-cannot-write-here");
   Device::Impl& dev = device().impl();
   ProgramCache cache;
-  EXPECT_NO_THROW(cache.get(dev.context, dev.device, dev.info, std::string(kSource) + "// ro\n", "", "twice"));
+  EXPECT_NO_THROW(
+      cache.get(dev.context, dev.device, dev.info, std::string(kSource) + "// ro\n", "", "twice"));
   EXPECT_EQ(cache.last_origin(), "compiled");
 }
 
@@ -160,7 +168,8 @@ TEST(ProgramCache, BuildFailureCarriesTheBuildLog) {
   Device::Impl& dev = device().impl();
   ProgramCache cache;
   try {
-    cache.get(dev.context, dev.device, dev.info, "__kernel void f() { int x = not_declared_here; }", "", "broken.cl");
+    cache.get(dev.context, dev.device, dev.info, "__kernel void f() { int x = not_declared_here; }",
+              "", "broken.cl");
     FAIL();
   } catch (const Error& e) {
     EXPECT_EQ(e.status(), Status::build);
@@ -175,10 +184,12 @@ TEST(KernelSources, IncludesResolvedOnceAndEmbeddedMatchesTheFiles) {
   EXPECT_EQ(text.find("#include"), std::string::npos);
   const std::size_t first = text.find("#ifndef IVR_CONFIG_CL");
   ASSERT_NE(first, std::string::npos);
-  EXPECT_EQ(text.find("#ifndef IVR_CONFIG_CL", first + 1), std::string::npos) << "config.cl pasted twice";
+  EXPECT_EQ(text.find("#ifndef IVR_CONFIG_CL", first + 1), std::string::npos)
+      << "config.cl pasted twice";
   for (const auto& [name, embedded] : detail::embedded_kernels()) {
     std::ifstream in(std::string(IVR_KERNELS_DIR) + "/" + name);
-    const std::string on_disk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string on_disk((std::istreambuf_iterator<char>(in)),
+                              std::istreambuf_iterator<char>());
     EXPECT_EQ(embedded, on_disk) << name << " is stale in the build";
   }
   EXPECT_THROW(kernel_file("nope.cl"), Error);

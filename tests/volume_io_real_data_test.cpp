@@ -20,7 +20,9 @@ VolumeSource src(const std::string& path) {
   return s;
 }
 
-std::vector<unsigned char> read_bytes(const std::string& path) { return ivr::read_binary_file(path, "test data"); }
+std::vector<unsigned char> read_bytes(const std::string& path) {
+  return ivr::read_binary_file(path, "test data");
+}
 
 class RealVolumeTest : public ::testing::Test {
  protected:

@@ -11,9 +11,9 @@
 namespace ivr {
 
 struct DeviceInfo {
-  int index = 0;           // position in list_devices()
-  int platform_index = 0;  // OpenCL platform number
-  int device_index = 0;    // device number within its platform
+  int index = 0;                                              // position in list_devices()
+  int platform_index = 0;                                     // OpenCL platform number
+  int device_index = 0;                                       // device number within its platform
   std::string platform, name, vendor, type, version, driver;  // type: cpu, gpu, accelerator
   bool fp64 = false;
   std::uint64_t global_memory = 0, max_allocation = 0;

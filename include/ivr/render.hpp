@@ -28,10 +28,10 @@ struct Image {
 };
 
 struct RenderStats {
-  double kernel_seconds = 0;   // device time of the render kernel (profiling events)
-  double build_seconds = 0;    // program lookup/compile time (0 when cached in-process)
-  std::uint64_t samples = 0;   // density samples taken over all rays
-  std::string variant;         // the compiled feature set, e.g. "model=ea tf=gaussian f32"
+  double kernel_seconds = 0;  // device time of the render kernel (profiling events)
+  double build_seconds = 0;   // program lookup/compile time (0 when cached in-process)
+  std::uint64_t samples = 0;  // density samples taken over all rays
+  std::string variant;        // the compiled feature set, e.g. "model=ea tf=gaussian f32"
 };
 
 // Validates the scene and renders it; throws ivr::Error.

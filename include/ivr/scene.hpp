@@ -2,13 +2,12 @@
 // integrator and background, with the exact conventions of DESIGN.md.
 #pragma once
 #include <cstdint>
-#include <optional>
-#include <string>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "ivr/export.h"
 
@@ -42,10 +41,10 @@ struct TfGaussian {
 struct TransferFunction {
   TfKind kind = TfKind::identity;
   double extinction_scale = 1.0, color_scale = 1.0;  // identity
-  std::vector<TfPoint> points;                        // piecewise_linear, sorted by density
-  glm::dvec2 range{0.0, 1.0};                         // table
-  std::vector<glm::dvec4> entries;                    // table rows [r, g, b, sigma]
-  std::vector<TfGaussian> gaussians;                  // gaussian
+  std::vector<TfPoint> points;                       // piecewise_linear, sorted by density
+  glm::dvec2 range{0.0, 1.0};                        // table
+  std::vector<glm::dvec4> entries;                   // table rows [r, g, b, sigma]
+  std::vector<TfGaussian> gaussians;                 // gaussian
 };
 
 enum class Projection { perspective, orthographic };

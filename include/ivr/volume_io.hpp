@@ -1,11 +1,10 @@
 // ivr/volume_io.hpp — reading volumes (.npy, NRRD, NIfTI-1, raw, DiffDVR .cvol), writing .npy.
 #pragma once
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <glm/vec2.hpp>
-#include <glm/vec3.hpp>
 
 #include "ivr/export.h"
 #include "ivr/scene.hpp"
@@ -21,8 +20,8 @@ struct VolumeSource {
   std::string path;
   std::string format;  // "" = from the extension: .npy, .nrrd/.nhdr, .nii(.gz)/.hdr, .raw, .cvol
   std::optional<glm::ivec3> dims;  // raw: (X, Y, Z)
-  std::string type;                // raw: uint8, int8, uint16, int16, uint32, int32, float32, float64
-  std::string endian = "little";   // raw: little or big
+  std::string type;  // raw: uint8, int8, uint16, int16, uint32, int32, float32, float64
+  std::string endian = "little";  // raw: little or big
   std::optional<glm::dvec2> range;
   std::optional<glm::dvec3> spacing;
 };

@@ -1,6 +1,5 @@
 // consumer.cpp — uses the installed ivr: version macros, a synthetic scene, one render.
 #include <iostream>
-
 #include <ivr/ivr.hpp>
 
 int main() {
@@ -12,6 +11,7 @@ int main() {
   scene.cameras = {camera};
   ivr::Device device;
   const ivr::Image image = ivr::render(device, scene);
-  std::cout << "ivr " << IVR_VERSION_STRING << " rendered " << image.width << "x" << image.height << "\n";
+  std::cout << "ivr " << IVR_VERSION_STRING << " rendered " << image.width << "x" << image.height
+            << "\n";
   return image.pixels.size() == 4 * 4 * 4 ? 0 : 1;
 }

@@ -1,6 +1,5 @@
 // nifti_test.cpp — reading NIfTI-1 (.nii, .nii.gz, .hdr/.img): types, byte order, scaling, errors.
 #include <gtest/gtest.h>
-#include <unistd.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -14,31 +13,15 @@
 
 #include "ivr/error.hpp"
 #include "ivr/volume_io.hpp"
+#include "volume_test_support.hpp"
 
 namespace fs = std::filesystem;
 using ivr::Status;
 using ivr::VolumeSource;
+using ivr::test::encode;
+using ivr::test::ramp;
 
 namespace {
-
-bool host_big() {
-  const std::uint16_t one = 1;
-  return *reinterpret_cast<const unsigned char*>(&one) == 0;
-}
-
-// Bytes of `values` as type T, little or big endian (independent of the library's code).
-template <class T>
-std::string encode(const std::vector<double>& values, bool big = false) {
-  std::string out;
-  for (double v : values) {
-    const T t = static_cast<T>(v);
-    char b[sizeof(T)];
-    std::memcpy(b, &t, sizeof(T));
-    if (big != host_big()) std::reverse(b, b + sizeof(T));
-    out.append(b, sizeof(T));
-  }
-  return out;
-}
 
 // The header fields a test sets; the rest of the 348 bytes stay zero.
 struct Header {
@@ -73,69 +56,9 @@ std::string nii(const Header& h, const std::string& data, bool big = false) {
   return b + data;
 }
 
-// Values 0..23 of a 2x3x4 (X x Y x Z) volume in file order, x fastest.
-std::vector<double> ramp(double scale = 1, double offset = 0) {
-  std::vector<double> v(24);
-  for (int i = 0; i < 24; ++i) v[i] = offset + scale * i;
-  return v;
-}
-
-class NiftiTest : public ::testing::Test {
+class NiftiTest : public ivr::test::VolumeFileTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("ivr_nifti_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  std::string write(const std::string& name, const std::string& bytes) {
-    const std::string path = (dir_ / name).string();
-    std::ofstream(path, std::ios::binary) << bytes;
-    return path;
-  }
-  // Written through zlib's gzopen/gzwrite.
-  std::string write_gz(const std::string& name, const std::string& bytes) {
-    const std::string path = (dir_ / name).string();
-    gzFile f = gzopen(path.c_str(), "wb");
-    EXPECT_NE(f, nullptr);
-    EXPECT_EQ(gzwrite(f, bytes.data(), unsigned(bytes.size())), int(bytes.size()));
-    gzclose(f);
-    return path;
-  }
-  static ivr::Volume load(const std::string& path) {
-    VolumeSource s;
-    s.path = path;
-    return ivr::load_volume(s);
-  }
-  // Expects loading `path` to throw ivr::Error with `status`, one line, naming `path` and `words`.
-  static void load_error(const std::string& path, Status status,
-                         const std::vector<std::string>& words) {
-    try {
-      load(path);
-      ADD_FAILURE() << "no ivr::Error thrown for " << path;
-    } catch (const ivr::Error& e) {
-      const std::string msg = e.what();
-      EXPECT_STREQ(ivr::status_name(e.status()), ivr::status_name(status)) << msg;
-      EXPECT_NE(msg.find(path), std::string::npos) << "message does not name the file: " << msg;
-      EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
-      for (const std::string& w : words) EXPECT_NE(msg.find(w), std::string::npos) << msg;
-    }
-  }
-  // Expects the 2x3x4 volume v to hold `raw` mapped by d = (raw - lo) / (hi - lo).
-  static void expect_ramp(const ivr::Volume& v, const std::vector<double>& raw, double lo = 0,
-                          double hi = 1) {
-    ASSERT_EQ(v.nx, 2);
-    ASSERT_EQ(v.ny, 3);
-    ASSERT_EQ(v.nz, 4);
-    ASSERT_EQ(v.data.size(), 24u);
-    for (int i = 0; i < 24; ++i) EXPECT_FLOAT_EQ(v.data[i], float((raw[i] - lo) / (hi - lo))) << i;
-  }
-  fs::path dir_;
+  NiftiTest() : VolumeFileTest("ivr_nifti_") {}
 };
 
 TEST_F(NiftiTest, EveryTypeInBothByteOrders) {

@@ -8,17 +8,13 @@
 
 #include "files.hpp"
 #include "ivr/volume_io.hpp"
+#include "volume_test_support.hpp"
 
 namespace fs = std::filesystem;
 using ivr::VolumeSource;
+using ivr::test::src;
 
 namespace {
-
-VolumeSource src(const std::string& path) {
-  VolumeSource s;
-  s.path = path;
-  return s;
-}
 
 std::vector<unsigned char> read_bytes(const std::string& path) {
   return ivr::read_binary_file(path, "test data");

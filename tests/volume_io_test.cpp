@@ -17,34 +17,16 @@
 #include <vector>
 
 #include "ivr/error.hpp"
+#include "volume_test_support.hpp"
 
 namespace fs = std::filesystem;
 using ivr::Status;
 using ivr::VolumeSource;
+using ivr::test::encode;
+using ivr::test::ramp;
+using ivr::test::src;
 
 namespace {
-
-VolumeSource src(const std::string& path) {
-  VolumeSource s;
-  s.path = path;
-  return s;
-}
-
-// Bytes of `values` as type T, little or big endian (independent of the library's code).
-template <class T>
-std::string encode(const std::vector<double>& values, bool big = false) {
-  std::string out;
-  for (double v : values) {
-    const T t = static_cast<T>(v);
-    char b[sizeof(T)];
-    std::memcpy(b, &t, sizeof(T));
-    const std::uint16_t one = 1;
-    const bool host_big = *reinterpret_cast<const unsigned char*>(&one) == 0;
-    if (big != host_big) std::reverse(b, b + sizeof(T));
-    out.append(b, sizeof(T));
-  }
-  return out;
-}
 
 // A hand-written .npy: the dict header padded to 64 bytes, then `payload`.
 std::string npy(const std::string& descr, const std::vector<std::size_t>& shape,
@@ -61,13 +43,6 @@ std::string npy(const std::string& descr, const std::vector<std::size_t>& shape,
   out += char(0);
   out += encode<std::uint32_t>({double(dict.size())}).substr(0, pre - 8);
   return out + dict + payload;
-}
-
-// Values 0..23 of a 2x3x4 (X x Y x Z) volume, x fastest.
-std::vector<double> ramp(double scale = 1, double offset = 0) {
-  std::vector<double> v(24);
-  for (int i = 0; i < 24; ++i) v[i] = offset + scale * i;
-  return v;
 }
 
 // A zero 2x3x4 volume with `value` at (x=1, y=2, z=3) only.
@@ -109,25 +84,9 @@ std::string cvol(int x, int y, int z, double sx, double sy, double sz, int type,
   return h + payload;
 }
 
-class VolumeIoTest : public ::testing::Test {
+class VolumeIoTest : public ivr::test::VolumeFileTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("ivr_volume_io_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  std::string write(const std::string& name, const std::string& bytes) {
-    const std::string path = (dir_ / name).string();
-    std::ofstream(path, std::ios::binary) << bytes;
-    return path;
-  }
-  ivr::Volume load(const std::string& path) { return ivr::load_volume(src(path)); }
+  VolumeIoTest() : VolumeFileTest("ivr_volume_io_") {}
   ivr::Volume load_raw(const std::string& path, const std::string& type, bool big = false) {
     VolumeSource s = src(path);
     s.dims = glm::ivec3(2, 3, 4);
@@ -135,33 +94,6 @@ class VolumeIoTest : public ::testing::Test {
     s.endian = big ? "big" : "little";
     return ivr::load_volume(s);
   }
-  // Expects f() to throw ivr::Error with `status`, one line, naming `path` and each of `words`.
-  void expect_error(const std::function<void()>& f, Status status, const std::string& path,
-                    const std::vector<std::string>& words = {}) {
-    try {
-      f();
-      ADD_FAILURE() << "no ivr::Error thrown for " << path;
-    } catch (const ivr::Error& e) {
-      const std::string msg = e.what();
-      EXPECT_STREQ(ivr::status_name(e.status()), ivr::status_name(status)) << msg;
-      EXPECT_NE(msg.find(path), std::string::npos) << "message does not name the file: " << msg;
-      EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
-      for (const std::string& w : words) EXPECT_NE(msg.find(w), std::string::npos) << msg;
-    }
-  }
-  void load_error(const std::string& path, Status status, const std::vector<std::string>& words) {
-    expect_error([&] { load(path); }, status, path, words);
-  }
-  // Expects the 2x3x4 volume v to hold `raw` mapped by d = (raw - lo) / (hi - lo).
-  static void expect_ramp(const ivr::Volume& v, const std::vector<double>& raw, double lo = 0,
-                          double hi = 1) {
-    ASSERT_EQ(v.nx, 2);
-    ASSERT_EQ(v.ny, 3);
-    ASSERT_EQ(v.nz, 4);
-    ASSERT_EQ(v.data.size(), 24u);
-    for (int i = 0; i < 24; ++i) EXPECT_FLOAT_EQ(v.data[i], float((raw[i] - lo) / (hi - lo))) << i;
-  }
-  fs::path dir_;
 };
 
 TEST_F(VolumeIoTest, SaveNpyRoundTripsFloat32) {

@@ -6,3 +6,4 @@
 #include "ivr/scene.hpp"
 #include "ivr/version.h"
 #include "ivr/volume_io.hpp"
+#include "ivr/gradient.hpp"

@@ -1,0 +1,54 @@
+// ivr/gradient.hpp — reverse-mode (adjoint) gradients of an image loss with respect to every voxel,
+// the transfer function's parameters and the background, in constant memory per ray.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ivr/export.h"
+#include "ivr/render.hpp"
+
+namespace ivr {
+
+enum class Loss {
+  mse,  // mean over every element of (image - target)^2
+  l1,   // mean over every element of |image - target| (subgradient 0 where they are equal)
+};
+
+struct GradientOptions {
+  Precision precision = Precision::f32;
+  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+  Loss loss = Loss::mse;
+  bool density = true;      // d loss / d voxel density
+  bool tf = false;          // d loss / d transfer-function parameters (layout: tf_gradient_shape)
+  bool background = false;  // d loss / d background (1 value for absorption, 3 for emission)
+};
+
+struct Gradient {
+  double loss = 0;
+  std::vector<float> density;       // volume shape (nz, ny, nx) when asked for, else empty
+  std::vector<double> tf;           // rows x columns (tf_gradient_shape), when asked for
+  std::vector<double> background;   // when asked for
+  double kernel_seconds = 0;        // device time: primal render + loss + adjoint march
+  std::uint64_t device_bytes = 0;   // peak device memory of the evaluation (all its buffers)
+  std::uint64_t samples = 0;        // density samples of the adjoint march
+};
+
+// Shape of the TF gradient: identity → 1 x 2 (extinction_scale, color_scale); piecewise_linear
+// and table → rows x 4 [r, g, b, extinction]; gaussian → rows x 6 [r, g, b, extinction, mean,
+// width]. Where the TF is not differentiable (at a control point's density, at a table entry)
+// the derivative is one-sided: the segment [d_k, d_k+1) holding the density is used.
+IVR_API std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf);
+
+// Loss of `image` against `target` (same shape) — evaluated on the host in double precision.
+IVR_API double image_loss(const Image& image, const Image& target, Loss loss);
+
+// Renders the scene, evaluates the loss against `target` (shape (views, H, W, C) of the render)
+// and marches every ray again backwards-in-effect (front to back, with the remaining radiance
+// C minus the prefix: no division by (1 - alpha), no per-sample storage) to accumulate the
+// gradients asked for. Throws ivr::Error: invalid_argument for a target of the wrong shape or
+// with NaN/Inf.
+IVR_API Gradient gradient(Device& device, const Scene& scene, const Image& target,
+                          const GradientOptions& options = {});
+
+}  // namespace ivr

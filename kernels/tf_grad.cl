@@ -1,0 +1,155 @@
+// tf_grad.cl — derivatives of the transfer functions: with respect to density (for the voxel
+// gradient) and to their own parameters (scattered into a work-group's local accumulator).
+// At a control point or table entry the derivative is one-sided: the segment [d_k, d_k+1) that
+// holds the density is used, as tf_sample() does.
+#ifndef IVR_TF_GRAD_CL
+#define IVR_TF_GRAD_CL
+#include "atomics.cl"
+#include "tf.cl"
+
+// Columns of the TF gradient (lib/adjoint.cpp's tf_gradient_shape must agree).
+#if IVR_TF == IVR_TF_IDENTITY
+#define IVR_TF_GRAD_COLUMNS 2
+#elif IVR_TF == IVR_TF_GAUSSIAN
+#define IVR_TF_GRAD_COLUMNS 6
+#else
+#define IVR_TF_GRAD_COLUMNS 4
+#endif
+
+// The one or two rows holding density d, their weights, and the slope of the weights in d.
+typedef struct {
+  int row0, row1;
+  real w1;      // weight of row1; row0 has 1 - w1
+  real dw1_dd;  // d w1 / d density (0 where the TF is constant)
+} TfSegment;
+
+inline TfSegment tf_segment(real d, __global const real* tf, int count, real4 scalars, int* cursor) {
+  TfSegment s;
+  s.row0 = s.row1 = 0;
+  s.w1 = (real)0;
+  s.dw1_dd = (real)0;
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  if (d >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
+    s.row0 = s.row1 = count - 1;
+  } else if (d > tf[0]) {
+    int k = *cursor;
+    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
+    while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
+    *cursor = k;
+    const real da = tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+    const real db = tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+    s.row0 = k;
+    s.row1 = k + 1;
+    s.w1 = (d - da) / (db - da);
+    s.dw1_dd = (real)1 / (db - da);
+  }
+#elif IVR_TF == IVR_TF_TABLE
+  const real scale = (real)(count - 1) / (scalars.y - scalars.x);
+  const real raw = (d - scalars.x) * scale;
+  const real u = clamp(raw, (real)0, (real)(count - 1));
+  s.row0 = min((int)u, count - 1);
+  s.row1 = min(s.row0 + 1, count - 1);
+  s.w1 = u - (real)s.row0;
+  s.dw1_dd = (raw >= (real)0 && raw < (real)(count - 1)) ? scale : (real)0;
+#endif
+  return s;
+}
+
+// d sigma / d d and d emission / d d at density d.
+inline real tf_slope(real d, __global const real* tf, int count, real4 scalars, int* cursor,
+                     real* der, real* deg, real* deb) {
+  *der = *deg = *deb = (real)0;
+#if IVR_TF == IVR_TF_IDENTITY
+#if IVR_EMISSION
+  *der = *deg = *deb = (real)2 * scalars.x * scalars.y * d;  // E = a·b·d²
+#endif
+  return scalars.x;
+#elif IVR_TF == IVR_TF_GAUSSIAN
+  real slope = (real)0;
+  for (int k = 0; k < count; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
+    const real z = (d - p[0]) / p[1];
+    const real ds = -p[5] * exp((real)-0.5 * z * z) * z / p[1];
+    slope += ds;
+#if IVR_EMISSION
+    *der += ds * p[2];
+    *deg += ds * p[3];
+    *deb += ds * p[4];
+#endif
+  }
+  return slope;
+#else
+  const TfSegment s = tf_segment(d, tf, count, scalars, cursor);
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
+  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+#else
+  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_TABLE;
+  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_TABLE;
+#endif
+  const real sigma = lerp(a[3], b[3], s.w1);
+  const real dsigma = (b[3] - a[3]) * s.dw1_dd;
+#if IVR_EMISSION
+  // E = sigma·c: E' = sigma'·c + sigma·c'
+  *der = dsigma * lerp(a[0], b[0], s.w1) + sigma * (b[0] - a[0]) * s.dw1_dd;
+  *deg = dsigma * lerp(a[1], b[1], s.w1) + sigma * (b[1] - a[1]) * s.dw1_dd;
+  *deb = dsigma * lerp(a[2], b[2], s.w1) + sigma * (b[2] - a[2]) * s.dw1_dd;
+#endif
+  return dsigma;
+#endif
+}
+
+// Adds the parameter gradient of one sample, given gs = dL/dsigma and (gr, gg, gb) = dL/dE,
+// into acc (rows x IVR_TF_GRAD_COLUMNS, local memory shared by the work-group).
+inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars, int* cursor,
+                       real gs, real gr, real gg, real gb, volatile __local real* acc) {
+#if IVR_TF == IVR_TF_IDENTITY
+  // sigma = a·d, E = a·b·d² (grey): dL/da = gs·d + (gr+gg+gb)·b·d², dL/db = (gr+gg+gb)·a·d².
+  const real ge = gr + gg + gb;
+  atomic_add_local(acc + 0, gs * d + ge * scalars.y * d * d);
+  atomic_add_local(acc + 1, ge * scalars.x * d * d);
+#elif IVR_TF == IVR_TF_GAUSSIAN
+  for (int k = 0; k < count; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
+    const real z = (d - p[0]) / p[1];
+    const real g = exp((real)-0.5 * z * z);
+    // sigma += e·G, E += e·G·c: d/de = G·(gs + gE·c), d/dc = e·G·gE, d/dmean = e·(gs + gE·c)·G·z/w,
+    // d/dwidth = e·(gs + gE·c)·G·z²/w.
+    const real through = gs + gr * p[2] + gg * p[3] + gb * p[4];
+    volatile __local real* row = acc + k * IVR_TF_GRAD_COLUMNS;
+    atomic_add_local(row + 0, p[5] * g * gr);
+    atomic_add_local(row + 1, p[5] * g * gg);
+    atomic_add_local(row + 2, p[5] * g * gb);
+    atomic_add_local(row + 3, g * through);
+    atomic_add_local(row + 4, p[5] * through * g * z / p[1]);
+    atomic_add_local(row + 5, p[5] * through * g * z * z / p[1]);
+  }
+#else
+  const TfSegment s = tf_segment(d, tf, count, scalars, cursor);
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+#else
+  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_TABLE;
+  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_TABLE;
+#endif
+  // sigma = lerp(s0, s1, w), c = lerp(c0, c1, w), E = sigma·c.
+  const real sigma = lerp(a[3], b[3], s.w1);
+  const real cr = lerp(a[0], b[0], s.w1), cg = lerp(a[1], b[1], s.w1), cb = lerp(a[2], b[2], s.w1);
+  const real through = gs + gr * cr + gg * cg + gb * cb;  // dL/dsigma including E = sigma·c
+  const real w[2] = {(real)1 - s.w1, s.w1};
+  const int rows[2] = {s.row0, s.row1};
+  for (int j = 0; j < 2; ++j) {
+    if (w[j] == (real)0) continue;
+    volatile __local real* row = acc + rows[j] * IVR_TF_GRAD_COLUMNS;
+#if IVR_EMISSION
+    atomic_add_local(row + 0, w[j] * sigma * gr);
+    atomic_add_local(row + 1, w[j] * sigma * gg);
+    atomic_add_local(row + 2, w[j] * sigma * gb);
+#endif
+    atomic_add_local(row + 3, w[j] * through);
+  }
+#endif
+}
+
+#endif

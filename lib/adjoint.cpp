@@ -1,0 +1,173 @@
+// adjoint.cpp — the gradient operation: one launch of kernels/adjoint.cl (primal march, loss, and
+// the constant-memory adjoint march) per evaluation, reductions of the per-pixel terms on the host.
+#include <cmath>
+#include <numeric>
+
+#include "device_scene.hpp"
+#include "ivr/gradient.hpp"
+#include "kernel_sources.hpp"
+#include "scene_checks.hpp"
+#include "variants.hpp"
+
+namespace ivr {
+
+std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf) {
+  switch (tf.kind) {
+    case TfKind::identity: return {1, 2};
+    case TfKind::piecewise_linear: return {tf.points.size(), 4};
+    case TfKind::table: return {tf.entries.size(), 4};
+    case TfKind::gaussian: return {tf.gaussians.size(), 6};
+  }
+  return {0, 0};
+}
+
+namespace {
+
+void check_target(const Scene& scene, const Image& target) {
+  const Camera& c = scene.cameras.front();
+  const auto shape = [](int v, int h, int w, int ch) {
+    return "(" + std::to_string(v) + ", " + std::to_string(h) + ", " + std::to_string(w) + ", " +
+           std::to_string(ch) + ")";
+  };
+  const std::string want = shape(int(scene.cameras.size()), c.height, c.width, scene.channels());
+  const std::string got = shape(target.views, target.height, target.width, target.channels);
+  if (want != got || target.pixels.size() != std::size_t(target.views) * target.height *
+                                                 target.width * target.channels)
+    throw Error(Status::invalid_argument,
+                "target has shape " + got + " but the scene renders " + want);
+  for (std::size_t i = 0; i < target.pixels.size(); ++i)
+    if (!std::isfinite(target.pixels[i]))
+      throw Error(Status::invalid_argument,
+                  "target element " + std::to_string(i) + " is not finite (" +
+                      std::to_string(target.pixels[i]) + ")");
+}
+
+std::string gradient_preamble(const RenderVariant& variant, const GradientOptions& o) {
+  return variant.preamble() + "#define IVR_GRAD_DENSITY " + (o.density ? "1" : "0") +
+         "\n#define IVR_GRAD_TF " + (o.tf ? "1" : "0") + "\n#define IVR_LOSS_L1 " +
+         (o.loss == Loss::l1 ? "1" : "0") + "\n";
+}
+
+template <class Real>
+Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
+                     const Image& target, const GradientOptions& o) {
+  const Camera& cam0 = scene.cameras.front();
+  const int views = int(scene.cameras.size()), channels = scene.channels();
+  const std::size_t pixels = std::size_t(views) * cam0.height * cam0.width;
+  const std::size_t voxels = scene.volume.voxel_count();
+  const std::vector<std::size_t> tf_shape = tf_gradient_shape(scene.tf);
+  const std::size_t tf_size = tf_shape[0] * tf_shape[1];
+
+  std::vector<Real> target_real(target.pixels.begin(), target.pixels.end());
+  cl::Buffer target_buf = dev.buffer(CL_MEM_READ_ONLY, target_real.size() * sizeof(Real),
+                                     target_real.data(), "the target");
+  cl::Buffer image_buf =
+      dev.buffer(CL_MEM_WRITE_ONLY, pixels * channels * sizeof(float), nullptr, "the image");
+  cl::Buffer terms_buf =
+      dev.buffer(CL_MEM_WRITE_ONLY, pixels * 4 * sizeof(Real), nullptr, "the per-pixel terms");
+  cl::Buffer samples_buf =
+      dev.buffer(CL_MEM_WRITE_ONLY, pixels * sizeof(cl_uint), nullptr, "the sample counts");
+  const std::size_t grad_voxels = o.density ? voxels : 1;
+  cl::Buffer grad_volume = dev.buffer(CL_MEM_READ_WRITE, grad_voxels * sizeof(Real), nullptr,
+                                      "the density gradient");
+  cl::Buffer grad_tf = dev.buffer(CL_MEM_READ_WRITE, std::max<std::size_t>(tf_size, 1) * sizeof(Real),
+                                  nullptr, "the transfer-function gradient");
+  const DeviceScene<Real> dscene(dev, scene);
+
+  const RenderVariant variant = RenderVariant::of(scene, integrator,
+                                                  std::is_same_v<Real, double> ? Precision::f64
+                                                                               : Precision::f32);
+  const std::string label = "adjoint.cl [" + variant.label() + (o.tf ? " grad_tf" : "") + "]";
+  const cl::Program program =
+      dev.programs.get(dev.context, dev.device, dev.info,
+                       gradient_preamble(variant, o) + assemble_kernel("adjoint.cl"),
+                       extra_build_options(), label);
+
+  Gradient g;
+  g.device_bytes = dscene.bytes + target_real.size() * sizeof(Real) +
+                   pixels * (channels * sizeof(float) + 4 * sizeof(Real) + sizeof(cl_uint)) +
+                   (grad_voxels + std::max<std::size_t>(tf_size, 1)) * sizeof(Real);
+  cl::Event zero_volume, zero_tf, done;
+  cl_call("running the adjoint kernel on " + dev.info.name, [&] {
+    dev.queue.enqueueFillBuffer(grad_volume, Real(0), 0, grad_voxels * sizeof(Real), nullptr,
+                                &zero_volume);
+    dev.queue.enqueueFillBuffer(grad_tf, Real(0), 0, std::max<std::size_t>(tf_size, 1) * sizeof(Real),
+                                nullptr, &zero_tf);
+    cl::Kernel k(program, "adjoint");
+    int a = dscene.set_args(k, scene, integrator);
+    k.setArg(a++, target_buf);
+    k.setArg(a++, Real(1.0 / double(pixels * channels)));
+    k.setArg(a++, image_buf);
+    k.setArg(a++, terms_buf);
+    k.setArg(a++, grad_volume);
+    k.setArg(a++, grad_tf);
+    k.setArg(a++, cl::Local(std::max<std::size_t>(tf_size, 1) * sizeof(Real)));
+    k.setArg(a++, cl_int(o.tf ? tf_size : 0));
+    k.setArg(a++, samples_buf);
+    // Work-groups of 8x8 share one local TF accumulator; the padding items only meet barriers.
+    const std::size_t max_group = k.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(dev.device);
+    const int l = max_group >= 64 ? 8 : max_group >= 16 ? 4 : 1;
+    const int gx = (cam0.width + l - 1) / l * l, gy = (cam0.height + l - 1) / l * l;
+    dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
+                                   cl::NDRange(l, l, 1), nullptr, &done);
+    done.wait();
+  });
+
+  std::vector<Real> terms(pixels * 4);
+  std::vector<cl_uint> samples(pixels);
+  std::vector<Real> grad(o.density ? voxels : 0), grad_tf_host(o.tf ? tf_size : 0);
+  cl_call("reading the gradient back", [&] {
+    dev.queue.enqueueReadBuffer(terms_buf, CL_TRUE, 0, terms.size() * sizeof(Real), terms.data());
+    dev.queue.enqueueReadBuffer(samples_buf, CL_TRUE, 0, samples.size() * sizeof(cl_uint),
+                                samples.data());
+    if (o.density)
+      dev.queue.enqueueReadBuffer(grad_volume, CL_TRUE, 0, grad.size() * sizeof(Real), grad.data());
+    if (o.tf)
+      dev.queue.enqueueReadBuffer(grad_tf, CL_TRUE, 0, grad_tf_host.size() * sizeof(Real),
+                                  grad_tf_host.data());
+  });
+  double background[3] = {0, 0, 0};
+  for (std::size_t p = 0; p < pixels; ++p) {
+    g.loss += double(terms[p * 4]);
+    for (int c = 0; c < 3; ++c) background[c] += double(terms[p * 4 + 1 + c]);
+  }
+  if (o.density) g.density.assign(grad.begin(), grad.end());
+  if (o.tf) g.tf.assign(grad_tf_host.begin(), grad_tf_host.end());
+  if (o.background) g.background.assign(background, background + (channels == 4 ? 3 : 1));
+  g.samples = std::accumulate(samples.begin(), samples.end(), std::uint64_t(0));
+  g.kernel_seconds = event_seconds(done) + event_seconds(zero_volume) + event_seconds(zero_tf);
+  return g;
+}
+
+}  // namespace
+
+double image_loss(const Image& image, const Image& target, Loss loss) {
+  if (image.pixels.size() != target.pixels.size() || image.views != target.views ||
+      image.height != target.height || image.width != target.width ||
+      image.channels != target.channels)
+    throw Error(Status::invalid_argument, "image and target differ in shape");
+  double sum = 0;
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    const double d = double(image.pixels[i]) - double(target.pixels[i]);
+    sum += loss == Loss::l1 ? std::abs(d) : d * d;
+  }
+  return image.pixels.empty() ? 0.0 : sum / double(image.pixels.size());
+}
+
+Gradient gradient(Device& device, const Scene& scene, const Image& target,
+                  const GradientOptions& options) {
+  Integrator integrator = scene.integrator;
+  if (options.step != 0) integrator.step = options.step;
+  validate_with(scene, integrator);
+  check_target(scene, target);
+  Device::Impl& dev = device.impl();
+  if (options.precision == Precision::f64) {
+    if (!dev.info.fp64)
+      throw Error(Status::unsupported,
+                  "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
+    return gradient_as<double>(dev, scene, integrator, target, options);
+  }
+  return gradient_as<float>(dev, scene, integrator, target, options);
+}
+
+}  // namespace ivr

@@ -1,0 +1,159 @@
+// device_scene.hpp — a scene packed for the kernels (volume, cameras, transfer function) and the
+// leading kernel arguments every marching kernel shares (kernels/render.cl, kernels/adjoint.cl).
+#pragma once
+#include <cmath>
+#include <cstdlib>
+#include <glm/geometric.hpp>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "ivr/scene.hpp"
+#include "runtime.hpp"
+
+namespace ivr {
+
+// $IVR_BUILD_OPTIONS: extra OpenCL compiler options for experiments (part of the cache key).
+inline std::string extra_build_options() {
+  const char* extra = std::getenv("IVR_BUILD_OPTIONS");
+  return extra ? extra : "";
+}
+
+template <class Real>
+struct ClVec;
+template <>
+struct ClVec<float> {
+  using type = cl_float4;
+};
+template <>
+struct ClVec<double> {
+  using type = cl_double4;
+};
+
+template <class Real>
+inline typename ClVec<Real>::type vec4(double x, double y, double z, double w = 0) {
+  typename ClVec<Real>::type v;
+  v.s[0] = Real(x);
+  v.s[1] = Real(y);
+  v.s[2] = Real(z);
+  v.s[3] = Real(w);
+  return v;
+}
+
+// Per view: eye, forward, right and up scaled to the image plane, orthographic flag (see
+// kernels/config.cl, IVR_CAMERA_STRIDE).
+template <class Real>
+std::vector<Real> pack_cameras(const std::vector<Camera>& cameras) {
+  constexpr int stride = 16;
+  std::vector<Real> out(cameras.size() * stride, Real(0));
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    const Camera& c = cameras[i];
+    const glm::dvec3 fwd = glm::normalize(c.target - c.eye);
+    const glm::dvec3 right = glm::normalize(glm::cross(fwd, c.up));
+    const glm::dvec3 up = glm::cross(right, fwd);
+    const double aspect = double(c.width) / double(c.height);
+    const bool ortho = c.projection == Projection::orthographic;
+    const double half = ortho ? 0.5 * c.ortho_height : std::tan(0.5 * c.fov_y * M_PI / 180.0);
+    const glm::dvec3 r = half * aspect * right, u = half * up;
+    const double values[13] = {
+        c.eye.x, c.eye.y, c.eye.z,          fwd.x, fwd.y, fwd.z, r.x, r.y, r.z, u.x,
+        u.y,     u.z,     ortho ? 1.0 : 0.0};
+    for (int k = 0; k < 13; ++k) out[i * stride + k] = Real(values[k]);
+  }
+  return out;
+}
+
+// Transfer-function rows in the layout of kernels/tf.cl; scalars = (a, b) or (lo, hi).
+template <class Real>
+std::vector<Real> pack_tf(const TransferFunction& tf, int* count, double scalars[2]) {
+  std::vector<Real> out;
+  scalars[0] = scalars[1] = 0;
+  switch (tf.kind) {
+    case TfKind::identity:
+      scalars[0] = tf.extinction_scale;
+      scalars[1] = tf.color_scale;
+      *count = 0;
+      out.push_back(0);  // buffers cannot be empty
+      break;
+    case TfKind::piecewise_linear:
+      for (const TfPoint& p : tf.points)
+        out.insert(out.end(), {Real(p.density), Real(p.color.x), Real(p.color.y), Real(p.color.z),
+                               Real(p.extinction)});
+      *count = int(tf.points.size());
+      break;
+    case TfKind::table:
+      for (const glm::dvec4& e : tf.entries)
+        out.insert(out.end(), {Real(e.x), Real(e.y), Real(e.z), Real(e.w)});
+      scalars[0] = tf.range.x;
+      scalars[1] = tf.range.y;
+      *count = int(tf.entries.size());
+      break;
+    case TfKind::gaussian:
+      for (const TfGaussian& g : tf.gaussians)
+        out.insert(out.end(), {Real(g.mean), Real(g.width), Real(g.color.x), Real(g.color.y),
+                               Real(g.color.z), Real(g.extinction)});
+      *count = int(tf.gaussians.size());
+      break;
+  }
+  return out;
+}
+
+// The scene on the device, in precision Real.
+template <class Real>
+struct DeviceScene {
+  cl::Buffer volume, cameras, tf;
+  int tf_count = 0;
+  double tf_scalars[2] = {0, 0};
+  std::uint64_t bytes = 0;  // device memory held by these buffers
+
+  DeviceScene(Device::Impl& dev, const Scene& scene) {
+    const std::size_t voxels = scene.volume.voxel_count();
+    std::vector<Real> converted;
+    const void* volume_host = scene.volume.data.data();
+    if constexpr (!std::is_same_v<Real, float>) {
+      if (voxels * sizeof(Real) > dev.info.max_allocation)
+        dev.buffer(CL_MEM_READ_ONLY, voxels * sizeof(Real), nullptr, "the volume");  // throws
+      converted.assign(scene.volume.data.begin(), scene.volume.data.end());
+      volume_host = converted.data();
+    }
+    volume = dev.buffer(CL_MEM_READ_ONLY, voxels * sizeof(Real), volume_host, "the volume");
+    const std::vector<Real> cams = pack_cameras<Real>(scene.cameras);
+    cameras = dev.buffer(CL_MEM_READ_ONLY, cams.size() * sizeof(Real), cams.data(), "the cameras");
+    const std::vector<Real> packed = pack_tf<Real>(scene.tf, &tf_count, tf_scalars);
+    tf = dev.buffer(CL_MEM_READ_ONLY, packed.size() * sizeof(Real), packed.data(),
+                    "the transfer function");
+    bytes = (voxels + cams.size() + packed.size()) * sizeof(Real);
+  }
+
+  // Sets the shared leading arguments (volume … min_transmittance); returns the next index.
+  int set_args(cl::Kernel& k, const Scene& scene, const Integrator& integrator) const {
+    const glm::dvec3 h = scene.voxel_size();
+    const double step = integrator.step * std::min(h.x, std::min(h.y, h.z));
+    const glm::dvec3 bg = scene.effective_background();
+    const Camera& cam0 = scene.cameras.front();
+    int a = 0;
+    k.setArg(a++, volume);
+    k.setArg(a++, cl_int4{{scene.volume.nx, scene.volume.ny, scene.volume.nz, 0}});
+    k.setArg(a++, vec4<Real>(scene.box_min.x, scene.box_min.y, scene.box_min.z));
+    k.setArg(a++, vec4<Real>(scene.box_max.x, scene.box_max.y, scene.box_max.z));
+    k.setArg(a++, vec4<Real>(1 / h.x, 1 / h.y, 1 / h.z));
+    k.setArg(a++, cameras);
+    k.setArg(a++, cl_int(cam0.width));
+    k.setArg(a++, cl_int(cam0.height));
+    k.setArg(a++, tf);
+    k.setArg(a++, cl_int(tf_count));
+    k.setArg(a++, vec4<Real>(tf_scalars[0], tf_scalars[1], 0));
+    k.setArg(a++, vec4<Real>(bg.x, bg.y, bg.z));
+    k.setArg(a++, Real(step));
+    k.setArg(a++, Real(integrator.min_transmittance));
+    return a;
+  }
+};
+
+// Device time of a finished kernel from its profiling event.
+inline double event_seconds(const cl::Event& e) {
+  return 1e-9 * double(e.getProfilingInfo<CL_PROFILING_COMMAND_END>() -
+                       e.getProfilingInfo<CL_PROFILING_COMMAND_START>());
+}
+
+}  // namespace ivr

@@ -9,5 +9,6 @@ namespace ivr::cli {
 using Runner = std::function<int()>;
 Runner add_devices_command(CLI::App& app);
 Runner add_render_command(CLI::App& app);
+Runner add_grad_command(CLI::App& app);
 
 }  // namespace ivr::cli

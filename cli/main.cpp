@@ -1,7 +1,9 @@
 // main.cpp — the `ivr` command-line tool: parses the subcommand and turns every error into one
 // line on stderr and a non-zero exit status.
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <string>
 
 #include "commands.hpp"
 #include "ivr/ivr.hpp"
@@ -12,14 +14,20 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", IVR_VERSION_STRING);
   const ivr::cli::Runner devices = ivr::cli::add_devices_command(app);
   const ivr::cli::Runner render = ivr::cli::add_render_command(app);
+  const ivr::cli::Runner grad = ivr::cli::add_grad_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    std::string what = e.what();                     // one line, whatever CLI11 wrote
+    std::replace(what.begin(), what.end(), '\n', ' ');
+    std::cerr << "ivr: error: " << what << " (see --help)\n";
+    return 1;
   }
   try {
     if (app.got_subcommand("devices")) return devices();
     if (app.got_subcommand("render")) return render();
+    if (app.got_subcommand("grad")) return grad();
   } catch (const ivr::Error& e) {
     std::cerr << "ivr: error: " << e.what() << "\n";
     return 1;

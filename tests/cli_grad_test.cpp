@@ -1,0 +1,256 @@
+// cli_grad_test.cpp — `ivr grad`: the files it writes, their shapes and values against
+// ivr::gradient(), and one clear error with nothing written for every bad input.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace ivr::test {
+namespace {
+
+class CliGrad : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = temp_dir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    // (Z, Y, X) = (6, 5, 4): every axis differs, so a transposed gradient cannot pass.
+    std::vector<float> v(6 * 5 * 4);
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = float(0.4 + 0.3 * std::sin(0.7 * double(i)));
+    save_npy(dir_ + "/vol.npy", {6, 5, 4}, v.data());
+    scene_ = json::parse(R"({
+      "volume": {"file": "vol.npy"}, "model": "emission_absorption",
+      "tf": {"type": "piecewise_linear", "points": [
+        {"density": 0.0, "color": [0.1, 0.2, 0.3], "extinction": 0.5},
+        {"density": 0.3, "color": [1.0, 0.6, 0.2], "extinction": 4.0},
+        {"density": 0.8, "color": [0.3, 0.9, 0.7], "extinction": 9.0}]},
+      "background": [0.1, 0.2, 0.3],
+      "cameras": [{"eye": [0.3, 0.4, 2], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40,
+                   "width": 8, "height": 7}],
+      "integrator": {"scheme": "midpoint", "step": 0.5}})");
+    write_scene();
+    target_ = write_target({1, 7, 8, 4}, 0.25f);
+  }
+
+  void write_scene() { scene_path_ = write_file(dir_ + "/scene.json", scene_.dump()); }
+
+  // A constant target of the given shape (optionally with one bad value at `bad_at`).
+  std::string write_target(const std::vector<std::size_t>& shape, float value,
+                           std::size_t bad_at = 0, float bad = 0) {
+    std::size_t n = 1;
+    for (std::size_t s : shape) n *= s;
+    std::vector<float> t(n, value);
+    if (bad_at > 0) t[bad_at] = bad;
+    const std::string path = dir_ + "/target.npy";
+    save_npy(path, shape, t.data());
+    return path;
+  }
+
+  CliResult grad(const std::string& extra) {
+    return run_cli("grad " + scene_path_ + " --target " + target_ + " -o " + prefix() + " " +
+                   extra);
+  }
+  std::string prefix() const { return dir_ + "/g"; }
+
+  // Names in the folder that belong to the outputs or to their temporaries.
+  std::vector<std::string> written() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      const std::string n = e.path().filename().string();
+      if (n.rfind("g_", 0) == 0 || n.rfind(".g_", 0) == 0 || n.find(".tmp") != std::string::npos)
+        names.push_back(n);
+    }
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+  // Runs `ivr grad` with `extra` and checks the failure contract; returns stderr.
+  std::string expect_failure(const std::string& extra) {
+    const CliResult r = grad(extra);
+    EXPECT_NE(r.status, 0) << r.out;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+    EXPECT_EQ(r.err.rfind("ivr: error: ", 0), 0u) << r.err;
+    EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "not one line: " << r.err;
+    EXPECT_TRUE(written().empty()) << "written despite the error: " << written().front();
+    return r.err;
+  }
+
+  std::string dir_, scene_path_, target_;
+  json scene_;
+};
+
+bool has(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST_F(CliGrad, WritesEveryAskedGroupWithItsShape) {
+  const CliResult r = grad("--wrt density,tf,background --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json j = json::parse(r.out);
+  for (const char* key : {"loss", "mode", "parameters", "seconds", "device_bytes", "device",
+                          "precision", "samples", "outputs"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["mode"], "adjoint");
+  EXPECT_EQ(j["precision"], "f32");
+  EXPECT_EQ(j["parameters"].get<int>(), 6 * 5 * 4 + 3 * 4 + 3);
+  EXPECT_GT(j["loss"].get<double>(), 0);
+  EXPECT_GT(j["seconds"].get<double>(), 0);
+  EXPECT_GT(j["device_bytes"].get<double>(), 0);
+  EXPECT_GT(j["samples"].get<double>(), 0);
+  EXPECT_EQ(j["outputs"].size(), 3u);
+  EXPECT_EQ(written(), (std::vector<std::string>{"g_background.npy", "g_density.npy", "g_tf.npy"}));
+
+  const NpyArray density = load_npy(prefix() + "_density.npy");
+  EXPECT_EQ(density.shape, (std::vector<std::size_t>{6, 5, 4}));
+  const NpyArray tf = load_npy(prefix() + "_tf.npy");
+  EXPECT_EQ(tf.shape, (std::vector<std::size_t>{3, 4}));
+  const NpyArray background = load_npy(prefix() + "_background.npy");
+  EXPECT_EQ(background.shape, (std::vector<std::size_t>{3}));
+  for (const NpyArray* a : {&density, &tf, &background}) {
+    EXPECT_TRUE(
+        std::all_of(a->data.begin(), a->data.end(), [](double x) { return std::isfinite(x); }));
+    EXPECT_TRUE(std::any_of(a->data.begin(), a->data.end(), [](double x) { return x != 0; }));
+  }
+}
+
+TEST_F(CliGrad, WritesOnlyTheAskedGroups) {
+  CliResult r = grad("--wrt tf");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(written(), (std::vector<std::string>{"g_tf.npy"}));
+  // Without --json: one human line, naming the loss and the output.
+  EXPECT_EQ(r.out.find('\n'), r.out.size() - 1) << r.out;
+  EXPECT_TRUE(has(r.out, "mse loss")) << r.out;
+  EXPECT_TRUE(has(r.out, prefix() + "_tf.npy")) << r.out;
+  fs::remove(prefix() + "_tf.npy");
+  r = grad("--wrt background,background --loss l1 --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["parameters"].get<int>(), 3);
+  EXPECT_EQ(written(), (std::vector<std::string>{"g_background.npy"}));
+}
+
+TEST_F(CliGrad, DensityFileEqualsTheLibraryGradient) {
+  const CliResult r = grad("--wrt density --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const NpyArray file = load_npy(prefix() + "_density.npy");
+
+  const Scene scene = load_scene(scene_path_);
+  Image target;
+  target.views = 1;
+  target.height = 7;
+  target.width = 8;
+  target.channels = 4;
+  target.pixels.assign(7 * 8 * 4, 0.25f);
+  const Gradient g = gradient(device(), scene, target, {});
+  ASSERT_EQ(file.data.size(), g.density.size());
+  double largest = 0;
+  for (float x : g.density) largest = std::max(largest, double(std::abs(x)));
+  ASSERT_GT(largest, 0);
+  for (std::size_t i = 0; i < g.density.size(); ++i)  // the atomic sums may differ in order
+    EXPECT_NEAR(file.data[i], g.density[i], 1e-5 * largest) << "voxel " << i;
+  EXPECT_NEAR(json::parse(r.out)["loss"].get<double>(), g.loss, 1e-6 * g.loss);
+}
+
+TEST_F(CliGrad, AcceptsTargetsWithoutTheUnitAxes) {
+  target_ = write_target({7, 8, 4}, 0.25f);  // one view: (H, W, C)
+  CliResult r = grad("--wrt density --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const double loss = json::parse(r.out)["loss"].get<double>();
+  target_ = write_target({1, 7, 8, 4}, 0.25f);
+  r = grad("--wrt density --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_DOUBLE_EQ(json::parse(r.out)["loss"].get<double>(), loss);
+
+  scene_["model"] = "absorption";  // one channel: (H, W), and (views, H, W) with two views
+  scene_["tf"] = json::parse(R"({"type": "identity", "extinction_scale": 3})");
+  scene_.erase("background");
+  write_scene();
+  target_ = write_target({7, 8}, 0.5f);
+  r = grad("--wrt density,tf,background --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(load_npy(prefix() + "_tf.npy").shape, (std::vector<std::size_t>{1, 2}));
+  EXPECT_EQ(load_npy(prefix() + "_background.npy").shape, (std::vector<std::size_t>{1}));
+  scene_["cameras"].push_back(scene_["cameras"][0]);
+  scene_["cameras"][1]["eye"] = {0, 2, 0.5};
+  write_scene();
+  target_ = write_target({2, 7, 8}, 0.5f);
+  r = grad("--wrt density --precision f64 --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["precision"], "f64");
+}
+
+TEST_F(CliGrad, TargetShapeDiffersFromTheRender) {
+  target_ = write_target({1, 7, 8, 3}, 0.25f);
+  std::string err = expect_failure("--wrt density");
+  EXPECT_TRUE(has(err, "(1, 7, 8, 3)") && has(err, "(1, 7, 8, 4)")) << err;
+  target_ = write_target({8, 7, 4}, 0.25f);  // H and W swapped
+  err = expect_failure("--wrt density");
+  EXPECT_TRUE(has(err, "(8, 7, 4)") && has(err, "(1, 7, 8, 4)")) << err;
+  target_ = write_target({7, 8}, 0.25f);  // (H, W) only for one channel
+  err = expect_failure("--wrt density");
+  EXPECT_TRUE(has(err, "(7, 8)") && has(err, "(1, 7, 8, 4)")) << err;
+}
+
+TEST_F(CliGrad, NonFiniteTargetNamesTheIndex) {
+  const std::size_t at = ((0 * 7 + 2) * 8 + 5) * 4 + 1;  // (0, 2, 5, 1)
+  for (float bad :
+       {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+    target_ = write_target({1, 7, 8, 4}, 0.25f, at, bad);
+    const std::string err = expect_failure("--wrt density");
+    EXPECT_TRUE(has(err, "(0, 2, 5, 1)")) << err;
+    EXPECT_TRUE(has(err, "non-finite")) << err;
+  }
+}
+
+TEST_F(CliGrad, UnknownAndUnbuiltGroups) {
+  std::string err = expect_failure("--wrt density,opacity");
+  EXPECT_TRUE(has(err, "unknown parameter group 'opacity'")) << err;
+  EXPECT_TRUE(has(err, "density, tf, background")) << err;
+  err = expect_failure("--wrt camera");
+  EXPECT_TRUE(has(err, "'camera'") && has(err, "not available yet")) << err;
+  err = expect_failure("--wrt voxels:1,2");
+  EXPECT_TRUE(has(err, "not available yet")) << err;
+  err = expect_failure("--wrt density,,tf");
+  EXPECT_TRUE(has(err, "empty group")) << err;
+}
+
+TEST_F(CliGrad, ForwardModeIsNotBuiltYet) {
+  for (const char* mode : {"forward", "auto"}) {
+    const std::string err = expect_failure(std::string("--wrt density --mode ") + mode);
+    EXPECT_TRUE(has(err, "forward-mode differentiation is not built yet")) << err;
+  }
+  EXPECT_TRUE(has(expect_failure("--wrt density --mode sideways"), "unknown mode 'sideways'"));
+}
+
+TEST_F(CliGrad, BadOptions) {
+  EXPECT_TRUE(has(expect_failure("--wrt density --loss foo"), "unknown loss 'foo'"));
+  EXPECT_TRUE(has(expect_failure("--wrt density --precision f16"), "unknown precision 'f16'"));
+  EXPECT_TRUE(has(expect_failure("--wrt density --step 0"), "--step must be > 0"));
+  EXPECT_TRUE(has(expect_failure(""), "--wrt is required"));  // a CLI11 parse error, one line
+  EXPECT_TRUE(
+      has(expect_failure("--wrt density --device no-such-device-xyz"), "no OpenCL device matches"));
+}
+
+TEST_F(CliGrad, MissingTargetFile) {
+  target_ = dir_ + "/nope.npy";
+  const std::string err = expect_failure("--wrt density");
+  EXPECT_TRUE(has(err, "nope.npy")) << err;
+}
+
+TEST_F(CliGrad, BadOutputFolder) {
+  const CliResult r = run_cli("grad " + scene_path_ + " --target " + target_ + " -o " + dir_ +
+                              "/no/such/folder/g --wrt density");
+  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(r.err.rfind("ivr: error: ", 0), 0u) << r.err;
+  EXPECT_TRUE(has(r.err, "does not exist")) << r.err;
+  EXPECT_TRUE(written().empty());
+  EXPECT_FALSE(fs::exists(dir_ + "/no"));
+}
+
+}  // namespace
+}  // namespace ivr::test

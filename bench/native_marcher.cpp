@@ -44,6 +44,12 @@ inline void slab(float o, float d, float lo, float hi, float& t0, float& t1) {
   }
 }
 
+inline void kahan(float& sum, float& error, float x) {
+  const float y = x - error, t = sum + y;
+  error = (t - sum) - y;
+  sum = t;
+}
+
 inline float lerp(float a, float b, float t) {
   return a + (b - a) * t;
 }
@@ -104,7 +110,7 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
         slab(eye.x, dir.x, bmin.x, bmax.x, t0, t1);
         slab(eye.y, dir.y, bmin.y, bmax.y, t0, t1);
         slab(eye.z, dir.z, bmin.z, bmax.z, t0, t1);
-        float T = 1, cr = 0, cg = 0, cb = 0;
+        float T = 1, cr = 0, cg = 0, cb = 0, kr = 0, kg = 0, kb = 0;
         if (t0 < t1) {
           const float length = t1 - t0;
           const unsigned n = std::max(1u, unsigned(std::ceil(length / step)));
@@ -142,10 +148,11 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
               frac = (1.0f - decay) / tau;
             }
             const float k = T * dt * frac * sigma;
-            cr += k * lerp(a->r, b->r, w);
-            cg += k * lerp(a->g, b->g, w);
-            cb += k * lerp(a->b, b->b, w);
-            T *= decay;
+            // Compensated sums and a fused-multiply-add attenuation, as kernels/compositing.cl.
+            kahan(cr, kr, k * lerp(a->r, b->r, w));
+            kahan(cg, kg, k * lerp(a->g, b->g, w));
+            kahan(cb, kb, k * lerp(a->b, b->b, w));
+            T = tau < 0.1f ? std::fma(-T, tau * frac, T) : T * decay;
             ++total;
             if (T < min_t) break;
           }

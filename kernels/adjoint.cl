@@ -89,6 +89,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     // Primal march: exactly the render kernel's arithmetic, so the gradient is that of what was
     // rendered (including where early termination stopped the ray).
     real transmittance = (real)1, cr = 0, cg = 0, cb = 0;
+    real kr = 0, kg = 0, kb = 0;  // compensation (accumulate)
     uint taken = 0;
     int segment = 0;
     for (uint i = 0; i < n; ++i) {
@@ -96,15 +97,16 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       const real d = trilinear_at(volume, dims, u0x + t * dux, u0y + t * duy, u0z + t * duz);
       real er, eg, eb;
       const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);
+      const real tau = sigma * dt;
       real fraction;
-      const real decay = decay_and_fraction(sigma * dt, &fraction);
+      const real decay = decay_and_fraction(tau, &fraction);
 #if IVR_EMISSION
       const real weight = transmittance * dt * fraction;
-      cr += weight * er;
-      cg += weight * eg;
-      cb += weight * eb;
+      accumulate(&cr, &kr, weight * er);
+      accumulate(&cg, &kg, weight * eg);
+      accumulate(&cb, &kb, weight * eb);
 #endif
-      transmittance *= decay;
+      transmittance = attenuate(transmittance, tau, fraction, decay);
       ++taken;
 #if IVR_EARLY_TERMINATION
       if (transmittance < min_transmittance) break;
@@ -146,10 +148,15 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     // Adjoint march, front to back. dL/dsigma_i needs the radiance remaining behind sample i,
     // R_i = C - prefix_i (prefix including sample i), which includes the background term.
     transmittance = (real)1;
-    real pr = 0, pg = 0, pb = 0;  // emission prefix
+    real pr = 0, pg = 0, pb = 0;  // emission prefix, summed exactly as the primal march summed C
+    kr = kg = kb = 0;
     int seg_value = 0, seg_slope = 0, seg_scatter = 0;
     int base = -1, box = 0, boy = 0, boz = 0;
     real corner[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+#if IVR_GRAD_TF
+    TfGradCache tf_cache;
+    tf_cache_init(&tf_cache);
+#endif
     for (uint i = 0; i < taken; ++i) {
       const real t = t0 + ((real)i + (real)0.5) * dt;
       const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
@@ -161,9 +168,9 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       const real decay = decay_and_fraction(tau, &fraction);
 #if IVR_EMISSION
       const real weight = transmittance * dt * fraction;
-      pr += weight * er;
-      pg += weight * eg;
-      pb += weight * eb;
+      accumulate(&pr, &kr, weight * er);
+      accumulate(&pg, &kg, weight * eg);
+      accumulate(&pb, &kb, weight * eb);
       const real slope = transmittance * dt * dt * fraction_slope(tau, decay, fraction);
       const real gsigma = gr * (slope * er - dt * (total_r - pr)) +
                           gg * (slope * eg - dt * (total_g - pg)) +
@@ -173,7 +180,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       const real gsigma = -dt * intensity * gi;
       const real ger = (real)0, geg = (real)0, geb = (real)0;
 #endif
-      transmittance *= decay;
+      transmittance = attenuate(transmittance, tau, fraction, decay);
 
 #if IVR_GRAD_DENSITY
       real der, deg, deb;
@@ -206,11 +213,15 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       corner[7] += gx1 * wy1z1;
 #endif
 #if IVR_GRAD_TF
-      tf_scatter(d, tf, tf_count, tf_scalars, &seg_scatter, gsigma, ger, geg, geb, tf_acc);
+      tf_scatter(d, tf, tf_count, tf_scalars, &seg_scatter, gsigma, ger, geg, geb, &tf_cache,
+                 tf_acc);
 #endif
     }
 #if IVR_GRAD_DENSITY
     flush_cell(grad_volume, base, box, boy, boz, corner);
+#endif
+#if IVR_GRAD_TF
+    tf_cache_flush(&tf_cache, tf_acc);
 #endif
   }
 

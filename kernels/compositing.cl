@@ -40,4 +40,24 @@ inline real fraction_slope(real x, real decay, real fraction) {
 #endif
 }
 
+// sum += x, compensated (Kahan) in float32 so that 1e5-sample rays keep float32 accuracy; *error
+// carries the running rounding error. float64 adds plainly.
+inline void accumulate(real* sum, real* error, real x) {
+#if IVR_F64
+  *sum += x;
+#else
+  const real y = x - *error;
+  const real t = *sum + y;
+  *error = (t - *sum) - y;
+  *sum = t;
+#endif
+}
+
+// transmittance·exp(-x). Below x = 0.1 as T - T·(x·fraction) in one fused multiply-add: forming
+// 1 - x·fraction first would round x to the float spacing near 1 and bias long rays of small
+// steps; above, the product with the decay (no cancellation there).
+inline real attenuate(real transmittance, real x, real fraction, real decay) {
+  return x < (real)0.1 ? fma(-transmittance, x * fraction, transmittance) : transmittance * decay;
+}
+
 #endif

@@ -18,6 +18,7 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
   real transmittance = (real)1;
 #if IVR_EMISSION
   real cr = (real)0, cg = (real)0, cb = (real)0;
+  real kr = (real)0, kg = (real)0, kb = (real)0;  // compensation (accumulate)
 #endif
   uint taken = 0;
   real t0, t1;
@@ -39,15 +40,16 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
       const real d = trilinear_at(volume, dims, u0x + t * dux, u0y + t * duy, u0z + t * duz);
       real er, eg, eb;
       const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);
+      const real tau = sigma * dt;
       real fraction;
-      const real decay = decay_and_fraction(sigma * dt, &fraction);
+      const real decay = decay_and_fraction(tau, &fraction);
 #if IVR_EMISSION
       const real weight = transmittance * dt * fraction;
-      cr += weight * er;
-      cg += weight * eg;
-      cb += weight * eb;
+      accumulate(&cr, &kr, weight * er);
+      accumulate(&cg, &kg, weight * eg);
+      accumulate(&cb, &kb, weight * eb);
 #endif
-      transmittance *= decay;
+      transmittance = attenuate(transmittance, tau, fraction, decay);
       ++taken;
 #if IVR_EARLY_TERMINATION
       if (transmittance < min_transmittance) break;

@@ -5,6 +5,7 @@
 #ifndef IVR_TF_GRAD_CL
 #define IVR_TF_GRAD_CL
 #include "atomics.cl"
+#include "compositing.cl"
 #include "tf.cl"
 
 // Columns of the TF gradient (lib/adjoint.cpp's tf_gradient_shape must agree).
@@ -99,15 +100,65 @@ inline real tf_slope(real d, __global const real* tf, int count, real4 scalars, 
 #endif
 }
 
+// A ray's private TF-gradient accumulator: the rows its samples currently touch, each value summed
+// with compensation (accumulate), flushed into the work-group's local accumulator when the rows
+// change and when the ray ends. A ray of 1e5 samples in one TF segment would otherwise add 1e5
+// float32 terms into one value and lose float32 accuracy.
+#if IVR_TF == IVR_TF_GAUSSIAN
+#if defined(IVR_TF_ROWS) && IVR_TF_ROWS <= 8
+#define IVR_TF_CACHE_ROWS IVR_TF_ROWS  // every Gaussian, every sample
+#else
+#define IVR_TF_CACHE_ROWS 0  // many Gaussians: straight to local memory
+#endif
+#elif IVR_TF == IVR_TF_IDENTITY
+#define IVR_TF_CACHE_ROWS 1
+#else
+#define IVR_TF_CACHE_ROWS 2  // the segment's two rows
+#define IVR_TF_CACHE_KEYED 1  // slots re-keyed as the segment changes
+#endif
+#ifndef IVR_TF_CACHE_KEYED
+#define IVR_TF_CACHE_KEYED 0  // slot k holds row k
+#endif
+
+#define IVR_TF_CACHE_SIZE (IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS * IVR_TF_GRAD_COLUMNS : 1)
+
+typedef struct {
+  int row[IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS : 1];  // -1: slot unused
+  real value[IVR_TF_CACHE_SIZE], error[IVR_TF_CACHE_SIZE];
+} TfGradCache;
+
+inline void tf_cache_init(TfGradCache* c) {
+  for (int k = 0; k < (IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS : 1); ++k)
+    c->row[k] = IVR_TF_CACHE_KEYED ? -1 : k;
+  for (int i = 0; i < IVR_TF_CACHE_SIZE; ++i) c->value[i] = c->error[i] = (real)0;
+}
+
+inline void tf_cache_flush(TfGradCache* c, volatile __local real* acc) {
+  for (int k = 0; k < IVR_TF_CACHE_ROWS; ++k) {
+    if (c->row[k] < 0) continue;
+    for (int j = 0; j < IVR_TF_GRAD_COLUMNS; ++j) {
+      const int i = k * IVR_TF_GRAD_COLUMNS + j;
+      if (c->value[i] != (real)0) atomic_add_local(acc + c->row[k] * IVR_TF_GRAD_COLUMNS + j, c->value[i]);
+      c->value[i] = c->error[i] = (real)0;
+    }
+  }
+}
+
+// Adds v to column j of cache slot k.
+inline void tf_cache_add(TfGradCache* c, int k, int j, real v) {
+  accumulate(&c->value[k * IVR_TF_GRAD_COLUMNS + j], &c->error[k * IVR_TF_GRAD_COLUMNS + j], v);
+}
+
 // Adds the parameter gradient of one sample, given gs = dL/dsigma and (gr, gg, gb) = dL/dE,
-// into acc (rows x IVR_TF_GRAD_COLUMNS, local memory shared by the work-group).
+// into the ray's cache (flushing into acc, rows x IVR_TF_GRAD_COLUMNS in local memory).
 inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars, int* cursor,
-                       real gs, real gr, real gg, real gb, volatile __local real* acc) {
+                       real gs, real gr, real gg, real gb, TfGradCache* cache,
+                       volatile __local real* acc) {
 #if IVR_TF == IVR_TF_IDENTITY
   // sigma = a·d, E = a·b·d² (grey): dL/da = gs·d + (gr+gg+gb)·b·d², dL/db = (gr+gg+gb)·a·d².
   const real ge = gr + gg + gb;
-  atomic_add_local(acc + 0, gs * d + ge * scalars.y * d * d);
-  atomic_add_local(acc + 1, ge * scalars.x * d * d);
+  tf_cache_add(cache, 0, 0, gs * d + ge * scalars.y * d * d);
+  tf_cache_add(cache, 0, 1, ge * scalars.x * d * d);
 #elif IVR_TF == IVR_TF_GAUSSIAN
   for (int k = 0; k < count; ++k) {
     __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
@@ -116,16 +167,23 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
     // sigma += e·G, E += e·G·c: d/de = G·(gs + gE·c), d/dc = e·G·gE, d/dmean = e·(gs + gE·c)·G·z/w,
     // d/dwidth = e·(gs + gE·c)·G·z²/w.
     const real through = gs + gr * p[2] + gg * p[3] + gb * p[4];
-    volatile __local real* row = acc + k * IVR_TF_GRAD_COLUMNS;
-    atomic_add_local(row + 0, p[5] * g * gr);
-    atomic_add_local(row + 1, p[5] * g * gg);
-    atomic_add_local(row + 2, p[5] * g * gb);
-    atomic_add_local(row + 3, g * through);
-    atomic_add_local(row + 4, p[5] * through * g * z / p[1]);
-    atomic_add_local(row + 5, p[5] * through * g * z * z / p[1]);
+    const real v[6] = {p[5] * g * gr, p[5] * g * gg, p[5] * g * gb, g * through,
+                       p[5] * through * g * z / p[1], p[5] * through * g * z * z / p[1]};
+    for (int j = 0; j < 6; ++j) {
+#if IVR_TF_CACHE_ROWS > 0
+      tf_cache_add(cache, k, j, v[j]);
+#else
+      atomic_add_local(acc + k * IVR_TF_GRAD_COLUMNS + j, v[j]);
+#endif
+    }
   }
 #else
   const TfSegment s = tf_segment(d, tf, count, scalars, cursor);
+  if (s.row0 != cache->row[0] || s.row1 != cache->row[1]) {
+    tf_cache_flush(cache, acc);
+    cache->row[0] = s.row0;
+    cache->row[1] = s.row1 == s.row0 ? -1 : s.row1;  // one row beyond the ends
+  }
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR
   __global const real* a = tf + s.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
   __global const real* b = tf + s.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
@@ -137,17 +195,15 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
   const real sigma = lerp(a[3], b[3], s.w1);
   const real cr = lerp(a[0], b[0], s.w1), cg = lerp(a[1], b[1], s.w1), cb = lerp(a[2], b[2], s.w1);
   const real through = gs + gr * cr + gg * cg + gb * cb;  // dL/dsigma including E = sigma·c
-  const real w[2] = {(real)1 - s.w1, s.w1};
-  const int rows[2] = {s.row0, s.row1};
-  for (int j = 0; j < 2; ++j) {
-    if (w[j] == (real)0) continue;
-    volatile __local real* row = acc + rows[j] * IVR_TF_GRAD_COLUMNS;
+  // Slot 0 holds row0 with weight 1 - w; slot 1 holds row1 with w (beyond the ends: row0, weight 1).
+  const real w[2] = {s.row1 == s.row0 ? (real)1 : (real)1 - s.w1, s.w1};
+  for (int k = 0; k < (s.row1 == s.row0 ? 1 : 2); ++k) {
 #if IVR_EMISSION
-    atomic_add_local(row + 0, w[j] * sigma * gr);
-    atomic_add_local(row + 1, w[j] * sigma * gg);
-    atomic_add_local(row + 2, w[j] * sigma * gb);
+    tf_cache_add(cache, k, 0, w[k] * sigma * gr);
+    tf_cache_add(cache, k, 1, w[k] * sigma * gg);
+    tf_cache_add(cache, k, 2, w[k] * sigma * gb);
 #endif
-    atomic_add_local(row + 3, w[j] * through);
+    tf_cache_add(cache, k, 3, w[k] * through);
   }
 #endif
 }

@@ -42,8 +42,11 @@ void check_target(const Scene& scene, const Image& target) {
                       std::to_string(target.pixels[i]) + ")");
 }
 
-std::string gradient_preamble(const RenderVariant& variant, const GradientOptions& o) {
-  return variant.preamble() + "#define IVR_GRAD_DENSITY " + (o.density ? "1" : "0") +
+std::string gradient_preamble(const RenderVariant& variant, const GradientOptions& o,
+                              std::size_t tf_rows) {
+  // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/tf_grad.cl).
+  return variant.preamble() + "#define IVR_TF_ROWS " + std::to_string(tf_rows) +
+         "\n#define IVR_GRAD_DENSITY " + (o.density ? "1" : "0") +
          "\n#define IVR_GRAD_TF " + (o.tf ? "1" : "0") + "\n#define IVR_LOSS_L1 " +
          (o.loss == Loss::l1 ? "1" : "0") + "\n";
 }
@@ -80,7 +83,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
   const std::string label = "adjoint.cl [" + variant.label() + (o.tf ? " grad_tf" : "") + "]";
   const cl::Program program =
       dev.programs.get(dev.context, dev.device, dev.info,
-                       gradient_preamble(variant, o) + assemble_kernel("adjoint.cl"),
+                       gradient_preamble(variant, o, tf_shape[0]) + assemble_kernel("adjoint.cl"),
                        extra_build_options(), label);
 
   Gradient g;

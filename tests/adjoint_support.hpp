@@ -1,0 +1,142 @@
+// adjoint_support.hpp — helpers for the gradient tests: float64 losses and central differences,
+// errors relative to the largest gradient entry, NaN/Inf checks of a whole Gradient.
+#pragma once
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "ivr/gradient.hpp"
+#include "test_support.hpp"
+
+namespace ivr::test {
+
+// The float64 loss, reduced on the device from float64 pixels (a render's image is float32,
+// whose rounding would swamp the differences). Also reports the samples the march took, which
+// tells whether a perturbation moved the point where early termination stops a ray.
+inline double loss_of(const Scene& s, const Image& target, double step = 0, Loss loss = Loss::mse,
+                      std::uint64_t* samples = nullptr) {
+  GradientOptions o;
+  o.precision = Precision::f64;
+  o.step = step;
+  o.loss = loss;
+  o.density = false;
+  const Gradient g = gradient(device(), s, target, o);
+  if (samples) *samples = g.samples;
+  return g.loss;
+}
+
+// Central difference of the float64 loss in one scalar of the scene: set(scene, h) adds h to it
+// and returns the increment actually applied (float32 voxels round d + h).
+template <class Set>
+double central_difference(const Scene& s, const Image& target, double h, Set set, double step = 0,
+                          Loss loss = Loss::mse, bool same_samples = true) {
+  Scene plus = s, minus = s;
+  const double hp = set(plus, +h), hm = -set(minus, -h);
+  std::uint64_t np = 0, nm = 0, n0 = 0;
+  const double lp = loss_of(plus, target, step, loss, &np);
+  const double lm = loss_of(minus, target, step, loss, &nm);
+  if (same_samples) {
+    loss_of(s, target, step, loss, &n0);
+    EXPECT_TRUE(np == n0 && nm == n0)
+        << "the perturbation moved an early-termination point: samples " << nm << ", " << n0 << ", "
+        << np;
+  }
+  return (lp - lm) / (hp + hm);
+}
+
+// Adds h to voxel i; returns the increment the float32 voxel actually received.
+inline double nudge_voxel(Scene& s, std::size_t i, double h) {
+  const double d = s.volume.data[i];
+  s.volume.data[i] = float(d + h);
+  return double(s.volume.data[i]) - d;
+}
+
+template <class T>
+double max_abs(const std::vector<T>& v) {
+  double m = 0;
+  for (T x : v) m = std::max(m, std::abs(double(x)));
+  return m;
+}
+
+// max |got - want| / max |want| (0 for two zero vectors); NaN/Inf or a size mismatch give +inf.
+template <class A, class B>
+double relative_error(const std::vector<A>& got, const std::vector<B>& want) {
+  if (got.size() != want.size()) return INFINITY;
+  double e = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    if (!std::isfinite(double(got[i])) || !std::isfinite(double(want[i]))) return INFINITY;
+    e = std::max(e, std::abs(double(got[i]) - double(want[i])));
+  }
+  const double scale = max_abs(want);
+  return e == 0 ? 0.0 : e / scale;
+}
+
+// Every number of a gradient evaluation is finite.
+inline ::testing::AssertionResult all_finite(const Gradient& g) {
+  if (!std::isfinite(g.loss)) return ::testing::AssertionFailure() << "loss is " << g.loss;
+  const auto check = [](const auto& v, const char* what) -> ::testing::AssertionResult {
+    for (std::size_t i = 0; i < v.size(); ++i)
+      if (!std::isfinite(double(v[i])))
+        return ::testing::AssertionFailure() << what << "[" << i << "] is " << v[i];
+    return ::testing::AssertionSuccess();
+  };
+  if (auto r = check(g.density, "density"); !r) return r;
+  if (auto r = check(g.tf, "tf"); !r) return r;
+  return check(g.background, "background");
+}
+
+// Adds h to TF parameter (row r, column c) in tf_gradient_shape's layout; returns h.
+inline double nudge_tf(Scene& x, std::size_t r, std::size_t c, double h) {
+  TransferFunction& tf = x.tf;
+  switch (tf.kind) {
+    case TfKind::identity:
+      (c == 0 ? tf.extinction_scale : tf.color_scale) += h;
+      break;
+    case TfKind::piecewise_linear:
+      (c < 3 ? tf.points[r].color[int(c)] : tf.points[r].extinction) += h;
+      break;
+    case TfKind::table:
+      tf.entries[r][int(c)] += h;
+      break;
+    case TfKind::gaussian: {
+      TfGaussian& g = tf.gaussians[r];
+      double* p[6] = {&g.color.x, &g.color.y, &g.color.z, &g.extinction, &g.mean, &g.width};
+      *p[c] += h;
+    } break;
+  }
+  return h;
+}
+
+// The value of TF parameter (row r, column c), to scale its difference step.
+inline double tf_parameter(const TransferFunction& tf, std::size_t r, std::size_t c) {
+  switch (tf.kind) {
+    case TfKind::identity:
+      return c == 0 ? tf.extinction_scale : tf.color_scale;
+    case TfKind::piecewise_linear:
+      return c < 3 ? tf.points[r].color[int(c)] : tf.points[r].extinction;
+    case TfKind::table:
+      return tf.entries[r][int(c)];
+    case TfKind::gaussian: {
+      const TfGaussian& g = tf.gaussians[r];
+      const double p[6] = {g.color.x, g.color.y, g.color.z, g.extinction, g.mean, g.width};
+      return p[c];
+    }
+  }
+  return 0;
+}
+
+// Adds h to background channel c (the single I_in for absorption); returns h.
+inline double nudge_background(Scene& x, int c, double h) {
+  glm::dvec3 b = x.effective_background();
+  if (x.model == Model::absorption)
+    b += h;
+  else
+    b[c] += h;
+  x.background = b;
+  return h;
+}
+
+}  // namespace ivr::test

@@ -9,6 +9,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "bench_scene.hpp"
 #include "ivr/ivr.hpp"
 #include "native_marcher.hpp"
 
@@ -40,27 +41,6 @@ json compare(const std::vector<float>& a, const std::vector<float>& b) {
   return {{"rms", std::sqrt(sum / double(a.size()))}, {"max", worst}};
 }
 
-ivr::Scene bench_scene(int n, int image) {
-  ivr::Scene s;
-  s.volume = ivr::synthetic_volume("marschner_lobb", n, n, n);
-  ivr::set_default_box(s);
-  s.model = ivr::Model::emission_absorption;
-  s.tf.kind = ivr::TfKind::piecewise_linear;
-  s.tf.points = {{0.0, {0, 0, 0}, 0},
-                 {0.35, {0.1, 0.3, 0.9}, 2},
-                 {0.55, {0.9, 0.6, 0.2}, 10},
-                 {0.8, {1, 1, 0.9}, 30}};
-  s.background = glm::dvec3(0.05);
-  ivr::Camera c;
-  c.eye = {1.1, 0.8, 1.5};
-  c.target = {0, 0, 0};
-  c.fov_y = 38;
-  c.width = c.height = image;
-  s.cameras = {c};
-  s.integrator.min_transmittance = 1e-4;
-  return s;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -84,7 +64,7 @@ int main(int argc, char** argv) {
     std::vector<double> kernel_ratios, total_ratios;
     for (int n : quick ? std::vector<int>{128} : std::vector<int>{128, 256}) {
       for (int image : quick ? std::vector<int>{256} : std::vector<int>{256, 512}) {
-        const ivr::Scene scene = bench_scene(n, image);
+        const ivr::Scene scene = ivr::bench::bench_scene(n, image);
         std::vector<float> reference;
         if (ref_step > 0) {
           ivr::RenderOptions ro{ivr::Precision::f64, ref_step};

@@ -1,8 +1,9 @@
 // adjoint.cl — reverse-mode gradients, one work-item per pixel: a primal march gives the pixel and
 // its loss gradient, a second front-to-back march recovers each sample's remaining radiance as
 // C minus the prefix (no division by 1 - alpha, no per-sample storage) and scatters dL/d density
-// to the voxels (8 corners kept in registers while the ray stays in one cell) and dL/d TF into
-// the work-group's local accumulator, added to global memory once per group.
+// to the voxels (the current cell's 8 corners kept in registers and carried across faces, so that
+// a ray adds to each voxel it touches once) and dL/d TF into the work-group's local accumulator,
+// added to global memory once per group.
 #include "atomics.cl"
 #include "compositing.cl"
 #include "config.cl"
@@ -38,15 +39,72 @@ inline real loss_term(real value, real target, real norm, real* loss) {
 #endif
 }
 
-// Adds the 8 corner contributions of the current cell to the gradient volume.
-inline void flush_cell(__global real* grad, int base, int ox, int oy, int oz, real* corner) {
-  if (base < 0) return;
-  const int offsets[8] = {0, ox, oy, oy + ox, oz, oz + ox, oz + oy, oz + oy + ox};
-  for (int k = 0; k < 8; ++k) {
-    if (corner[k] != (real)0) atomic_add_global(grad + base + offsets[k], corner[k]);
-    corner[k] = (real)0;
-  }
-}
+// The adjoint march keeps the ray's current cell in registers: its 8 corner densities v[k] (read
+// once per cell, not once per sample) and the gradient of those corners g[k], added to global
+// memory when the ray leaves them behind. Corner k (bit 0: +x, bit 1: +y, bit 2: +z) is voxel
+// base + IVR_CORNER(k); the offsets are 0 on the clamped upper edges, as in trilinear_at().
+#define IVR_CORNER(k) ((((k)&1) ? ox : 0) + (((k)&2) ? oy : 0) + (((k)&4) ? oz : 0))
+#define IVR_LOAD(k) v[k] = volume[base + IVR_CORNER(k)]
+#if IVR_GRAD_DENSITY
+#define IVR_FLUSH(k)                                                                  \
+  do {                                                                                \
+    if (g[k] != (real)0) atomic_add_global(grad_volume + base + IVR_CORNER(k), g[k]); \
+    g[k] = (real)0;                                                                   \
+  } while (0)
+#define IVR_MOVE_GRAD(to, from) \
+  do {                          \
+    g[to] = g[from];            \
+    g[from] = (real)0;          \
+  } while (0)
+#else
+#define IVR_FLUSH(k) (void)0
+#define IVR_MOVE_GRAD(to, from) (void)0
+#endif
+#define IVR_EACH_CORNER(F) \
+  do {                     \
+    F(0);                  \
+    F(1);                  \
+    F(2);                  \
+    F(3);                  \
+    F(4);                  \
+    F(5);                  \
+    F(6);                  \
+    F(7);                  \
+  } while (0)
+// Enters cell (X, Y, Z): its base voxel and the neighbour offsets.
+#define IVR_SET_CELL(X, Y, Z)                    \
+  do {                                           \
+    pix = (X);                                   \
+    piy = (Y);                                   \
+    piz = (Z);                                   \
+    base = (piz * dims.y + piy) * dims.x + pix;  \
+    ox = pix + 1 < dims.x ? 1 : 0;               \
+    oy = piy + 1 < dims.y ? dims.x : 0;          \
+    oz = piz + 1 < dims.z ? dims.x * dims.y : 0; \
+  } while (0)
+// Crossing one face into cell (X, Y, Z), along the axis of bit B. The 4 corners on the shared face
+// carry over, density and gradient so far (so a ray adds to each voxel once, not once per cell);
+// the 4 left behind are flushed and the 4 ahead read. a..d are the corners with bit B clear; L is
+// the bit of those left behind (0 going up, B going down), K = B - L that of those kept, which
+// become corners with bit L.
+#define IVR_CROSS_ONE(x, L, K)           \
+  do {                                   \
+    IVR_FLUSH((x) | (L));                \
+    IVR_MOVE_GRAD((x) | (L), (x) | (K)); \
+    v[(x) | (L)] = v[(x) | (K)];         \
+  } while (0)
+#define IVR_CROSS(L, K, a, b, c, d, X, Y, Z) \
+  do {                                       \
+    IVR_CROSS_ONE(a, L, K);                  \
+    IVR_CROSS_ONE(b, L, K);                  \
+    IVR_CROSS_ONE(c, L, K);                  \
+    IVR_CROSS_ONE(d, L, K);                  \
+    IVR_SET_CELL(X, Y, Z);                   \
+    IVR_LOAD((a) | (K));                     \
+    IVR_LOAD((b) | (K));                     \
+    IVR_LOAD((c) | (K));                     \
+    IVR_LOAD((d) | (K));                     \
+  } while (0)
 
 __kernel void adjoint(__global const real* restrict volume, const int4 dims, const real4 box_min,
                       const real4 box_max, const real4 inv_voxel,
@@ -150,9 +208,12 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     transmittance = (real)1;
     real pr = 0, pg = 0, pb = 0;  // emission prefix, summed exactly as the primal march summed C
     kr = kg = kb = 0;
-    int seg_value = 0, seg_slope = 0, seg_scatter = 0;
-    int base = -1, box = 0, boy = 0, boz = 0;
-    real corner[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    int seg_value = 0, seg_scatter = 0;
+    int base = -1, ox = 0, oy = 0, oz = 0, pix = 0, piy = 0, piz = 0;
+    real v[8];
+#if IVR_GRAD_DENSITY
+    real g[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+#endif
 #if IVR_GRAD_TF
     TfGradCache tf_cache;
     tf_cache_init(&tf_cache);
@@ -160,9 +221,45 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     for (uint i = 0; i < taken; ++i) {
       const real t = t0 + ((real)i + (real)0.5) * dt;
       const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
-      const real d = trilinear_at(volume, dims, ux, uy, uz);
-      real er, eg, eb;
-      const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &seg_value, &er, &eg, &eb);
+      // The sample's cell and weights, as trilinear_at() clamps and indexes them.
+      const real cx = fmin(fmax(ux, (real)0), (real)(dims.x - 1));
+      const real cy = fmin(fmax(uy, (real)0), (real)(dims.y - 1));
+      const real cz = fmin(fmax(uz, (real)0), (real)(dims.z - 1));
+      const int ix = (int)cx, iy = (int)cy, iz = (int)cz;
+      const real fx = cx - (real)ix, fy = cy - (real)iy, fz = cz - (real)iz;
+      // Into a neighbouring cell (across a face, an edge or a corner) one face at a time; a
+      // straight ray keeps its direction along each axis, so these branches are predictable.
+      // Longer jumps (steps over a voxel long) and the first sample take the general path.
+      if (base < 0 || abs(ix - pix) > 1 || abs(iy - piy) > 1 || abs(iz - piz) > 1) {
+        if (base >= 0) IVR_EACH_CORNER(IVR_FLUSH);
+        IVR_SET_CELL(ix, iy, iz);
+        IVR_EACH_CORNER(IVR_LOAD);
+      } else {
+        if (ix != pix) {
+          if (ix > pix)
+            IVR_CROSS(0, 1, 0, 2, 4, 6, ix, piy, piz);
+          else
+            IVR_CROSS(1, 0, 0, 2, 4, 6, ix, piy, piz);
+        }
+        if (iy != piy) {
+          if (iy > piy)
+            IVR_CROSS(0, 2, 0, 1, 4, 5, ix, iy, piz);
+          else
+            IVR_CROSS(2, 0, 0, 1, 4, 5, ix, iy, piz);
+        }
+        if (iz != piz) {
+          if (iz > piz)
+            IVR_CROSS(0, 4, 0, 1, 2, 3, ix, iy, iz);
+          else
+            IVR_CROSS(4, 0, 0, 1, 2, 3, ix, iy, iz);
+        }
+      }
+      // trilinear_at()'s interpolation, from the registers.
+      const real d = lerp(lerp(lerp(v[0], v[1], fx), lerp(v[2], v[3], fx), fy),
+                          lerp(lerp(v[4], v[5], fx), lerp(v[6], v[7], fx), fy), fz);
+      real er, eg, eb, dsigma, der, deg, deb;
+      const real sigma = tf_sample_slope(d, tf, tf_count, tf_scalars, &seg_value, &er, &eg, &eb,
+                                         &dsigma, &der, &deg, &deb);
       const real tau = sigma * dt;
       real fraction;
       const real decay = decay_and_fraction(tau, &fraction);
@@ -183,34 +280,18 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       transmittance = attenuate(transmittance, tau, fraction, decay);
 
 #if IVR_GRAD_DENSITY
-      real der, deg, deb;
-      const real dsigma = tf_slope(d, tf, tf_count, tf_scalars, &seg_slope, &der, &deg, &deb);
       const real gd = gsigma * dsigma + ger * der + geg * deg + geb * deb;
-      // The cell and trilinear weights of this sample (as trilinear_at clamps and indexes them).
-      const real cx = fmin(fmax(ux, (real)0), (real)(dims.x - 1));
-      const real cy = fmin(fmax(uy, (real)0), (real)(dims.y - 1));
-      const real cz = fmin(fmax(uz, (real)0), (real)(dims.z - 1));
-      const int ix = (int)cx, iy = (int)cy, iz = (int)cz;
-      const real fx = cx - (real)ix, fy = cy - (real)iy, fz = cz - (real)iz;
-      const int cell = (iz * dims.y + iy) * dims.x + ix;
-      if (cell != base) {
-        flush_cell(grad_volume, base, box, boy, boz, corner);
-        base = cell;
-        box = ix + 1 < dims.x ? 1 : 0;
-        boy = iy + 1 < dims.y ? dims.x : 0;
-        boz = iz + 1 < dims.z ? dims.x * dims.y : 0;
-      }
       const real gx0 = gd * ((real)1 - fx), gx1 = gd * fx;
       const real wy0z0 = ((real)1 - fy) * ((real)1 - fz), wy1z0 = fy * ((real)1 - fz);
       const real wy0z1 = ((real)1 - fy) * fz, wy1z1 = fy * fz;
-      corner[0] += gx0 * wy0z0;
-      corner[1] += gx1 * wy0z0;
-      corner[2] += gx0 * wy1z0;
-      corner[3] += gx1 * wy1z0;
-      corner[4] += gx0 * wy0z1;
-      corner[5] += gx1 * wy0z1;
-      corner[6] += gx0 * wy1z1;
-      corner[7] += gx1 * wy1z1;
+      g[0] += gx0 * wy0z0;
+      g[1] += gx1 * wy0z0;
+      g[2] += gx0 * wy1z0;
+      g[3] += gx1 * wy1z0;
+      g[4] += gx0 * wy0z1;
+      g[5] += gx1 * wy0z1;
+      g[6] += gx0 * wy1z1;
+      g[7] += gx1 * wy1z1;
 #endif
 #if IVR_GRAD_TF
       tf_scatter(d, tf, tf_count, tf_scalars, &seg_scatter, gsigma, ger, geg, geb, &tf_cache,
@@ -218,7 +299,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
 #endif
     }
 #if IVR_GRAD_DENSITY
-    flush_cell(grad_volume, base, box, boy, boz, corner);
+    if (base >= 0) IVR_EACH_CORNER(IVR_FLUSH);
 #endif
 #if IVR_GRAD_TF
     tf_cache_flush(&tf_cache, tf_acc);

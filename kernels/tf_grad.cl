@@ -24,7 +24,8 @@ typedef struct {
   real dw1_dd;  // d w1 / d density (0 where the TF is constant)
 } TfSegment;
 
-inline TfSegment tf_segment(real d, __global const real* tf, int count, real4 scalars, int* cursor) {
+inline TfSegment tf_segment(real d, __global const real* tf, int count, real4 scalars,
+                            int* cursor) {
   TfSegment s;
   s.row0 = s.row1 = 0;
   s.w1 = (real)0;
@@ -57,8 +58,9 @@ inline TfSegment tf_segment(real d, __global const real* tf, int count, real4 sc
 }
 
 // d sigma / d d and d emission / d d at density d.
-inline real tf_slope(real d, __global const real* tf, int count, real4 scalars, int* cursor,
-                     real* der, real* deg, real* deb) {
+__attribute__((always_inline)) inline real tf_slope(real d, __global const real* tf, int count,
+                                                    real4 scalars, int* cursor, real* der,
+                                                    real* deg, real* deb) {
   *der = *deg = *deb = (real)0;
 #if IVR_TF == IVR_TF_IDENTITY
 #if IVR_EMISSION
@@ -100,6 +102,65 @@ inline real tf_slope(real d, __global const real* tf, int count, real4 scalars, 
 #endif
 }
 
+// tf_sample() and tf_slope() in one: sigma and the premultiplied emission, computed exactly as
+// tf_sample() computes them (so that the adjoint march recovers what the primal march rendered),
+// with their density derivatives in *dsigma and (*der, *deg, *deb), from one segment search.
+__attribute__((always_inline)) inline real tf_sample_slope(real d, __global const real* tf,
+                                                           int count, real4 scalars, int* cursor,
+                                                           real* er, real* eg, real* eb,
+                                                           real* dsigma, real* der, real* deg,
+                                                           real* deb) {
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  __global const real* a = tf + 1;  // r, g, b, sigma of the rows around d
+  __global const real* b = tf + 1;
+  real w = (real)0, dw = (real)0;  // weight of b, and its slope in d
+  if (d >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
+    a = b = tf + (count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+  } else if (d > tf[0]) {
+    int k = *cursor;
+    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
+    while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
+    *cursor = k;
+    a = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+    b = a + IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    const real width = b[-1] - a[-1];
+    w = (d - a[-1]) / width;
+    dw = (real)1 / width;
+  }
+#else
+  const real q = (d - scalars.x) / (scalars.y - scalars.x);
+  const real u = clamp(q, (real)0, (real)1) * (real)(count - 1);
+  const int i0 = min((int)u, count - 1);
+  const int i1 = min(i0 + 1, count - 1);
+  const real w = u - (real)i0;
+  const real dw =
+      (q >= (real)0 && q < (real)1) ? (real)(count - 1) / (scalars.y - scalars.x) : (real)0;
+  __global const real* a = tf + i0 * IVR_TF_STRIDE_TABLE;
+  __global const real* b = tf + i1 * IVR_TF_STRIDE_TABLE;
+#endif
+  const real sigma = lerp(a[3], b[3], w);
+  *dsigma = (b[3] - a[3]) * dw;
+#if IVR_EMISSION
+  const real cr = lerp(a[0], b[0], w), cg = lerp(a[1], b[1], w), cb = lerp(a[2], b[2], w);
+  *er = sigma * cr;
+  *eg = sigma * cg;
+  *eb = sigma * cb;
+  // E = sigma·c: E' = sigma'·c + sigma·c'
+  *der = *dsigma * cr + sigma * (b[0] - a[0]) * dw;
+  *deg = *dsigma * cg + sigma * (b[1] - a[1]) * dw;
+  *deb = *dsigma * cb + sigma * (b[2] - a[2]) * dw;
+#else
+  *der = *deg = *deb = (real)0;
+#endif
+  return sigma;
+#else
+  const real sigma = tf_sample(d, tf, count, scalars, cursor, er, eg, eb);
+  *dsigma = tf_slope(d, tf, count, scalars, cursor, der, deg, deb);
+  return sigma;
+#endif
+}
+
 // A ray's private TF-gradient accumulator: the rows its samples currently touch, each value summed
 // with compensation (accumulate), flushed into the work-group's local accumulator when the rows
 // change and when the ray ends. A ray of 1e5 samples in one TF segment would otherwise add 1e5
@@ -113,7 +174,7 @@ inline real tf_slope(real d, __global const real* tf, int count, real4 scalars, 
 #elif IVR_TF == IVR_TF_IDENTITY
 #define IVR_TF_CACHE_ROWS 1
 #else
-#define IVR_TF_CACHE_ROWS 2  // the segment's two rows
+#define IVR_TF_CACHE_ROWS 2   // the segment's two rows
 #define IVR_TF_CACHE_KEYED 1  // slots re-keyed as the segment changes
 #endif
 #ifndef IVR_TF_CACHE_KEYED
@@ -138,7 +199,8 @@ inline void tf_cache_flush(TfGradCache* c, volatile __local real* acc) {
     if (c->row[k] < 0) continue;
     for (int j = 0; j < IVR_TF_GRAD_COLUMNS; ++j) {
       const int i = k * IVR_TF_GRAD_COLUMNS + j;
-      if (c->value[i] != (real)0) atomic_add_local(acc + c->row[k] * IVR_TF_GRAD_COLUMNS + j, c->value[i]);
+      if (c->value[i] != (real)0)
+        atomic_add_local(acc + c->row[k] * IVR_TF_GRAD_COLUMNS + j, c->value[i]);
       c->value[i] = c->error[i] = (real)0;
     }
   }
@@ -167,8 +229,12 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
     // sigma += e·G, E += e·G·c: d/de = G·(gs + gE·c), d/dc = e·G·gE, d/dmean = e·(gs + gE·c)·G·z/w,
     // d/dwidth = e·(gs + gE·c)·G·z²/w.
     const real through = gs + gr * p[2] + gg * p[3] + gb * p[4];
-    const real v[6] = {p[5] * g * gr, p[5] * g * gg, p[5] * g * gb, g * through,
-                       p[5] * through * g * z / p[1], p[5] * through * g * z * z / p[1]};
+    const real v[6] = {p[5] * g * gr,
+                       p[5] * g * gg,
+                       p[5] * g * gb,
+                       g * through,
+                       p[5] * through * g * z / p[1],
+                       p[5] * through * g * z * z / p[1]};
     for (int j = 0; j < 6; ++j) {
 #if IVR_TF_CACHE_ROWS > 0
       tf_cache_add(cache, k, j, v[j]);
@@ -195,7 +261,8 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
   const real sigma = lerp(a[3], b[3], s.w1);
   const real cr = lerp(a[0], b[0], s.w1), cg = lerp(a[1], b[1], s.w1), cb = lerp(a[2], b[2], s.w1);
   const real through = gs + gr * cr + gg * cg + gb * cb;  // dL/dsigma including E = sigma·c
-  // Slot 0 holds row0 with weight 1 - w; slot 1 holds row1 with w (beyond the ends: row0, weight 1).
+  // Slot 0 holds row0 with weight 1 - w; slot 1 holds row1 with w (beyond the ends: row0, weight
+  // 1).
   const real w[2] = {s.row1 == s.row0 ? (real)1 : (real)1 - s.w1, s.w1};
   for (int k = 0; k < (s.row1 == s.row0 ? 1 : 2); ++k) {
 #if IVR_EMISSION

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "device_params.hpp"
 #include "device_scene.hpp"
 #include "ivr/gradient.hpp"
 #include "kernel_sources.hpp"
@@ -13,10 +14,14 @@ namespace ivr {
 
 std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf) {
   switch (tf.kind) {
-    case TfKind::identity: return {1, 2};
-    case TfKind::piecewise_linear: return {tf.points.size(), 4};
-    case TfKind::table: return {tf.entries.size(), 4};
-    case TfKind::gaussian: return {tf.gaussians.size(), 6};
+    case TfKind::identity:
+      return {1, 2};
+    case TfKind::piecewise_linear:
+      return {tf.points.size(), 4};
+    case TfKind::table:
+      return {tf.entries.size(), 4};
+    case TfKind::gaussian:
+      return {tf.gaussians.size(), 6};
   }
   return {0, 0};
 }
@@ -31,24 +36,23 @@ void check_target(const Scene& scene, const Image& target) {
   };
   const std::string want = shape(int(scene.cameras.size()), c.height, c.width, scene.channels());
   const std::string got = shape(target.views, target.height, target.width, target.channels);
-  if (want != got || target.pixels.size() != std::size_t(target.views) * target.height *
-                                                 target.width * target.channels)
+  if (want != got || target.pixels.size() !=
+                         std::size_t(target.views) * target.height * target.width * target.channels)
     throw Error(Status::invalid_argument,
                 "target has shape " + got + " but the scene renders " + want);
   for (std::size_t i = 0; i < target.pixels.size(); ++i)
     if (!std::isfinite(target.pixels[i]))
-      throw Error(Status::invalid_argument,
-                  "target element " + std::to_string(i) + " is not finite (" +
-                      std::to_string(target.pixels[i]) + ")");
+      throw Error(Status::invalid_argument, "target element " + std::to_string(i) +
+                                                " is not finite (" +
+                                                std::to_string(target.pixels[i]) + ")");
 }
 
 std::string gradient_preamble(const RenderVariant& variant, const GradientOptions& o,
                               std::size_t tf_rows) {
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/tf_grad.cl).
   return variant.preamble() + "#define IVR_TF_ROWS " + std::to_string(tf_rows) +
-         "\n#define IVR_GRAD_DENSITY " + (o.density ? "1" : "0") +
-         "\n#define IVR_GRAD_TF " + (o.tf ? "1" : "0") + "\n#define IVR_LOSS_L1 " +
-         (o.loss == Loss::l1 ? "1" : "0") + "\n";
+         "\n#define IVR_GRAD_DENSITY " + (o.density ? "1" : "0") + "\n#define IVR_GRAD_TF " +
+         (o.tf ? "1" : "0") + "\n#define IVR_LOSS_L1 " + (o.loss == Loss::l1 ? "1" : "0") + "\n";
 }
 
 template <class Real>
@@ -71,15 +75,15 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
   cl::Buffer samples_buf =
       dev.buffer(CL_MEM_WRITE_ONLY, pixels * sizeof(cl_uint), nullptr, "the sample counts");
   const std::size_t grad_voxels = o.density ? voxels : 1;
-  cl::Buffer grad_volume = dev.buffer(CL_MEM_READ_WRITE, grad_voxels * sizeof(Real), nullptr,
-                                      "the density gradient");
-  cl::Buffer grad_tf = dev.buffer(CL_MEM_READ_WRITE, std::max<std::size_t>(tf_size, 1) * sizeof(Real),
-                                  nullptr, "the transfer-function gradient");
+  cl::Buffer grad_volume =
+      dev.buffer(CL_MEM_READ_WRITE, grad_voxels * sizeof(Real), nullptr, "the density gradient");
+  cl::Buffer grad_tf =
+      dev.buffer(CL_MEM_READ_WRITE, std::max<std::size_t>(tf_size, 1) * sizeof(Real), nullptr,
+                 "the transfer-function gradient");
   const DeviceScene<Real> dscene(dev, scene);
 
-  const RenderVariant variant = RenderVariant::of(scene, integrator,
-                                                  std::is_same_v<Real, double> ? Precision::f64
-                                                                               : Precision::f32);
+  const RenderVariant variant = RenderVariant::of(
+      scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
   const std::string label = "adjoint.cl [" + variant.label() + (o.tf ? " grad_tf" : "") + "]";
   const cl::Program program =
       dev.programs.get(dev.context, dev.device, dev.info,
@@ -94,8 +98,8 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
   cl_call("running the adjoint kernel on " + dev.info.name, [&] {
     dev.queue.enqueueFillBuffer(grad_volume, Real(0), 0, grad_voxels * sizeof(Real), nullptr,
                                 &zero_volume);
-    dev.queue.enqueueFillBuffer(grad_tf, Real(0), 0, std::max<std::size_t>(tf_size, 1) * sizeof(Real),
-                                nullptr, &zero_tf);
+    dev.queue.enqueueFillBuffer(
+        grad_tf, Real(0), 0, std::max<std::size_t>(tf_size, 1) * sizeof(Real), nullptr, &zero_tf);
     cl::Kernel k(program, "adjoint");
     int a = dscene.set_args(k, scene, integrator);
     k.setArg(a++, target_buf);
@@ -107,12 +111,17 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     k.setArg(a++, cl::Local(std::max<std::size_t>(tf_size, 1) * sizeof(Real)));
     k.setArg(a++, cl_int(o.tf ? tf_size : 0));
     k.setArg(a++, samples_buf);
-    // Work-groups of 8x8 share one local TF accumulator; the padding items only meet barriers.
+    // A work-group's items share one local TF accumulator (the padding items only meet
+    // barriers), so the size is always explicit: the database's, else 8x8 (smaller where the
+    // kernel allows less).
     const std::size_t max_group = k.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(dev.device);
-    const int l = max_group >= 64 ? 8 : max_group >= 16 ? 4 : 1;
-    const int gx = (cam0.width + l - 1) / l * l, gy = (cam0.height + l - 1) / l * l;
+    const LaunchParams launch = launch_params(dev.info, "adjoint");
+    int lx = launch.local_x, ly = launch.local_y;
+    if (lx <= 0 || std::size_t(lx) * std::size_t(ly) > max_group)
+      lx = ly = max_group >= 64 ? 8 : max_group >= 16 ? 4 : 1;
+    const int gx = (cam0.width + lx - 1) / lx * lx, gy = (cam0.height + ly - 1) / ly * ly;
     dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
-                                   cl::NDRange(l, l, 1), nullptr, &done);
+                                   cl::NDRange(lx, ly, 1), nullptr, &done);
     done.wait();
   });
 

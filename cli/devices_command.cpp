@@ -27,6 +27,8 @@ Runner add_devices_command(CLI::App& app) {
                         {"version", d.version},
                         {"driver", d.driver},
                         {"fp64", d.fp64},
+                        {"float_atomic_add", d.float_atomic_add},
+                        {"double_atomic_add", d.double_atomic_add},
                         {"global_memory", d.global_memory},
                         {"max_allocation", d.max_allocation},
                         {"compute_units", d.compute_units}});

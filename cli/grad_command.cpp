@@ -236,6 +236,7 @@ Runner add_grad_command(CLI::App& app) {
                                   {"device", device.info().name},
                                   {"precision", args->precision},
                                   {"samples", g.samples},
+                                  {"atomics", g.atomics},
                                   {"outputs", paths}};
       std::cout << out.dump() << "\n";
     } else {

@@ -1,6 +1,6 @@
 // atomics.cl — adding reals to global and local memory without losing updates: OpenCL 1.2 has no
 // float atomics, so a compare-and-swap loop on the value's bits (32-bit, or 64-bit through
-// cl_khr_int64_base_atomics for float64).
+// cl_khr_int64_base_atomics for float64), unless the device has cl_ext_float_atomics.
 #ifndef IVR_ATOMICS_CL
 #define IVR_ATOMICS_CL
 #include "config.cl"
@@ -18,18 +18,60 @@ typedef uint real_bits;
 #define as_real_value as_float
 #endif
 
+// IVR_FLOAT_ATOMICS (set by the host where the device reports cl_ext_float_atomics, and the
+// program is built as OpenCL C 2.0 or later): the device's own atomic add, guarded by the
+// compiler's feature macros so that a compiler without them still gets the CAS loop.
+#ifndef IVR_FLOAT_ATOMICS
+#define IVR_FLOAT_ATOMICS 0
+#endif
+#define IVR_NATIVE_GLOBAL_ADD 0
+#define IVR_NATIVE_LOCAL_ADD 0
+#if IVR_FLOAT_ATOMICS && IVR_F64
+#define atomic_real atomic_double
+#if defined(__opencl_c_ext_fp64_global_atomic_add)
+#undef IVR_NATIVE_GLOBAL_ADD
+#define IVR_NATIVE_GLOBAL_ADD 1
+#endif
+#if defined(__opencl_c_ext_fp64_local_atomic_add)
+#undef IVR_NATIVE_LOCAL_ADD
+#define IVR_NATIVE_LOCAL_ADD 1
+#endif
+#elif IVR_FLOAT_ATOMICS
+#define atomic_real atomic_float
+#if defined(__opencl_c_ext_fp32_global_atomic_add)
+#undef IVR_NATIVE_GLOBAL_ADD
+#define IVR_NATIVE_GLOBAL_ADD 1
+#endif
+#if defined(__opencl_c_ext_fp32_local_atomic_add)
+#undef IVR_NATIVE_LOCAL_ADD
+#define IVR_NATIVE_LOCAL_ADD 1
+#endif
+#endif
+
 inline void atomic_add_global(volatile __global real* p, real v) {
+#if IVR_NATIVE_GLOBAL_ADD
+  atomic_fetch_add_explicit((volatile __global atomic_real*)p, v, memory_order_relaxed,
+                            memory_scope_device);
+#else
   volatile __global real_bits* bits = (volatile __global real_bits*)p;
   real_bits expected = as_real_bits(*p), seen;
-  while ((seen = IVR_CMPXCHG(bits, expected, as_real_bits(as_real_value(expected) + v))) != expected)
+  while ((seen = IVR_CMPXCHG(bits, expected, as_real_bits(as_real_value(expected) + v))) !=
+         expected)
     expected = seen;
+#endif
 }
 
 inline void atomic_add_local(volatile __local real* p, real v) {
+#if IVR_NATIVE_LOCAL_ADD
+  atomic_fetch_add_explicit((volatile __local atomic_real*)p, v, memory_order_relaxed,
+                            memory_scope_work_group);
+#else
   volatile __local real_bits* bits = (volatile __local real_bits*)p;
   real_bits expected = as_real_bits(*p), seen;
-  while ((seen = IVR_CMPXCHG(bits, expected, as_real_bits(as_real_value(expected) + v))) != expected)
+  while ((seen = IVR_CMPXCHG(bits, expected, as_real_bits(as_real_value(expected) + v))) !=
+         expected)
     expected = seen;
+#endif
 }
 
 #endif

@@ -1,6 +1,7 @@
 // adjoint.cpp — the gradient operation: one launch of kernels/adjoint.cl (primal march, loss, and
 // the constant-memory adjoint march) per evaluation, reductions of the per-pixel terms on the host.
 #include <cmath>
+#include <cstdlib>
 #include <numeric>
 
 #include "device_params.hpp"
@@ -55,6 +56,14 @@ std::string gradient_preamble(const RenderVariant& variant, const GradientOption
          (o.tf ? "1" : "0") + "\n#define IVR_LOSS_L1 " + (o.loss == Loss::l1 ? "1" : "0") + "\n";
 }
 
+// The device's own float atomic add (cl_ext_float_atomics) where it has one for this precision,
+// unless $IVR_FLOAT_ATOMICS=0 asks for the compare-and-swap loop (for comparisons).
+bool use_float_atomics(const DeviceInfo& info, bool f64) {
+  if (const char* env = std::getenv("IVR_FLOAT_ATOMICS"); env && std::string(env) == "0")
+    return false;
+  return f64 ? info.double_atomic_add : info.float_atomic_add;
+}
+
 template <class Real>
 Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
                      const Image& target, const GradientOptions& o) {
@@ -84,13 +93,20 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
 
   const RenderVariant variant = RenderVariant::of(
       scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
-  const std::string label = "adjoint.cl [" + variant.label() + (o.tf ? " grad_tf" : "") + "]";
-  const cl::Program program =
-      dev.programs.get(dev.context, dev.device, dev.info,
-                       gradient_preamble(variant, o, tf_shape[0]) + assemble_kernel("adjoint.cl"),
-                       extra_build_options(), label);
+  const bool native_atomics = use_float_atomics(dev.info, std::is_same_v<Real, double>);
+  const std::string label = "adjoint.cl [" + variant.label() + (o.tf ? " grad_tf" : "") +
+                            (native_atomics ? " float_atomics" : "") + "]";
+  std::string preamble = gradient_preamble(variant, o, tf_shape[0]);
+  std::string options = extra_build_options();
+  if (native_atomics) {
+    preamble += "#define IVR_FLOAT_ATOMICS 1\n";
+    options = "-cl-std=" + dev.info.atomics_std + " " + options;
+  }
+  const cl::Program program = dev.programs.get(
+      dev.context, dev.device, dev.info, preamble + assemble_kernel("adjoint.cl"), options, label);
 
   Gradient g;
+  g.atomics = native_atomics ? "cl_ext_float_atomics" : "compare-and-swap";
   g.device_bytes = dscene.bytes + target_real.size() * sizeof(Real) +
                    pixels * (channels * sizeof(float) + 4 * sizeof(Real) + sizeof(cl_uint)) +
                    (grad_voxels + std::max<std::size_t>(tf_size, 1)) * sizeof(Real);

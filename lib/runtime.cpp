@@ -107,6 +107,31 @@ std::string trim(std::string s) {
   return s.substr(i);
 }
 
+// cl_ext_float_atomics (values from the Khronos registry; older headers lack them).
+constexpr cl_device_info kSingleFpAtomicCaps = 0x4231, kDoubleFpAtomicCaps = 0x4232;
+constexpr cl_bitfield kGlobalFpAtomicAdd = 1 << 1, kLocalFpAtomicAdd = 1 << 17;
+
+// Which float atomic adds the device has, and the OpenCL C version (2.0 or later) that has the
+// atomic types they need.
+void query_float_atomics(const cl::Device& dev, DeviceInfo& info) {
+  if (dev.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_ext_float_atomics") == std::string::npos) return;
+  const auto has_add = [&](cl_device_info what) {
+    cl_bitfield caps = 0;
+    if (clGetDeviceInfo(dev(), what, sizeof caps, &caps, nullptr) != CL_SUCCESS) return false;
+    const cl_bitfield both = kGlobalFpAtomicAdd | kLocalFpAtomicAdd;
+    return (caps & both) == both;
+  };
+  // "OpenCL 3.0 …" devices compile OpenCL C 3.0; "OpenCL 2.x" ones OpenCL C 2.0.
+  if (info.version.rfind("OpenCL 3.", 0) == 0)
+    info.atomics_std = "CL3.0";
+  else if (info.version.rfind("OpenCL 2.", 0) == 0)
+    info.atomics_std = "CL2.0";
+  else
+    return;
+  info.float_atomic_add = has_add(kSingleFpAtomicCaps);
+  info.double_atomic_add = info.fp64 && has_add(kDoubleFpAtomicCaps);
+}
+
 struct Found {
   DeviceInfo info;
   cl::Platform platform;
@@ -154,6 +179,7 @@ std::vector<Found> discover() {
       info.global_memory = dev.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
       info.max_allocation = dev.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
       info.compute_units = int(dev.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+      query_float_atomics(dev, info);
       found.push_back({info, platforms[p], dev});
     }
   }

@@ -1,6 +1,7 @@
 // adjoint_scatter_test.cpp — the voxel scatter of the adjoint march: rays crossing cells up and
 // down every axis, across faces, edges and corners, and with steps longer than a voxel (the
-// kernel's general path), checked voxel by voxel against central differences in float64.
+// kernel's general path), checked voxel by voxel against central differences in float64; and the
+// atomics the scatter uses.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -82,6 +83,39 @@ TEST_P(AdjointScatter, EveryVoxelMatchesCentralDifferences) {
 // 0.3: several samples per cell, faces, edges and corners crossed one sample apart; 1.7: most
 // steps jump over a cell.
 INSTANTIATE_TEST_SUITE_P(Steps, AdjointScatter, ::testing::Values(0.3, 1.7));
+
+// The scatter's atomics: the device's float atomic add where it reports cl_ext_float_atomics,
+// else a compare-and-swap loop; $IVR_FLOAT_ATOMICS=0 forces the loop. The kernel built as OpenCL
+// C 3.0 with IVR_FLOAT_ATOMICS=1 (the native add where the compiler has the feature, the loop
+// where it does not) agrees with the default build within the rounding of the atomic sums.
+TEST(AdjointAtomics, ReportedAndEveryBuildAgrees) {
+  const Scene s = walk_scene(0.3);
+  const Image target = render(device(), s, {Precision::f64});
+  const bool opencl3 = device().info().version.rfind("OpenCL 3.", 0) == 0;
+  GradientOptions o;
+  o.tf = true;
+  for (Precision p : {Precision::f32, Precision::f64}) {
+    o.precision = p;
+    const double tolerance = p == Precision::f32 ? 1e-5 : 1e-12;
+    const Gradient g = gradient(device(), s, target, o);
+    const bool native =
+        p == Precision::f32 ? device().info().float_atomic_add : device().info().double_atomic_add;
+    EXPECT_EQ(g.atomics, native ? "cl_ext_float_atomics" : "compare-and-swap") << name(p);
+    {
+      ScopedEnv cas("IVR_FLOAT_ATOMICS", "0");
+      const Gradient c = gradient(device(), s, target, o);
+      EXPECT_EQ(c.atomics, "compare-and-swap");
+      EXPECT_LE(relative_error(c.density, g.density), tolerance) << name(p);
+      EXPECT_LE(relative_error(c.tf, g.tf), tolerance) << name(p);
+    }
+    if (opencl3) {
+      ScopedEnv build("IVR_BUILD_OPTIONS", "-cl-std=CL3.0 -DIVR_FLOAT_ATOMICS=1");
+      const Gradient c = gradient(device(), s, target, o);
+      EXPECT_LE(relative_error(c.density, g.density), tolerance) << name(p);
+      EXPECT_LE(relative_error(c.tf, g.tf), tolerance) << name(p);
+    }
+  }
+}
 
 }  // namespace
 }  // namespace ivr::test

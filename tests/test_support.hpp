@@ -1,6 +1,7 @@
 // test_support.hpp — shared helpers for the test suite: temp folders, scene builders, the CLI.
 #pragma once
 #include <cmath>
+#include <cstdlib>
 #include <string>
 
 #include "ivr/ivr.hpp"
@@ -15,6 +16,23 @@ std::string write_file(const std::string& path, const std::string& text);
 
 // One shared device for the whole test process ($IVR_DEVICE or the default).
 Device& device();
+
+// Sets an environment variable for the scope of a test, restoring the old value after.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const std::string& value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
+    ::setenv(name, value.c_str(), 1);
+  }
+  ~ScopedEnv() { had_ ? ::setenv(name_, old_.c_str(), 1) : ::unsetenv(name_); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::string old_;
+  bool had_ = false;
+};
 
 // A scene of a constant-density volume filling the default unit box, one orthographic camera
 // looking down -z through the whole box, identity TF. Tests tweak fields from here.

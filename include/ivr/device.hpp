@@ -16,6 +16,10 @@ struct DeviceInfo {
   int device_index = 0;                                       // device number within its platform
   std::string platform, name, vendor, type, version, driver;  // type: cpu, gpu, accelerator
   bool fp64 = false;
+  // cl_ext_float_atomics: atomic add of float / double to global and local memory (the adjoint's
+  // scatter uses it instead of a compare-and-swap loop), and the -cl-std that enables it.
+  bool float_atomic_add = false, double_atomic_add = false;
+  std::string atomics_std;  // "CL3.0" or "CL2.0" where either is true
   std::uint64_t global_memory = 0, max_allocation = 0;
   int compute_units = 0;
 };

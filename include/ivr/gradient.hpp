@@ -26,12 +26,13 @@ struct GradientOptions {
 
 struct Gradient {
   double loss = 0;
-  std::vector<float> density;       // volume shape (nz, ny, nx) when asked for, else empty
-  std::vector<double> tf;           // rows x columns (tf_gradient_shape), when asked for
-  std::vector<double> background;   // when asked for
-  double kernel_seconds = 0;        // device time: primal render + loss + adjoint march
-  std::uint64_t device_bytes = 0;   // peak device memory of the evaluation (all its buffers)
-  std::uint64_t samples = 0;        // density samples of the adjoint march
+  std::vector<float> density;      // volume shape (nz, ny, nx) when asked for, else empty
+  std::vector<double> tf;          // rows x columns (tf_gradient_shape), when asked for
+  std::vector<double> background;  // when asked for
+  double kernel_seconds = 0;       // device time: primal render + loss + adjoint march
+  std::uint64_t device_bytes = 0;  // peak device memory of the evaluation (all its buffers)
+  std::uint64_t samples = 0;       // density samples of the adjoint march
+  std::string atomics;             // the scatter's: "cl_ext_float_atomics" or "compare-and-swap"
 };
 
 // Shape of the TF gradient: identity → 1 x 2 (extinction_scale, color_scale); piecewise_linear

@@ -8,6 +8,7 @@
 #include "compositing.cl"
 #include "config.cl"
 #include "geometry.cl"
+#include "loss.cl"
 #include "tf.cl"
 #include "tf_grad.cl"
 
@@ -17,27 +18,6 @@
 #ifndef IVR_GRAD_TF
 #define IVR_GRAD_TF 0
 #endif
-#ifndef IVR_LOSS_L1  // 0: mean squared error, 1: mean absolute error
-#define IVR_LOSS_L1 0
-#endif
-
-#if IVR_EMISSION
-#define IVR_CHANNELS 4
-#else
-#define IVR_CHANNELS 1
-#endif
-
-// dL/dpixel for one channel; *loss += its term. `norm` = 1 / (number of elements).
-inline real loss_term(real value, real target, real norm, real* loss) {
-  const real diff = value - target;
-#if IVR_LOSS_L1
-  *loss += fabs(diff) * norm;
-  return diff > (real)0 ? norm : (diff < (real)0 ? -norm : (real)0);
-#else
-  *loss += diff * diff * norm;
-  return (real)2 * diff * norm;
-#endif
-}
 
 // The adjoint march keeps the ray's current cell in registers: its 8 corner densities v[k] (read
 // once per cell, not once per sample) and the gradient of those corners g[k], added to global
@@ -222,11 +202,9 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       const real t = t0 + ((real)i + (real)0.5) * dt;
       const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
       // The sample's cell and weights, as trilinear_at() clamps and indexes them.
-      const real cx = fmin(fmax(ux, (real)0), (real)(dims.x - 1));
-      const real cy = fmin(fmax(uy, (real)0), (real)(dims.y - 1));
-      const real cz = fmin(fmax(uz, (real)0), (real)(dims.z - 1));
-      const int ix = (int)cx, iy = (int)cy, iz = (int)cz;
-      const real fx = cx - (real)ix, fy = cy - (real)iy, fz = cz - (real)iz;
+      real fx, fy, fz;
+      const int ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
+                iz = cell_axis(uz, dims.z, &fz);
       // Into a neighbouring cell (across a face, an edge or a corner) one face at a time; a
       // straight ray keeps its direction along each axis, so these branches are predictable.
       // Longer jumps (steps over a voxel long) and the first sample take the general path.

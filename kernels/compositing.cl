@@ -33,10 +33,17 @@ inline real decay_and_fraction(real x, real* fraction) {
 inline real fraction_slope(real x, real decay, real fraction) {
   if (x >= (real)0.1) return (decay - fraction) / x;
 #if IVR_F64
-  return -0.5 + x * (1.0 / 3 + x * (-1.0 / 8 + x * (1.0 / 30 + x * (-1.0 / 144 + x * (1.0 / 840 +
-         x * (-1.0 / 5760 + x * (1.0 / 45360 + x * (-1.0 / 403200 + x * (1.0 / 3991680)))))))));
+  return -0.5 +
+         x * (1.0 / 3 +
+              x * (-1.0 / 8 +
+                   x * (1.0 / 30 + x * (-1.0 / 144 +
+                                        x * (1.0 / 840 + x * (-1.0 / 5760 +
+                                                              x * (1.0 / 45360 +
+                                                                   x * (-1.0 / 403200 +
+                                                                        x * (1.0 / 3991680)))))))));
 #else
-  return -0.5f + x * (1.0f / 3 + x * (-1.0f / 8 + x * (1.0f / 30 + x * (-1.0f / 144 + x * (1.0f / 840)))));
+  return -0.5f +
+         x * (1.0f / 3 + x * (-1.0f / 8 + x * (1.0f / 30 + x * (-1.0f / 144 + x * (1.0f / 840)))));
 #endif
 }
 

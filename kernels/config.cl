@@ -38,6 +38,11 @@ typedef float4 real4;
 #endif
 
 #define IVR_EMISSION (IVR_MODEL == IVR_MODEL_EMISSION_ABSORPTION)
+#if IVR_EMISSION
+#define IVR_CHANNELS 4  // premultiplied RGB and alpha
+#else
+#define IVR_CHANNELS 1  // intensity
+#endif
 
 // a + (b - a)·t, written out so that it contracts into one fused multiply-add (OpenCL's default
 // FP_CONTRACT); PoCL's mix() builtin is a separate multiply and add.

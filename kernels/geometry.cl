@@ -51,16 +51,23 @@ inline bool clip_box(Ray r, real3 bmin, real3 bmax, real* t0, real* t1) {
   return *t0 < *t1;
 }
 
+// The cell of continuous voxel coordinate u along an axis of n voxels, clamped to the edge centres
+// as trilinear_at() clamps it: returns the index i, and the fraction in [0, 1] in *f.
+__attribute__((always_inline)) inline int cell_axis(real u, int n, real* f) {
+  const real c = fmin(fmax(u, (real)0), (real)(n - 1));
+  const int i = (int)c;  // c >= 0, so truncation is floor
+  *f = c - (real)i;
+  return i;
+}
+
 // Trilinear density at continuous voxel coordinates (ux, uy, uz) (voxel centre i at u = i),
 // clamped to the edge centres: the value is constant in the outer half-voxel. Scalar on purpose:
 // PoCL compiles float3 arithmetic into 4-wide vectors plus lane shuffles.
 __attribute__((always_inline)) inline real trilinear_at(__global const real* vol, int4 dims,
                                                         real ux, real uy, real uz) {
-  ux = fmin(fmax(ux, (real)0), (real)(dims.x - 1));
-  uy = fmin(fmax(uy, (real)0), (real)(dims.y - 1));
-  uz = fmin(fmax(uz, (real)0), (real)(dims.z - 1));
-  const int ix = (int)ux, iy = (int)uy, iz = (int)uz;  // u >= 0, so truncation is floor
-  const real fx = ux - (real)ix, fy = uy - (real)iy, fz = uz - (real)iz;
+  real fx, fy, fz;
+  const int ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
+            iz = cell_axis(uz, dims.z, &fz);
   const int sx = dims.x, sxy = dims.x * dims.y;
   // One base address and the neighbours' offsets (0 on the clamped upper edge).
   const int ox = ix + 1 < dims.x ? 1 : 0;

@@ -1,9 +1,9 @@
 // render.cl — the forward renderer: one work-item per pixel and view, midpoint rule with a fixed
 // step on the exactly clipped ray, early termination, both optical models.
+#include "compositing.cl"
 #include "config.cl"
 #include "geometry.cl"
 #include "tf.cl"
-#include "compositing.cl"
 
 __kernel void render(__global const real* restrict volume, const int4 dims, const real4 box_min,
                      const real4 box_max, const real4 inv_voxel,

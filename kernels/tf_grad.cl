@@ -17,6 +17,15 @@
 #define IVR_TF_GRAD_COLUMNS 4
 #endif
 
+// Row `row`'s [r, g, b, sigma] (piecewise linear: after its density; table: the whole row).
+inline __global const real* tf_rgbs(__global const real* tf, int row) {
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  return tf + row * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+#else
+  return tf + row * IVR_TF_STRIDE_TABLE;
+#endif
+}
+
 // The one or two rows holding density d, their weights, and the slope of the weights in d.
 typedef struct {
   int row0, row1;
@@ -83,13 +92,8 @@ __attribute__((always_inline)) inline real tf_slope(real d, __global const real*
   return slope;
 #else
   const TfSegment s = tf_segment(d, tf, count, scalars, cursor);
-#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
-  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
-#else
-  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_TABLE;
-  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_TABLE;
-#endif
+  __global const real* a = tf_rgbs(tf, s.row0);  // r, g, b, sigma
+  __global const real* b = tf_rgbs(tf, s.row1);
   const real sigma = lerp(a[3], b[3], s.w1);
   const real dsigma = (b[3] - a[3]) * s.dw1_dd;
 #if IVR_EMISSION
@@ -250,13 +254,8 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
     cache->row[0] = s.row0;
     cache->row[1] = s.row1 == s.row0 ? -1 : s.row1;  // one row beyond the ends
   }
-#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
-  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
-#else
-  __global const real* a = tf + s.row0 * IVR_TF_STRIDE_TABLE;
-  __global const real* b = tf + s.row1 * IVR_TF_STRIDE_TABLE;
-#endif
+  __global const real* a = tf_rgbs(tf, s.row0);  // r, g, b, sigma
+  __global const real* b = tf_rgbs(tf, s.row1);
   // sigma = lerp(s0, s1, w), c = lerp(c0, c1, w), E = sigma·c.
   const real sigma = lerp(a[3], b[3], s.w1);
   const real cr = lerp(a[0], b[0], s.w1), cg = lerp(a[1], b[1], s.w1), cb = lerp(a[2], b[2], s.w1);

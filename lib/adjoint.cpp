@@ -29,25 +29,6 @@ std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf) {
 
 namespace {
 
-void check_target(const Scene& scene, const Image& target) {
-  const Camera& c = scene.cameras.front();
-  const auto shape = [](int v, int h, int w, int ch) {
-    return "(" + std::to_string(v) + ", " + std::to_string(h) + ", " + std::to_string(w) + ", " +
-           std::to_string(ch) + ")";
-  };
-  const std::string want = shape(int(scene.cameras.size()), c.height, c.width, scene.channels());
-  const std::string got = shape(target.views, target.height, target.width, target.channels);
-  if (want != got || target.pixels.size() !=
-                         std::size_t(target.views) * target.height * target.width * target.channels)
-    throw Error(Status::invalid_argument,
-                "target has shape " + got + " but the scene renders " + want);
-  for (std::size_t i = 0; i < target.pixels.size(); ++i)
-    if (!std::isfinite(target.pixels[i]))
-      throw Error(Status::invalid_argument, "target element " + std::to_string(i) +
-                                                " is not finite (" +
-                                                std::to_string(target.pixels[i]) + ")");
-}
-
 std::string gradient_preamble(const RenderVariant& variant, const GradientOptions& o,
                               std::size_t tf_rows) {
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/tf_grad.cl).

@@ -1,10 +1,15 @@
 // scene_checks.hpp — scene validation with an integrator that overrides the scene's own.
 #pragma once
+#include "ivr/render.hpp"
 #include "ivr/scene.hpp"
 
 namespace ivr {
 
 // validate(scene) as if scene.integrator were `integrator` (e.g. a --step override).
 void validate_with(const Scene& scene, const Integrator& integrator);
+
+// A loss target must have the render's shape (views, H, W, C) and finite values; throws
+// ivr::Error(invalid_argument) naming the shapes or the first bad element.
+void check_target(const Scene& scene, const Image& target);
 
 }  // namespace ivr

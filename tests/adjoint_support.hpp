@@ -88,7 +88,49 @@ inline ::testing::AssertionResult all_finite(const Gradient& g) {
   return check(g.background, "background");
 }
 
-// Adds h to TF parameter (row r, column c) in tf_gradient_shape's layout; returns h.
+// A random 6x5x4 volume (densities in [0.15, 0.85]) in a non-cubic box, parameters for every TF
+// kind, two perspective 6x5 views, step 0.7, early termination off.
+inline Scene two_view_scene(Model model, TfKind kind) {
+  Scene s;
+  s.volume.nx = 6;
+  s.volume.ny = 5;
+  s.volume.nz = 4;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.15, 0.85);
+  for (std::size_t i = 0; i < s.volume.voxel_count(); ++i) s.volume.data.push_back(float(u(rng)));
+  set_default_box(s);
+  s.model = model;
+  s.tf.kind = kind;
+  s.tf.extinction_scale = 3;
+  s.tf.color_scale = 0.8;
+  s.tf.points = {
+      {0.1, {0.2, 0.3, 0.9}, 1.0}, {0.45, {0.9, 0.5, 0.1}, 4.0}, {0.8, {1, 1, 0.8}, 2.0}};
+  s.tf.range = {0.1, 0.9};
+  s.tf.entries = {{0.1, 0.2, 0.9, 0.5}, {0.9, 0.6, 0.2, 3.0}, {0.3, 0.8, 0.4, 1.5}, {1, 1, 1, 4}};
+  s.tf.gaussians = {{0.35, 0.15, {0.9, 0.3, 0.2}, 3.0}, {0.7, 0.1, {0.2, 0.6, 1.0}, 5.0}};
+  s.background = glm::dvec3(0.3, 0.2, 0.1);
+  Camera a, b;
+  a.eye = {0.3, 0.4, 1.6};
+  b.eye = {-1.4, 0.2, 0.5};
+  a.width = b.width = 6;
+  a.height = b.height = 5;
+  a.fov_y = b.fov_y = 35;
+  s.cameras = {a, b};
+  s.integrator.step = 0.7;
+  s.integrator.min_transmittance = 0;
+  return s;
+}
+
+// A fixed target: the scene rendered with perturbed densities, so the loss gradient is not zero.
+inline Image perturbed_target(const Scene& s) {
+  Scene t = s;
+  for (std::size_t i = 0; i < t.volume.data.size(); ++i)
+    t.volume.data[i] = float(std::min(1.0, t.volume.data[i] * (1.0 + 0.3 * std::sin(double(i)))));
+  return render(device(), t, {Precision::f64});
+}
+
+// Adds h to TF parameter (row r, column c) in tf_gradient_shape's layout (column 4 of a
+// piecewise-linear TF: the control point's density); returns h.
 inline double nudge_tf(Scene& x, std::size_t r, std::size_t c, double h) {
   TransferFunction& tf = x.tf;
   switch (tf.kind) {
@@ -96,7 +138,9 @@ inline double nudge_tf(Scene& x, std::size_t r, std::size_t c, double h) {
       (c == 0 ? tf.extinction_scale : tf.color_scale) += h;
       break;
     case TfKind::piecewise_linear:
-      (c < 3 ? tf.points[r].color[int(c)] : tf.points[r].extinction) += h;
+      (c < 3    ? tf.points[r].color[int(c)]
+       : c == 3 ? tf.points[r].extinction
+                : tf.points[r].density) += h;
       break;
     case TfKind::table:
       tf.entries[r][int(c)] += h;

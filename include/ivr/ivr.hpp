@@ -7,3 +7,4 @@
 #include "ivr/version.h"
 #include "ivr/volume_io.hpp"
 #include "ivr/gradient.hpp"
+#include "ivr/tangents.hpp"

@@ -1,0 +1,52 @@
+// ivr/differentiate.hpp — the gradient of an image loss with respect to named parameter groups,
+// in forward or adjoint mode, chosen by the planner unless asked for: what `ivr grad` runs.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ivr/device.hpp"
+#include "ivr/export.h"
+#include "ivr/gradient.hpp"
+#include "ivr/planner.hpp"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+// Groups: "density" (every voxel), "tf" (tf_gradient_shape), "tf_points" (control-point
+// densities, forward only), "scales" (identity TF), "background", "camera" (views x 7:
+// [eye xyz, target xyz, fov_y], forward only), "step" (the integrator step: the render depends on
+// it only through the sample count, so its derivative is 0), "voxels:LIST" (the listed voxel
+// indices, x fastest; LIST is comma-separated indices and ranges a-b).
+struct GroupGradient {
+  std::string name;                // as asked for ("voxels" for a voxel list)
+  std::vector<std::size_t> shape;  // of the output array
+  std::vector<double> values;
+};
+
+struct DifferentiateOptions {
+  Mode mode = Mode::automatic;
+  Precision precision = Precision::f32;
+  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+  Loss loss = Loss::mse;
+};
+
+struct Differentiation {
+  double loss = 0;
+  Plan plan;                        // the mode used, and both modes' predicted seconds
+  std::vector<GroupGradient> groups;
+  std::size_t parameters = 0;       // values computed, over all groups
+  double kernel_seconds = 0;        // device time of every kernel run
+  std::uint64_t device_bytes = 0;   // peak device memory
+  std::string atomics;              // adjoint mode: the scatter's atomics
+};
+
+// Splits a --wrt list ("tf,voxels:3,17,40-45,background") into group names; voxel lists take the
+// integers and ranges that follow them. Throws ivr::Error(invalid_argument) naming a bad item.
+IVR_API std::vector<std::string> parse_groups(const std::string& list);
+
+IVR_API Differentiation differentiate(Device& device, const Scene& scene, const Image& target,
+                                      const std::vector<std::string>& groups,
+                                      const DifferentiateOptions& options = {});
+
+}  // namespace ivr

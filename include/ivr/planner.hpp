@@ -1,0 +1,61 @@
+// ivr/planner.hpp — chooses forward or adjoint mode for a gradient from a per-device cost model:
+// forward costs grow with the number of parameters (passes of up to 32 tangent lanes), the
+// adjoint's do not. The model comes from `ivr calibrate` (JSON per device in the user's cache
+// folder) or, without a calibration, from built-in defaults.
+#pragma once
+#include <cstddef>
+#include <string>
+
+#include "ivr/device.hpp"
+#include "ivr/export.h"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+enum class Mode { automatic, forward, adjoint };
+
+// Costs relative to one render of the same scene: a forward pass with L lanes costs
+// (forward_base + forward_per_lane · L) renders, an adjoint gradient `adjoint` renders; a render
+// costs seconds_per_sample per density sample (to predict seconds).
+struct CostModel {
+  double forward_base = 1.0;
+  double forward_per_lane = 0.5;
+  double adjoint = 3.0;
+  double seconds_per_sample = 1e-8;
+  std::string source = "default";  // "default", or the file it was read from
+};
+
+// The calibration file of a device: $IVR_COST_MODEL if set, else <cache>/ivr/cost/<device>.json
+// (<cache>: $XDG_CACHE_HOME or ~/.cache); the name is derived from platform, device and driver.
+IVR_API std::string cost_model_path(const DeviceInfo& device);
+
+// The device's model: its calibration file where one exists, else the defaults. A file that
+// exists but cannot be read or lacks a field is an error naming the file and the field.
+IVR_API CostModel load_cost_model(const DeviceInfo& device);
+IVR_API CostModel read_cost_model(const std::string& path);
+IVR_API void save_cost_model(const std::string& path, const CostModel& model,
+                             const DeviceInfo& device);
+
+struct Plan {
+  Mode mode = Mode::adjoint;
+  double forward_seconds = 0, adjoint_seconds = 0;  // predicted (infinity where not possible)
+  std::size_t passes = 0, lanes = 0;                // of the forward mode
+  std::string model;                                // the cost model's source
+};
+
+// The passes and lanes forward mode needs for P parameters, and its cost in renders.
+IVR_API double forward_cost(const CostModel& model, std::size_t parameters,
+                            std::size_t* passes = nullptr, std::size_t* lanes = nullptr);
+
+// Picks the cheaper mode for `forward_parameters` parameters (what forward mode would carry) of
+// `scene` at `step` (voxel units; 0: the scene's). `requested` other than automatic is kept (and
+// checked against what is possible); forward_possible / adjoint_possible say whether the
+// parameter groups are available in each mode.
+IVR_API Plan plan_gradient(const CostModel& model, const Scene& scene,
+                           std::size_t forward_parameters, bool forward_possible,
+                           bool adjoint_possible, Mode requested = Mode::automatic,
+                           double step = 0);
+
+IVR_API const char* mode_name(Mode mode);
+
+}  // namespace ivr

@@ -10,5 +10,7 @@ using Runner = std::function<int()>;
 Runner add_devices_command(CLI::App& app);
 Runner add_render_command(CLI::App& app);
 Runner add_grad_command(CLI::App& app);
+Runner add_jacobian_command(CLI::App& app);
+Runner add_calibrate_command(CLI::App& app);
 
 }  // namespace ivr::cli

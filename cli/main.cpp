@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
   const ivr::cli::Runner devices = ivr::cli::add_devices_command(app);
   const ivr::cli::Runner render = ivr::cli::add_render_command(app);
   const ivr::cli::Runner grad = ivr::cli::add_grad_command(app);
+  const ivr::cli::Runner jacobian = ivr::cli::add_jacobian_command(app);
+  const ivr::cli::Runner calibrate = ivr::cli::add_calibrate_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -28,6 +30,8 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("devices")) return devices();
     if (app.got_subcommand("render")) return render();
     if (app.got_subcommand("grad")) return grad();
+    if (app.got_subcommand("jacobian")) return jacobian();
+    if (app.got_subcommand("calibrate")) return calibrate();
   } catch (const ivr::Error& e) {
     std::cerr << "ivr: error: " << e.what() << "\n";
     return 1;

@@ -65,18 +65,21 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
 
   if (active) {
     const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
+    // The lanes, in private memory for the sample loop.
+    int4 lane_of[IVR_LANES];
+    IVR_FOR_LANES(p) lane_of[p] = lanes[p];
     // Tangents of the ray: only camera lanes of this view move it.
     real dox[IVR_LANES], doy[IVR_LANES], doz[IVR_LANES];
     real ddx[IVR_LANES], ddy[IVR_LANES], ddz[IVR_LANES];
     IVR_FOR_LANES(p) {
       dox[p] = doy[p] = doz[p] = ddx[p] = ddy[p] = ddz[p] = (real)0;
 #if IVR_TANGENT_CAMERA
-      if (lanes[p].x == IVR_LANE_CAMERA && lanes[p].y == view) {
+      if (lane_of[p].x == IVR_LANE_CAMERA && lane_of[p].y == view) {
         const real sx = (real)2 * ((real)x + (real)0.5) / (real)width - (real)1;
         const real sy = (real)1 - (real)2 * ((real)y + (real)0.5) / (real)height;
         real3 o, d;
-        camera_ray_tangent(camera_params + view * IVR_CAMERA_PARAMS_STRIDE, sx, sy, lanes[p].z, &o,
-                           &d);
+        camera_ray_tangent(camera_params + view * IVR_CAMERA_PARAMS_STRIDE, sx, sy, lane_of[p].z,
+                           &o, &d);
         dox[p] = o.x, doy[p] = o.y, doz[p] = o.z, ddx[p] = d.x, ddy[p] = d.y, ddz[p] = d.z;
       }
 #endif
@@ -159,7 +162,7 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
 #endif
 
         IVR_FOR_LANES(p) {
-          const int4 lane = lanes[p];
+          const int4 lane = lane_of[p];
           // d density: through the sample position (camera) or the voxel's own value.
           real dd = (real)0;
 #if IVR_TANGENT_CAMERA
@@ -226,7 +229,7 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
       g[c] = loss_term(value[c], target[pixel * IVR_CHANNELS + c], norm, &loss);
 #endif
     IVR_FOR_LANES(p) {
-      const int4 lane = lanes[p];
+      const int4 lane = lane_of[p];
       real dv[IVR_CHANNELS];
 #if IVR_EMISSION
       const real bg[3] = {background.x, background.y, background.z};

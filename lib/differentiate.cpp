@@ -19,31 +19,12 @@ Error bad_group(const std::string& what) {
 }
 
 bool is_index_item(const std::string& s) {
-  if (s.empty()) return false;
-  const std::size_t dash = s.find('-');
   const auto digits = [](const std::string& t) {
     return !t.empty() && std::all_of(t.begin(), t.end(), [](char c) { return std::isdigit(c); });
   };
+  const std::size_t dash = s.find('-');
   return dash == std::string::npos ? digits(s)
                                    : digits(s.substr(0, dash)) && digits(s.substr(dash + 1));
-}
-
-// "3,17,40-45" → indices (checked against the volume).
-std::vector<std::int64_t> voxel_list(const std::string& list, const Volume& volume) {
-  std::vector<std::int64_t> out;
-  std::stringstream in(list);
-  std::string item;
-  while (std::getline(in, item, ',')) {
-    const std::size_t dash = item.find('-');
-    const std::int64_t a = std::stoll(item.substr(0, dash));
-    const std::int64_t b = dash == std::string::npos ? a : std::stoll(item.substr(dash + 1));
-    if (b < a) throw bad_group("voxel range '" + item + "' is empty");
-    if (std::size_t(b) >= volume.voxel_count())
-      throw bad_group("voxel " + std::to_string(b) + " is outside the volume's " +
-                      std::to_string(volume.voxel_count()) + " voxels");
-    for (std::int64_t i = a; i <= b; ++i) out.push_back(i);
-  }
-  return out;
 }
 
 // What one group needs: its forward-mode parameters, its output shape, and whether the adjoint
@@ -53,29 +34,29 @@ struct GroupPlan {
   std::vector<Parameter> parameters;
   std::vector<std::size_t> shape;
   bool adjoint = true;
-  std::vector<std::int64_t> voxels;  // "voxels"
 };
 
 GroupPlan plan_group(const Scene& scene, const std::string& g) {
+  static const std::set<std::string> known = {"density",    "tf",     "tf_points", "scales",
+                                              "background", "camera", "step"};
+  const bool voxels = g.rfind("voxels:", 0) == 0;
+  if (!voxels && !known.count(g))
+    throw bad_group("unknown parameter group '" + g +
+                    "' (known: density, tf, tf_points, scales, background, camera, step, "
+                    "voxels:LIST)");
   GroupPlan p;
-  p.name = g;
-  if (g == "density") {
-    const Volume& v = scene.volume;
-    for (std::size_t i = 0; i < v.voxel_count(); ++i)
-      p.parameters.push_back({ParameterGroup::voxel, std::int64_t(i), 0});
-    p.shape = {std::size_t(v.nz), std::size_t(v.ny), std::size_t(v.nx)};
-  } else if (g.rfind("voxels:", 0) == 0) {
-    p.name = "voxels";
-    p.voxels = voxel_list(g.substr(7), scene.volume);
-    for (std::int64_t i : p.voxels) p.parameters.push_back({ParameterGroup::voxel, i, 0});
-    p.shape = {p.voxels.size()};
-  } else {
-    p.parameters = parameters_of(scene, g);  // throws for unknown groups
-    if (g == "tf") p.shape = tf_gradient_shape(scene.tf);
-    else if (g == "camera") p.shape = {scene.cameras.size(), 7};
-    else p.shape = {p.parameters.size()};
-    p.adjoint = g != "camera" && g != "tf_points";
-  }
+  p.name = voxels ? "voxels" : g;
+  p.parameters = parameters_of(scene, g);
+  if (g == "density")
+    p.shape = {std::size_t(scene.volume.nz), std::size_t(scene.volume.ny),
+               std::size_t(scene.volume.nx)};
+  else if (g == "tf")
+    p.shape = tf_gradient_shape(scene.tf);
+  else if (g == "camera")
+    p.shape = {scene.cameras.size(), 7};
+  else
+    p.shape = {p.parameters.size()};
+  p.adjoint = g != "camera" && g != "tf_points";
   return p;
 }
 
@@ -97,7 +78,10 @@ std::vector<std::string> parse_groups(const std::string& list) {
     if (in_voxels && !is_index_item(item.substr(7)))
       throw bad_group("'" + item + "': voxels:LIST takes indices and ranges a-b");
     const std::string key = in_voxels ? "voxels" : item;
-    if (!seen.insert(key).second) throw bad_group("group '" + key + "' given twice");
+    if (!seen.insert(key).second) {
+      if (in_voxels) throw bad_group("voxels:LIST given twice (give one list)");
+      continue;  // a group named twice is computed once
+    }
     groups.push_back(item);
   }
   if (groups.empty() || list.back() == ',') throw bad_group("empty group in '" + list + "'");
@@ -123,7 +107,8 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
 
   if (d.plan.mode == Mode::forward) {
     std::vector<Parameter> all;
-    for (const GroupPlan& p : plans) all.insert(all.end(), p.parameters.begin(), p.parameters.end());
+    for (const GroupPlan& p : plans)
+      all.insert(all.end(), p.parameters.begin(), p.parameters.end());
     TangentOptions to;
     to.precision = o.precision;
     to.step = o.step;
@@ -134,10 +119,10 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
     d.device_bytes = t.device_bytes;
     std::size_t at = 0;
     for (const GroupPlan& p : plans) {
-      d.groups.push_back({p.name, p.shape,
-                          std::vector<double>(t.gradient.begin() + std::ptrdiff_t(at),
-                                              t.gradient.begin() +
-                                                  std::ptrdiff_t(at + p.parameters.size()))});
+      d.groups.push_back(
+          {p.name, p.shape,
+           std::vector<double>(t.gradient.begin() + std::ptrdiff_t(at),
+                               t.gradient.begin() + std::ptrdiff_t(at + p.parameters.size()))});
       at += p.parameters.size();
     }
     return d;
@@ -160,12 +145,16 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
   d.atomics = g.atomics;
   for (const GroupPlan& p : plans) {
     GroupGradient out{p.name, p.shape, {}};
-    if (p.name == "density") out.values.assign(g.density.begin(), g.density.end());
+    if (p.name == "density")
+      out.values.assign(g.density.begin(), g.density.end());
     else if (p.name == "voxels")
-      for (std::int64_t i : p.voxels) out.values.push_back(g.density[std::size_t(i)]);
-    else if (p.name == "tf" || p.name == "scales") out.values = g.tf;
-    else if (p.name == "background") out.values = g.background;
-    else out.values.assign(p.parameters.size(), 0.0);  // step: the render is flat in it
+      for (const Parameter& q : p.parameters) out.values.push_back(g.density[std::size_t(q.index)]);
+    else if (p.name == "tf" || p.name == "scales")
+      out.values = g.tf;
+    else if (p.name == "background")
+      out.values = g.background;
+    else
+      out.values.assign(p.parameters.size(), 0.0);  // step: the render is flat in it
     d.groups.push_back(std::move(out));
   }
   return d;

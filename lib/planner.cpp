@@ -29,8 +29,9 @@ std::string file_key(const DeviceInfo& d) {
 
 double number(const nlohmann::json& j, const char* field, const std::string& path) {
   if (!j.contains(field) || !j[field].is_number())
-    throw Error(Status::io, "cost model '" + path + "': field '" + field + "' is missing or not a "
-                                                                          "number");
+    throw Error(Status::io, "cost model '" + path + "': field '" + field +
+                                "' is missing or not a "
+                                "number");
   const double v = j[field].get<double>();
   if (!(v > 0) || !std::isfinite(v))
     throw Error(Status::io, "cost model '" + path + "': field '" + field +
@@ -55,9 +56,12 @@ const char* mode_name(Mode mode) {
 std::string cost_model_path(const DeviceInfo& device) {
   if (const char* env = std::getenv("IVR_COST_MODEL"); env && *env) return env;
   std::string base;
-  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) base = xdg;
-  else if (const char* home = std::getenv("HOME"); home && *home) base = std::string(home) + "/.cache";
-  else base = ".";
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+    base = xdg;
+  else if (const char* home = std::getenv("HOME"); home && *home)
+    base = std::string(home) + "/.cache";
+  else
+    base = ".";
   return base + "/ivr/cost/" + file_key(device) + ".json";
 }
 
@@ -140,8 +144,9 @@ Plan plan_gradient(const CostModel& model, const Scene& scene, std::size_t forwa
   Plan p;
   p.model = model.source;
   const double inf = std::numeric_limits<double>::infinity();
-  p.forward_seconds =
-      forward_possible ? render * forward_cost(model, forward_parameters, &p.passes, &p.lanes) : inf;
+  p.forward_seconds = forward_possible
+                          ? render * forward_cost(model, forward_parameters, &p.passes, &p.lanes)
+                          : inf;
   p.adjoint_seconds = adjoint_possible ? render * model.adjoint : inf;
   if (requested == Mode::forward && !forward_possible)
     throw Error(Status::invalid_argument, "--mode forward cannot compute every group asked for");

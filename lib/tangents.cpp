@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <string>
 
 #include "device_params.hpp"
@@ -97,6 +98,33 @@ std::vector<Real> pack_camera_params(const std::vector<Camera>& cameras) {
                           c.projection == Projection::orthographic ? 1.0 : 0.0};
     for (int k = 0; k < 13; ++k) out[i * kCameraParamsStride + k] = Real(v[k]);
   }
+  return out;
+}
+
+// "3,17,40-45" → voxel indices, checked against the volume.
+std::vector<std::int64_t> voxel_list(const std::string& list, const Volume& volume) {
+  std::vector<std::int64_t> out;
+  std::stringstream in(list);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    const std::size_t dash = item.find('-');
+    std::int64_t a = 0, b = 0;
+    try {
+      a = std::stoll(item.substr(0, dash));
+      b = dash == std::string::npos ? a : std::stoll(item.substr(dash + 1));
+    } catch (const std::exception&) {
+      throw Error(Status::invalid_argument,
+                  "voxels: '" + item + "' is not an index or a range a-b");
+    }
+    if (a < 0 || b < a)
+      throw Error(Status::invalid_argument, "voxels: range '" + item + "' is empty");
+    if (std::size_t(b) >= volume.voxel_count())
+      throw Error(Status::invalid_argument, "voxels: " + std::to_string(b) +
+                                                " is outside the volume's " +
+                                                std::to_string(volume.voxel_count()) + " voxels");
+    for (std::int64_t i = a; i <= b; ++i) out.push_back(i);
+  }
+  if (out.empty()) throw Error(Status::invalid_argument, "voxels: the list is empty");
   return out;
 }
 
@@ -258,10 +286,17 @@ std::vector<Parameter> parameters_of(const Scene& scene, const std::string& grou
       for (int c = 0; c < 7; ++c) out.push_back({ParameterGroup::camera, std::int64_t(v), c});
   } else if (group == "step") {
     out.push_back({ParameterGroup::step, 0, 0});
+  } else if (group == "density") {
+    for (std::size_t i = 0; i < scene.volume.voxel_count(); ++i)
+      out.push_back({ParameterGroup::voxel, std::int64_t(i), 0});
+  } else if (group.rfind("voxels:", 0) == 0) {
+    for (std::int64_t i : voxel_list(group.substr(7), scene.volume))
+      out.push_back({ParameterGroup::voxel, i, 0});
   } else {
     throw Error(Status::invalid_argument,
                 "unknown parameter group '" + group +
-                    "' (tf, tf_points, scales, background, camera, step, voxels:LIST)");
+                    "' (known: density, tf, tf_points, scales, background, camera, step, "
+                    "voxels:LIST)");
   }
   return out;
 }

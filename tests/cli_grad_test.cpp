@@ -94,7 +94,7 @@ TEST_F(CliGrad, WritesEveryAskedGroupWithItsShape) {
   ASSERT_EQ(r.status, 0) << r.err;
   const json j = json::parse(r.out);
   for (const char* key : {"loss", "mode", "parameters", "seconds", "device_bytes", "device",
-                          "precision", "samples", "outputs"})
+                          "precision", "plan", "atomics", "outputs"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["mode"], "adjoint");
   EXPECT_EQ(j["precision"], "f32");
@@ -102,7 +102,9 @@ TEST_F(CliGrad, WritesEveryAskedGroupWithItsShape) {
   EXPECT_GT(j["loss"].get<double>(), 0);
   EXPECT_GT(j["seconds"].get<double>(), 0);
   EXPECT_GT(j["device_bytes"].get<double>(), 0);
-  EXPECT_GT(j["samples"].get<double>(), 0);
+  for (const char* key : {"forward_seconds", "adjoint_seconds", "forward_passes", "cost_model"})
+    EXPECT_TRUE(j["plan"].contains(key)) << key;
+  EXPECT_GT(j["plan"]["forward_seconds"].get<double>(), j["plan"]["adjoint_seconds"].get<double>());
   EXPECT_EQ(j["outputs"].size(), 3u);
   EXPECT_EQ(written(), (std::vector<std::string>{"g_background.npy", "g_density.npy", "g_tf.npy"}));
 
@@ -207,24 +209,55 @@ TEST_F(CliGrad, NonFiniteTargetNamesTheIndex) {
   }
 }
 
-TEST_F(CliGrad, UnknownAndUnbuiltGroups) {
+TEST_F(CliGrad, UnknownGroupsAndBadVoxelLists) {
   std::string err = expect_failure("--wrt density,opacity");
   EXPECT_TRUE(has(err, "unknown parameter group 'opacity'")) << err;
-  EXPECT_TRUE(has(err, "density, tf, background")) << err;
-  err = expect_failure("--wrt camera");
-  EXPECT_TRUE(has(err, "'camera'") && has(err, "not available yet")) << err;
-  err = expect_failure("--wrt voxels:1,2");
-  EXPECT_TRUE(has(err, "not available yet")) << err;
+  EXPECT_TRUE(has(err, "density, tf, tf_points, scales, background, camera, step")) << err;
   err = expect_failure("--wrt density,,tf");
   EXPECT_TRUE(has(err, "empty group")) << err;
+  EXPECT_TRUE(has(expect_failure("--wrt voxels:7-3"), "empty")) << err;
+  EXPECT_TRUE(has(expect_failure("--wrt voxels:1,120"), "outside the volume's 120 voxels"));
+  EXPECT_TRUE(has(expect_failure("--wrt voxels:a"), "indices and ranges"));
+  EXPECT_TRUE(has(expect_failure("--wrt scales"), "identity"));
+  // Groups only forward mode computes, asked of the adjoint.
+  for (const char* g : {"camera", "tf_points"})
+    EXPECT_TRUE(has(expect_failure(std::string("--wrt ") + g + " --mode adjoint"),
+                    "--mode adjoint cannot compute"))
+        << g;
+  EXPECT_TRUE(has(expect_failure("--wrt density --mode sideways"), "unknown mode 'sideways'"));
 }
 
-TEST_F(CliGrad, ForwardModeIsNotBuiltYet) {
-  for (const char* mode : {"forward", "auto"}) {
-    const std::string err = expect_failure(std::string("--wrt density --mode ") + mode);
-    EXPECT_TRUE(has(err, "forward-mode differentiation is not built yet")) << err;
+// Forward and adjoint write the same files (within float32 rounding); groups only forward mode
+// computes go forward under auto, with their shapes.
+TEST_F(CliGrad, ForwardAndAdjointModes) {
+  CliResult r = grad("--wrt tf,voxels:3,10-12 --mode forward --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  json j = json::parse(r.out);
+  EXPECT_EQ(j["mode"], "forward");
+  EXPECT_EQ(j["parameters"].get<int>(), 12 + 4);
+  const NpyArray tf_forward = load_npy(prefix() + "_tf.npy");
+  const NpyArray voxels_forward = load_npy(prefix() + "_voxels.npy");
+  EXPECT_EQ(voxels_forward.shape, (std::vector<std::size_t>{4}));
+  r = grad("--wrt tf,voxels:3,10-12 --mode adjoint --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(json::parse(r.out)["mode"], "adjoint");
+  for (const char* group : {"tf", "voxels"}) {
+    const NpyArray forward = group == std::string("tf") ? tf_forward : voxels_forward;
+    const NpyArray adjoint = load_npy(prefix() + "_" + group + ".npy");
+    ASSERT_EQ(forward.shape, adjoint.shape);
+    double scale = 0;
+    for (double x : adjoint.data) scale = std::max(scale, std::abs(x));
+    for (std::size_t i = 0; i < adjoint.data.size(); ++i)
+      EXPECT_NEAR(forward.data[i], adjoint.data[i], 1e-5 * scale) << group << " " << i;
   }
-  EXPECT_TRUE(has(expect_failure("--wrt density --mode sideways"), "unknown mode 'sideways'"));
+  r = grad("--wrt camera,step,tf_points --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  j = json::parse(r.out);
+  EXPECT_EQ(j["mode"], "forward");
+  EXPECT_TRUE(j["plan"]["adjoint_seconds"].is_null());
+  EXPECT_EQ(load_npy(prefix() + "_camera.npy").shape, (std::vector<std::size_t>{1, 7}));
+  EXPECT_EQ(load_npy(prefix() + "_step.npy").data, std::vector<double>{0.0});
+  EXPECT_EQ(load_npy(prefix() + "_tf_points.npy").shape, (std::vector<std::size_t>{3}));
 }
 
 TEST_F(CliGrad, BadOptions) {

@@ -33,12 +33,12 @@ struct DifferentiateOptions {
 
 struct Differentiation {
   double loss = 0;
-  Plan plan;                        // the mode used, and both modes' predicted seconds
+  Plan plan;  // the mode used, and both modes' predicted seconds
   std::vector<GroupGradient> groups;
-  std::size_t parameters = 0;       // values computed, over all groups
-  double kernel_seconds = 0;        // device time of every kernel run
-  std::uint64_t device_bytes = 0;   // peak device memory
-  std::string atomics;              // adjoint mode: the scatter's atomics
+  std::size_t parameters = 0;      // values computed, over all groups
+  double kernel_seconds = 0;       // device time of every kernel run
+  std::uint64_t device_bytes = 0;  // peak device memory
+  std::string atomics;             // adjoint mode: the scatter's atomics
 };
 
 // Splits a --wrt list ("tf,voxels:3,17,40-45,background") into group names; voxel lists take the

@@ -31,7 +31,8 @@ struct Parameter {
 
 // The parameters of one named group, in the layout its outputs use: "tf" (rows x columns of
 // tf_gradient_shape), "tf_points" (control-point densities of a piecewise-linear TF), "scales"
-// (the identity TF's two scales), "background", "camera" (7 per view), "step". Throws
+// (the identity TF's two scales), "background", "camera" (7 per view), "step", "density" (every
+// voxel), "voxels:LIST" (comma-separated indices and ranges a-b, x fastest). Throws
 // ivr::Error(invalid_argument) naming the group when the scene has no such parameters.
 IVR_API std::vector<Parameter> parameters_of(const Scene& scene, const std::string& group);
 

@@ -1,0 +1,118 @@
+// cli_support.cpp — helpers shared by the subcommands (see cli_support.hpp).
+#include "cli_support.hpp"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace ivr::cli {
+
+Error input_error(const std::string& what) {
+  return Error(Status::invalid_argument, what);
+}
+
+std::string shape_text(const std::vector<std::size_t>& shape) {
+  std::string s = "(";
+  for (std::size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  return s + (shape.size() == 1 ? ",)" : ")");
+}
+
+Image load_target(const std::string& path, const Scene& scene) {
+  const NpyArray a = load_npy(path);
+  const Camera& cam = scene.cameras.front();
+  const std::size_t v = scene.cameras.size(), h = std::size_t(cam.height),
+                    w = std::size_t(cam.width), c = std::size_t(scene.channels());
+  const std::vector<std::size_t> full{v, h, w, c};
+  std::vector<std::vector<std::size_t>> accepted{full};
+  if (v == 1) accepted.push_back({h, w, c});
+  if (c == 1) accepted.push_back({v, h, w});
+  if (v == 1 && c == 1) accepted.push_back({h, w});
+  bool ok = false;
+  for (const auto& s : accepted) ok = ok || a.shape == s;
+  if (!ok)
+    throw input_error("target '" + path + "' has shape " + shape_text(a.shape) +
+                      " but the scene renders " + shape_text(full));
+  Image image;
+  image.views = int(v);
+  image.height = int(h);
+  image.width = int(w);
+  image.channels = int(c);
+  image.pixels.resize(a.data.size());
+  for (std::size_t i = 0; i < a.data.size(); ++i) {
+    const double x = a.data[i];
+    if (!std::isfinite(x) || std::abs(x) > double(std::numeric_limits<float>::max())) {
+      std::vector<std::size_t> index(a.shape.size());
+      std::size_t rest = i;
+      for (std::size_t d = a.shape.size(); d-- > 0;) {
+        index[d] = rest % a.shape[d];
+        rest /= a.shape[d];
+      }
+      std::ostringstream value;
+      value << x;
+      throw input_error("target '" + path + "' has " +
+                        (std::isfinite(x) ? "a value beyond float32 range" : "a non-finite value") +
+                        " (" + value.str() + ") at index " + shape_text(index));
+    }
+    image.pixels[i] = float(x);
+  }
+  return image;
+}
+
+std::string bytes_text(std::uint64_t bytes) {
+  std::ostringstream text;
+  text.precision(3);
+  if (bytes < (1u << 20))
+    text << double(bytes) / 1024 << " KiB";
+  else
+    text << double(bytes) / (1u << 20) << " MiB";
+  return text.str();
+}
+
+void write_outputs(const std::vector<Output>& outputs) {
+  std::vector<std::string> staged;
+  try {
+    for (const Output& o : outputs) {
+      const fs::path p(o.path);
+      staged.push_back(
+          (p.parent_path() / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid())))
+              .string());
+      save_npy(staged.back(), o.shape, o.data.data());
+    }
+    for (std::size_t i = 0; i < outputs.size(); ++i) fs::rename(staged[i], outputs[i].path);
+  } catch (...) {
+    std::error_code ec;
+    for (const std::string& s : staged) fs::remove(s, ec);
+    throw;
+  }
+}
+
+void add_march_options(CLI::App* cmd, MarchOptions& o) {
+  cmd->add_option("--precision", o.precision, "Arithmetic precision: f32 (default) or f64");
+  o.step_option =
+      cmd->add_option("--step", o.step, "Integrator step in voxel units (overrides the scene)");
+  cmd->add_option("--device", o.device,
+                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+}
+
+Precision checked_precision(const MarchOptions& o) {
+  if (o.precision != "f32" && o.precision != "f64")
+    throw input_error("--precision: unknown precision '" + o.precision + "' (known: f32, f64)");
+  if (o.step_option && o.step_option->count() > 0 && !(o.step > 0 && std::isfinite(o.step)))
+    throw input_error("--step must be > 0, got " + std::to_string(o.step));
+  return o.precision == "f64" ? Precision::f64 : Precision::f32;
+}
+
+void check_output_folder(const std::string& path_or_prefix) {
+  if (path_or_prefix.empty()) throw input_error("-o: the output path is empty");
+  const fs::path p(path_or_prefix);
+  const fs::path folder = p.has_parent_path() ? p.parent_path() : ".";
+  if (!fs::is_directory(folder))
+    throw Error(Status::io, "output folder '" + folder.string() + "' does not exist");
+}
+
+}  // namespace ivr::cli

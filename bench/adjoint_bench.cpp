@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "bench_scene.hpp"
+#include "bench_support.hpp"
 #include "ivr/ivr.hpp"
 
 extern char** environ;
@@ -32,38 +33,13 @@ using nlohmann::json;
 
 namespace {
 
+using ivr::bench::median;
+using ivr::bench::wall_seconds;
+
 constexpr double kRatioTarget = 3.0;    // gradient kernel time <= 3x render kernel time
 constexpr double kMemoryTarget = 0.05;  // peak RSS at step 0.1 within 5% of step 0.5
 constexpr double kSteps[] = {0.5, 0.1};
 constexpr int kImage = 256;
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-template <class F>
-double wall_seconds(F&& f) {
-  const auto start = std::chrono::steady_clock::now();
-  f();
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-// The target: the same scene with a smoothly perturbed volume (densities scaled by 0.9..1.1 along
-// a slow wave), rendered at the same step, so that d loss / d pixel is non-zero almost everywhere.
-ivr::Image perturbed_target(ivr::Device& device, const ivr::Scene& scene, double step) {
-  ivr::Scene s = scene;
-  const ivr::Volume& v = s.volume;
-  for (int z = 0; z < v.nz; ++z)
-    for (int y = 0; y < v.ny; ++y)
-      for (int x = 0; x < v.nx; ++x) {
-        float& d = s.volume.data[(std::size_t(z) * v.ny + y) * v.nx + x];
-        const double wave = std::sin(6.0 * x / v.nx) * std::cos(4.0 * y / v.ny + 2.0 * z / v.nz);
-        d = float(std::clamp(d * (1.0 + 0.1 * wave), 0.0, 1.0));
-      }
-  return ivr::render(device, s, ivr::RenderOptions{ivr::Precision::f32, step});
-}
 
 ivr::GradientOptions gradient_options(double step) {
   return ivr::GradientOptions{ivr::Precision::f32, step,
@@ -102,7 +78,7 @@ long vm_hwm_kib() {
 int measure_memory(const std::string& device_sel, int n, double step) {
   ivr::Device device(device_sel);
   const ivr::Scene scene = ivr::bench::bench_scene(n, kImage);
-  const ivr::Image target = perturbed_target(device, scene, step);
+  const ivr::Image target = ivr::bench::perturbed_target(device, scene, step);
   const long before = max_rss_kib();
   const ivr::Gradient g = ivr::gradient(device, scene, target, gradient_options(step));
   const long after = max_rss_kib();
@@ -200,7 +176,7 @@ int main(int argc, char** argv) {
     for (int n : volumes) {
       const ivr::Scene scene = ivr::bench::bench_scene(n, kImage);
       for (double step : kSteps) {
-        const ivr::Image target = perturbed_target(device, scene, step);
+        const ivr::Image target = ivr::bench::perturbed_target(device, scene, step);
         const ivr::RenderOptions ro{ivr::Precision::f32, step};
         const ivr::GradientOptions go = gradient_options(step);
         ivr::RenderStats stats;

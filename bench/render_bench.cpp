@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_scene.hpp"
+#include "bench_support.hpp"
 #include "ivr/ivr.hpp"
 #include "native_marcher.hpp"
 
@@ -17,18 +18,8 @@ using nlohmann::json;
 
 namespace {
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-template <class F>
-double wall_seconds(F&& f) {
-  const auto start = std::chrono::steady_clock::now();
-  f();
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
+using ivr::bench::median;
+using ivr::bench::wall_seconds;
 
 // RMS and max of |a - b| over the colour channels (alpha is compared too).
 json compare(const std::vector<float>& a, const std::vector<float>& b) {

@@ -8,6 +8,7 @@
 #include "compositing.cl"
 #include "config.cl"
 #include "geometry.cl"
+#include "geometry_tangent.cl"
 #include "loss.cl"
 #include "tf.cl"
 #include "tf_grad.cl"
@@ -17,6 +18,9 @@
 #endif
 #ifndef IVR_GRAD_TF
 #define IVR_GRAD_TF 0
+#endif
+#ifndef IVR_GRAD_CAMERA  // dL / d (eye, target, fov_y) per view
+#define IVR_GRAD_CAMERA 0
 #endif
 
 // The adjoint march keeps the ray's current cell in registers: its 8 corner densities v[k] (read
@@ -94,15 +98,19 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
                       __global const real* restrict target, const real norm,
                       __global float* restrict image, __global real* restrict pixel_terms,
                       __global real* restrict grad_volume, __global real* restrict grad_tf,
-                      __local real* tf_acc, const int tf_acc_size,
-                      __global uint* restrict samples) {
+                      __local real* tf_acc, const int tf_acc_size, __global uint* restrict samples,
+                      __global const real* restrict camera_params,
+                      __global real* restrict camera_partial, __local real* camera_scratch) {
   const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
   const bool active = x < width && y < height;  // padding items still meet the barriers
-#if IVR_GRAD_TF
   const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
   const int lsize = get_local_size(0) * get_local_size(1);
+#if IVR_GRAD_TF
   for (int i = lid; i < tf_acc_size; i += lsize) tf_acc[i] = (real)0;
   barrier(CLK_LOCAL_MEM_FENCE);
+#endif
+#if IVR_GRAD_CAMERA
+  real camera_terms[7] = {0, 0, 0, 0, 0, 0, 0};  // this pixel's dL / d camera component
 #endif
 
   if (active) {
@@ -198,6 +206,11 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     TfGradCache tf_cache;
     tf_cache_init(&tf_cache);
 #endif
+#if IVR_GRAD_CAMERA
+    // The ray's own adjoint: sums over samples of dL/d position (p), t·dL/dp, the step index
+    // times dL/dp along the ray, dL/dp along the ray, and dt·dL/d dt through tau and the weights.
+    real gpx = 0, gpy = 0, gpz = 0, gtx = 0, gty = 0, gtz = 0, s_mid = 0, s_along = 0, s_dt = 0;
+#endif
     for (uint i = 0; i < taken; ++i) {
       const real t = t0 + ((real)i + (real)0.5) * dt;
       const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
@@ -257,8 +270,34 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
 #endif
       transmittance = attenuate(transmittance, tau, fraction, decay);
 
+#if IVR_GRAD_DENSITY || IVR_GRAD_CAMERA
+      const real gd = gsigma * dsigma + ger * der + geg * deg + geb * deb;  // dL / d density
+#endif
+#if IVR_GRAD_CAMERA
+      {
+        real ngx, ngy, ngz;
+        trilinear_gradient(v, fx, fy, fz, ux, uy, uz, dims, &ngx, &ngy, &ngz);
+        const real px = gd * ngx * inv_voxel.x, py = gd * ngy * inv_voxel.y,
+                   pz = gd * ngz * inv_voxel.z;
+        const real along = px * ray.dir.x + py * ray.dir.y + pz * ray.dir.z;
+        gpx += px;
+        gpy += py;
+        gpz += pz;
+        gtx += t * px;
+        gty += t * py;
+        gtz += t * pz;
+        s_along += along;
+        s_mid += ((real)i + (real)0.5) * along;
+        // The pixel depends on dt through tau = sigma·dt (sigma·gsigma / dt, e held fixed) and
+        // through the weight's own factor dt (dL/dweight · weight / dt).
+#if IVR_EMISSION
+        s_dt += sigma * gsigma + ger * er + geg * eg + geb * eb;
+#else
+        s_dt += sigma * gsigma;
+#endif
+      }
+#endif
 #if IVR_GRAD_DENSITY
-      const real gd = gsigma * dsigma + ger * der + geg * deg + geb * deb;
       const real gx0 = gd * ((real)1 - fx), gx1 = gd * fx;
       const real wy0z0 = ((real)1 - fy) * ((real)1 - fz), wy1z0 = fy * ((real)1 - fz);
       const real wy0z1 = ((real)1 - fy) * fz, wy1z1 = fy * fz;
@@ -282,7 +321,50 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
 #if IVR_GRAD_TF
     tf_cache_flush(&tf_cache, tf_acc);
 #endif
+#if IVR_GRAD_CAMERA
+    if (hit) {
+      // Samples sit at t_i = t0 + (i + 1/2) dt with dt = (t1 - t0) / n; t0 and t1 move with the
+      // ray where a slab plane sets them: t = (plane - o_a) / d_a.
+      const real dldt = s_dt / dt + s_mid;
+      const real dldt1 = dldt / (real)n, dldt0 = s_along - dldt1;
+      real lo[3] = {gpx, gpy, gpz}, ld[3] = {gtx, gty, gtz};
+      const int a0 = clip_axis(ray, box_min.xyz, box_max.xyz, t0, true);
+      const int a1 = clip_axis(ray, box_min.xyz, box_max.xyz, t1, false);
+      if (a0 >= 0) {
+        const real inv = (real)1 / component(ray.dir, a0);
+        lo[a0] -= dldt0 * inv;
+        ld[a0] -= dldt0 * t0 * inv;
+      }
+      if (a1 >= 0) {
+        const real inv = (real)1 / component(ray.dir, a1);
+        lo[a1] -= dldt1 * inv;
+        ld[a1] -= dldt1 * t1 * inv;
+      }
+      const real sx = (real)2 * ((real)x + (real)0.5) / (real)width - (real)1;
+      const real sy = (real)1 - (real)2 * ((real)y + (real)0.5) / (real)height;
+      for (int k = 0; k < 7; ++k) {
+        real3 o, d;
+        camera_ray_tangent(camera_params + view * IVR_CAMERA_PARAMS_STRIDE, sx, sy, k, &o, &d);
+        camera_terms[k] =
+            lo[0] * o.x + lo[1] * o.y + lo[2] * o.z + ld[0] * d.x + ld[1] * d.y + ld[2] * d.z;
+      }
+    }
+#endif
   }
+
+#if IVR_GRAD_CAMERA
+  // The work-group's camera gradient, summed in a fixed order (its view: the group's z).
+  for (int k = 0; k < 7; ++k) camera_scratch[lid * 7 + k] = camera_terms[k];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const size_t group =
+      ((size_t)get_group_id(2) * get_num_groups(1) + get_group_id(1)) * get_num_groups(0) +
+      get_group_id(0);
+  for (int k = lid; k < 7; k += lsize) {
+    real sum = (real)0;
+    for (int i = 0; i < lsize; ++i) sum += camera_scratch[i * 7 + k];
+    camera_partial[group * 7 + k] = sum;
+  }
+#endif
 
 #if IVR_GRAD_TF
   barrier(CLK_LOCAL_MEM_FENCE);

@@ -81,6 +81,22 @@ __attribute__((always_inline)) inline real trilinear_at(__global const real* vol
   return lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz);
 }
 
+// d density / d u of the trilinear interpolant in a cell with corner values v[k] (bit 0: +x,
+// bit 1: +y, bit 2: +z) at fractions (fx, fy, fz); 0 along an axis where u lies outside
+// [0, n - 1], where trilinear_at() clamps it (one-sided on the boundary of a cell).
+inline void trilinear_gradient(const real* v, real fx, real fy, real fz, real ux, real uy, real uz,
+                               int4 dims, real* gx, real* gy, real* gz) {
+  *gx = ux > (real)0 && ux < (real)(dims.x - 1)
+            ? lerp(lerp(v[1] - v[0], v[3] - v[2], fy), lerp(v[5] - v[4], v[7] - v[6], fy), fz)
+            : (real)0;
+  *gy = uy > (real)0 && uy < (real)(dims.y - 1)
+            ? lerp(lerp(v[2] - v[0], v[3] - v[1], fx), lerp(v[6] - v[4], v[7] - v[5], fx), fz)
+            : (real)0;
+  *gz = uz > (real)0 && uz < (real)(dims.z - 1)
+            ? lerp(lerp(v[4] - v[0], v[5] - v[1], fx), lerp(v[6] - v[2], v[7] - v[3], fx), fy)
+            : (real)0;
+}
+
 // Trilinear density at continuous voxel coordinates u.
 inline real trilinear(__global const real* vol, int4 dims, real3 u) {
   return trilinear_at(vol, dims, u.x, u.y, u.z);

@@ -147,14 +147,9 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
           const int ox = ix + 1 < dims.x ? 1 : 0, oy = iy + 1 < dims.y ? dims.x : 0,
                     oz = iz + 1 < dims.z ? dims.x * dims.y : 0;
           __global const real* q = volume + ((iz * dims.y + iy) * dims.x + ix);
-          const real v0 = q[0], v1 = q[ox], v2 = q[oy], v3 = q[oy + ox], v4 = q[oz],
-                     v5 = q[oz + ox], v6 = q[oz + oy], v7 = q[oz + oy + ox];
-          const bool inx = ux > (real)0 && ux < (real)(dims.x - 1);
-          const bool iny = uy > (real)0 && uy < (real)(dims.y - 1);
-          const bool inz = uz > (real)0 && uz < (real)(dims.z - 1);
-          gx = inx ? lerp(lerp(v1 - v0, v3 - v2, fy), lerp(v5 - v4, v7 - v6, fy), fz) : (real)0;
-          gy = iny ? lerp(lerp(v2 - v0, v3 - v1, fx), lerp(v6 - v4, v7 - v5, fx), fz) : (real)0;
-          gz = inz ? lerp(lerp(v4 - v0, v5 - v1, fx), lerp(v6 - v2, v7 - v3, fx), fy) : (real)0;
+          const real v[8] = {q[0],  q[ox],      q[oy],      q[oy + ox],
+                             q[oz], q[oz + ox], q[oz + oy], q[oz + oy + ox]};
+          trilinear_gradient(v, fx, fy, fz, ux, uy, uz, dims, &gx, &gy, &gz);
         }
 #endif
 #if IVR_TANGENT_TF

@@ -34,7 +34,8 @@ std::string gradient_preamble(const RenderVariant& variant, const GradientOption
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/tf_grad.cl).
   return variant.preamble() + "#define IVR_TF_ROWS " + std::to_string(tf_rows) +
          "\n#define IVR_GRAD_DENSITY " + (o.density ? "1" : "0") + "\n#define IVR_GRAD_TF " +
-         (o.tf ? "1" : "0") + "\n#define IVR_LOSS_L1 " + (o.loss == Loss::l1 ? "1" : "0") + "\n";
+         (o.tf ? "1" : "0") + "\n#define IVR_GRAD_CAMERA " + (o.camera ? "1" : "0") +
+         "\n#define IVR_LOSS_L1 " + (o.loss == Loss::l1 ? "1" : "0") + "\n";
 }
 
 // The device's own float atomic add (cl_ext_float_atomics) where it has one for this precision,
@@ -76,6 +77,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
       scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
   const bool native_atomics = use_float_atomics(dev.info, std::is_same_v<Real, double>);
   const std::string label = "adjoint.cl [" + variant.label() + (o.tf ? " grad_tf" : "") +
+                            (o.camera ? " grad_camera" : "") +
                             (native_atomics ? " float_atomics" : "") + "]";
   std::string preamble = gradient_preamble(variant, o, tf_shape[0]);
   std::string options = extra_build_options();
@@ -92,6 +94,12 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
                    pixels * (channels * sizeof(float) + 4 * sizeof(Real) + sizeof(cl_uint)) +
                    (grad_voxels + std::max<std::size_t>(tf_size, 1)) * sizeof(Real);
   cl::Event zero_volume, zero_tf, done;
+  const std::vector<Real> camera_values = pack_camera_params<Real>(scene.cameras);
+  cl::Buffer camera_params =
+      dev.buffer(CL_MEM_READ_ONLY, camera_values.size() * sizeof(Real),
+                 const_cast<Real*>(camera_values.data()), "the camera parameters");
+  cl::Buffer camera_partial;
+  std::size_t groups_x = 0, groups_per_view = 0;
   cl_call("running the adjoint kernel on " + dev.info.name, [&] {
     dev.queue.enqueueFillBuffer(grad_volume, Real(0), 0, grad_voxels * sizeof(Real), nullptr,
                                 &zero_volume);
@@ -117,6 +125,16 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     if (lx <= 0 || std::size_t(lx) * std::size_t(ly) > max_group)
       lx = ly = max_group >= 64 ? 8 : max_group >= 16 ? 4 : 1;
     const int gx = (cam0.width + lx - 1) / lx * lx, gy = (cam0.height + ly - 1) / ly * ly;
+    // The camera gradient: 7 values per work-group, summed per view on the host.
+    groups_x = std::size_t(gx / lx);
+    groups_per_view = groups_x * std::size_t(gy / ly);
+    const std::size_t partials = o.camera ? groups_per_view * std::size_t(views) * 7 : 1;
+    camera_partial = dev.buffer(CL_MEM_WRITE_ONLY, partials * sizeof(Real), nullptr,
+                                "the camera gradient's partial sums");
+    g.device_bytes += (partials + camera_values.size()) * sizeof(Real);
+    k.setArg(a++, camera_params);
+    k.setArg(a++, camera_partial);
+    k.setArg(a++, cl::Local((o.camera ? std::size_t(lx) * ly * 7 : 1) * sizeof(Real)));
     dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
                                    cl::NDRange(lx, ly, 1), nullptr, &done);
     done.wait();
@@ -124,7 +142,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
 
   std::vector<Real> terms(pixels * 4);
   std::vector<cl_uint> samples(pixels);
-  std::vector<Real> grad(o.density ? voxels : 0), grad_tf_host(o.tf ? tf_size : 0);
+  std::vector<Real> grad(o.density ? voxels : 0), grad_tf_host(o.tf ? tf_size : 0), camera_host;
   cl_call("reading the gradient back", [&] {
     dev.queue.enqueueReadBuffer(terms_buf, CL_TRUE, 0, terms.size() * sizeof(Real), terms.data());
     dev.queue.enqueueReadBuffer(samples_buf, CL_TRUE, 0, samples.size() * sizeof(cl_uint),
@@ -134,7 +152,18 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     if (o.tf)
       dev.queue.enqueueReadBuffer(grad_tf, CL_TRUE, 0, grad_tf_host.size() * sizeof(Real),
                                   grad_tf_host.data());
+    if (o.camera) {
+      camera_host.resize(groups_per_view * std::size_t(views) * 7);
+      dev.queue.enqueueReadBuffer(camera_partial, CL_TRUE, 0, camera_host.size() * sizeof(Real),
+                                  camera_host.data());
+    }
   });
+  if (o.camera) {
+    g.camera.assign(std::size_t(views) * 7, 0.0);
+    for (std::size_t group = 0; group < groups_per_view * std::size_t(views); ++group)
+      for (std::size_t c = 0; c < 7; ++c)
+        g.camera[group / groups_per_view * 7 + c] += double(camera_host[group * 7 + c]);
+  }
   double background[3] = {0, 0, 0};
   for (std::size_t p = 0; p < pixels; ++p) {
     g.loss += double(terms[p * 4]);

@@ -63,6 +63,32 @@ std::vector<Real> pack_cameras(const std::vector<Camera>& cameras) {
   return out;
 }
 
+// Camera parameters for the derivatives (kernels/geometry_tangent.cl), per view: eye, target,
+// up, fov_y, aspect, ortho_height, orthographic flag.
+template <class Real>
+std::vector<Real> pack_camera_params(const std::vector<Camera>& cameras) {
+  constexpr int stride = 16;  // IVR_CAMERA_PARAMS_STRIDE
+  std::vector<Real> out(cameras.size() * stride, Real(0));
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    const Camera& c = cameras[i];
+    const double v[13] = {c.eye.x,
+                          c.eye.y,
+                          c.eye.z,
+                          c.target.x,
+                          c.target.y,
+                          c.target.z,
+                          c.up.x,
+                          c.up.y,
+                          c.up.z,
+                          c.fov_y,
+                          double(c.width) / double(c.height),
+                          c.ortho_height,
+                          c.projection == Projection::orthographic ? 1.0 : 0.0};
+    for (int k = 0; k < 13; ++k) out[i * stride + k] = Real(v[k]);
+  }
+  return out;
+}
+
 // Transfer-function rows in the layout of kernels/tf.cl; scalars = (a, b) or (lo, hi).
 template <class Real>
 std::vector<Real> pack_tf(const TransferFunction& tf, int* count, double scalars[2]) {

@@ -56,7 +56,7 @@ GroupPlan plan_group(const Scene& scene, const std::string& g) {
     p.shape = {scene.cameras.size(), 7};
   else
     p.shape = {p.parameters.size()};
-  p.adjoint = g != "camera" && g != "tf_points";
+  p.adjoint = g != "tf_points";
   return p;
 }
 
@@ -137,6 +137,7 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
     go.density = go.density || p.name == "density" || p.name == "voxels";
     go.tf = go.tf || p.name == "tf" || p.name == "scales";
     go.background = go.background || p.name == "background";
+    go.camera = go.camera || p.name == "camera";
   }
   const Gradient g = gradient(device, scene, target, go);
   d.loss = g.loss;
@@ -153,6 +154,8 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
       out.values = g.tf;
     else if (p.name == "background")
       out.values = g.background;
+    else if (p.name == "camera")
+      out.values = g.camera;
     else
       out.values.assign(p.parameters.size(), 0.0);  // step: the render is flat in it
     d.groups.push_back(std::move(out));

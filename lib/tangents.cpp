@@ -20,7 +20,6 @@ namespace ivr {
 namespace {
 
 constexpr int kMaxLanes = 32;
-constexpr int kCameraParamsStride = 16;  // kernels/geometry_tangent.cl
 
 // Lane kinds of kernels/tangents.cl.
 enum LaneKind {
@@ -75,30 +74,6 @@ cl_int4 lane_of(const Scene& scene, const Parameter& p, std::size_t i) {
     }
   }
   throw bad_parameter(i, "unknown group");
-}
-
-// Per view: eye, target, up, fov_y, aspect, ortho_height, orthographic flag.
-template <class Real>
-std::vector<Real> pack_camera_params(const std::vector<Camera>& cameras) {
-  std::vector<Real> out(cameras.size() * kCameraParamsStride, Real(0));
-  for (std::size_t i = 0; i < cameras.size(); ++i) {
-    const Camera& c = cameras[i];
-    const double v[13] = {c.eye.x,
-                          c.eye.y,
-                          c.eye.z,
-                          c.target.x,
-                          c.target.y,
-                          c.target.z,
-                          c.up.x,
-                          c.up.y,
-                          c.up.z,
-                          c.fov_y,
-                          double(c.width) / double(c.height),
-                          c.ortho_height,
-                          c.projection == Projection::orthographic ? 1.0 : 0.0};
-    for (int k = 0; k < 13; ++k) out[i * kCameraParamsStride + k] = Real(v[k]);
-  }
-  return out;
 }
 
 // "3,17,40-45" → voxel indices, checked against the volume.

@@ -119,37 +119,60 @@ TEST(Tangents, StepHasZeroDerivative) {
   EXPECT_NEAR(fd, 0.0, 1e-9);
 }
 
-// Forward and adjoint compute the same derivatives of the same rendered loss.
+// Forward and adjoint compute the same derivatives of the same rendered loss: TF, background,
+// voxels and cameras (a perspective and an orthographic view).
 TEST(Tangents, ForwardMatchesAdjoint) {
   for (Precision p : {Precision::f32, Precision::f64}) {
     const double tolerance = p == Precision::f32 ? 1e-5 : 1e-10;
     for (Model m : {Model::absorption, Model::emission_absorption}) {
-      const Scene s = tangent_scene(m, TfKind::piecewise_linear);
+      const Scene s = tangent_scene(m, TfKind::piecewise_linear, /*ortho=*/true);
       const Image target = perturbed_target(s);
       GradientOptions go;
       go.precision = p;
-      go.tf = go.background = true;
+      go.tf = go.background = go.camera = true;
       const Gradient g = gradient(device(), s, target, go);
-      std::vector<Parameter> params = parameters_of(s, "tf");
-      const std::size_t ntf = params.size();
-      for (const Parameter& q : parameters_of(s, "background")) params.push_back(q);
-      for (std::int64_t i : {3, 17, 42, 88}) params.push_back({ParameterGroup::voxel, i, 0});
+      const std::vector<std::int64_t> voxels = {3, 17, 42, 88};
+      std::vector<Parameter> params;
+      for (const char* group : {"tf", "background", "camera"})
+        for (const Parameter& q : parameters_of(s, group)) params.push_back(q);
+      for (std::int64_t i : voxels) params.push_back({ParameterGroup::voxel, i, 0});
       TangentOptions to;
       to.precision = p;
       const Tangents t = tangents(device(), s, params, &target, to);
       std::vector<double> adjoint(g.tf.begin(), g.tf.end());
       adjoint.insert(adjoint.end(), g.background.begin(), g.background.end());
-      for (std::int64_t i : {3, 17, 42, 88}) adjoint.push_back(g.density[std::size_t(i)]);
+      adjoint.insert(adjoint.end(), g.camera.begin(), g.camera.end());
+      for (std::int64_t i : voxels) adjoint.push_back(g.density[std::size_t(i)]);
       ASSERT_EQ(adjoint.size(), t.gradient.size());
       EXPECT_NEAR(t.loss, g.loss, 1e-6 * g.loss);
       const double scale = max_abs(adjoint);
       for (std::size_t i = 0; i < adjoint.size(); ++i)  // Gradient::density is stored as float32
         EXPECT_NEAR(t.gradient[i], adjoint[i],
                     tolerance * (scale + std::abs(adjoint[i])) +
-                        (i >= adjoint.size() - 4 ? 1.2e-7 * std::abs(adjoint[i]) : 0.0))
+                        (i >= adjoint.size() - voxels.size() ? 1.2e-7 * std::abs(adjoint[i]) : 0.0))
             << name(p) << (m == Model::absorption ? " absorption" : " emission") << " parameter "
-            << i << (i < ntf ? " (tf)" : "");
+            << i;
     }
+  }
+}
+
+// The adjoint's camera gradient against central differences (float64), with early termination.
+TEST(Tangents, AdjointCameraMatchesCentralDifferences) {
+  Scene s = tangent_scene(Model::emission_absorption, TfKind::table, /*ortho=*/true);
+  const Image target = perturbed_target(s);
+  GradientOptions go;
+  go.precision = Precision::f64;
+  go.density = false;
+  go.camera = true;
+  const Gradient g = gradient(device(), s, target, go);
+  ASSERT_EQ(g.camera.size(), 14u);
+  const double scale = max_abs(g.camera);
+  ASSERT_GT(scale, 0);
+  const std::vector<Parameter> params = parameters_of(s, "camera");
+  for (std::size_t i = 0; i < params.size(); ++i) {
+    const double fd = central_difference(
+        s, target, 1e-6, [&](Scene& x, double h) { return nudge(x, params[i], h); });
+    EXPECT_NEAR(g.camera[i], fd, 1e-6 * scale + 1e-6 * std::abs(fd)) << "camera value " << i;
   }
 }
 

@@ -15,7 +15,7 @@ namespace ivr {
 
 // Groups: "density" (every voxel), "tf" (tf_gradient_shape), "tf_points" (control-point
 // densities, forward only), "scales" (identity TF), "background", "camera" (views x 7:
-// [eye xyz, target xyz, fov_y], forward only), "step" (the integrator step: the render depends on
+// [eye xyz, target xyz, fov_y]), "step" (the integrator step: the render depends on
 // it only through the sample count, so its derivative is 0), "voxels:LIST" (the listed voxel
 // indices, x fastest; LIST is comma-separated indices and ranges a-b).
 struct GroupGradient {

@@ -22,6 +22,7 @@ struct GradientOptions {
   bool density = true;      // d loss / d voxel density
   bool tf = false;          // d loss / d transfer-function parameters (layout: tf_gradient_shape)
   bool background = false;  // d loss / d background (1 value for absorption, 3 for emission)
+  bool camera = false;      // d loss / d [eye xyz, target xyz, fov_y] of every view
 };
 
 struct Gradient {
@@ -29,6 +30,7 @@ struct Gradient {
   std::vector<float> density;      // volume shape (nz, ny, nx) when asked for, else empty
   std::vector<double> tf;          // rows x columns (tf_gradient_shape), when asked for
   std::vector<double> background;  // when asked for
+  std::vector<double> camera;      // views x 7 [eye xyz, target xyz, fov_y], when asked for
   double kernel_seconds = 0;       // device time: primal render + loss + adjoint march
   std::uint64_t device_bytes = 0;  // peak device memory of the evaluation (all its buffers)
   std::uint64_t samples = 0;       // density samples of the adjoint march

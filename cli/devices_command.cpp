@@ -1,6 +1,5 @@
 // devices_command.cpp — `ivr devices [--json]`: every OpenCL device ivr can use.
 #include <iostream>
-#include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "ivr/ivr.hpp"
@@ -15,24 +14,7 @@ Runner add_devices_command(CLI::App& app) {
   return [json_out] {
     const std::vector<DeviceInfo> devices = list_devices();
     if (*json_out) {
-      nlohmann::json list = nlohmann::json::array();
-      for (const DeviceInfo& d : devices)
-        list.push_back({{"index", d.index},
-                        {"platform_index", d.platform_index},
-                        {"device_index", d.device_index},
-                        {"platform", d.platform},
-                        {"name", d.name},
-                        {"vendor", d.vendor},
-                        {"type", d.type},
-                        {"version", d.version},
-                        {"driver", d.driver},
-                        {"fp64", d.fp64},
-                        {"float_atomic_add", d.float_atomic_add},
-                        {"double_atomic_add", d.double_atomic_add},
-                        {"global_memory", d.global_memory},
-                        {"max_allocation", d.max_allocation},
-                        {"compute_units", d.compute_units}});
-      std::cout << nlohmann::json{{"devices", list}}.dump() << "\n";
+      std::cout << devices_json() << "\n";
       return 0;
     }
     for (const DeviceInfo& d : devices)

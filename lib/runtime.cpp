@@ -90,7 +90,7 @@ const char* cl_error_name(int code) {
   if (code == -1001 || code == CL_DEVICE_NOT_FOUND) status = Status::no_device;
   std::ostringstream msg;
   msg << e.what() << " failed with " << cl_error_name(code) << " (" << code << ") while " << doing;
-  throw Error(status, msg.str());
+  throw Error(status, msg.str(), code);
 }
 
 namespace {

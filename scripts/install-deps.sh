@@ -7,7 +7,7 @@ packages=(
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo
   libopenimageio-dev libglm-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev zlib1g-dev
-  python3-numpy python3-matplotlib  # bench/ plots
+  python3-numpy python3-pytest python3-matplotlib  # Python binding tests, bench/ plots
 )
 
 missing=()

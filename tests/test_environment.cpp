@@ -14,7 +14,7 @@ const bool environment_set = [] {
 }  // namespace
 
 extern "C" const char* __asan_default_options() {
-  return "detect_leaks=1:protect_shadow_gap=0";
+  return "detect_leaks=1";
 }
 
 extern "C" const char* __lsan_default_suppressions() {

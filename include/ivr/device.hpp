@@ -26,6 +26,9 @@ struct DeviceInfo {
 
 // Every device of every platform; throws ivr::Error(no_device) if there is no OpenCL platform.
 IVR_API std::vector<DeviceInfo> list_devices();
+// The same as one JSON document: {"devices": [{index, platform, name, vendor, type, version,
+// driver, fp64, float_atomic_add, double_atomic_add, global_memory, ...}, ...]}.
+IVR_API std::string devices_json();
 
 // A selected device with its context, in-order profiling queue and program cache.
 // Selector: "" uses $IVR_DEVICE, else the first GPU, else the first device; "cpu", "gpu" or

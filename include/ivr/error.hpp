@@ -23,11 +23,15 @@ IVR_API const char* status_name(Status status);
 
 class IVR_API Error : public std::runtime_error {
  public:
-  Error(Status status, const std::string& message) : std::runtime_error(message), status_(status) {}
+  Error(Status status, const std::string& message, int opencl_code = 0)
+      : std::runtime_error(message), status_(status), opencl_code_(opencl_code) {}
   Status status() const noexcept { return status_; }
+  // The OpenCL error code behind the error (negative), 0 where none.
+  int opencl_code() const noexcept { return opencl_code_; }
 
  private:
   Status status_;
+  int opencl_code_;
 };
 
 }  // namespace ivr

@@ -1,0 +1,225 @@
+"""ivr — differentiable volume rendering on OpenCL, from Python (ctypes over ivr's C API).
+
+    import ivr, numpy as np
+    ctx = ivr.Context(device=None, precision="f32")
+    image = ctx.render(scene, volume)                  # (views, H, W, C) float32
+    loss, grads = ctx.grad(scene, volume, target, wrt=("density", "tf"), mode="auto")
+    J = ctx.jacobian(scene, volume, wrt=("camera",))   # (views, H, W, C, P)
+
+`scene` is a dict with the JSON fields of DESIGN.md (or JSON text); `volume`, a (Z, Y, X) array
+of float32/float64/uint8/uint16, replaces the scene's own volume (which may then be left out).
+Errors raise ivr.Error with the C status name and the library's message.
+"""
+import ctypes
+import json
+import threading
+
+import numpy as np
+
+from . import _capi
+
+__all__ = ["Error", "Context", "devices", "version"]
+
+_lib = None
+_lib_lock = threading.Lock()
+
+
+def _library():
+    global _lib
+    with _lib_lock:
+        if _lib is None:
+            _lib = _capi.load()
+        return _lib
+
+
+class Error(RuntimeError):
+    """An ivr call failed: `status` is the C status name (e.g. "IVR_ERROR_INVALID_ARGUMENT")."""
+
+    def __init__(self, status, message):
+        super().__init__(f"{status}: {message}")
+        self.status = status
+        self.message = message
+
+
+def _check(status):
+    if status != 0:
+        lib = _library()
+        raise Error(lib.ivr_status_string(status).decode(), lib.ivr_last_error().decode())
+
+
+def version():
+    """The library's version as (major, minor, patch)."""
+    v = _library().ivr_version()
+    return (v // 10000, v // 100 % 100, v % 100)
+
+
+def devices():
+    """Every OpenCL device as a list of dicts (the fields of `ivr devices --json`)."""
+    lib = _library()
+    needed = ctypes.c_size_t(0)
+    _check(lib.ivr_devices_json(None, 0, ctypes.byref(needed)))
+    buf = ctypes.create_string_buffer(needed.value)
+    _check(lib.ivr_devices_json(buf, needed.value, None))
+    return json.loads(buf.value.decode())["devices"]
+
+
+_DTYPES = {np.dtype(np.float32): 0, np.dtype(np.float64): 1, np.dtype(np.uint8): 2,
+           np.dtype(np.uint16): 3}
+_PRECISIONS = {"f32": 0, "f64": 1}
+_MODES = {"auto": 0, "forward": 1, "adjoint": 2}
+_MODE_NAMES = {1: "forward", 2: "adjoint"}
+_LOSSES = {"mse": 0, "l1": 1}
+
+
+def _choice(table, value, what):
+    if value not in table:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"{what} must be one of {', '.join(map(str, table))}, got {value!r}")
+    return table[value]
+
+
+class Context:
+    """A device and its compiled kernels. Use one context per thread; contexts on different
+    threads run concurrently."""
+
+    def __init__(self, device=None, precision="f32"):
+        self._lib = _library()
+        self.precision = precision
+        _choice(_PRECISIONS, precision, "precision")
+        handle = _capi.HANDLE()
+        _check(self._lib.ivr_context_create(device.encode() if device else None,
+                                            ctypes.byref(handle)))
+        self._handle = handle
+
+    def close(self):
+        """Releases the context now (also done when it is garbage-collected)."""
+        if getattr(self, "_handle", None):
+            self._lib.ivr_context_release(self._handle)
+            self._handle = None
+
+    def __del__(self):
+        self.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    @property
+    def device(self):
+        """The device's name."""
+        name = ctypes.c_char_p()
+        _check(self._lib.ivr_context_device_name(self._live(), ctypes.byref(name)))
+        return name.value.decode()
+
+    def _live(self):
+        if not getattr(self, "_handle", None):
+            raise Error("IVR_ERROR_INVALID_HANDLE", "the context is closed")
+        return self._handle
+
+    # One scene handle for the duration of a call.
+    def _scene(self, scene, volume, base_dir):
+        text = scene if isinstance(scene, str) else json.dumps(scene)
+        handle = _capi.HANDLE()
+        _check(self._lib.ivr_scene_from_json(self._live(), text.encode(),
+                                             base_dir.encode() if base_dir else None,
+                                             ctypes.byref(handle)))
+        try:
+            if volume is not None:
+                v = np.ascontiguousarray(volume)
+                if v.ndim != 3:
+                    raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                                f"volume must have shape (Z, Y, X), got {v.shape}")
+                if v.dtype not in _DTYPES:
+                    raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                                f"volume dtype must be float32, float64, uint8 or uint16, "
+                                f"got {v.dtype}")
+                shape = (ctypes.c_int64 * 3)(*v.shape)
+                _check(self._lib.ivr_scene_set_volume(handle, v.ctypes.data_as(ctypes.c_void_p),
+                                                      _DTYPES[v.dtype], shape))
+        except BaseException:
+            self._lib.ivr_scene_release(handle)
+            raise
+        return handle
+
+    def _image_shape(self, scene_handle):
+        shape = (ctypes.c_int64 * 4)()
+        _check(self._lib.ivr_scene_image_shape(scene_handle, shape))
+        return tuple(shape)
+
+    def render(self, scene, volume=None, step=0.0, base_dir=None):
+        """The image of every view: float32 (views, H, W, C)."""
+        s = self._scene(scene, volume, base_dir)
+        try:
+            shape = self._image_shape(s)
+            out = np.empty(shape, dtype=np.float32)
+            _check(self._lib.ivr_render(self._live(), s, _PRECISIONS[self.precision], step,
+                                        out.ctypes.data_as(ctypes.POINTER(ctypes.c_float)),
+                                        out.size))
+            return out
+        finally:
+            self._lib.ivr_scene_release(s)
+
+    def grad(self, scene, volume, target, wrt=("density",), mode="auto", loss="mse", step=0.0,
+             base_dir=None, info=None):
+        """(loss, {group: array}) of the loss of the render against `target` (its shape).
+        `wrt` names groups as `ivr grad --wrt` (density, tf, tf_points, scales, background,
+        camera, step, "voxels:3,17,40-45"); `info`, a dict, receives the mode that ran."""
+        groups = wrt if isinstance(wrt, str) else ",".join(wrt)
+        s = self._scene(scene, volume, base_dir)
+        try:
+            shape = self._image_shape(s)
+            t = np.ascontiguousarray(target, dtype=np.float32)
+            if t.shape != shape and t.size == int(np.prod(shape)) and t.squeeze().shape == \
+                    tuple(d for d in shape if d != 1):
+                t = t.reshape(shape)
+            if t.shape != shape:
+                raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                            f"target has shape {t.shape} but the scene renders {shape}")
+            r = _capi.HANDLE()
+            _check(self._lib.ivr_gradient(
+                self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
+                groups.encode(), _choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
+                _PRECISIONS[self.precision], step, ctypes.byref(r)))
+        finally:
+            self._lib.ivr_scene_release(s)
+        try:
+            value, arrays, ran = self._result(r)
+        finally:
+            self._lib.ivr_result_release(r)
+        if info is not None:
+            info["mode"] = ran
+        return value, arrays
+
+    def jacobian(self, scene, volume=None, wrt=("tf",), step=0.0, base_dir=None):
+        """d pixel / d parameter: float64 (views, H, W, C, P), P in `wrt` order."""
+        groups = wrt if isinstance(wrt, str) else ",".join(wrt)
+        s = self._scene(scene, volume, base_dir)
+        try:
+            r = _capi.HANDLE()
+            _check(self._lib.ivr_jacobian(self._live(), s, groups.encode(),
+                                          _PRECISIONS[self.precision], step, ctypes.byref(r)))
+        finally:
+            self._lib.ivr_scene_release(s)
+        try:
+            return self._result(r)[1]["jacobian"]
+        finally:
+            self._lib.ivr_result_release(r)
+
+    def _result(self, r):
+        loss, mode = ctypes.c_double(), ctypes.c_int()
+        _check(self._lib.ivr_result_info(r, ctypes.byref(loss), ctypes.byref(mode), None))
+        count = ctypes.c_size_t()
+        _check(self._lib.ivr_result_array_count(r, ctypes.byref(count)))
+        arrays = {}
+        for i in range(count.value):
+            name, rank, shape = ctypes.c_char_p(), ctypes.c_int(), (ctypes.c_int64 * 5)()
+            _check(self._lib.ivr_result_array_shape(r, i, ctypes.byref(name), ctypes.byref(rank),
+                                                    shape))
+            dims = tuple(shape[:rank.value])
+            values = np.empty(dims, dtype=np.float64)
+            _check(self._lib.ivr_result_array_data(
+                r, i, values.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), values.size))
+            arrays[name.value.decode()] = values
+        return loss.value, arrays, _MODE_NAMES.get(mode.value, "?")

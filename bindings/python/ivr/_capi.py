@@ -1,0 +1,90 @@
+"""_capi.py — ctypes declarations of ivr's C API (include/ivr/ivr.h) and the library lookup:
+$IVR_LIBRARY, else a libivr next to this package (or in the build tree beside it), else the
+system loader."""
+import ctypes
+import ctypes.util
+import os
+from pathlib import Path
+
+c_int64_p = ctypes.POINTER(ctypes.c_int64)
+
+
+class _Handle(ctypes.Structure):
+    pass
+
+
+HANDLE = ctypes.POINTER(_Handle)
+
+
+def _candidates():
+    env = os.environ.get("IVR_LIBRARY")
+    if env:
+        yield env
+        return
+    here = Path(__file__).resolve().parent
+    for folder in (here, here.parent, here.parent.parent.parent / "build"):
+        for name in ("libivr.so.0", "libivr.so", "libivr.dylib"):
+            path = folder / name
+            if path.exists():
+                yield str(path)
+    found = ctypes.util.find_library("ivr")
+    if found:
+        yield found
+
+
+def load():
+    errors = []
+    for path in _candidates():
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError as e:
+            errors.append(f"{path}: {e}")
+            continue
+        _declare(lib)
+        return lib
+    raise OSError("libivr not found (set IVR_LIBRARY to its path)" +
+                  ("; tried " + "; ".join(errors) if errors else ""))
+
+
+def _declare(lib):
+    S = ctypes.c_int  # ivr_status
+    pp = ctypes.POINTER(HANDLE)
+    sigs = {
+        "ivr_status_string": (ctypes.c_char_p, [ctypes.c_int]),
+        "ivr_version": (ctypes.c_int, []),
+        "ivr_last_error": (ctypes.c_char_p, []),
+        "ivr_last_opencl_error": (ctypes.c_int, []),
+        "ivr_devices_json": (S, [ctypes.c_char_p, ctypes.c_size_t,
+                                 ctypes.POINTER(ctypes.c_size_t)]),
+        "ivr_context_create": (S, [ctypes.c_char_p, pp]),
+        "ivr_context_retain": (S, [HANDLE]),
+        "ivr_context_release": (S, [HANDLE]),
+        "ivr_context_last_error": (ctypes.c_char_p, [HANDLE]),
+        "ivr_context_device_name": (S, [HANDLE, ctypes.POINTER(ctypes.c_char_p)]),
+        "ivr_scene_from_json": (S, [HANDLE, ctypes.c_char_p, ctypes.c_char_p, pp]),
+        "ivr_scene_load": (S, [HANDLE, ctypes.c_char_p, pp]),
+        "ivr_scene_retain": (S, [HANDLE]),
+        "ivr_scene_release": (S, [HANDLE]),
+        "ivr_scene_set_volume": (S, [HANDLE, ctypes.c_void_p, ctypes.c_int, c_int64_p]),
+        "ivr_scene_image_shape": (S, [HANDLE, c_int64_p]),
+        "ivr_scene_volume_shape": (S, [HANDLE, c_int64_p]),
+        "ivr_render": (S, [HANDLE, HANDLE, ctypes.c_int, ctypes.c_double,
+                           ctypes.POINTER(ctypes.c_float), ctypes.c_size_t]),
+        "ivr_gradient": (S, [HANDLE, HANDLE, ctypes.POINTER(ctypes.c_float), ctypes.c_size_t,
+                             ctypes.c_char_p, ctypes.c_int, ctypes.c_int, ctypes.c_int,
+                             ctypes.c_double, pp]),
+        "ivr_jacobian": (S, [HANDLE, HANDLE, ctypes.c_char_p, ctypes.c_int, ctypes.c_double, pp]),
+        "ivr_result_retain": (S, [HANDLE]),
+        "ivr_result_release": (S, [HANDLE]),
+        "ivr_result_info": (S, [HANDLE, ctypes.POINTER(ctypes.c_double),
+                                ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)]),
+        "ivr_result_array_count": (S, [HANDLE, ctypes.POINTER(ctypes.c_size_t)]),
+        "ivr_result_array_shape": (S, [HANDLE, ctypes.c_size_t, ctypes.POINTER(ctypes.c_char_p),
+                                       ctypes.POINTER(ctypes.c_int), c_int64_p]),
+        "ivr_result_array_data": (S, [HANDLE, ctypes.c_size_t, ctypes.POINTER(ctypes.c_double),
+                                      ctypes.c_size_t]),
+    }
+    for name, (restype, argtypes) in sigs.items():
+        f = getattr(lib, name)
+        f.restype = restype
+        f.argtypes = argtypes

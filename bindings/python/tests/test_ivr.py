@@ -1,0 +1,142 @@
+"""test_ivr.py — the Python binding: render, grad and jacobian against the `ivr` CLI on the same
+scene, errors as ivr.Error, and separate contexts on separate threads."""
+import json
+import os
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+import ivr
+
+CLI = os.environ.get("IVR_CLI", "ivr")
+
+# The scene the C API's tests use too (no volume: the tests pass one).
+with open(os.path.join(os.path.dirname(__file__), "../../../tests/data/binding_scene.json")) as f:
+    SCENE = json.load(f)
+
+
+def volume():
+    i = np.arange(4 * 5 * 6, dtype=np.float64)
+    return (0.4 + 0.3 * np.sin(0.7 * i)).astype(np.float32).reshape(4, 5, 6)
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    with ivr.Context() as c:
+        yield c
+
+
+@pytest.fixture
+def files(tmp_path):
+    """The scene and volume as files, for the CLI."""
+    np.save(tmp_path / "vol.npy", volume())
+    scene = dict(SCENE, volume={"file": "vol.npy"})
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    return tmp_path
+
+
+def cli(*args):
+    r = subprocess.run([CLI, *map(str, args)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return r.stdout
+
+
+def test_devices_and_version():
+    devs = ivr.devices()
+    assert devs and {"name", "platform", "type", "fp64"} <= set(devs[0])
+    assert len(ivr.version()) == 3
+
+
+def test_render_equals_the_cli(ctx, files):
+    image = ctx.render(SCENE, volume())
+    assert image.shape == (1, 5, 6, 4) and image.dtype == np.float32
+    cli("render", files / "scene.json", "-o", files / "out.npy")
+    np.testing.assert_array_equal(image, np.load(files / "out.npy"))
+    # uint8 volumes map to [0, 1] like the CLI's integer files
+    as_bytes = (volume() * 255).round().astype(np.uint8)
+    np.testing.assert_allclose(ctx.render(SCENE, as_bytes), image, atol=0.02)
+
+
+def test_grad_equals_the_cli(ctx, files):
+    target = np.full((1, 5, 6, 4), 0.25, dtype=np.float32)
+    np.save(files / "target.npy", target)
+    info = {}
+    loss, grads = ctx.grad(SCENE, volume(), target, wrt=("tf", "background", "voxels:3,7-9"),
+                           mode="forward", info=info)
+    assert info["mode"] == "forward"
+    out = json.loads(cli("grad", files / "scene.json", "--target", files / "target.npy",
+                         "--wrt", "tf,background,voxels:3,7-9", "--mode", "forward",
+                         "-o", files / "g", "--json"))
+    assert loss == pytest.approx(out["loss"], rel=1e-12)
+    for group in ("tf", "background", "voxels"):
+        np.testing.assert_allclose(grads[group], np.load(files / f"g_{group}.npy"), rtol=1e-6,
+                                   atol=1e-12)
+    assert grads["tf"].shape == (2, 4) and grads["voxels"].shape == (4,)
+    # density through the adjoint, and the same numbers as the C++ CLI's file
+    loss2, g2 = ctx.grad(SCENE, volume(), target, wrt="density", mode="adjoint")
+    cli("grad", files / "scene.json", "--target", files / "target.npy", "--wrt", "density",
+        "--mode", "adjoint", "-o", files / "a")
+    d = np.load(files / "a_density.npy")
+    np.testing.assert_allclose(g2["density"], d, atol=1e-5 * np.abs(d).max())
+
+
+def test_jacobian_equals_the_cli(ctx, files):
+    J = ctx.jacobian(SCENE, volume(), wrt=("camera", "background"))
+    assert J.shape == (1, 5, 6, 4, 10)
+    cli("jacobian", files / "scene.json", "--wrt", "camera,background", "-o", files / "J.npy")
+    np.testing.assert_allclose(J, np.load(files / "J.npy"), atol=1e-6 * np.abs(J).max())
+
+
+def test_errors_raise_ivr_error(ctx):
+    with pytest.raises(ivr.Error) as e:
+        ctx.render(SCENE)  # no volume anywhere
+    assert e.value.status == "IVR_ERROR_INVALID_ARGUMENT" and "no volume" in str(e.value)
+    with pytest.raises(ivr.Error, match="unknown parameter group 'opacity'"):
+        ctx.grad(SCENE, volume(), np.zeros((1, 5, 6, 4), np.float32), wrt="opacity")
+    with pytest.raises(ivr.Error, match="target has shape"):
+        ctx.grad(SCENE, volume(), np.zeros((5, 6, 3), np.float32))
+    with pytest.raises(ivr.Error, match="dtype"):
+        ctx.render(SCENE, volume().astype(np.int64))
+    with pytest.raises(ivr.Error, match="shape"):
+        ctx.render(SCENE, np.zeros((4, 5), np.float32))
+    with pytest.raises(ivr.Error, match="mode must be one of"):
+        ctx.grad(SCENE, volume(), np.zeros((1, 5, 6, 4), np.float32), mode="sideways")
+    with pytest.raises(ivr.Error) as e:
+        ctx.render({"cameras": 3}, volume())
+    assert e.value.status == "IVR_ERROR_INVALID_ARGUMENT"
+    with pytest.raises(ivr.Error) as e:
+        ivr.Context(device="no-such-device-xyz")
+    assert e.value.status == "IVR_ERROR_NO_DEVICE"
+
+
+def test_separate_contexts_on_separate_threads():
+    want = ivr.Context().render(SCENE, volume())
+    results, errors = [None] * 4, []
+
+    def work(i):
+        try:
+            with ivr.Context() as c:
+                for _ in range(3):
+                    results[i] = c.render(SCENE, volume())
+        except Exception as e:  # noqa: BLE001 — reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    for r in results:
+        np.testing.assert_array_equal(r, want)
+
+
+def test_readme_snippet_runs():
+    """The README's Python snippet, as it stands."""
+    readme = (os.path.dirname(__file__) + "/../../../README.md")
+    text = open(readme).read()
+    start = text.index("```python\n", text.index("**Python**")) + len("```python\n")
+    code = text[start:text.index("```", start)]
+    exec(compile(code, "README.md", "exec"), {})

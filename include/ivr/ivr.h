@@ -1,0 +1,131 @@
+/* ivr/ivr.h — the C API of ivr: opaque reference-counted handles, status codes, arrays as pointer
+ * + shape + dtype. No exception and no C++ type crosses this boundary; every function returns an
+ * ivr_status. Bindings (Python's ctypes, Julia, Rust, …) use this header.
+ *
+ * Ownership: every *_create / *_load / ivr_render-like call that outputs a handle gives the caller
+ * one reference; release it with the matching *_release. Arrays passed in are copied before the
+ * call returns (the caller keeps ownership); arrays out are written into caller-owned memory
+ * whose size is given. Strings returned as const char* belong to the library and stay valid until
+ * the next call on the same handle (or, for ivr_last_error, on the same thread).
+ *
+ * Threads: a context and everything created from it may be used by one thread at a time;
+ * separate contexts may be used concurrently from separate threads. Handle bookkeeping (retain,
+ * release, validation) is thread-safe. */
+#ifndef IVR_IVR_H
+#define IVR_IVR_H
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ivr/export.h"
+#include "ivr/version.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ivr's own codes are small positive numbers; OpenCL's (negative) are kept apart and reported by
+ * ivr_last_opencl_error() when the status is IVR_ERROR_OPENCL. */
+typedef enum ivr_status {
+  IVR_OK = 0,
+  IVR_ERROR_INVALID_ARGUMENT = 1,   /* bad scene, option, array, shape or dtype */
+  IVR_ERROR_IO = 2,                 /* missing, unreadable or malformed file */
+  IVR_ERROR_NO_DEVICE = 3,          /* no OpenCL platform, or no device matches */
+  IVR_ERROR_OPENCL = 4,             /* an OpenCL call failed */
+  IVR_ERROR_BUILD = 5,              /* a kernel failed to compile (the message has the build log) */
+  IVR_ERROR_OUT_OF_MEMORY = 6,      /* host or device memory */
+  IVR_ERROR_UNSUPPORTED = 7,        /* the device lacks a feature (e.g. float64) */
+  IVR_ERROR_NULL_POINTER = 100,     /* a required pointer or handle is NULL */
+  IVR_ERROR_INVALID_HANDLE = 101,   /* not a live handle of that type (released, or never one) */
+  IVR_ERROR_WRONG_CONTEXT = 102,    /* handles from two different contexts */
+  IVR_ERROR_BUFFER_TOO_SMALL = 103, /* an output array or string is smaller than the result */
+  IVR_ERROR_INTERNAL = 199          /* a bug: please report it with the message */
+} ivr_status;
+
+typedef enum ivr_dtype {
+  IVR_FLOAT32 = 0,
+  IVR_FLOAT64 = 1,
+  IVR_UINT8 = 2,
+  IVR_UINT16 = 3
+} ivr_dtype;
+typedef enum ivr_precision { IVR_PRECISION_F32 = 0, IVR_PRECISION_F64 = 1 } ivr_precision;
+typedef enum ivr_mode { IVR_MODE_AUTO = 0, IVR_MODE_FORWARD = 1, IVR_MODE_ADJOINT = 2 } ivr_mode;
+typedef enum ivr_loss { IVR_LOSS_MSE = 0, IVR_LOSS_L1 = 1 } ivr_loss;
+
+typedef struct ivr_context ivr_context; /* a device, its queue and program cache, a last error */
+typedef struct ivr_scene ivr_scene;     /* a scene with its volume (belongs to one context) */
+typedef struct ivr_result ivr_result;   /* a gradient or Jacobian: loss, mode, named arrays */
+
+/* Static name of a status, e.g. "IVR_ERROR_INVALID_ARGUMENT". Never NULL. */
+IVR_API const char* ivr_status_string(ivr_status status);
+/* The library's version (the header's is IVR_VERSION_*): major*10000 + minor*100 + patch. */
+IVR_API int ivr_version(void);
+/* The last error message of this thread (any call), "" if none. */
+IVR_API const char* ivr_last_error(void);
+/* The OpenCL error code behind this thread's last IVR_ERROR_OPENCL, else 0. */
+IVR_API int ivr_last_opencl_error(void);
+
+/* Every OpenCL device as a JSON document ({"devices": [...]}, the fields of `ivr devices
+ * --json`), written into `buffer` (capacity bytes, NUL-terminated); *needed gets the size with
+ * the NUL (may be NULL). A NULL buffer with capacity 0 only reports the size. */
+IVR_API ivr_status ivr_devices_json(char* buffer, size_t capacity, size_t* needed);
+
+/* A context on a device: selector as for `--device` (NULL or "": $IVR_DEVICE, else the first
+ * GPU, else the first device). */
+IVR_API ivr_status ivr_context_create(const char* device_selector, ivr_context** context);
+IVR_API ivr_status ivr_context_retain(ivr_context* context);
+IVR_API ivr_status ivr_context_release(ivr_context* context);
+/* The context's last error message ("" if none); valid until the next call on the context. */
+IVR_API const char* ivr_context_last_error(const ivr_context* context);
+/* The device's name (library-owned string, valid while the context lives). */
+IVR_API ivr_status ivr_context_device_name(const ivr_context* context, const char** name);
+
+/* A scene from DESIGN.md's JSON text; relative volume paths resolve against base_dir (NULL: the
+ * working folder). The JSON may leave out "volume" when ivr_scene_set_volume follows. */
+IVR_API ivr_status ivr_scene_from_json(ivr_context* context, const char* json, const char* base_dir,
+                                       ivr_scene** scene);
+/* A scene from a JSON file. */
+IVR_API ivr_status ivr_scene_load(ivr_context* context, const char* path, ivr_scene** scene);
+IVR_API ivr_status ivr_scene_retain(ivr_scene* scene);
+IVR_API ivr_status ivr_scene_release(ivr_scene* scene);
+/* Replaces the scene's volume by a copy of `data`: shape (nz, ny, nx), x fastest (C order);
+ * float32/float64 used as is, uint8/uint16 mapped to [0, 1] by the type's range. The box is reset
+ * to the default (centred, longest side 1) unless the scene's JSON gave one. */
+IVR_API ivr_status ivr_scene_set_volume(ivr_scene* scene, const void* data, ivr_dtype dtype,
+                                        const int64_t shape[3]);
+/* The shape of the scene's images: (views, height, width, channels). */
+IVR_API ivr_status ivr_scene_image_shape(const ivr_scene* scene, int64_t shape[4]);
+/* The volume's shape (nz, ny, nx). */
+IVR_API ivr_status ivr_scene_volume_shape(const ivr_scene* scene, int64_t shape[3]);
+
+/* Renders every view into `image`: float32, shape ivr_scene_image_shape, `capacity` floats. step
+ * > 0 overrides the scene's integrator step (voxel units). */
+IVR_API ivr_status ivr_render(ivr_context* context, const ivr_scene* scene, ivr_precision precision,
+                              double step, float* image, size_t capacity);
+
+/* The loss of the render against `target` (float32, the image shape; `count` floats) and its
+ * gradient with respect to the comma-separated groups in `wrt` (as `ivr grad --wrt`: density,
+ * tf, tf_points, scales, background, camera, step, voxels:LIST), in `mode`. */
+IVR_API ivr_status ivr_gradient(ivr_context* context, const ivr_scene* scene, const float* target,
+                                size_t count, const char* wrt, ivr_mode mode, ivr_loss loss,
+                                ivr_precision precision, double step, ivr_result** result);
+/* The Jacobian (views, H, W, C, P) of the render with respect to `wrt` (forward mode), as one
+ * array named "jacobian" in the result. */
+IVR_API ivr_status ivr_jacobian(ivr_context* context, const ivr_scene* scene, const char* wrt,
+                                ivr_precision precision, double step, ivr_result** result);
+IVR_API ivr_status ivr_result_retain(ivr_result* result);
+IVR_API ivr_status ivr_result_release(ivr_result* result);
+/* The loss (0 for a Jacobian), the mode that ran, and the kernel seconds. */
+IVR_API ivr_status ivr_result_info(const ivr_result* result, double* loss, ivr_mode* mode,
+                                   double* seconds);
+/* The result's arrays: their count, and array i's name (library-owned), rank and shape (up to 5
+ * dimensions) and values (float64, `capacity` elements). */
+IVR_API ivr_status ivr_result_array_count(const ivr_result* result, size_t* count);
+IVR_API ivr_status ivr_result_array_shape(const ivr_result* result, size_t index, const char** name,
+                                          int* rank, int64_t shape[5]);
+IVR_API ivr_status ivr_result_array_data(const ivr_result* result, size_t index, double* values,
+                                         size_t capacity);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

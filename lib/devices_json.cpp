@@ -1,0 +1,30 @@
+// devices_json.cpp — every OpenCL device as one JSON document, for `ivr devices --json` and the
+// C API's ivr_devices_json().
+#include <nlohmann/json.hpp>
+
+#include "ivr/device.hpp"
+
+namespace ivr {
+
+std::string devices_json() {
+  nlohmann::json list = nlohmann::json::array();
+  for (const DeviceInfo& d : list_devices())
+    list.push_back({{"index", d.index},
+                    {"platform_index", d.platform_index},
+                    {"device_index", d.device_index},
+                    {"platform", d.platform},
+                    {"name", d.name},
+                    {"vendor", d.vendor},
+                    {"type", d.type},
+                    {"version", d.version},
+                    {"driver", d.driver},
+                    {"fp64", d.fp64},
+                    {"float_atomic_add", d.float_atomic_add},
+                    {"double_atomic_add", d.double_atomic_add},
+                    {"global_memory", d.global_memory},
+                    {"max_allocation", d.max_allocation},
+                    {"compute_units", d.compute_units}});
+  return nlohmann::json{{"devices", list}}.dump();
+}
+
+}  // namespace ivr

@@ -243,6 +243,8 @@ const char* ivr_status_string(ivr_status s) {
       return "IVR_ERROR_BUFFER_TOO_SMALL";
     case IVR_ERROR_INTERNAL:
       return "IVR_ERROR_INTERNAL";
+    case IVR_STATUS_MAX_ENUM:
+      break;
   }
   return "IVR_ERROR_UNKNOWN_STATUS";
 }
@@ -447,6 +449,20 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
     for (const ivr::GroupGradient& g : d.groups)
       r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
     *out = r;
+  });
+}
+
+ivr_status ivr_image_loss(const float* image, const float* target, size_t count, ivr_loss loss,
+                          double* value) {
+  return guarded(nullptr, "ivr_image_loss", [&] {
+    not_null(image, "image");
+    not_null(target, "target");
+    not_null(value, "value");
+    if (loss != IVR_LOSS_MSE && loss != IVR_LOSS_L1)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown loss " + std::to_string(int(loss))};
+    ivr::Image a{1, 1, int(count), 1, std::vector<float>(image, image + count)};
+    ivr::Image b{1, 1, int(count), 1, std::vector<float>(target, target + count)};
+    *value = ivr::image_loss(a, b, loss == IVR_LOSS_L1 ? ivr::Loss::l1 : ivr::Loss::mse);
   });
 }
 

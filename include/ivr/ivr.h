@@ -38,18 +38,34 @@ typedef enum ivr_status {
   IVR_ERROR_INVALID_HANDLE = 101,   /* not a live handle of that type (released, or never one) */
   IVR_ERROR_WRONG_CONTEXT = 102,    /* handles from two different contexts */
   IVR_ERROR_BUFFER_TOO_SMALL = 103, /* an output array or string is smaller than the result */
-  IVR_ERROR_INTERNAL = 199          /* a bug: please report it with the message */
+  IVR_ERROR_INTERNAL = 199,         /* a bug: please report it with the message */
+  IVR_STATUS_MAX_ENUM = 0x7fffffff
 } ivr_status;
 
 typedef enum ivr_dtype {
   IVR_FLOAT32 = 0,
   IVR_FLOAT64 = 1,
   IVR_UINT8 = 2,
-  IVR_UINT16 = 3
+  IVR_UINT16 = 3,
+  IVR_DTYPE_MAX_ENUM = 0x7fffffff /* the enums span 32 bits so any int a binding passes is
+                                     a defined value that the library rejects with a message */
 } ivr_dtype;
-typedef enum ivr_precision { IVR_PRECISION_F32 = 0, IVR_PRECISION_F64 = 1 } ivr_precision;
-typedef enum ivr_mode { IVR_MODE_AUTO = 0, IVR_MODE_FORWARD = 1, IVR_MODE_ADJOINT = 2 } ivr_mode;
-typedef enum ivr_loss { IVR_LOSS_MSE = 0, IVR_LOSS_L1 = 1 } ivr_loss;
+typedef enum ivr_precision {
+  IVR_PRECISION_F32 = 0,
+  IVR_PRECISION_F64 = 1,
+  IVR_PRECISION_MAX_ENUM = 0x7fffffff
+} ivr_precision;
+typedef enum ivr_mode {
+  IVR_MODE_AUTO = 0,
+  IVR_MODE_FORWARD = 1,
+  IVR_MODE_ADJOINT = 2,
+  IVR_MODE_MAX_ENUM = 0x7fffffff
+} ivr_mode;
+typedef enum ivr_loss {
+  IVR_LOSS_MSE = 0,
+  IVR_LOSS_L1 = 1,
+  IVR_LOSS_MAX_ENUM = 0x7fffffff
+} ivr_loss;
 
 typedef struct ivr_context ivr_context; /* a device, its queue and program cache, a last error */
 typedef struct ivr_scene ivr_scene;     /* a scene with its volume (belongs to one context) */
@@ -108,6 +124,10 @@ IVR_API ivr_status ivr_render(ivr_context* context, const ivr_scene* scene, ivr_
 IVR_API ivr_status ivr_gradient(ivr_context* context, const ivr_scene* scene, const float* target,
                                 size_t count, const char* wrt, ivr_mode mode, ivr_loss loss,
                                 ivr_precision precision, double step, ivr_result** result);
+/* The loss (mean over every element: IVR_LOSS_MSE of the squared, IVR_LOSS_L1 of the absolute
+ * differences) of `image` against `target`, both `count` floats. */
+IVR_API ivr_status ivr_image_loss(const float* image, const float* target, size_t count,
+                                  ivr_loss loss, double* value);
 /* The Jacobian (views, H, W, C, P) of the render with respect to `wrt` (forward mode), as one
  * array named "jacobian" in the result. */
 IVR_API ivr_status ivr_jacobian(ivr_context* context, const ivr_scene* scene, const char* wrt,

@@ -7,7 +7,7 @@ src=$2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cmake --install "$build" --prefix "$work/prefix" >/dev/null
-for f in include/ivr/ivr.hpp include/ivr/version.h lib/cmake/ivr/ivrConfig.cmake lib/pkgconfig/ivr.pc bin/ivr; do
+for f in include/ivr/ivr.hpp include/ivr/ivr.h include/ivr/version.h lib/cmake/ivr/ivrConfig.cmake lib/pkgconfig/ivr.pc bin/ivr; do
   [ -e "$work/prefix/$f" ] || { echo "install is missing $f"; exit 1; }
 done
 ls "$work/prefix/lib/"libivr.so.0* >/dev/null || { echo "libivr.so has no SOVERSION link"; exit 1; }
@@ -23,5 +23,8 @@ LD_LIBRARY_PATH="$work/prefix/lib" "$work/consumer/consumer"
 export PKG_CONFIG_PATH="$work/prefix/lib/pkgconfig"
 c++ -std=c++17 "$src/tests/install/consumer.cpp" -o "$work/consumer_pc" $(pkg-config --cflags --libs ivr)
 LD_LIBRARY_PATH="$work/prefix/lib" "$work/consumer_pc"
+# The C API from a C compiler, through pkg-config.
+cc -std=c99 "$src/tests/install/consumer.c" -o "$work/consumer_c" $(pkg-config --cflags --libs ivr)
+LD_LIBRARY_PATH="$work/prefix/lib" "$work/consumer_c"
 "$work/prefix/bin/ivr" --version
 echo "install test passed"

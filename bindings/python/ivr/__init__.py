@@ -18,7 +18,7 @@ import numpy as np
 
 from . import _capi
 
-__all__ = ["Error", "Context", "devices", "version"]
+__all__ = ["Error", "Context", "devices", "version", "loss"]
 
 _lib = None
 _lib_lock = threading.Lock()
@@ -61,6 +61,19 @@ def devices():
     buf = ctypes.create_string_buffer(needed.value)
     _check(lib.ivr_devices_json(buf, needed.value, None))
     return json.loads(buf.value.decode())["devices"]
+
+
+def loss(image, target, kind="mse"):
+    """The loss (mean over every element) of `image` against `target` (same shape)."""
+    a = np.ascontiguousarray(image, dtype=np.float32)
+    b = np.ascontiguousarray(target, dtype=np.float32)
+    if a.shape != b.shape:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT", f"image {a.shape} and target {b.shape} differ")
+    value = ctypes.c_double()
+    fp = ctypes.POINTER(ctypes.c_float)
+    _check(_library().ivr_image_loss(a.ctypes.data_as(fp), b.ctypes.data_as(fp), a.size,
+                                     _choice(_LOSSES, kind, "loss"), ctypes.byref(value)))
+    return value.value
 
 
 _DTYPES = {np.dtype(np.float32): 0, np.dtype(np.float64): 1, np.dtype(np.uint8): 2,

@@ -73,6 +73,8 @@ def _declare(lib):
         "ivr_gradient": (S, [HANDLE, HANDLE, ctypes.POINTER(ctypes.c_float), ctypes.c_size_t,
                              ctypes.c_char_p, ctypes.c_int, ctypes.c_int, ctypes.c_int,
                              ctypes.c_double, pp]),
+        "ivr_image_loss": (S, [ctypes.POINTER(ctypes.c_float), ctypes.POINTER(ctypes.c_float),
+                               ctypes.c_size_t, ctypes.c_int, ctypes.POINTER(ctypes.c_double)]),
         "ivr_jacobian": (S, [HANDLE, HANDLE, ctypes.c_char_p, ctypes.c_int, ctypes.c_double, pp]),
         "ivr_result_retain": (S, [HANDLE]),
         "ivr_result_release": (S, [HANDLE]),

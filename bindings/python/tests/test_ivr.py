@@ -140,3 +140,27 @@ def test_readme_snippet_runs():
     start = text.index("```python\n", text.index("**Python**")) + len("```python\n")
     code = text[start:text.index("```", start)]
     exec(compile(code, "README.md", "exec"), {})
+
+
+def test_loss_matches_numpy():
+    rng = np.random.default_rng(3)
+    a, b = rng.random((2, 5, 6, 4), dtype=np.float32), rng.random((2, 5, 6, 4), dtype=np.float32)
+    assert ivr.loss(a, b) == pytest.approx(np.mean((a.astype(np.float64) - b) ** 2), rel=1e-12)
+    assert ivr.loss(a, b, "l1") == pytest.approx(np.mean(np.abs(a.astype(np.float64) - b)),
+                                                 rel=1e-12)
+    with pytest.raises(ivr.Error, match="differ"):
+        ivr.loss(a, b[0])
+
+
+EXAMPLES = os.path.join(os.path.dirname(__file__), "../../../examples/python")
+
+
+@pytest.mark.parametrize("name", ["render.py", "torch_function.py"])
+def test_examples_run(name):
+    """The examples exit 0; the PyTorch one is reported as skipped where torch is missing."""
+    import sys
+    if name == "torch_function.py":
+        pytest.importorskip("torch")
+    r = subprocess.run([sys.executable, os.path.join(EXAMPLES, name)], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr

@@ -25,7 +25,7 @@
 
 #include "bench_scene.hpp"
 #include "bench_support.hpp"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 extern char** environ;
 

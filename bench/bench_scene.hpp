@@ -2,7 +2,7 @@
 // signal in an n³ volume, a four-point emission–absorption TF, one perspective camera looking at
 // the box from a corner), so that benchmarks and `ivr calibrate` measure the same thing.
 #pragma once
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 namespace ivr::bench {
 

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <vector>
 
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 namespace ivr::bench {
 

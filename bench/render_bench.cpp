@@ -11,7 +11,7 @@
 
 #include "bench_scene.hpp"
 #include "bench_support.hpp"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 #include "native_marcher.hpp"
 
 using nlohmann::json;

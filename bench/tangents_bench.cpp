@@ -14,7 +14,7 @@
 
 #include "bench_scene.hpp"
 #include "bench_support.hpp"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 using nlohmann::json;
 using ivr::bench::median;

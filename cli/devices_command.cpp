@@ -2,7 +2,7 @@
 #include <iostream>
 
 #include "commands.hpp"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 namespace ivr::cli {
 

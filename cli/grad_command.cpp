@@ -15,7 +15,7 @@
 
 #include "cli_support.hpp"
 #include "commands.hpp"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 namespace fs = std::filesystem;
 

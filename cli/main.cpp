@@ -6,7 +6,7 @@
 #include <string>
 
 #include "commands.hpp"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"ivr " IVR_VERSION_STRING " — differentiable volume rendering on OpenCL"};

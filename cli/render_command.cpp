@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 namespace fs = std::filesystem;
 

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "ivr/ivr.h"
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 // The handle types: each holds its reference count; scenes and results know their context.
 struct ivr_context {

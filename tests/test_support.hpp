@@ -4,7 +4,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "ivr/ivr.hpp"
+#include "ivr/core.hpp"
 
 namespace ivr::test {
 

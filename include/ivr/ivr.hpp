@@ -1,13 +1,257 @@
-// ivr/ivr.hpp — the C++ API of ivr in one include.
+// ivr/ivr.hpp — the C++ API: a header-only RAII layer over the C API (ivr/ivr.h), so only C types
+// cross the library boundary. Errors throw ivr::api::Exception with the status and the message.
+// Its namespace is ivr::api so that it never meets the core C++ types of ivr/core.hpp.
 #pragma once
-#include "ivr/calibrate.hpp"
-#include "ivr/device.hpp"
-#include "ivr/differentiate.hpp"
-#include "ivr/error.hpp"
-#include "ivr/gradient.hpp"
-#include "ivr/planner.hpp"
-#include "ivr/render.hpp"
-#include "ivr/scene.hpp"
-#include "ivr/tangents.hpp"
-#include "ivr/version.h"
-#include "ivr/volume_io.hpp"
+#include <cstddef>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "ivr/ivr.h"
+
+namespace ivr::api {
+
+// A failed call: the C status, the message (file, OpenCL call, build log) and the OpenCL code
+// behind an IVR_ERROR_OPENCL (else 0).
+class Exception : public std::runtime_error {
+ public:
+  Exception(ivr_status status, const std::string& message, int opencl_code = 0)
+      : std::runtime_error(message), status_(status), opencl_code_(opencl_code) {}
+  ivr_status status() const noexcept { return status_; }
+  int opencl_code() const noexcept { return opencl_code_; }
+
+ private:
+  ivr_status status_;
+  int opencl_code_;
+};
+
+namespace detail {
+inline void check(ivr_status status) {
+  if (status == IVR_OK) return;
+  throw Exception(status, std::string(ivr_status_string(status)) + ": " + ivr_last_error(),
+                  ivr_last_opencl_error());
+}
+
+// Shared ownership of one C handle through the C API's own reference count.
+template <typename T, ivr_status (*Retain)(T*), ivr_status (*Release)(T*)>
+class Handle {
+ public:
+  Handle() = default;
+  explicit Handle(T* adopted) noexcept : handle_(adopted) {}
+  Handle(const Handle& other) : handle_(other.handle_) {
+    if (handle_) check(Retain(handle_));
+  }
+  Handle(Handle&& other) noexcept : handle_(std::exchange(other.handle_, nullptr)) {}
+  Handle& operator=(Handle other) noexcept {
+    std::swap(handle_, other.handle_);
+    return *this;
+  }
+  ~Handle() {
+    if (handle_) Release(handle_);
+  }
+  T* get() const noexcept { return handle_; }
+  explicit operator bool() const noexcept { return handle_ != nullptr; }
+
+ protected:
+  T* handle_ = nullptr;
+};
+
+inline size_t product(const std::vector<int64_t>& shape) {
+  size_t n = 1;
+  for (int64_t d : shape) n *= size_t(d);
+  return n;
+}
+}  // namespace detail
+
+enum class Precision { f32 = IVR_PRECISION_F32, f64 = IVR_PRECISION_F64 };
+enum class Mode { automatic = IVR_MODE_AUTO, forward = IVR_MODE_FORWARD, adjoint = IVR_MODE_ADJOINT };
+enum class Loss { mse = IVR_LOSS_MSE, l1 = IVR_LOSS_L1 };
+
+inline int version() { return ivr_version(); }
+
+// A dense float array with its shape (C order).
+template <typename T>
+struct Array {
+  std::vector<int64_t> shape;
+  std::vector<T> values;
+  size_t size() const { return values.size(); }
+};
+
+// One named array of a gradient or Jacobian (e.g. "density", "tf", "jacobian").
+struct NamedArray {
+  std::string name;
+  Array<double> array;
+};
+
+// A gradient or Jacobian: the loss, the mode that ran, kernel seconds and the arrays by name.
+class Result : public detail::Handle<ivr_result, ivr_result_retain, ivr_result_release> {
+ public:
+  using Handle::Handle;
+  double loss() const { return info().loss; }
+  Mode mode() const { return info().mode; }
+  double seconds() const { return info().seconds; }
+  std::vector<NamedArray> arrays() const {
+    size_t count = 0;
+    detail::check(ivr_result_array_count(get(), &count));
+    std::vector<NamedArray> out;
+    for (size_t i = 0; i < count; ++i) out.push_back(array_at(i));
+    return out;
+  }
+  // The array called `name`; throws ivr::api::Exception (IVR_ERROR_INVALID_ARGUMENT) if none is.
+  Array<double> array(const std::string& name) const {
+    for (NamedArray& a : arrays())
+      if (a.name == name) return std::move(a.array);
+    throw Exception(IVR_ERROR_INVALID_ARGUMENT, "the result has no array named '" + name + "'");
+  }
+
+ private:
+  struct Info {
+    double loss;
+    Mode mode;
+    double seconds;
+  };
+  Info info() const {
+    Info i{};
+    ivr_mode mode = IVR_MODE_AUTO;
+    detail::check(ivr_result_info(get(), &i.loss, &mode, &i.seconds));
+    i.mode = Mode(mode);
+    return i;
+  }
+  NamedArray array_at(size_t index) const {
+    const char* name = nullptr;
+    int rank = 0;
+    int64_t shape[5] = {};
+    detail::check(ivr_result_array_shape(get(), index, &name, &rank, shape));
+    NamedArray a{name, {std::vector<int64_t>(shape, shape + rank), {}}};
+    a.array.values.resize(detail::product(a.array.shape));
+    detail::check(ivr_result_array_data(get(), index, a.array.values.data(), a.array.size()));
+    return a;
+  }
+};
+
+// A scene (DESIGN.md's JSON) with its volume; belongs to the context that made it.
+class Scene : public detail::Handle<ivr_scene, ivr_scene_retain, ivr_scene_release> {
+ public:
+  using Handle::Handle;
+  // Replaces the volume by a copy of `data`, shape {nz, ny, nx}, x fastest.
+  void set_volume(const float* data, const std::vector<int64_t>& shape) {
+    set_volume(data, IVR_FLOAT32, shape);
+  }
+  void set_volume(const std::vector<float>& data, const std::vector<int64_t>& shape) {
+    if (shape.size() != 3 || data.size() != detail::product(shape))
+      throw Exception(IVR_ERROR_INVALID_ARGUMENT,
+                      "set_volume: " + std::to_string(data.size()) +
+                          " values do not fill a volume of the given 3-d shape");
+    set_volume(data.data(), IVR_FLOAT32, shape);
+  }
+  void set_volume(const void* data, ivr_dtype dtype, const std::vector<int64_t>& shape) {
+    if (shape.size() != 3)
+      throw Exception(IVR_ERROR_INVALID_ARGUMENT,
+                      "set_volume: shape has " + std::to_string(shape.size()) +
+                          " dimensions (nz, ny, nx expected)");
+    detail::check(ivr_scene_set_volume(get(), data, dtype, shape.data()));
+  }
+  // (views, height, width, channels)
+  std::vector<int64_t> image_shape() const {
+    std::vector<int64_t> shape(4);
+    detail::check(ivr_scene_image_shape(get(), shape.data()));
+    return shape;
+  }
+  // (nz, ny, nx)
+  std::vector<int64_t> volume_shape() const {
+    std::vector<int64_t> shape(3);
+    detail::check(ivr_scene_volume_shape(get(), shape.data()));
+    return shape;
+  }
+};
+
+// What render, gradient and jacobian accept beyond the scene.
+struct Options {
+  Precision precision = Precision::f32;
+  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+};
+struct GradientOptions : Options {
+  std::string wrt = "density";  // comma-separated groups, as `ivr grad --wrt`
+  Mode mode = Mode::automatic;
+  Loss loss = Loss::mse;
+};
+
+// A device with its queue and kernel cache. One context serves one thread at a time; separate
+// contexts work concurrently on separate threads.
+class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_context_release> {
+ public:
+  // selector as for `ivr --device` ("" : $IVR_DEVICE, else the first GPU, else the first device)
+  explicit Context(const std::string& selector = "") {
+    detail::check(ivr_context_create(selector.c_str(), &handle_));
+  }
+  // Every OpenCL device as JSON ({"devices": [...]}, the fields of `ivr devices --json`).
+  static std::string devices_json() {
+    size_t needed = 0;
+    detail::check(ivr_devices_json(nullptr, 0, &needed));
+    std::string text(needed, '\0');
+    detail::check(ivr_devices_json(&text[0], text.size(), &needed));
+    text.resize(needed - 1);
+    return text;
+  }
+  std::string device_name() const {
+    const char* name = nullptr;
+    detail::check(ivr_context_device_name(get(), &name));
+    return name;
+  }
+  // A scene from JSON text (relative paths against base_dir) or from a JSON file.
+  Scene scene_from_json(const std::string& json, const std::string& base_dir = "") {
+    ivr_scene* s = nullptr;
+    detail::check(ivr_scene_from_json(get(), json.c_str(),
+                                      base_dir.empty() ? nullptr : base_dir.c_str(), &s));
+    return Scene(s);
+  }
+  Scene load_scene(const std::string& path) {
+    ivr_scene* s = nullptr;
+    detail::check(ivr_scene_load(get(), path.c_str(), &s));
+    return Scene(s);
+  }
+  // Every view, shape (views, height, width, channels).
+  Array<float> render(const Scene& scene, const Options& options = {}) {
+    Array<float> image{scene.image_shape(), {}};
+    image.values.resize(detail::product(image.shape));
+    detail::check(ivr_render(get(), scene.get(), ivr_precision(options.precision), options.step,
+                             image.values.data(), image.size()));
+    return image;
+  }
+  // The loss of the render against `target` (the image shape) and its gradient by group.
+  Result gradient(const Scene& scene, const float* target, size_t count,
+                  const GradientOptions& options = {}) {
+    ivr_result* r = nullptr;
+    detail::check(ivr_gradient(get(), scene.get(), target, count, options.wrt.c_str(),
+                               ivr_mode(options.mode), ivr_loss(options.loss),
+                               ivr_precision(options.precision), options.step, &r));
+    return Result(r);
+  }
+  Result gradient(const Scene& scene, const std::vector<float>& target,
+                  const GradientOptions& options = {}) {
+    return gradient(scene, target.data(), target.size(), options);
+  }
+  // The Jacobian (views, H, W, C, P) of the render with respect to `wrt`, in result "jacobian".
+  Result jacobian(const Scene& scene, const std::string& wrt, const Options& options = {}) {
+    ivr_result* r = nullptr;
+    detail::check(ivr_jacobian(get(), scene.get(), wrt.c_str(), ivr_precision(options.precision),
+                               options.step, &r));
+    return Result(r);
+  }
+};
+
+// The loss (mean over every element) of `image` against `target`.
+inline double image_loss(const std::vector<float>& image, const std::vector<float>& target,
+                         Loss loss = Loss::mse) {
+  if (image.size() != target.size())
+    throw Exception(IVR_ERROR_INVALID_ARGUMENT,
+                    "image_loss: image has " + std::to_string(image.size()) + " values, target " +
+                        std::to_string(target.size()));
+  double value = 0;
+  detail::check(ivr_image_loss(image.data(), target.data(), image.size(), ivr_loss(loss), &value));
+  return value;
+}
+
+}  // namespace ivr::api

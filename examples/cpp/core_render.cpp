@@ -1,11 +1,11 @@
-// render_example.cpp — the smallest ivr program: load a scene, render it, save a PNG.
-// Usage: render_example SCENE.json OUT.png
+// core_render.cpp — the core C++ API (ivr/core.hpp): load a scene, render it, save a PNG.
+// Usage: core_render SCENE.json OUT.png
 #include <iostream>
-#include <ivr/ivr.hpp>
+#include <ivr/core.hpp>
 
 int main(int argc, char** argv) {
   if (argc != 3) {
-    std::cerr << "usage: render_example SCENE.json OUT.png\n";
+    std::cerr << "usage: core_render SCENE.json OUT.png\n";
     return 2;
   }
   try {

@@ -8,6 +8,8 @@ packages=(
   libopenimageio-dev libglm-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev zlib1g-dev
   python3-numpy python3-pytest python3-matplotlib  # Python binding tests, bench/ plots
+  python3-pip python3-setuptools  # the test of `pip install ./bindings/python`
+  python3-torch  # runs examples/python/torch_function.py in the tests (skipped where absent)
 )
 
 missing=()

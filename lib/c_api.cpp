@@ -139,6 +139,12 @@ ivr_status guarded(ivr_context* context, const char* function, F&& body) {
 ivr_context* context_of(const ivr_scene* s) {
   return s && is_live(s, Kind::scene) ? s->context : nullptr;
 }
+ivr_context* context_of(const ivr_result* r) {
+  return r && is_live(r, Kind::result) ? r->context : nullptr;
+}
+ivr_context* context_of(const ivr_context* c) {  // the error record is not the context's state
+  return c && is_live(c, Kind::context) ? const_cast<ivr_context*>(c) : nullptr;
+}
 
 ivr::Precision precision_of(ivr_precision p) {
   if (p != IVR_PRECISION_F32 && p != IVR_PRECISION_F64)
@@ -296,7 +302,7 @@ const char* ivr_context_last_error(const ivr_context* c) {
 }
 
 ivr_status ivr_context_device_name(const ivr_context* c, const char** name) {
-  return guarded(nullptr, "ivr_context_device_name", [&] {
+  return guarded(context_of(c), "ivr_context_device_name", [&] {
     checked(c, Kind::context, "context");
     *not_null(name, "name") = c->device.info().name.c_str();
   });
@@ -458,6 +464,7 @@ ivr_status ivr_image_loss(const float* image, const float* target, size_t count,
     not_null(image, "image");
     not_null(target, "target");
     not_null(value, "value");
+    if (count == 0) throw CError{IVR_ERROR_INVALID_ARGUMENT, "count is 0 (no pixels to compare)"};
     if (loss != IVR_LOSS_MSE && loss != IVR_LOSS_L1)
       throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown loss " + std::to_string(int(loss))};
     ivr::Image a{1, 1, int(count), 1, std::vector<float>(image, image + count)};
@@ -502,7 +509,7 @@ ivr_status ivr_result_release(ivr_result* r) {
 }
 
 ivr_status ivr_result_info(const ivr_result* r, double* loss, ivr_mode* mode, double* seconds) {
-  return guarded(nullptr, "ivr_result_info", [&] {
+  return guarded(context_of(r), "ivr_result_info", [&] {
     checked(r, Kind::result, "result");
     if (loss) *loss = r->loss;
     if (mode) *mode = r->mode;
@@ -511,7 +518,7 @@ ivr_status ivr_result_info(const ivr_result* r, double* loss, ivr_mode* mode, do
 }
 
 ivr_status ivr_result_array_count(const ivr_result* r, size_t* count) {
-  return guarded(nullptr, "ivr_result_array_count", [&] {
+  return guarded(context_of(r), "ivr_result_array_count", [&] {
     checked(r, Kind::result, "result");
     *not_null(count, "count") = r->arrays.size();
   });
@@ -529,7 +536,7 @@ const ivr_result::Array& array_at(const ivr_result* r, size_t i) {
 
 ivr_status ivr_result_array_shape(const ivr_result* r, size_t i, const char** name, int* rank,
                                   int64_t shape[5]) {
-  return guarded(nullptr, "ivr_result_array_shape", [&] {
+  return guarded(context_of(r), "ivr_result_array_shape", [&] {
     const ivr_result::Array& a = array_at(r, i);
     if (name) *name = a.name.c_str();
     if (rank) *rank = int(a.shape.size());
@@ -539,7 +546,7 @@ ivr_status ivr_result_array_shape(const ivr_result* r, size_t i, const char** na
 }
 
 ivr_status ivr_result_array_data(const ivr_result* r, size_t i, double* values, size_t capacity) {
-  return guarded(nullptr, "ivr_result_array_data", [&] {
+  return guarded(context_of(r), "ivr_result_array_data", [&] {
     const ivr_result::Array& a = array_at(r, i);
     not_null(values, "values");
     if (capacity < a.values.size())

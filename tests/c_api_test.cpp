@@ -117,7 +117,7 @@ TEST_F(CApi, GradientAndJacobianEqualTheCore) {
     EXPECT_EQ(values, d.groups[i].values);
     std::vector<double> small(values.size() - 1);
     expect_error(ivr_result_array_data(r, i, small.data(), small.size()),
-                 IVR_ERROR_BUFFER_TOO_SMALL, "ivr_result_array_data");
+                 IVR_ERROR_BUFFER_TOO_SMALL, "ivr_result_array_data", ctx_);
   }
   EXPECT_EQ(ivr_result_release(r), IVR_OK);
 
@@ -244,6 +244,48 @@ TEST_F(CApi, WrongDtypesShapesSizesAndContexts) {
                "ivr_context_create");
   EXPECT_STREQ(ivr_status_string(IVR_ERROR_WRONG_CONTEXT), "IVR_ERROR_WRONG_CONTEXT");
   EXPECT_STREQ(ivr_status_string(static_cast<ivr_status>(-5)), "IVR_ERROR_UNKNOWN_STATUS");
+}
+
+TEST_F(CApi, ImageLossAndTheRemainingErrorPaths) {
+  const float a[4] = {0.f, 1.f, 2.f, -1.f}, b[4] = {1.f, 1.f, 0.f, 1.f};
+  double value = -1;
+  ASSERT_EQ(ivr_image_loss(a, b, 4, IVR_LOSS_MSE, &value), IVR_OK) << ivr_last_error();
+  EXPECT_DOUBLE_EQ(value, (1.0 + 0.0 + 4.0 + 4.0) / 4.0);
+  ASSERT_EQ(ivr_image_loss(a, b, 4, IVR_LOSS_L1, &value), IVR_OK) << ivr_last_error();
+  EXPECT_DOUBLE_EQ(value, (1.0 + 0.0 + 2.0 + 2.0) / 4.0);
+  expect_error(ivr_image_loss(nullptr, b, 4, IVR_LOSS_MSE, &value), IVR_ERROR_NULL_POINTER,
+               "ivr_image_loss");
+  expect_error(ivr_image_loss(a, b, 4, IVR_LOSS_MSE, nullptr), IVR_ERROR_NULL_POINTER,
+               "ivr_image_loss");
+  expect_error(ivr_image_loss(a, b, 4, static_cast<ivr_loss>(3), &value),
+               IVR_ERROR_INVALID_ARGUMENT, "ivr_image_loss");
+  expect_error(ivr_image_loss(a, b, 0, IVR_LOSS_MSE, &value), IVR_ERROR_INVALID_ARGUMENT,
+               "ivr_image_loss");
+
+  int64_t shape[5];
+  expect_error(ivr_scene_volume_shape(scene_, nullptr), IVR_ERROR_NULL_POINTER,
+               "ivr_scene_volume_shape", ctx_);
+  const char* name = nullptr;
+  expect_error(ivr_context_device_name(ctx_, nullptr), IVR_ERROR_NULL_POINTER,
+               "ivr_context_device_name", ctx_);
+  ivr_result* r = nullptr;
+  expect_error(ivr_jacobian(ctx_, scene_, "tf,nonsense", IVR_PRECISION_F32, 0, &r),
+               IVR_ERROR_INVALID_ARGUMENT, "ivr_jacobian", ctx_);
+  ASSERT_EQ(ivr_jacobian(ctx_, scene_, "background", IVR_PRECISION_F32, 0, &r), IVR_OK);
+  int rank = 0;
+  expect_error(ivr_result_array_shape(r, 1, &name, &rank, shape), IVR_ERROR_INVALID_ARGUMENT,
+               "ivr_result_array_shape", ctx_);
+  expect_error(ivr_result_array_shape(r, 0, &name, &rank, nullptr), IVR_ERROR_NULL_POINTER,
+               "ivr_result_array_shape", ctx_);
+  double values[360];
+  expect_error(ivr_result_array_data(r, 0, nullptr, 360), IVR_ERROR_NULL_POINTER,
+               "ivr_result_array_data", ctx_);
+  expect_error(ivr_result_array_data(r, 3, values, 360), IVR_ERROR_INVALID_ARGUMENT,
+               "ivr_result_array_data", ctx_);
+  expect_error(ivr_result_retain(reinterpret_cast<ivr_result*>(scene_)), IVR_ERROR_INVALID_HANDLE,
+               "ivr_result_retain");
+  EXPECT_EQ(ivr_result_release(r), IVR_OK);
+  expect_error(ivr_result_release(r), IVR_ERROR_INVALID_HANDLE, "ivr_result_release");
 }
 
 TEST_F(CApi, DevicesJson) {

@@ -31,6 +31,30 @@ std::string str(double v) {
   return s.str();
 }
 
+
+void validate_camera(const Camera& c, const std::string& w) {
+  if (!finite(c.eye) || !finite(c.target) || !finite(c.up))
+    fail(w, "eye, target and up must be finite");
+  const glm::dvec3 view = c.target - c.eye;
+  const double dist = glm::length(view);
+  if (!(dist > 1e-12 * (1.0 + glm::length(c.eye))))
+    fail(w, "eye equals target, so there is no view direction");
+  if (!(glm::length(c.up) > 0)) fail(w, "up is the zero vector");
+  const double sine = glm::length(glm::cross(view / dist, glm::normalize(c.up)));
+  if (!(sine > 1e-9)) fail(w, "up is parallel to the view direction (target - eye)");
+  if (c.projection == Projection::perspective) {
+    if (!std::isfinite(c.fov_y) || !(c.fov_y > 0) || !(c.fov_y < 180))
+      fail(w, "fov_y must be in (0, 180) degrees, got " + str(c.fov_y));
+  } else if (!std::isfinite(c.ortho_height) || !(c.ortho_height > 0)) {
+    fail(w, "ortho_height must be > 0, got " + str(c.ortho_height));
+  }
+  if (c.width < 1 || c.height < 1 || c.width > kMaxImageSide || c.height > kMaxImageSide)
+    fail(w, "image size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+                " is outside 1.." + std::to_string(kMaxImageSide) + " per side");
+}
+
+}  // namespace
+
 void validate_tf(const TransferFunction& tf) {
   auto check_sigma = [](const std::string& where, double sigma) {
     if (!std::isfinite(sigma) || sigma < 0)
@@ -84,29 +108,6 @@ void validate_tf(const TransferFunction& tf) {
       break;
   }
 }
-
-void validate_camera(const Camera& c, const std::string& w) {
-  if (!finite(c.eye) || !finite(c.target) || !finite(c.up))
-    fail(w, "eye, target and up must be finite");
-  const glm::dvec3 view = c.target - c.eye;
-  const double dist = glm::length(view);
-  if (!(dist > 1e-12 * (1.0 + glm::length(c.eye))))
-    fail(w, "eye equals target, so there is no view direction");
-  if (!(glm::length(c.up) > 0)) fail(w, "up is the zero vector");
-  const double sine = glm::length(glm::cross(view / dist, glm::normalize(c.up)));
-  if (!(sine > 1e-9)) fail(w, "up is parallel to the view direction (target - eye)");
-  if (c.projection == Projection::perspective) {
-    if (!std::isfinite(c.fov_y) || !(c.fov_y > 0) || !(c.fov_y < 180))
-      fail(w, "fov_y must be in (0, 180) degrees, got " + str(c.fov_y));
-  } else if (!std::isfinite(c.ortho_height) || !(c.ortho_height > 0)) {
-    fail(w, "ortho_height must be > 0, got " + str(c.ortho_height));
-  }
-  if (c.width < 1 || c.height < 1 || c.width > kMaxImageSide || c.height > kMaxImageSide)
-    fail(w, "image size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
-                " is outside 1.." + std::to_string(kMaxImageSide) + " per side");
-}
-
-}  // namespace
 
 void set_default_box(Scene& scene) {
   const Volume& v = scene.volume;

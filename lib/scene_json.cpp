@@ -199,12 +199,10 @@ Camera read_camera(const Reader& r, const json& j, const std::string& p) {
   return c;
 }
 
-}  // namespace
 
-Scene parse_scene(const std::string& text, const std::string& base_dir, const std::string& where) {
-  json j;
+json parse_json(const std::string& text, const std::string& where) {
   try {
-    j = json::parse(text);
+    return json::parse(text);
   } catch (const json::parse_error& e) {
     // e.what() reads "[json.exception.parse_error.101] parse error at line 3, column 5: ..."
     std::string what = e.what();
@@ -212,6 +210,29 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
     throw Error(Status::io, where + ": malformed JSON: " +
                                 (cut == std::string::npos ? what : what.substr(cut + 2)));
   }
+}
+
+}  // namespace
+
+Volume parse_volume(const std::string& text, const std::string& base_dir,
+                    const std::string& where) {
+  const Reader r(where);
+  return read_volume(r, parse_json(text, where), base_dir);
+}
+
+TransferFunction parse_tf(const std::string& text, const std::string& where) {
+  const Reader r(where);
+  TransferFunction tf = read_tf(r, parse_json(text, where));
+  try {
+    validate_tf(tf);
+  } catch (const Error& e) {
+    throw Error(e.status(), where + ": " + e.what());
+  }
+  return tf;
+}
+
+Scene parse_scene(const std::string& text, const std::string& base_dir, const std::string& where) {
+  const json j = parse_json(text, where);
   const Reader r(where);
   r.only_keys(j, "", {"volume", "box", "model", "tf", "background", "cameras", "integrator"});
   Scene s;

@@ -40,6 +40,18 @@ Scene core_scene(const std::vector<float>& volume) {
   return s;
 }
 
+// The status and a message naming the call, thrown from every kind of failure.
+template <typename F>
+void expect_throw(F&& f, ivr_status status, const std::string& words) {
+  try {
+    f();
+    ADD_FAILURE() << "no exception; wanted " << ivr_status_string(status);
+  } catch (const api::Exception& e) {
+    EXPECT_EQ(e.status(), status) << e.what();
+    EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+  }
+}
+
 TEST(CppApi, RenderGradientAndJacobianEqualTheCore) {
   const std::vector<float> volume = test_volume();
   api::Context ctx;
@@ -81,6 +93,27 @@ TEST(CppApi, RenderGradientAndJacobianEqualTheCore) {
   EXPECT_EQ(j.shape, (std::vector<int64_t>{1, 5, 6, 4, 3}));
 }
 
+TEST(CppApi, VolumeAndTransferFunctionHandles) {
+  api::Context ctx;
+  const api::Volume ml = ctx.volume_from_json(R"({"synthetic": "marschner_lobb", "dims": [5, 6, 7]})");
+  EXPECT_EQ(ml.shape(), (std::vector<int64_t>{7, 6, 5}));
+  EXPECT_EQ(ml.data().values, synthetic_volume("marschner_lobb", 5, 6, 7).data);
+  const std::vector<float> volume = test_volume();
+  api::Scene scene = ctx.scene_from_json(kSceneText);
+  scene.set_volume(ctx.volume(volume, {4, 5, 6}));
+  const char* tf = R"({"type": "table", "range": [0, 1], "entries": [[0, 0, 0, 0], [1, 1, 1, 5]]})";
+  scene.set_tf(ctx.tf_from_json(tf));
+  Scene s = core_scene(volume);
+  s.tf = parse_tf(tf);
+  EXPECT_EQ(ctx.render(scene).values, render(device(), s, {Precision::f32}).pixels);
+  expect_throw([&] { ctx.volume(volume, {4, 5}); }, IVR_ERROR_INVALID_ARGUMENT, "3-d shape");
+  expect_throw([&] { ctx.tf_from_json(R"({"type": "table"})"); }, IVR_ERROR_INVALID_ARGUMENT,
+               "entries");
+  api::Context other;
+  expect_throw([&] { scene.set_volume(other.volume(volume, {4, 5, 6})); },
+               IVR_ERROR_WRONG_CONTEXT, "another context");
+}
+
 TEST(CppApi, CopiesShareTheHandleAndKeepItAlive) {
   api::Scene copy;
   {
@@ -94,18 +127,6 @@ TEST(CppApi, CopiesShareTheHandleAndKeepItAlive) {
   }  // the context and the other references go; the scene holds its context
   EXPECT_EQ(copy.image_shape(), (std::vector<int64_t>{1, 5, 6, 4}));
   EXPECT_EQ(copy.volume_shape(), (std::vector<int64_t>{4, 5, 6}));
-}
-
-// The status and a message naming the call, thrown from every kind of failure.
-template <typename F>
-void expect_throw(F&& f, ivr_status status, const std::string& words) {
-  try {
-    f();
-    ADD_FAILURE() << "no exception; wanted " << ivr_status_string(status);
-  } catch (const api::Exception& e) {
-    EXPECT_EQ(e.status(), status) << e.what();
-    EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
-  }
 }
 
 TEST(CppApi, ErrorsThrowTheStatusAndMessage) {

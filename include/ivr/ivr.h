@@ -70,6 +70,8 @@ typedef enum ivr_loss {
 typedef struct ivr_context ivr_context; /* a device, its queue and program cache, a last error */
 typedef struct ivr_scene ivr_scene;     /* a scene with its volume (belongs to one context) */
 typedef struct ivr_result ivr_result;   /* a gradient or Jacobian: loss, mode, named arrays */
+typedef struct ivr_volume ivr_volume;   /* densities (nz, ny, nx) with their voxel spacing */
+typedef struct ivr_transfer_function ivr_transfer_function; /* DESIGN.md's "tf" object */
 
 /* Static name of a status, e.g. "IVR_ERROR_INVALID_ARGUMENT". Never NULL. */
 IVR_API const char* ivr_status_string(ivr_status status);
@@ -108,6 +110,31 @@ IVR_API ivr_status ivr_scene_release(ivr_scene* scene);
  * to the default (centred, longest side 1) unless the scene's JSON gave one. */
 IVR_API ivr_status ivr_scene_set_volume(ivr_scene* scene, const void* data, ivr_dtype dtype,
                                         const int64_t shape[3]);
+/* Volumes and transfer functions of their own, made once and set on any scene of the context
+ * (the scene takes a copy: later changes to one do not reach the other). */
+/* A volume from caller memory, copied (dtypes as ivr_scene_set_volume), spacing 1. */
+IVR_API ivr_status ivr_volume_create(ivr_context* context, const void* data, ivr_dtype dtype,
+                                     const int64_t shape[3], ivr_volume** volume);
+/* A volume from DESIGN.md's "volume" object, e.g. {"file": "head.nrrd"} or {"synthetic":
+ * "sphere", "dims": [32, 32, 32]}; relative paths resolve against base_dir (NULL: working folder). */
+IVR_API ivr_status ivr_volume_from_json(ivr_context* context, const char* json,
+                                        const char* base_dir, ivr_volume** volume);
+IVR_API ivr_status ivr_volume_retain(ivr_volume* volume);
+IVR_API ivr_status ivr_volume_release(ivr_volume* volume);
+/* (nz, ny, nx) */
+IVR_API ivr_status ivr_volume_shape(const ivr_volume* volume, int64_t shape[3]);
+/* The densities as float32, x fastest, into caller memory of `capacity` floats. */
+IVR_API ivr_status ivr_volume_data(const ivr_volume* volume, float* values, size_t capacity);
+/* Copies the volume (with its spacing) into the scene; the box as for ivr_scene_set_volume. */
+IVR_API ivr_status ivr_scene_set_volume_handle(ivr_scene* scene, const ivr_volume* volume);
+/* A transfer function from DESIGN.md's "tf" object, checked as in a scene. */
+IVR_API ivr_status ivr_tf_from_json(ivr_context* context, const char* json,
+                                    ivr_transfer_function** tf);
+IVR_API ivr_status ivr_tf_retain(ivr_transfer_function* tf);
+IVR_API ivr_status ivr_tf_release(ivr_transfer_function* tf);
+/* Copies the transfer function into the scene, replacing its own. */
+IVR_API ivr_status ivr_scene_set_tf(ivr_scene* scene, const ivr_transfer_function* tf);
+
 /* The shape of the scene's images: (views, height, width, channels). */
 IVR_API ivr_status ivr_scene_image_shape(const ivr_scene* scene, int64_t shape[4]);
 /* The volume's shape (nz, ny, nx). */

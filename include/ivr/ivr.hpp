@@ -131,6 +131,31 @@ class Result : public detail::Handle<ivr_result, ivr_result_retain, ivr_result_r
   }
 };
 
+// Densities (nz, ny, nx) with their spacing; set on scenes of its context by copy.
+class Volume : public detail::Handle<ivr_volume, ivr_volume_retain, ivr_volume_release> {
+ public:
+  using Handle::Handle;
+  std::vector<int64_t> shape() const {
+    std::vector<int64_t> shape(3);
+    detail::check(ivr_volume_shape(get(), shape.data()));
+    return shape;
+  }
+  // The densities as float32, x fastest.
+  Array<float> data() const {
+    Array<float> a{shape(), {}};
+    a.values.resize(detail::product(a.shape));
+    detail::check(ivr_volume_data(get(), a.values.data(), a.size()));
+    return a;
+  }
+};
+
+// A transfer function (DESIGN.md's "tf" object); set on scenes of its context by copy.
+class TransferFunction
+    : public detail::Handle<ivr_transfer_function, ivr_tf_retain, ivr_tf_release> {
+ public:
+  using Handle::Handle;
+};
+
 // A scene (DESIGN.md's JSON) with its volume; belongs to the context that made it.
 class Scene : public detail::Handle<ivr_scene, ivr_scene_retain, ivr_scene_release> {
  public:
@@ -153,6 +178,11 @@ class Scene : public detail::Handle<ivr_scene, ivr_scene_retain, ivr_scene_relea
                           " dimensions (nz, ny, nx expected)");
     detail::check(ivr_scene_set_volume(get(), data, dtype, shape.data()));
   }
+  // Copies a volume or transfer function of the same context into the scene.
+  void set_volume(const Volume& volume) {
+    detail::check(ivr_scene_set_volume_handle(get(), volume.get()));
+  }
+  void set_tf(const TransferFunction& tf) { detail::check(ivr_scene_set_tf(get(), tf.get())); }
   // (views, height, width, channels)
   std::vector<int64_t> image_shape() const {
     std::vector<int64_t> shape(4);
@@ -211,6 +241,27 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
     ivr_scene* s = nullptr;
     detail::check(ivr_scene_load(get(), path.c_str(), &s));
     return Scene(s);
+  }
+  // A volume from memory (copied, shape {nz, ny, nx}) or from DESIGN.md's "volume" object.
+  Volume volume(const std::vector<float>& data, const std::vector<int64_t>& shape) {
+    if (shape.size() != 3 || data.size() != detail::product(shape))
+      throw Exception(IVR_ERROR_INVALID_ARGUMENT,
+                      "volume: " + std::to_string(data.size()) +
+                          " values do not fill a volume of the given 3-d shape");
+    ivr_volume* v = nullptr;
+    detail::check(ivr_volume_create(get(), data.data(), IVR_FLOAT32, shape.data(), &v));
+    return Volume(v);
+  }
+  Volume volume_from_json(const std::string& json, const std::string& base_dir = "") {
+    ivr_volume* v = nullptr;
+    detail::check(ivr_volume_from_json(get(), json.c_str(),
+                                       base_dir.empty() ? nullptr : base_dir.c_str(), &v));
+    return Volume(v);
+  }
+  TransferFunction tf_from_json(const std::string& json) {
+    ivr_transfer_function* t = nullptr;
+    detail::check(ivr_tf_from_json(get(), json.c_str(), &t));
+    return TransferFunction(t);
   }
   // Every view, shape (views, height, width, channels).
   Array<float> render(const Scene& scene, const Options& options = {}) {

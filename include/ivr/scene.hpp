@@ -91,11 +91,16 @@ IVR_API Volume synthetic_volume(const std::string& name, int nx, int ny, int nz)
 
 // Throws ivr::Error(invalid_argument) naming the first problem: sizes, cameras, TF, step, data.
 IVR_API void validate(const Scene& scene);
+IVR_API void validate_tf(const TransferFunction& tf);
 
 // Reads a scene file (DESIGN.md's JSON); relative volume paths resolve against its folder.
 IVR_API Scene load_scene(const std::string& path);
 // Parses scene JSON text; `base_dir` resolves relative paths; `where` names the source in errors.
 IVR_API Scene parse_scene(const std::string& json_text, const std::string& base_dir,
                           const std::string& where = "scene");
+// A scene's "volume" or "tf" object on its own (the C API's volume and TF handles).
+IVR_API Volume parse_volume(const std::string& json_text, const std::string& base_dir,
+                            const std::string& where = "volume");
+IVR_API TransferFunction parse_tf(const std::string& json_text, const std::string& where = "tf");
 
 }  // namespace ivr

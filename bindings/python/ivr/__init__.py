@@ -12,6 +12,7 @@ Errors raise ivr.Error with the C status name and the library's message.
 """
 import ctypes
 import json
+import os
 import threading
 
 import numpy as np
@@ -130,6 +131,25 @@ class Context:
         if not getattr(self, "_handle", None):
             raise Error("IVR_ERROR_INVALID_HANDLE", "the context is closed")
         return self._handle
+
+    def load_volume(self, source, base_dir=None):
+        """A volume as float32 (Z, Y, X) densities, read as a scene would: `source` is a path
+        or DESIGN.md's "volume" object (a dict: {"file": ..., "dims": ..., "type": ...} or
+        {"synthetic": "sphere", "dims": [X, Y, Z]}); relative paths resolve against base_dir."""
+        obj = {"file": os.fspath(source)} if isinstance(source, (str, os.PathLike)) else source
+        handle = _capi.HANDLE()
+        _check(self._lib.ivr_volume_from_json(self._live(), json.dumps(obj).encode(),
+                                              base_dir.encode() if base_dir else None,
+                                              ctypes.byref(handle)))
+        try:
+            shape = (ctypes.c_int64 * 3)()
+            _check(self._lib.ivr_volume_shape(handle, shape))
+            out = np.empty(tuple(shape), dtype=np.float32)
+            _check(self._lib.ivr_volume_data(
+                handle, out.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), out.size))
+            return out
+        finally:
+            self._lib.ivr_volume_release(handle)
 
     # One scene handle for the duration of a call.
     def _scene(self, scene, volume, base_dir):

@@ -190,3 +190,18 @@ def test_pip_install(tmp_path):
     installed, shape = r.stdout.splitlines()
     assert installed.startswith(str(target))
     assert shape == "(1, 2, 3, 4)"
+
+
+def test_load_volume(ctx, tmp_path):
+    """Volumes read through the library as a scene reads them: a file, a raw file, synthetic."""
+    v = volume()
+    np.save(tmp_path / "v.npy", v)
+    np.testing.assert_array_equal(ctx.load_volume(tmp_path / "v.npy"), v)
+    (tmp_path / "v.raw").write_bytes((v * 255).astype(np.uint8).tobytes())
+    raw = ctx.load_volume({"file": "v.raw", "dims": [6, 5, 4], "type": "uint8"},
+                          base_dir=str(tmp_path))
+    np.testing.assert_allclose(raw, (v * 255).astype(np.uint8) / 255.0, rtol=0, atol=1e-7)
+    ml = ctx.load_volume({"synthetic": "marschner_lobb", "dims": [6, 7, 8]})
+    assert ml.shape == (8, 7, 6) and 0 <= ml.min() and ml.max() <= 1
+    with pytest.raises(ivr.Error, match="missing.npy"):
+        ctx.load_volume(tmp_path / "missing.npy")

@@ -23,6 +23,12 @@
 #ifndef IVR_EARLY_TERMINATION  // 1: stop a ray once its transmittance < min_transmittance
 #define IVR_EARLY_TERMINATION 1
 #endif
+#ifndef IVR_SKIP_EMPTY  // 1: jump over bricks whose σ is 0 everywhere (kernels/empty_space.cl)
+#define IVR_SKIP_EMPTY 0
+#endif
+#ifndef IVR_BRICK_SIZE  // cells per brick edge of the occupancy grid
+#define IVR_BRICK_SIZE 8
+#endif
 
 #if IVR_F64
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable

@@ -1,7 +1,8 @@
 // render.cl — the forward renderer: one work-item per pixel and view, midpoint rule with a fixed
-// step on the exactly clipped ray, early termination, both optical models.
+// step on the exactly clipped ray, early termination, empty-space skipping, both optical models.
 #include "compositing.cl"
 #include "config.cl"
+#include "empty_space.cl"
 #include "geometry.cl"
 #include "tf.cl"
 
@@ -10,6 +11,7 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
                      __global const real* restrict cameras, const int width, const int height,
                      __global const real* restrict tf, const int tf_count, const real4 tf_scalars,
                      const real4 background, const real step, const real min_transmittance,
+                     __global const uchar* restrict occupied, const int4 bricks,
                      __global float* restrict image, __global uint* restrict samples) {
   const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
   if (x >= width || y >= height) return;
@@ -35,9 +37,19 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
     const real dux = ray.dir.x * inv_voxel.x, duy = ray.dir.y * inv_voxel.y,
                duz = ray.dir.z * inv_voxel.z;
     int segment = 0;  // the transfer function's search cursor (tf_sample)
-    for (uint i = 0; i < n; ++i) {
+    for (uint i = 0; i < n;) {
       const real t = t0 + ((real)i + (real)0.5) * dt;
-      const real d = trilinear_at(volume, dims, u0x + t * dux, u0y + t * duy, u0z + t * duz);
+      const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
+#if IVR_SKIP_EMPTY
+      // Samples in an empty brick add nothing (σ = 0: no emission, no attenuation): jump past.
+      const int bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y),
+                bz = brick_axis(uz, dims.z);
+      if (!occupied[(bz * bricks.y + by) * bricks.x + bx]) {
+        i = skip_brick(i, n, t0, dt, u0x, u0y, u0z, dux, duy, duz, bx, by, bz, bricks);
+        continue;
+      }
+#endif
+      const real d = trilinear_at(volume, dims, ux, uy, uz);
       real er, eg, eb;
       const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);
       const real tau = sigma * dt;
@@ -51,6 +63,7 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
 #endif
       transmittance = attenuate(transmittance, tau, fraction, decay);
       ++taken;
+      ++i;
 #if IVR_EARLY_TERMINATION
       if (transmittance < min_transmittance) break;
 #endif

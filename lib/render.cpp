@@ -2,6 +2,7 @@
 // variant, launches every view at once and reads back images and sample counts.
 #include "ivr/render.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <glm/geometric.hpp>
@@ -9,6 +10,7 @@
 
 #include "device_params.hpp"
 #include "device_scene.hpp"
+#include "empty_space.hpp"
 #include "kernel_sources.hpp"
 #include "runtime.hpp"
 #include "scene_checks.hpp"
@@ -18,9 +20,26 @@ namespace ivr {
 
 namespace {
 
+// The occupancy grid when skipping is asked for, or worth it (automatic); none otherwise.
+bool plan_skipping(const Scene& scene, const RenderOptions& options, BrickGrid* grid,
+                   RenderStats* stats) {
+  if (options.empty_space == EmptySpace::off) return false;
+  if (options.empty_space == EmptySpace::automatic && !tf_has_empty_range(scene.tf)) return false;
+  const auto start = std::chrono::steady_clock::now();
+  *grid = build_brick_grid(scene.volume, scene.tf);
+  if (stats) {
+    stats->empty_fraction = grid->empty_fraction;
+    stats->grid_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return options.empty_space == EmptySpace::on ||
+         grid->empty_fraction >= options.min_empty_fraction;
+}
+
 template <class Real>
 Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
-                Precision precision, RenderStats* stats) {
+                const RenderOptions& options, RenderStats* stats) {
+  const Precision precision = options.precision;
   const Camera& cam0 = scene.cameras.front();
   Image image;
   image.views = int(scene.cameras.size());
@@ -36,7 +55,15 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
       dev.buffer(CL_MEM_WRITE_ONLY, pixels * sizeof(cl_uint), nullptr, "the sample counts");
   const DeviceScene<Real> dscene(dev, scene);
 
-  const RenderVariant variant = RenderVariant::of(scene, integrator, precision);
+  RenderVariant variant = RenderVariant::of(scene, integrator, precision);
+  BrickGrid grid;
+  variant.skip_empty = plan_skipping(scene, options, &grid, stats);
+  variant.brick_size = grid.size;
+  const std::uint8_t none = 0;  // kernels need a buffer even when they do not read it
+  cl::Buffer occupied = dev.buffer(
+      CL_MEM_READ_ONLY, variant.skip_empty ? grid.occupied.size() : 1,
+      variant.skip_empty ? grid.occupied.data() : &none,
+      "the occupancy grid");
   double build_seconds = 0;
   const cl::Program program = dev.programs.get(
       dev.context, dev.device, dev.info, variant.preamble() + assemble_kernel("render.cl"),
@@ -46,6 +73,8 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
   cl_call("running the render kernel on " + dev.info.name, [&] {
     cl::Kernel k(program, "render");
     int a = dscene.set_args(k, scene, integrator);
+    k.setArg(a++, occupied);
+    k.setArg(a++, cl_int4{{grid.nx, grid.ny, grid.nz, 0}});
     k.setArg(a++, out_image);
     k.setArg(a++, out_samples);
     const LaunchParams launch = launch_params(dev.info, "render");
@@ -75,6 +104,7 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
     stats->build_seconds = build_seconds;
     stats->samples = std::accumulate(samples.begin(), samples.end(), std::uint64_t(0));
     stats->variant = variant.label();
+    stats->skipped_empty = variant.skip_empty;
   }
   return image;
 }
@@ -90,9 +120,9 @@ Image render(Device& device, const Scene& scene, const RenderOptions& options, R
     if (!dev.info.fp64)
       throw Error(Status::unsupported,
                   "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
-    return render_as<double>(dev, scene, integrator, options.precision, stats);
+    return render_as<double>(dev, scene, integrator, options, stats);
   }
-  return render_as<float>(dev, scene, integrator, options.precision, stats);
+  return render_as<float>(dev, scene, integrator, options, stats);
 }
 
 }  // namespace ivr

@@ -34,7 +34,9 @@ std::string RenderVariant::preamble() const {
   s << "#define IVR_MODEL " << (model == Model::absorption ? 0 : 1) << "\n"
     << "#define IVR_TF " << int(tf) << "\n"
     << "#define IVR_F64 " << (precision == Precision::f64 ? 1 : 0) << "\n"
-    << "#define IVR_EARLY_TERMINATION " << (early_termination ? 1 : 0) << "\n";
+    << "#define IVR_EARLY_TERMINATION " << (early_termination ? 1 : 0) << "\n"
+    << "#define IVR_SKIP_EMPTY " << (skip_empty ? 1 : 0) << "\n"
+    << "#define IVR_BRICK_SIZE " << brick_size << "\n";
   return s.str();
 }
 
@@ -42,7 +44,7 @@ std::string RenderVariant::label() const {
   std::ostringstream s;
   s << "render model=" << (model == Model::absorption ? "absorption" : "emission_absorption")
     << " tf=" << tf_kind_name(tf) << " " << (precision == Precision::f64 ? "f64" : "f32")
-    << " ert=" << (early_termination ? "on" : "off");
+    << " ert=" << (early_termination ? "on" : "off") << " skip=" << (skip_empty ? "on" : "off");
   return s.str();
 }
 

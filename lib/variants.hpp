@@ -13,6 +13,8 @@ struct RenderVariant {
   TfKind tf = TfKind::identity;
   Precision precision = Precision::f32;
   bool early_termination = true;
+  bool skip_empty = false;  // empty-space skipping (render only)
+  int brick_size = 8;
 
   static RenderVariant of(const Scene& scene, const Integrator& integrator, Precision precision);
   std::string preamble() const;  // "#define IVR_MODEL 1\n..." for kernels/config.cl

@@ -207,12 +207,12 @@ TEST(Variants, PreambleSelectsOnlyWhatTheSceneUses) {
   EXPECT_NE(v.preamble().find("#define IVR_MODEL 1"), std::string::npos);
   EXPECT_NE(v.preamble().find("#define IVR_TF 3"), std::string::npos);
   EXPECT_NE(v.preamble().find("#define IVR_F64 1"), std::string::npos);
-  EXPECT_EQ(v.label(), "render model=emission_absorption tf=gaussian f64 ert=on");
+  EXPECT_EQ(v.label(), "render model=emission_absorption tf=gaussian f64 ert=on skip=off");
   // The render reports the variant it ran.
   Scene a = constant_scene(0.5f);
   RenderStats stats;
   render(device(), a, {}, &stats);
-  EXPECT_EQ(stats.variant, "render model=absorption tf=identity f32 ert=off");
+  EXPECT_EQ(stats.variant, "render model=absorption tf=identity f32 ert=off skip=off");
 }
 
 }  // namespace

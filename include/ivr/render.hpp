@@ -12,9 +12,16 @@ namespace ivr {
 
 enum class Precision { f32, f64 };
 
+// Empty-space skipping: rays jump over bricks of 8³ cells where σ is 0 everywhere (same image
+// up to rounding, fewer samples). automatic: on when the TF is 0 on some density range and at
+// least `min_empty_fraction` of the bricks are empty.
+enum class EmptySpace { automatic, on, off };
+
 struct RenderOptions {
   Precision precision = Precision::f32;
   double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+  EmptySpace empty_space = EmptySpace::automatic;
+  double min_empty_fraction = 0.05;
 };
 
 // Images of shape (views, height, width, channels), float32, row 0 at the top.
@@ -32,6 +39,9 @@ struct RenderStats {
   double build_seconds = 0;   // program lookup/compile time (0 when cached in-process)
   std::uint64_t samples = 0;  // density samples taken over all rays
   std::string variant;        // the compiled feature set, e.g. "model=ea tf=gaussian f32"
+  bool skipped_empty = false;  // empty-space skipping ran
+  double empty_fraction = 0;   // of the bricks, when the grid was built
+  double grid_seconds = 0;     // host time to build the occupancy grid
 };
 
 // Validates the scene and renders it; throws ivr::Error.

@@ -1,0 +1,33 @@
+// empty_space.cl — empty-space skipping: the brick a sample reads, and where the ray leaves it
+// (lib/empty_space.cpp builds the occupancy grid on the host).
+#ifndef IVR_EMPTY_SPACE_CL
+#define IVR_EMPTY_SPACE_CL
+#include "config.cl"
+
+// The brick of the cell that trilinear_at() reads at u (clamped as there).
+__attribute__((always_inline)) inline int brick_axis(real u, int n) {
+  return (int)fmin(fmax(u, (real)0), (real)(n - 1)) / IVR_BRICK_SIZE;
+}
+
+// The ray parameter at which u = u0 + t·du leaves brick b of `bricks` along this axis; +inf
+// where it never does (parallel, or the brick is the last one the ray meets on this axis).
+__attribute__((always_inline)) inline real brick_exit(real u0, real du, int b, int bricks) {
+  if (du > (real)0 && b + 1 < bricks) return ((real)((b + 1) * IVR_BRICK_SIZE) - u0) / du;
+  if (du < (real)0 && b > 0) return ((real)(b * IVR_BRICK_SIZE) - u0) / du;
+  return (real)INFINITY;
+}
+
+// The index of the first sample (midpoints t0 + (i + 1/2)·dt) past the empty brick that sample
+// i is in; at least i + 1, at most n. Rounding may move a sample on the brick's face to either
+// side: the grid's one-voxel margin keeps both sides' densities in the brick's range.
+__attribute__((always_inline)) inline uint skip_brick(uint i, uint n, real t0, real dt, real u0x,
+                                                      real u0y, real u0z, real dux, real duy,
+                                                      real duz, int bx, int by, int bz,
+                                                      int4 bricks) {
+  const real exit = fmin(brick_exit(u0x, dux, bx, bricks.x),
+                         fmin(brick_exit(u0y, duy, by, bricks.y), brick_exit(u0z, duz, bz, bricks.z)));
+  const real k = ceil((exit - t0) / dt - (real)0.5);
+  return k >= (real)n ? n : max(i + 1, (uint)fmax(k, (real)0));
+}
+
+#endif

@@ -1,0 +1,28 @@
+// empty_space.hpp — the brick occupancy grid behind empty-space skipping: which bricks of cells
+// can hold σ > 0 under the scene's transfer function (kernels/empty_space.cl reads it).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+struct BrickGrid {
+  int size = 8;              // cells per brick edge (IVR_BRICK_SIZE)
+  int nx = 0, ny = 0, nz = 0;  // bricks per axis
+  std::vector<std::uint8_t> occupied;  // x fastest; 0: σ = 0 at every point the brick's rays read
+  double empty_fraction = 0;          // of the bricks
+};
+
+// Whether σ(d) can be non-zero for some density d in [lo, hi] (conservative: true when unsure).
+bool tf_may_absorb(const TransferFunction& tf, double lo, double hi);
+// Whether σ is exactly 0 on some density interval: without one no brick can be empty.
+bool tf_has_empty_range(const TransferFunction& tf);
+
+// Brick b along an axis covers the cells [b·size, (b+1)·size); its min/max density is taken over
+// those cells' corner voxels and one more voxel on each side (so samples that rounding puts a
+// cell past the brick's face are still covered).
+BrickGrid build_brick_grid(const Volume& volume, const TransferFunction& tf, int size = 8);
+
+}  // namespace ivr

@@ -1,0 +1,220 @@
+// empty_space_test.cpp — empty-space skipping: the TF's zero ranges (closed forms), the brick
+// grid covering every cell that can absorb, and renders with skipping equal to renders without
+// (both models, every TF kind with a zero range, f32 and f64, rays along brick faces, cameras
+// inside the volume, the real neghip volume) with fewer samples taken.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "../lib/empty_space.hpp"
+#include "test_support.hpp"
+
+namespace ivr::test {
+namespace {
+
+TransferFunction ramp_with_plateau() {  // σ = 0 up to density 0.2, then rising to 30 at 0.6
+  TransferFunction tf;
+  tf.kind = TfKind::piecewise_linear;
+  tf.points = {{0.0, {0.1, 0.2, 0.3}, 0.0}, {0.2, {0.9, 0.5, 0.1}, 0.0},
+               {0.6, {1.0, 0.9, 0.8}, 30.0}};
+  return tf;
+}
+
+TEST(EmptySpace, TransferFunctionZeroRangesInClosedForm) {
+  const TransferFunction pl = ramp_with_plateau();
+  EXPECT_FALSE(tf_may_absorb(pl, 0.0, 0.19));
+  EXPECT_FALSE(tf_may_absorb(pl, 0.0, 0.0));
+  EXPECT_TRUE(tf_may_absorb(pl, 0.1, 0.21));  // reaches the ramp
+  EXPECT_TRUE(tf_may_absorb(pl, 0.7, 0.9));   // constant beyond the last point
+  EXPECT_TRUE(tf_has_empty_range(pl));
+
+  TransferFunction id;  // σ = 3·d
+  id.extinction_scale = 3;
+  EXPECT_FALSE(tf_may_absorb(id, 0, 0));
+  EXPECT_TRUE(tf_may_absorb(id, 0, 1e-3));
+  EXPECT_TRUE(tf_has_empty_range(id));
+
+  TransferFunction table;  // entries at 0, 0.25, 0.5, 0.75, 1: σ = 0, 0, 0, 5, 5
+  table.kind = TfKind::table;
+  table.entries = {{1, 1, 1, 0}, {1, 1, 1, 0}, {1, 1, 1, 0}, {1, 1, 1, 5}, {1, 1, 1, 5}};
+  EXPECT_FALSE(tf_may_absorb(table, 0.0, 0.2));
+  EXPECT_TRUE(tf_may_absorb(table, 0.4, 0.6));  // the segment 0.5 .. 0.75 rises
+  EXPECT_TRUE(tf_has_empty_range(table));
+
+  TransferFunction gauss;
+  gauss.kind = TfKind::gaussian;
+  gauss.gaussians = {{0.5, 0.1, {1, 1, 1}, 4.0}};
+  EXPECT_TRUE(tf_may_absorb(gauss, 0, 0));  // never exactly 0
+  EXPECT_FALSE(tf_has_empty_range(gauss));
+}
+
+// Every cell whose own corners can absorb lies in an occupied brick (checked cell by cell, from
+// the corners' range, independently of the grid's brick-wise construction).
+TEST(EmptySpace, GridCoversEveryCellThatCanAbsorb) {
+  const Volume v = synthetic_volume("marschner_lobb", 37, 20, 29);
+  const TransferFunction tf = ramp_with_plateau();
+  const BrickGrid g = build_brick_grid(v, tf);
+  EXPECT_EQ(g.nx, (37 - 1) / 8 + 1);
+  EXPECT_EQ(g.ny, (20 - 1) / 8 + 1);
+  EXPECT_EQ(g.nz, (29 - 1) / 8 + 1);
+  int absorbing = 0;
+  for (int z = 0; z < v.nz; ++z)
+    for (int y = 0; y < v.ny; ++y)
+      for (int x = 0; x < v.nx; ++x) {
+        float lo = 1e9f, hi = -1e9f;
+        for (int k = 0; k < 8; ++k) {
+          const float d = v.at(std::min(x + (k & 1), v.nx - 1), std::min(y + (k >> 1 & 1), v.ny - 1),
+                               std::min(z + (k >> 2), v.nz - 1));
+          lo = std::min(lo, d), hi = std::max(hi, d);
+        }
+        if (!tf_may_absorb(tf, lo, hi)) continue;
+        ++absorbing;
+        const std::size_t b = (std::size_t(z / 8) * g.ny + y / 8) * g.nx + x / 8;
+        ASSERT_TRUE(g.occupied[b]) << "cell " << x << "," << y << "," << z;
+      }
+  EXPECT_GT(absorbing, 0);
+}
+
+// A ball of density rising to 1 at the centre in a box of zeros: most bricks empty.
+Scene ball_scene(Model model, TfKind kind, int n = 48) {
+  Scene s;
+  s.volume.nx = s.volume.ny = s.volume.nz = n;
+  s.volume.data.resize(std::size_t(n) * n * n);
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        auto c = [&](int i) { return (i + 0.5) / n - 0.5; };  // in [-0.5, 0.5]
+        const double r = std::sqrt(c(x) * c(x) + c(y) * c(y) + c(z) * c(z)) / 0.3;
+        s.volume.data[(std::size_t(z) * n + y) * n + x] = float(std::max(0.0, 1.0 - r));
+      }
+  set_default_box(s);
+  s.model = model;
+  if (kind == TfKind::piecewise_linear) s.tf = ramp_with_plateau();
+  if (kind == TfKind::identity) s.tf.extinction_scale = 40;
+  if (kind == TfKind::table) {
+    s.tf.kind = TfKind::table;
+    s.tf.entries = {{0, 0, 0, 0}, {0.2, 0.5, 1, 0}, {1, 0.5, 0.2, 25}, {1, 1, 1, 40}};
+  }
+  s.integrator.step = 0.5;
+  return s;
+}
+
+// The cameras that stress the skip: perspective from a corner, axis-aligned orthographic rays
+// along brick faces (x = 8k cells), a camera inside the volume, a grazing diagonal.
+std::vector<Camera> hard_cameras() {
+  std::vector<Camera> c(4);
+  c[0].eye = {1.1, 0.7, 1.6};
+  c[1] = ortho({0, 0, 2}, {0, 1, 0}, 48, 48, 1.0);  // pixel centres on the face planes too
+  c[2].eye = {0.05, -0.1, 0.2};                     // inside the box
+  c[2].target = {0.4, 0.3, -0.3};
+  c[3].eye = {1.5, 1.5, 0.01};
+  for (Camera& cam : c) cam.width = cam.height = 48;
+  return c;
+}
+
+void expect_same_render(const Scene& s, Precision p) {
+  RenderOptions with, without;
+  with.precision = without.precision = p;
+  with.empty_space = EmptySpace::on;
+  without.empty_space = EmptySpace::off;
+  RenderStats a, b;
+  const Image skip = render(device(), s, with, &a);
+  const Image full = render(device(), s, without, &b);
+  ASSERT_TRUE(a.skipped_empty);
+  ASSERT_FALSE(b.skipped_empty);
+  EXPECT_GT(a.empty_fraction, 0.2);
+  EXPECT_LT(double(a.samples), 0.9 * double(b.samples)) << "the skip saves samples";
+  const double tol = p == Precision::f64 ? 1e-12 : 2e-6;
+  double worst = 0;
+  for (std::size_t i = 0; i < skip.pixels.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(skip.pixels[i]));
+    worst = std::max(worst, std::abs(double(skip.pixels[i]) - full.pixels[i]) /
+                                (tol * (1 + std::abs(double(full.pixels[i])))));
+  }
+  EXPECT_LE(worst, 1.0) << name(p) << " " << a.variant;
+}
+
+class EmptySpaceRender : public ::testing::TestWithParam<std::tuple<Model, TfKind>> {};
+
+TEST_P(EmptySpaceRender, EqualsTheRenderWithoutSkipping) {
+  Scene s = ball_scene(std::get<0>(GetParam()), std::get<1>(GetParam()));
+  s.cameras = hard_cameras();
+  expect_same_render(s, Precision::f32);
+  if (device().info().fp64) expect_same_render(s, Precision::f64);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    ModelsAndTfs, EmptySpaceRender,
+    ::testing::Combine(::testing::Values(Model::absorption, Model::emission_absorption),
+                       ::testing::Values(TfKind::identity, TfKind::piecewise_linear,
+                                         TfKind::table)));
+
+TEST(EmptySpace, NoEarlyTerminationAndTinySteps) {
+  Scene s = ball_scene(Model::emission_absorption, TfKind::piecewise_linear);
+  s.cameras = hard_cameras();
+  s.integrator.min_transmittance = 0;
+  s.integrator.step = 0.05;
+  expect_same_render(s, Precision::f32);
+}
+
+// A sharp face just past an empty brick (voxels x <= 9 zero, dense from x = 10), crossed at
+// coarse steps of up to 2.5 voxels: a skip that overshoots by a single sample shows.
+TEST(EmptySpace, CoarseStepsAcrossASharpFace) {
+  Scene s = ball_scene(Model::emission_absorption, TfKind::identity, 32);
+  for (int z = 0; z < 32; ++z)
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x)
+        s.volume.data[(std::size_t(z) * 32 + y) * 32 + x] =
+            x < 10 ? 0.f : float(0.6 + 0.3 * std::sin(0.7 * x + 0.3 * y + 0.2 * z));
+  s.cameras = {ortho({2, 0, 0}, {0, 1, 0}, 24, 24, 1.2), ortho({-2, 0, 0}, {0, 1, 0}, 24, 24, 1.2),
+               hard_cameras()[0]};
+  s.cameras[2].width = s.cameras[2].height = 24;
+  s.integrator.min_transmittance = 0;
+  for (double step : {2.5, 1.3, 0.7}) {
+    s.integrator.step = step;
+    SCOPED_TRACE("step " + std::to_string(step));
+    expect_same_render(s, Precision::f32);
+  }
+}
+
+TEST(EmptySpace, AutomaticChoice) {
+  Scene s = ball_scene(Model::emission_absorption, TfKind::piecewise_linear);
+  s.cameras = {hard_cameras()[0]};
+  RenderStats stats;
+  render(device(), s, {}, &stats);
+  EXPECT_TRUE(stats.skipped_empty) << stats.variant;
+  EXPECT_NE(stats.variant.find("skip=on"), std::string::npos);
+  s.tf.kind = TfKind::gaussian;  // σ > 0 everywhere: no grid, no skip
+  s.tf.gaussians = {{0.5, 0.2, {1, 1, 1}, 10}};
+  stats = {};
+  render(device(), s, {}, &stats);
+  EXPECT_FALSE(stats.skipped_empty);
+  EXPECT_EQ(stats.grid_seconds, 0.0);
+  std::fill(s.volume.data.begin(), s.volume.data.end(), 0.5f);  // nothing empty
+  s.tf = ramp_with_plateau();
+  stats = {};
+  render(device(), s, {}, &stats);
+  EXPECT_FALSE(stats.skipped_empty);
+  EXPECT_EQ(stats.empty_fraction, 0.0);
+}
+
+TEST(EmptySpace, RealNeghipVolume) {
+  const std::string path = std::string(IVR_SHARED_DATA_DIR) + "/neghip_64x64x64_uint8.raw";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "no " << path;
+  Scene s = parse_scene(R"({"volume": {"file": ")" + path +
+                            R"(", "dims": [64, 64, 64], "type": "uint8"},
+      "model": "emission_absorption",
+      "tf": {"type": "piecewise_linear", "points": [
+        {"density": 0.0, "color": [0, 0, 0], "extinction": 0},
+        {"density": 0.15, "color": [0.2, 0.4, 1], "extinction": 0},
+        {"density": 0.5, "color": [1, 0.6, 0.2], "extinction": 60}]},
+      "cameras": [{"eye": [0, 0, 2]}]})",
+                        ".");
+  s.cameras = hard_cameras();
+  expect_same_render(s, Precision::f32);
+}
+
+}  // namespace
+}  // namespace ivr::test

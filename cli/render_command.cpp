@@ -18,6 +18,7 @@ struct RenderArgs {
   std::string scene, output, device, precision = "f32";
   double step = 0;
   bool json = false;
+  std::string empty_space = "auto";
 };
 
 std::string lower_ext(const std::string& path) {
@@ -55,6 +56,10 @@ Runner add_render_command(CLI::App& app) {
       ->check(CLI::IsMember({"f32", "f64"}));
   CLI::Option* step =
       cmd->add_option("--step", args->step, "Integrator step in voxel units (overrides the scene)");
+  cmd->add_option("--empty-space", args->empty_space,
+                  "Empty-space skipping: auto (when the TF is 0 somewhere and >= 5% of the bricks "
+                  "are empty), on or off; the image is the same up to rounding")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   cmd->add_flag("--json", args->json,
                 "Print one JSON object with device, timings and sample counts");
   return [args, step] {
@@ -77,6 +82,9 @@ Runner add_render_command(CLI::App& app) {
     RenderOptions options;
     options.precision = args->precision == "f64" ? Precision::f64 : Precision::f32;
     options.step = args->step;
+    options.empty_space = args->empty_space == "on"    ? EmptySpace::on
+                          : args->empty_space == "off" ? EmptySpace::off
+                                                       : EmptySpace::automatic;
     RenderStats stats;
     const Image image = render(device, scene, options, &stats);
 
@@ -104,6 +112,10 @@ Runner add_render_command(CLI::App& app) {
                             {"build_seconds", stats.build_seconds},
                             {"samples", stats.samples},
                             {"samples_per_second", rate},
+                            {"empty_space",
+                             {{"skipped", stats.skipped_empty},
+                              {"empty_fraction", stats.empty_fraction},
+                              {"grid_seconds", stats.grid_seconds}}},
                             {"outputs", paths}};
       std::cout << out.dump() << "\n";
     } else {

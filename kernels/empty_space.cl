@@ -17,15 +17,18 @@ __attribute__((always_inline)) inline real brick_exit(real u0, real du, int b, i
   return (real)INFINITY;
 }
 
-// The index of the first sample (midpoints t0 + (i + 1/2)·dt) past the empty brick that sample
-// i is in; at least i + 1, at most n. Rounding may move a sample on the brick's face to either
+// The ray parameter at which the ray leaves brick (bx, by, bz).
+__attribute__((always_inline)) inline real brick_leave(real u0x, real u0y, real u0z, real dux,
+                                                       real duy, real duz, int bx, int by, int bz,
+                                                       int4 bricks) {
+  return fmin(brick_exit(u0x, dux, bx, bricks.x),
+              fmin(brick_exit(u0y, duy, by, bricks.y), brick_exit(u0z, duz, bz, bricks.z)));
+}
+
+// The index of the first sample (midpoints t0 + (i + 1/2)·dt) at or past `exit`, where the ray
+// leaves the empty brick that sample i is in; at least i + 1, at most n. Rounding may move a sample on the brick's face to either
 // side: the grid's one-voxel margin keeps both sides' densities in the brick's range.
-__attribute__((always_inline)) inline uint skip_brick(uint i, uint n, real t0, real dt, real u0x,
-                                                      real u0y, real u0z, real dux, real duy,
-                                                      real duz, int bx, int by, int bz,
-                                                      int4 bricks) {
-  const real exit = fmin(brick_exit(u0x, dux, bx, bricks.x),
-                         fmin(brick_exit(u0y, duy, by, bricks.y), brick_exit(u0z, duz, bz, bricks.z)));
+__attribute__((always_inline)) inline uint skip_to(uint i, uint n, real t0, real dt, real exit) {
   const real k = ceil((exit - t0) / dt - (real)0.5);
   return k >= (real)n ? n : max(i + 1, (uint)fmax(k, (real)0));
 }

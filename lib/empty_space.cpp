@@ -71,6 +71,10 @@ bool tf_has_empty_range(const TransferFunction& tf) {
   return false;
 }
 
+int auto_brick_size(const Volume& v) {
+  return std::max(v.nx, std::max(v.ny, v.nz)) <= 128 ? 4 : 8;
+}
+
 BrickGrid build_brick_grid(const Volume& v, const TransferFunction& tf, int size) {
   BrickGrid g;
   g.size = size;

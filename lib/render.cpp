@@ -26,7 +26,8 @@ bool plan_skipping(const Scene& scene, const RenderOptions& options, BrickGrid* 
   if (options.empty_space == EmptySpace::off) return false;
   if (options.empty_space == EmptySpace::automatic && !tf_has_empty_range(scene.tf)) return false;
   const auto start = std::chrono::steady_clock::now();
-  *grid = build_brick_grid(scene.volume, scene.tf);
+  *grid = build_brick_grid(scene.volume, scene.tf,
+                           options.brick_size > 0 ? options.brick_size : auto_brick_size(scene.volume));
   if (stats) {
     stats->empty_fraction = grid->empty_fraction;
     stats->grid_seconds =

@@ -2,13 +2,15 @@
 // grid covering every cell that can absorb, and renders with skipping equal to renders without
 // (both models, every TF kind with a zero range, f32 and f64, rays along brick faces, cameras
 // inside the volume, the real neghip volume) with fewer samples taken.
+#include "../lib/empty_space.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 
-#include "../lib/empty_space.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -17,8 +19,8 @@ namespace {
 TransferFunction ramp_with_plateau() {  // σ = 0 up to density 0.2, then rising to 30 at 0.6
   TransferFunction tf;
   tf.kind = TfKind::piecewise_linear;
-  tf.points = {{0.0, {0.1, 0.2, 0.3}, 0.0}, {0.2, {0.9, 0.5, 0.1}, 0.0},
-               {0.6, {1.0, 0.9, 0.8}, 30.0}};
+  tf.points = {
+      {0.0, {0.1, 0.2, 0.3}, 0.0}, {0.2, {0.9, 0.5, 0.1}, 0.0}, {0.6, {1.0, 0.9, 0.8}, 30.0}};
   return tf;
 }
 
@@ -53,28 +55,35 @@ TEST(EmptySpace, TransferFunctionZeroRangesInClosedForm) {
 // Every cell whose own corners can absorb lies in an occupied brick (checked cell by cell, from
 // the corners' range, independently of the grid's brick-wise construction).
 TEST(EmptySpace, GridCoversEveryCellThatCanAbsorb) {
-  const Volume v = synthetic_volume("marschner_lobb", 37, 20, 29);
-  const TransferFunction tf = ramp_with_plateau();
-  const BrickGrid g = build_brick_grid(v, tf);
-  EXPECT_EQ(g.nx, (37 - 1) / 8 + 1);
-  EXPECT_EQ(g.ny, (20 - 1) / 8 + 1);
-  EXPECT_EQ(g.nz, (29 - 1) / 8 + 1);
-  int absorbing = 0;
-  for (int z = 0; z < v.nz; ++z)
+  Volume v = synthetic_volume("marschner_lobb", 37, 20, 29);
+  for (int z = 0; z < v.nz; ++z)  // an empty slab, so that the grid has empty bricks to get wrong
     for (int y = 0; y < v.ny; ++y)
-      for (int x = 0; x < v.nx; ++x) {
-        float lo = 1e9f, hi = -1e9f;
-        for (int k = 0; k < 8; ++k) {
-          const float d = v.at(std::min(x + (k & 1), v.nx - 1), std::min(y + (k >> 1 & 1), v.ny - 1),
-                               std::min(z + (k >> 2), v.nz - 1));
-          lo = std::min(lo, d), hi = std::max(hi, d);
+      for (int x = 0; x < 17; ++x) v.data[(std::size_t(z) * v.ny + y) * v.nx + x] = 0;
+  const TransferFunction tf = ramp_with_plateau();
+  for (int size : {4, 8}) {
+    const BrickGrid g = build_brick_grid(v, tf, size);
+    EXPECT_EQ(g.nx, (37 - 1) / size + 1);
+    EXPECT_EQ(g.ny, (20 - 1) / size + 1);
+    EXPECT_EQ(g.nz, (29 - 1) / size + 1);
+    int absorbing = 0;
+    for (int z = 0; z < v.nz; ++z)
+      for (int y = 0; y < v.ny; ++y)
+        for (int x = 0; x < v.nx; ++x) {
+          float lo = 1e9f, hi = -1e9f;
+          for (int k = 0; k < 8; ++k) {
+            const float d =
+                v.at(std::min(x + (k & 1), v.nx - 1), std::min(y + (k >> 1 & 1), v.ny - 1),
+                     std::min(z + (k >> 2), v.nz - 1));
+            lo = std::min(lo, d), hi = std::max(hi, d);
+          }
+          if (!tf_may_absorb(tf, lo, hi)) continue;
+          ++absorbing;
+          const std::size_t b = (std::size_t(z / size) * g.ny + y / size) * g.nx + x / size;
+          ASSERT_TRUE(g.occupied[b]) << "cell " << x << "," << y << "," << z << " size " << size;
         }
-        if (!tf_may_absorb(tf, lo, hi)) continue;
-        ++absorbing;
-        const std::size_t b = (std::size_t(z / 8) * g.ny + y / 8) * g.nx + x / 8;
-        ASSERT_TRUE(g.occupied[b]) << "cell " << x << "," << y << "," << z;
-      }
-  EXPECT_GT(absorbing, 0);
+    EXPECT_GT(absorbing, 0);
+    EXPECT_GT(g.empty_fraction, 0.0);
+  }
 }
 
 // A ball of density rising to 1 at the centre in a box of zeros: most bricks empty.
@@ -114,9 +123,10 @@ std::vector<Camera> hard_cameras() {
   return c;
 }
 
-void expect_same_render(const Scene& s, Precision p) {
+void expect_same_render(const Scene& s, Precision p, int brick_size = 0) {
   RenderOptions with, without;
   with.precision = without.precision = p;
+  with.brick_size = brick_size;
   with.empty_space = EmptySpace::on;
   without.empty_space = EmptySpace::off;
   RenderStats a, b;
@@ -172,11 +182,12 @@ TEST(EmptySpace, CoarseStepsAcrossASharpFace) {
                hard_cameras()[0]};
   s.cameras[2].width = s.cameras[2].height = 24;
   s.integrator.min_transmittance = 0;
-  for (double step : {2.5, 1.3, 0.7}) {
-    s.integrator.step = step;
-    SCOPED_TRACE("step " + std::to_string(step));
-    expect_same_render(s, Precision::f32);
-  }
+  for (int brick : {4, 8})
+    for (double step : {2.5, 1.3, 0.7}) {
+      s.integrator.step = step;
+      SCOPED_TRACE("brick " + std::to_string(brick) + " step " + std::to_string(step));
+      expect_same_render(s, Precision::f32, brick);
+    }
 }
 
 TEST(EmptySpace, AutomaticChoice) {
@@ -198,6 +209,35 @@ TEST(EmptySpace, AutomaticChoice) {
   render(device(), s, {}, &stats);
   EXPECT_FALSE(stats.skipped_empty);
   EXPECT_EQ(stats.empty_fraction, 0.0);
+}
+
+TEST(EmptySpace, CommandLine) {
+  const std::string dir = temp_dir("empty_space_cli");
+  Scene s = ball_scene(Model::emission_absorption, TfKind::piecewise_linear, 32);
+  save_npy(dir + "/ball.npy", {32, 32, 32}, s.volume.data.data());
+  const std::string scene = write_file(dir + "/scene.json", R"({"volume": {"file": "ball.npy"},
+      "model": "emission_absorption", "tf": {"type": "piecewise_linear", "points": [
+        {"density": 0.0, "color": [0, 0, 0], "extinction": 0},
+        {"density": 0.2, "color": [0.5, 0.5, 1], "extinction": 0},
+        {"density": 0.6, "color": [1, 0.8, 0.6], "extinction": 30}]},
+      "cameras": [{"eye": [1.1, 0.7, 1.6], "width": 24, "height": 24}]})");
+  std::vector<double> images[2];
+  int k = 0;
+  for (const char* mode : {"on", "off"}) {
+    const CliResult r = run_cli("render " + scene + " -o " + dir + "/" + mode +
+                                ".npy --json --empty-space " + mode);
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["empty_space"]["skipped"].get<bool>(), std::string(mode) == "on") << r.out;
+    images[k++] = load_npy(dir + "/" + mode + ".npy").data;
+  }
+  ASSERT_EQ(images[0].size(), images[1].size());
+  for (std::size_t i = 0; i < images[0].size(); ++i)
+    EXPECT_NEAR(images[0][i], images[1][i], 2e-6 * (1 + std::abs(images[1][i]))) << i;
+  const CliResult bad = run_cli("render " + scene + " -o " + dir + "/x.npy --empty-space maybe");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.err.find("--empty-space"), std::string::npos) << bad.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/x.npy"));
 }
 
 TEST(EmptySpace, RealNeghipVolume) {

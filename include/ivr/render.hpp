@@ -12,8 +12,8 @@ namespace ivr {
 
 enum class Precision { f32, f64 };
 
-// Empty-space skipping: rays jump over bricks of 8³ cells where σ is 0 everywhere (same image
-// up to rounding, fewer samples). automatic: on when the TF is 0 on some density range and at
+// Empty-space skipping: rays jump over bricks of cells where σ is 0 everywhere (same image up
+// to rounding, fewer samples). automatic: on when the TF is 0 on some density range and at
 // least `min_empty_fraction` of the bricks are empty.
 enum class EmptySpace { automatic, on, off };
 
@@ -22,6 +22,7 @@ struct RenderOptions {
   double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
   EmptySpace empty_space = EmptySpace::automatic;
   double min_empty_fraction = 0.05;
+  int brick_size = 0;  // cells per brick edge; 0: 4 for volumes up to 128 voxels across, else 8
 };
 
 // Images of shape (views, height, width, channels), float32, row 0 at the top.

@@ -26,11 +26,39 @@ __attribute__((always_inline)) inline real brick_leave(real u0x, real u0y, real 
 }
 
 // The index of the first sample (midpoints t0 + (i + 1/2)·dt) at or past `exit`, where the ray
-// leaves the empty brick that sample i is in; at least i + 1, at most n. Rounding may move a sample on the brick's face to either
-// side: the grid's one-voxel margin keeps both sides' densities in the brick's range.
+// leaves the empty brick that sample i is in; at least i + 1, at most n. Rounding may move a sample
+// on the brick's face to either side: the grid's one-voxel margin keeps both sides' densities in
+// the brick's range.
 __attribute__((always_inline)) inline uint skip_to(uint i, uint n, real t0, real dt, real exit) {
   const real k = ceil((exit - t0) / dt - (real)0.5);
   return k >= (real)n ? n : max(i + 1, (uint)fmax(k, (real)0));
+}
+
+// Per brick (one work-item each): the min and max density over the voxels its samples read,
+// [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space.hpp), as float pairs.
+__kernel void brick_ranges(__global const real* restrict volume, const int4 dims, const int4 bricks,
+                           __global float* restrict ranges) {
+  const int bx = get_global_id(0), by = get_global_id(1), bz = get_global_id(2);
+  if (bx >= bricks.x || by >= bricks.y || bz >= bricks.z) return;
+  const int x0 = max(bx * IVR_BRICK_SIZE - 1, 0),
+            x1 = min((bx + 1) * IVR_BRICK_SIZE + 1, dims.x - 1);
+  const int y0 = max(by * IVR_BRICK_SIZE - 1, 0),
+            y1 = min((by + 1) * IVR_BRICK_SIZE + 1, dims.y - 1);
+  const int z0 = max(bz * IVR_BRICK_SIZE - 1, 0),
+            z1 = min((bz + 1) * IVR_BRICK_SIZE + 1, dims.z - 1);
+  real lo = (real)INFINITY, hi = -(real)INFINITY;
+  for (int z = z0; z <= z1; ++z)
+    for (int y = y0; y <= y1; ++y) {
+      __global const real* row = volume + ((size_t)z * dims.y + y) * dims.x;
+      for (int x = x0; x <= x1; ++x) {
+        lo = fmin(lo, row[x]);
+        hi = fmax(hi, row[x]);
+      }
+    }
+  const size_t b = ((size_t)bz * bricks.y + by) * bricks.x + bx;
+  // As floats (nearest): the host widens every range by 1e-6 relative before using it.
+  ranges[2 * b] = (float)lo;
+  ranges[2 * b + 1] = (float)hi;
 }
 
 #endif

@@ -133,7 +133,7 @@ inline ivr_status status_of(ivr::Status s) {
 
 // Records an error for this thread and, when known, for the context.
 inline ivr_status fail(ivr_context* context, ivr_status status, const std::string& message,
-                int opencl = 0) {
+                       int opencl = 0) {
   thread_error = message;
   thread_opencl_error = opencl;
   if (context && is_live(context, Kind::context)) context->last_error = message;
@@ -174,7 +174,8 @@ inline ivr_context* context_of(const ivr_transfer_function* t) {
 inline ivr_context* context_of(const ivr_result* r) {
   return r && is_live(r, Kind::result) ? r->context : nullptr;
 }
-inline ivr_context* context_of(const ivr_context* c) {  // the error record is not the context's state
+inline ivr_context* context_of(
+    const ivr_context* c) {  // the error record is not the context's state
   return c && is_live(c, Kind::context) ? const_cast<ivr_context*>(c) : nullptr;
 }
 
@@ -207,8 +208,8 @@ inline ivr::Volume volume_from_memory(const void* data, ivr_dtype dtype, const i
   not_null(shape, "shape");
   for (int i = 0; i < 3; ++i)
     if (shape[i] < 1 || shape[i] > (int64_t(1) << 20))
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "shape[" + std::to_string(i) + "] = " +
-                                                   std::to_string(shape[i]) +
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "shape[" + std::to_string(i) +
+                                                   "] = " + std::to_string(shape[i]) +
                                                    " (each dimension 1 .. 2^20)"};
   ivr::Volume v;
   v.nz = int(shape[0]);

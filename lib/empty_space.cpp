@@ -1,10 +1,12 @@
-// empty_space.cpp — the brick occupancy grid: per-brick density ranges, dilated by one brick,
-// mapped through the transfer function to "σ may be non-zero here".
+// empty_space.cpp — the brick occupancy grid: per-brick density ranges (on the device:
+// kernels/empty_space.cl; here for tests and host use) mapped through the transfer function to
+// "σ may be non-zero here".
 #include "empty_space.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <thread>
 
 namespace ivr {
 
@@ -75,38 +77,61 @@ int auto_brick_size(const Volume& v) {
   return std::max(v.nx, std::max(v.ny, v.nz)) <= 128 ? 4 : 8;
 }
 
-BrickGrid build_brick_grid(const Volume& v, const TransferFunction& tf, int size) {
+BrickGrid brick_layout(const Volume& v, int size) {
   BrickGrid g;
   g.size = size;
-  // Cells are the intervals between voxel centres, indexed by their lower voxel.
-  // (The kernel's cell index runs to n - 1 where it clamps u = n - 1, hence floor, plus one.)
+  // Cells are the intervals between voxel centres, indexed by their lower voxel. (The kernel's
+  // cell index runs to n - 1 where it clamps u = n - 1, hence floor, plus one.)
   auto bricks = [&](int n) { return (std::max(n, 1) - 1) / size + 1; };
   g.nx = bricks(v.nx), g.ny = bricks(v.ny), g.nz = bricks(v.nz);
+  return g;
+}
+
+void occupy_from_ranges(BrickGrid& g, const std::vector<float>& ranges,
+                        const TransferFunction& tf) {
   const std::size_t count = std::size_t(g.nx) * g.ny * g.nz;
-  // Brick b reads the voxels [b·size, (b+1)·size] (corners of its cells); one more voxel on
-  // each side covers samples that rounding puts a cell past the brick's face.
-  g.occupied.assign(count, 0);
+  g.occupied.resize(count);
   std::size_t empty = 0;
+  for (std::size_t b = 0; b < count; ++b) {
+    g.occupied[b] = tf_may_absorb(tf, ranges[2 * b], ranges[2 * b + 1]) ? 1 : 0;
+    empty += g.occupied[b] ? 0 : 1;
+  }
+  g.empty_fraction = double(empty) / double(count);
+}
+
+BrickGrid build_brick_grid(const Volume& v, const TransferFunction& tf, int size) {
+  BrickGrid g = brick_layout(v, size);
+  std::vector<float> ranges(2 * std::size_t(g.nx) * g.ny * g.nz);
   auto span = [&](int b, int n, int* first, int* last) {
     *first = std::max(b * size - 1, 0);
     *last = std::min((b + 1) * size + 1, n - 1);
   };
-  for (int bz = 0; bz < g.nz; ++bz)
-    for (int by = 0; by < g.ny; ++by)
-      for (int bx = 0; bx < g.nx; ++bx) {
-        int x0, x1, y0, y1, z0, z1;
-        span(bx, v.nx, &x0, &x1), span(by, v.ny, &y0, &y1), span(bz, v.nz, &z0, &z1);
-        float lo = std::numeric_limits<float>::infinity(), hi = -lo;
-        for (int z = z0; z <= z1; ++z)
-          for (int y = y0; y <= y1; ++y) {
-            const float* row = v.data.data() + (std::size_t(z) * v.ny + y) * v.nx;
-            for (int x = x0; x <= x1; ++x) lo = std::min(lo, row[x]), hi = std::max(hi, row[x]);
-          }
-        const bool occupied = tf_may_absorb(tf, lo, hi);
-        g.occupied[(std::size_t(bz) * g.ny + by) * g.nx + bx] = occupied ? 1 : 0;
-        empty += occupied ? 0 : 1;
-      }
-  g.empty_fraction = double(empty) / double(count);
+  // Slabs of brick layers on every core (small volumes: one thread).
+  auto layers = [&](int bz_begin, int bz_end) {
+    for (int bz = bz_begin; bz < bz_end; ++bz)
+      for (int by = 0; by < g.ny; ++by)
+        for (int bx = 0; bx < g.nx; ++bx) {
+          int x0, x1, y0, y1, z0, z1;
+          span(bx, v.nx, &x0, &x1), span(by, v.ny, &y0, &y1), span(bz, v.nz, &z0, &z1);
+          float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+          for (int z = z0; z <= z1; ++z)
+            for (int y = y0; y <= y1; ++y) {
+              const float* row = v.data.data() + (std::size_t(z) * v.ny + y) * v.nx;
+              for (int x = x0; x <= x1; ++x) lo = std::min(lo, row[x]), hi = std::max(hi, row[x]);
+            }
+          const std::size_t b = (std::size_t(bz) * g.ny + by) * g.nx + bx;
+          ranges[2 * b] = lo, ranges[2 * b + 1] = hi;
+        }
+  };
+  const int threads = int(
+      std::min<std::size_t>({std::size_t(std::max(1u, std::thread::hardware_concurrency())),
+                             std::size_t(g.nz), std::max<std::size_t>(1, v.voxel_count() >> 18)}));
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t)
+    pool.emplace_back(layers, g.nz * t / threads, g.nz * (t + 1) / threads);
+  layers(0, g.nz / threads);
+  for (std::thread& th : pool) th.join();
+  occupy_from_ranges(g, ranges, tf);
   return g;
 }
 

@@ -9,10 +9,10 @@
 namespace ivr {
 
 struct BrickGrid {
-  int size = 8;              // cells per brick edge (IVR_BRICK_SIZE)
-  int nx = 0, ny = 0, nz = 0;  // bricks per axis
+  int size = 8;                        // cells per brick edge (IVR_BRICK_SIZE)
+  int nx = 0, ny = 0, nz = 0;          // bricks per axis
   std::vector<std::uint8_t> occupied;  // x fastest; 0: σ = 0 at every point the brick's rays read
-  double empty_fraction = 0;          // of the bricks
+  double empty_fraction = 0;           // of the bricks
 };
 
 // Whether σ(d) can be non-zero for some density d in [lo, hi] (conservative: true when unsure).
@@ -22,7 +22,12 @@ bool tf_has_empty_range(const TransferFunction& tf);
 
 // Brick b along an axis covers the cells [b·size, (b+1)·size); its min/max density is taken over
 // those cells' corner voxels and one more voxel on each side (so samples that rounding puts a
-// cell past the brick's face are still covered).
+// cell past the brick's face are still covered). The renderer takes the ranges on the device
+// (kernels/empty_space.cl, brick_ranges); build_brick_grid does the same on the host.
+BrickGrid brick_layout(const Volume& volume, int size);  // sizes only, nothing occupied yet
+// Sets occupied and empty_fraction from per-brick [min, max] pairs (x fastest).
+void occupy_from_ranges(BrickGrid& grid, const std::vector<float>& ranges,
+                        const TransferFunction& tf);
 BrickGrid build_brick_grid(const Volume& volume, const TransferFunction& tf, int size = 8);
 
 // 16 to 32 bricks along the longest edge: 4 cells up to 128 voxels, else 8. (Measured by

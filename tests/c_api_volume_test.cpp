@@ -165,8 +165,7 @@ TEST_F(CApiVolume, ErrorPaths) {
   EXPECT_EQ(ivr_volume_release(v), IVR_OK);
   EXPECT_EQ(ivr_volume_release(v), IVR_OK);
   int64_t out[3];
-  expect_error(ivr_volume_shape(v, out), IVR_ERROR_INVALID_HANDLE,
-               "not a live ivr_volume");
+  expect_error(ivr_volume_shape(v, out), IVR_ERROR_INVALID_HANDLE, "not a live ivr_volume");
   expect_error(ivr_volume_release(v), IVR_ERROR_INVALID_HANDLE, "ivr_volume_release");
   expect_error(ivr_tf_retain(tf), IVR_ERROR_INVALID_HANDLE, "ivr_tf_retain");
   expect_error(ivr_scene_set_volume_handle(scene_, v), IVR_ERROR_INVALID_HANDLE,

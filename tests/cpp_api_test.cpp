@@ -95,7 +95,8 @@ TEST(CppApi, RenderGradientAndJacobianEqualTheCore) {
 
 TEST(CppApi, VolumeAndTransferFunctionHandles) {
   api::Context ctx;
-  const api::Volume ml = ctx.volume_from_json(R"({"synthetic": "marschner_lobb", "dims": [5, 6, 7]})");
+  const api::Volume ml =
+      ctx.volume_from_json(R"({"synthetic": "marschner_lobb", "dims": [5, 6, 7]})");
   EXPECT_EQ(ml.shape(), (std::vector<int64_t>{7, 6, 5}));
   EXPECT_EQ(ml.data().values, synthetic_volume("marschner_lobb", 5, 6, 7).data);
   const std::vector<float> volume = test_volume();
@@ -110,8 +111,11 @@ TEST(CppApi, VolumeAndTransferFunctionHandles) {
   expect_throw([&] { ctx.tf_from_json(R"({"type": "table"})"); }, IVR_ERROR_INVALID_ARGUMENT,
                "entries");
   api::Context other;
-  expect_throw([&] { scene.set_volume(other.volume(volume, {4, 5, 6})); },
-               IVR_ERROR_WRONG_CONTEXT, "another context");
+  expect_throw(
+      [&] {
+        scene.set_volume(other.volume(volume, {4, 5, 6}));
+      },
+      IVR_ERROR_WRONG_CONTEXT, "another context");
 }
 
 TEST(CppApi, CopiesShareTheHandleAndKeepItAlive) {
@@ -120,7 +124,7 @@ TEST(CppApi, CopiesShareTheHandleAndKeepItAlive) {
     api::Context ctx;
     api::Scene scene = ctx.scene_from_json(kSceneText);
     scene.set_volume(test_volume(), {4, 5, 6});
-    copy = scene;                       // retains
+    copy = scene;                         // retains
     api::Scene moved = std::move(scene);  // no retain; `scene` is empty
     EXPECT_FALSE(scene);
     EXPECT_EQ(moved.get(), copy.get());
@@ -138,10 +142,16 @@ TEST(CppApi, ErrorsThrowTheStatusAndMessage) {
                "/nonexistent/scene.json");
   api::Scene scene = ctx.scene_from_json(kSceneText);
   expect_throw([&] { ctx.render(scene); }, IVR_ERROR_INVALID_ARGUMENT, "no volume");
-  expect_throw([&] { scene.set_volume(std::vector<float>(10), {4, 5, 6}); },
-               IVR_ERROR_INVALID_ARGUMENT, "10 values");
-  expect_throw([&] { scene.set_volume(test_volume().data(), {4, 5}); },
-               IVR_ERROR_INVALID_ARGUMENT, "2 dimensions");
+  expect_throw(
+      [&] {
+        scene.set_volume(std::vector<float>(10), {4, 5, 6});
+      },
+      IVR_ERROR_INVALID_ARGUMENT, "10 values");
+  expect_throw(
+      [&] {
+        scene.set_volume(test_volume().data(), {4, 5});
+      },
+      IVR_ERROR_INVALID_ARGUMENT, "2 dimensions");
   scene.set_volume(test_volume(), {4, 5, 6});
   api::GradientOptions o;
   o.wrt = "density,nonsense";
@@ -202,9 +212,9 @@ TEST(CppApi, ReadmeSnippetsAreTheRunExamples) {
   for (const auto& s : snippets) {
     const std::size_t at = section.find(s.fence);
     ASSERT_NE(at, std::string::npos) << s.tag << " snippet";
-    const std::string code = section.substr(at + std::string(s.fence).size(),
-                                            section.find("```", at + 3) - at -
-                                                std::string(s.fence).size());
+    const std::string code =
+        section.substr(at + std::string(s.fence).size(),
+                       section.find("```", at + 3) - at - std::string(s.fence).size());
     const std::string example = read_text(root + s.example);
     const std::string marked = between(example, std::string("README: ") + s.tag + " begin",
                                        std::string("README: ") + s.tag + " end");

@@ -190,6 +190,43 @@ TEST(EmptySpace, CoarseStepsAcrossASharpFace) {
     }
 }
 
+// The renderer's grid, with brick ranges taken by the device's kernel or on the host, empties as
+// many bricks as build_brick_grid; and the renders agree.
+TEST(EmptySpace, DeviceGridMatchesTheHostGrid) {
+  Scene s = ball_scene(Model::absorption, TfKind::piecewise_linear, 41);
+  s.cameras = {hard_cameras()[0]};
+  for (const char* where : {"device", "host"})
+    for (int size : {4, 8})
+      for (Precision p : {Precision::f32, Precision::f64}) {
+        if (p == Precision::f64 && !device().info().fp64) continue;
+        RenderOptions o;
+        o.precision = p;
+        o.brick_size = size;
+        o.empty_space = EmptySpace::on;
+        RenderStats stats;
+        const ScopedEnv env("IVR_GRID", where);
+        render(device(), s, o, &stats);
+        EXPECT_EQ(stats.empty_fraction, build_brick_grid(s.volume, s.tf, size).empty_fraction)
+            << where << " size " << size << " " << name(p);
+        EXPECT_GT(stats.empty_fraction, 0.2);
+      }
+}
+
+TEST(EmptySpace, BadGridSetting) {
+  Scene s = ball_scene(Model::absorption, TfKind::piecewise_linear, 16);
+  s.cameras = {hard_cameras()[0]};
+  const ScopedEnv env("IVR_GRID", "gpu");
+  RenderOptions o;
+  o.empty_space = EmptySpace::on;
+  try {
+    render(device(), s, o);
+    ADD_FAILURE() << "IVR_GRID=gpu accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("IVR_GRID must be host or device"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(EmptySpace, AutomaticChoice) {
   Scene s = ball_scene(Model::emission_absorption, TfKind::piecewise_linear);
   s.cameras = {hard_cameras()[0]};

@@ -2,9 +2,8 @@
 // rendered, then d mse / d (density, TF) against a darker copy of the image. No arguments.
 #include <cmath>
 #include <iostream>
-#include <vector>
-
 #include <ivr/ivr.hpp>
+#include <vector>
 
 static const char* scene_json = R"({
   "model": "emission_absorption",
@@ -26,14 +25,14 @@ int main() try {
       }
 
   // README: C++ begin
-  ivr::api::Context ctx;                                  // $IVR_DEVICE, else a GPU, else the first
+  ivr::api::Context ctx;  // $IVR_DEVICE, else a GPU, else the first
   ivr::api::Scene scene = ctx.scene_from_json(scene_json);  // DESIGN.md's JSON
-  scene.set_volume(volume, {n, n, n});                    // (nz, ny, nx), copied
-  ivr::api::Array<float> image = ctx.render(scene);       // shape (views, H, W, C)
+  scene.set_volume(volume, {n, n, n});                      // (nz, ny, nx), copied
+  ivr::api::Array<float> image = ctx.render(scene);         // shape (views, H, W, C)
 
   std::vector<float> target = image.values;
   for (float& v : target) v *= 0.9f;
-  ivr::api::GradientOptions options;                      // f32, mse, auto mode
+  ivr::api::GradientOptions options;  // f32, mse, auto mode
   options.wrt = "density,tf";
   ivr::api::Result g = ctx.gradient(scene, target, options);
   ivr::api::Array<double> d_density = g.array("density");  // (nz, ny, nx)

@@ -66,10 +66,16 @@ inline size_t product(const std::vector<int64_t>& shape) {
 }  // namespace detail
 
 enum class Precision { f32 = IVR_PRECISION_F32, f64 = IVR_PRECISION_F64 };
-enum class Mode { automatic = IVR_MODE_AUTO, forward = IVR_MODE_FORWARD, adjoint = IVR_MODE_ADJOINT };
+enum class Mode {
+  automatic = IVR_MODE_AUTO,
+  forward = IVR_MODE_FORWARD,
+  adjoint = IVR_MODE_ADJOINT
+};
 enum class Loss { mse = IVR_LOSS_MSE, l1 = IVR_LOSS_L1 };
 
-inline int version() { return ivr_version(); }
+inline int version() {
+  return ivr_version();
+}
 
 // A dense float array with its shape (C order).
 template <typename T>
@@ -173,9 +179,9 @@ class Scene : public detail::Handle<ivr_scene, ivr_scene_retain, ivr_scene_relea
   }
   void set_volume(const void* data, ivr_dtype dtype, const std::vector<int64_t>& shape) {
     if (shape.size() != 3)
-      throw Exception(IVR_ERROR_INVALID_ARGUMENT,
-                      "set_volume: shape has " + std::to_string(shape.size()) +
-                          " dimensions (nz, ny, nx expected)");
+      throw Exception(IVR_ERROR_INVALID_ARGUMENT, "set_volume: shape has " +
+                                                      std::to_string(shape.size()) +
+                                                      " dimensions (nz, ny, nx expected)");
     detail::check(ivr_scene_set_volume(get(), data, dtype, shape.data()));
   }
   // Copies a volume or transfer function of the same context into the scene.

@@ -14,8 +14,8 @@
 #include "bench_support.hpp"
 #include "ivr/core.hpp"
 
-using nlohmann::json;
 using ivr::bench::median;
+using nlohmann::json;
 
 namespace {
 
@@ -28,7 +28,8 @@ const char* kTf = R"({"type": "piecewise_linear", "points": [
 
 ivr::Scene scene_with(const std::string& volume_json, int image) {
   ivr::Scene s = ivr::parse_scene(R"({"volume": )" + volume_json + R"(, "model":
-      "emission_absorption", "tf": )" + kTf + R"(, "cameras": [{"eye": [1.2, 0.7, 1.5]},
+      "emission_absorption", "tf": )" +
+                                      kTf + R"(, "cameras": [{"eye": [1.2, 0.7, 1.5]},
       {"eye": [-1.6, 0.3, -0.4]}], "integrator": {"min_transmittance": 0}})",
                                   ".");
   for (ivr::Camera& c : s.cameras) c.width = c.height = image;
@@ -122,8 +123,10 @@ int main(int argc, char** argv) {
     const std::pair<const char*, std::string> real[] = {
         {"headsq", R"({"file": "headsq_64x64x93_int16le.raw", "dims": [64, 64, 93],
             "type": "int16", "endian": "little", "range": [0, 4095], "spacing": [3.2, 3.2, 1.5]})"},
-        {"neghip", R"({"file": "neghip_64x64x64_uint8.raw", "dims": [64, 64, 64], "type": "uint8"})"},
-        {"tooth", R"({"file": "tooth_103x94x161_uint8.raw", "dims": [103, 94, 161], "type": "uint8"})"},
+        {"neghip",
+         R"({"file": "neghip_64x64x64_uint8.raw", "dims": [64, 64, 64], "type": "uint8"})"},
+        {"tooth",
+         R"({"file": "tooth_103x94x161_uint8.raw", "dims": [103, 94, 161], "type": "uint8"})"},
         {"c60", R"({"file": "C60Large_128x128x128_uint8.cvol"})"},
         {"mni152", R"({"file": "mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz"})"}};
     for (const auto& [name, volume] : real) {
@@ -145,8 +148,7 @@ int main(int argc, char** argv) {
     json rows = json::array(), summary = json::array();
     for (const auto& [name, scene] : scenes) {
       const std::vector<float> reference =
-          ivr::render(device, scene, {ivr::Precision::f64, ref_step, ivr::EmptySpace::off})
-              .pixels;
+          ivr::render(device, scene, {ivr::Precision::f64, ref_step, ivr::EmptySpace::off}).pixels;
       for (const Integrator& integ : integrators) {
         std::vector<std::pair<double, double>> curve;
         for (double step : steps) {

@@ -2,7 +2,8 @@
 // the real volumes with large empty regions (neghip 54 % zeros, MNI152 78 %) and on the
 // benchmarks' Marschner–Lobb scene (no empty bricks: what automatic costs there). Medians of
 // interleaved repeats, samples, empty-brick fraction, grid build time, and the largest pixel
-// difference between the two renders. Prints one JSON document.
+// difference between the two renders; then the adjoint gradient (d mse / d density) with and
+// without skipping. Prints one JSON document.
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <filesystem>
@@ -14,9 +15,9 @@
 #include "bench_support.hpp"
 #include "ivr/core.hpp"
 
-using nlohmann::json;
 using ivr::bench::median;
 using ivr::bench::wall_seconds;
+using nlohmann::json;
 
 namespace {
 
@@ -31,7 +32,8 @@ ivr::Scene real_scene(const std::string& volume_json, double threshold, int imag
   tf.replace(tf.find("%T"), 2, std::to_string(threshold));
   tf.replace(tf.find("%U"), 2, std::to_string(threshold + 0.4));
   ivr::Scene s = ivr::parse_scene(R"({"volume": )" + volume_json + R"(, "model":
-      "emission_absorption", "tf": )" + tf + R"(, "cameras": [{"eye": [1.2, 0.7, 1.5]},
+      "emission_absorption", "tf": )" +
+                                      tf + R"(, "cameras": [{"eye": [1.2, 0.7, 1.5]},
       {"eye": [-1.6, 0.3, -0.4]}]})",
                                   ".");
   for (ivr::Camera& c : s.cameras) c.width = c.height = image;
@@ -85,8 +87,7 @@ int main(int argc, char** argv) {
           k_on.push_back(s_on.kernel_seconds);
           w_off.push_back(wall_seconds([&] { i_off = ivr::render(device, c.scene, off, &s_off); }));
           k_off.push_back(s_off.kernel_seconds);
-          w_auto.push_back(
-              wall_seconds([&] { ivr::render(device, c.scene, automatic, &s_auto); }));
+          w_auto.push_back(wall_seconds([&] { ivr::render(device, c.scene, automatic, &s_auto); }));
         }
         double diff = 0;
         for (std::size_t i = 0; i < i_on.pixels.size(); ++i)
@@ -107,19 +108,51 @@ int main(int argc, char** argv) {
                         {"speedup_kernel", median(k_off) / median(k_on)},
                         {"speedup_total", median(w_off) / median(w_on)},
                         {"max_pixel_difference", diff}};
-        std::cerr << c.name << " step " << step << ": empty " << s_on.empty_fraction
-                  << ", kernel " << 1e3 * median(k_off) << " -> " << 1e3 * median(k_on)
-                  << " ms (" << j["speedup_kernel"].get<double>() << "x), total "
+        std::cerr << c.name << " step " << step << ": empty " << s_on.empty_fraction << ", kernel "
+                  << 1e3 * median(k_off) << " -> " << 1e3 * median(k_on) << " ms ("
+                  << j["speedup_kernel"].get<double>() << "x), total "
                   << j["speedup_total"].get<double>() << "x, auto "
                   << (s_auto.skipped_empty ? "on" : "off") << ", max diff " << diff << "\n";
         configs.push_back(j);
       }
-    const json result = {{"benchmark", "empty_space"},
-                         {"ivr_version", IVR_VERSION_STRING},
-                         {"device", device.info().name},
-                         {"repeats", repeats},
-                         {"statistic", "median"},
-                         {"configs", configs}};
+    // The gradient (d mse / d density, adjoint) with and without skipping, at step 0.5.
+    json gradients = json::array();
+    for (const Case& c : cases) {
+      const ivr::Image target = ivr::bench::perturbed_target(device, c.scene, 0.5);
+      ivr::GradientOptions on, off;
+      on.step = off.step = 0.5;
+      on.empty_space = ivr::EmptySpace::on;
+      off.empty_space = ivr::EmptySpace::off;
+      ivr::Gradient g_on = ivr::gradient(device, c.scene, target, on);  // warm-up, compiles
+      ivr::Gradient g_off = ivr::gradient(device, c.scene, target, off);
+      std::vector<double> k_on, k_off;
+      for (int r = 0; r < repeats; ++r) {
+        g_on = ivr::gradient(device, c.scene, target, on);
+        k_on.push_back(g_on.kernel_seconds);
+        g_off = ivr::gradient(device, c.scene, target, off);
+        k_off.push_back(g_off.kernel_seconds);
+      }
+      double scale = 0, diff = 0;
+      for (std::size_t i = 0; i < g_off.density.size(); ++i) {
+        scale = std::max(scale, double(std::abs(g_off.density[i])));
+        diff = std::max(diff, double(std::abs(g_on.density[i] - g_off.density[i])));
+      }
+      const json j = {{"volume", c.name},
+                      {"step", 0.5},
+                      {"skipped", g_on.skipped_empty},
+                      {"kernel_ms_on", 1e3 * median(k_on)},
+                      {"kernel_ms_off", 1e3 * median(k_off)},
+                      {"speedup_kernel", median(k_off) / median(k_on)},
+                      {"max_difference_relative_to_max", scale > 0 ? diff / scale : 0.0}};
+      std::cerr << c.name << " gradient: " << 1e3 * median(k_off) << " -> " << 1e3 * median(k_on)
+                << " ms (" << j["speedup_kernel"].get<double>() << "x), max diff / max "
+                << j["max_difference_relative_to_max"].get<double>() << "\n";
+      gradients.push_back(j);
+    }
+    const json result = {{"benchmark", "empty_space"},   {"ivr_version", IVR_VERSION_STRING},
+                         {"device", device.info().name}, {"repeats", repeats},
+                         {"statistic", "median"},        {"configs", configs},
+                         {"gradients", gradients}};
     std::cout << result.dump(2) << "\n";
     if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
   } catch (const std::exception& e) {

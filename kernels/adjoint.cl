@@ -7,6 +7,7 @@
 #include "atomics.cl"
 #include "compositing.cl"
 #include "config.cl"
+#include "empty_space.cl"
 #include "geometry.cl"
 #include "geometry_tangent.cl"
 #include "loss.cl"
@@ -100,7 +101,8 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
                       __global real* restrict grad_volume, __global real* restrict grad_tf,
                       __local real* tf_acc, const int tf_acc_size, __global uint* restrict samples,
                       __global const real* restrict camera_params,
-                      __global real* restrict camera_partial, __local real* camera_scratch) {
+                      __global real* restrict camera_partial, __local real* camera_scratch,
+                      __global const uchar* restrict occupied, const int4 bricks) {
   const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
   const bool active = x < width && y < height;  // padding items still meet the barriers
   const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
@@ -137,10 +139,17 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     real transmittance = (real)1, cr = 0, cg = 0, cb = 0;
     real kr = 0, kg = 0, kb = 0;  // compensation (accumulate)
     uint taken = 0;
+    uint end = 0;  // one past the last sample the march took (skipped samples are not taken)
     int segment = 0;
-    for (uint i = 0; i < n; ++i) {
+    for (uint i = 0; i < n;) {
       const real t = t0 + ((real)i + (real)0.5) * dt;
-      const real d = trilinear_at(volume, dims, u0x + t * dux, u0y + t * duy, u0z + t * duz);
+      const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
+#if IVR_SKIP_EMPTY
+      // Only where nothing differentiated can come from (lib/empty_space.hpp,
+      // gradient_may_skip): the adjoint march below skips the same samples.
+      IVR_SKIP_EMPTY_BRICK(i, n, ux, uy, uz)
+#endif
+      const real d = trilinear_at(volume, dims, ux, uy, uz);
       real er, eg, eb;
       const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);
       const real tau = sigma * dt;
@@ -154,6 +163,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
 #endif
       transmittance = attenuate(transmittance, tau, fraction, decay);
       ++taken;
+      end = ++i;
 #if IVR_EARLY_TERMINATION
       if (transmittance < min_transmittance) break;
 #endif
@@ -211,9 +221,12 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     // times dL/dp along the ray, dL/dp along the ray, and dt·dL/d dt through tau and the weights.
     real gpx = 0, gpy = 0, gpz = 0, gtx = 0, gty = 0, gtz = 0, s_mid = 0, s_along = 0, s_dt = 0;
 #endif
-    for (uint i = 0; i < taken; ++i) {
+    for (uint i = 0; i < end;) {
       const real t = t0 + ((real)i + (real)0.5) * dt;
       const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
+#if IVR_SKIP_EMPTY
+      IVR_SKIP_EMPTY_BRICK(i, end, ux, uy, uz)
+#endif
       // The sample's cell and weights, as trilinear_at() clamps and indexes them.
       real fx, fy, fz;
       const int ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
@@ -314,6 +327,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       tf_scatter(d, tf, tf_count, tf_scalars, &seg_scatter, gsigma, ger, geg, geb, &tf_cache,
                  tf_acc);
 #endif
+      ++i;
     }
 #if IVR_GRAD_DENSITY
     if (base >= 0) IVR_EACH_CORNER(IVR_FLUSH);

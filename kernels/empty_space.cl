@@ -34,6 +34,20 @@ __attribute__((always_inline)) inline uint skip_to(uint i, uint n, real t0, real
   return k >= (real)n ? n : max(i + 1, (uint)fmax(k, (real)0));
 }
 
+// In a marching loop `for (uint i = 0; i < n;)` that advances i at the end of its body: when
+// sample i (at voxel coordinates u) lies in an empty brick, jump i to the first sample past it
+// and go on with the loop (`continue`). Samples there add nothing: σ = 0, so no emission and no
+// attenuation. Names the kernel's own dims, occupied, bricks, t0, dt, u0*, du*.
+#define IVR_SKIP_EMPTY_BRICK(i, n, ux, uy, uz)                                                 \
+  {                                                                                            \
+    const int bx_ = brick_axis(ux, dims.x), by_ = brick_axis(uy, dims.y),                      \
+              bz_ = brick_axis(uz, dims.z);                                                    \
+    if (!occupied[(bz_ * bricks.y + by_) * bricks.x + bx_]) {                                  \
+      i = skip_to(i, n, t0, dt, brick_leave(u0x, u0y, u0z, dux, duy, duz, bx_, by_, bz_, bricks)); \
+      continue;                                                                                \
+    }                                                                                          \
+  }
+
 // Per brick (one work-item each): the min and max density over the voxels its samples read,
 // [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space.hpp), as float pairs.
 __kernel void brick_ranges(__global const real* restrict volume, const int4 dims, const int4 bricks,

@@ -42,15 +42,9 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
       const real t = t0 + ((real)i + (real)0.5) * dt;
       const real ux = u0x + t * dux, uy = u0y + t * duy, uz = u0z + t * duz;
 #if IVR_SKIP_EMPTY
-      // Samples in an empty brick add nothing (σ = 0: no emission, no attenuation): jump past.
-      // (Reading the grid at every sample measured faster on PoCL than tracking where the
-      // ray leaves each occupied brick: bench/empty_space_bench.cpp.)
-      const int bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y),
-                bz = brick_axis(uz, dims.z);
-      if (!occupied[(bz * bricks.y + by) * bricks.x + bx]) {
-        i = skip_to(i, n, t0, dt, brick_leave(u0x, u0y, u0z, dux, duy, duz, bx, by, bz, bricks));
-        continue;
-      }
+      // (Reading the grid at every sample measured faster on PoCL than tracking where the ray
+      // leaves each occupied brick: bench/empty_space_bench.cpp.)
+      IVR_SKIP_EMPTY_BRICK(i, n, ux, uy, uz)
 #endif
       const real d = trilinear_at(volume, dims, ux, uy, uz);
       real er, eg, eb;

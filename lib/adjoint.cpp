@@ -6,6 +6,7 @@
 
 #include "device_params.hpp"
 #include "device_scene.hpp"
+#include "empty_space.hpp"
 #include "ivr/gradient.hpp"
 #include "kernel_sources.hpp"
 #include "scene_checks.hpp"
@@ -73,23 +74,50 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
                  "the transfer-function gradient");
   const DeviceScene<Real> dscene(dev, scene);
 
-  const RenderVariant variant = RenderVariant::of(
+  RenderVariant variant = RenderVariant::of(
       scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
   const bool native_atomics = use_float_atomics(dev.info, std::is_same_v<Real, double>);
-  const std::string label = "adjoint.cl [" + variant.label() + (o.tf ? " grad_tf" : "") +
-                            (o.camera ? " grad_camera" : "") +
-                            (native_atomics ? " float_atomics" : "") + "]";
-  std::string preamble = gradient_preamble(variant, o, tf_shape[0]);
-  std::string options = extra_build_options();
-  if (native_atomics) {
-    preamble += "#define IVR_FLOAT_ATOMICS 1\n";
-    options = "-cl-std=" + dev.info.atomics_std + " " + options;
+  auto program_of = [&](const RenderVariant& v) {
+    const std::string label = "adjoint.cl [" + v.label() + (o.tf ? " grad_tf" : "") +
+                              (o.camera ? " grad_camera" : "") +
+                              (native_atomics ? " float_atomics" : "") + "]";
+    std::string preamble = gradient_preamble(v, o, tf_shape[0]);
+    std::string options = extra_build_options();
+    if (native_atomics) {
+      preamble += "#define IVR_FLOAT_ATOMICS 1\n";
+      options = "-cl-std=" + dev.info.atomics_std + " " + options;
+    }
+    return dev.programs.get(dev.context, dev.device, dev.info,
+                            preamble + assemble_kernel("adjoint.cl"), options, label);
+  };
+  // Empty-space skipping where the gradient stays exact (as the render decides, see there).
+  variant.skip_empty = o.empty_space != EmptySpace::off &&
+                       gradient_may_skip(scene.tf, o.tf, o.density || o.camera) &&
+                       (o.empty_space == EmptySpace::on || tf_has_empty_range(scene.tf));
+  if (variant.skip_empty)
+    variant.brick_size = o.brick_size > 0 ? o.brick_size : auto_brick_size(scene.volume);
+  cl::Program program = program_of(variant);
+  BrickGrid grid;
+  double empty_fraction = 0;
+  if (variant.skip_empty) {
+    grid = scene_grid(dev, program, dscene.volume, scene, variant.brick_size);
+    empty_fraction = grid.empty_fraction;
+    if (o.empty_space == EmptySpace::automatic &&
+        grid.empty_fraction < RenderOptions().min_empty_fraction) {
+      variant.skip_empty = false;
+      variant.brick_size = RenderVariant().brick_size;
+      program = program_of(variant);
+    }
   }
-  const cl::Program program = dev.programs.get(
-      dev.context, dev.device, dev.info, preamble + assemble_kernel("adjoint.cl"), options, label);
+  const std::uint8_t none = 0;
+  cl::Buffer occupied =
+      dev.buffer(CL_MEM_READ_ONLY, variant.skip_empty ? grid.occupied.size() : 1,
+                 variant.skip_empty ? grid.occupied.data() : &none, "the occupancy grid");
 
   Gradient g;
   g.atomics = native_atomics ? "cl_ext_float_atomics" : "compare-and-swap";
+  g.skipped_empty = variant.skip_empty;
+  g.empty_fraction = empty_fraction;
   g.device_bytes = dscene.bytes + target_real.size() * sizeof(Real) +
                    pixels * (channels * sizeof(float) + 4 * sizeof(Real) + sizeof(cl_uint)) +
                    (grad_voxels + std::max<std::size_t>(tf_size, 1)) * sizeof(Real);
@@ -135,6 +163,8 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     k.setArg(a++, camera_params);
     k.setArg(a++, camera_partial);
     k.setArg(a++, cl::Local((o.camera ? std::size_t(lx) * ly * 7 : 1) * sizeof(Real)));
+    k.setArg(a++, occupied);
+    k.setArg(a++, cl_int4{{grid.nx, grid.ny, grid.nz, 0}});
     dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
                                    cl::NDRange(lx, ly, 1), nullptr, &done);
     done.wait();

@@ -73,6 +73,12 @@ bool tf_has_empty_range(const TransferFunction& tf) {
   return false;
 }
 
+bool gradient_may_skip(const TransferFunction& tf, bool grad_tf, bool grad_density_or_camera) {
+  if (grad_tf) return false;
+  if (!grad_density_or_camera) return true;
+  return tf.kind == TfKind::piecewise_linear || tf.kind == TfKind::table;
+}
+
 int auto_brick_size(const Volume& v) {
   return std::max(v.nx, std::max(v.ny, v.nz)) <= 128 ? 4 : 8;
 }

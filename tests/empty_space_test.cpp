@@ -293,5 +293,93 @@ TEST(EmptySpace, RealNeghipVolume) {
   expect_same_render(s, Precision::f32);
 }
 
+// Gradients with skipping equal those without, where gradient_may_skip allows it, and skipping is
+// refused where it would change them (TF parameters; density under the identity TF).
+void expect_same_gradient(const Scene& s, GradientOptions o, double tol) {
+  const Image target = [&] {
+    Scene t = s;
+    for (float& d : t.volume.data) d *= 0.93f;
+    return render(device(), t, {o.precision, 0, EmptySpace::off});
+  }();
+  o.empty_space = EmptySpace::on;
+  const Gradient a = gradient(device(), s, target, o);
+  o.empty_space = EmptySpace::off;
+  const Gradient b = gradient(device(), s, target, o);
+  ASSERT_TRUE(a.skipped_empty);
+  ASSERT_FALSE(b.skipped_empty);
+  EXPECT_LT(a.samples, b.samples);
+  EXPECT_NEAR(a.loss, b.loss, tol * b.loss);
+  auto compare = [&](const auto& x, const auto& y, const char* what) {
+    ASSERT_EQ(x.size(), y.size()) << what;
+    double scale = 0;
+    for (std::size_t i = 0; i < y.size(); ++i) scale = std::max(scale, std::abs(double(y[i])));
+    ASSERT_GT(scale, 0) << what << " is all zero: the comparison would be vacuous";
+    for (std::size_t i = 0; i < y.size(); ++i)
+      ASSERT_NEAR(x[i], y[i], tol * (scale + std::abs(double(y[i])))) << what << "[" << i << "]";
+  };
+  if (o.density) compare(a.density, b.density, "density");
+  if (o.background) compare(a.background, b.background, "background");
+  if (o.camera) compare(a.camera, b.camera, "camera");
+}
+
+TEST(EmptySpace, GradientsEqualTheGradientsWithoutSkipping) {
+  for (Model model : {Model::absorption, Model::emission_absorption}) {
+    Scene s = ball_scene(model, TfKind::piecewise_linear, 32);
+    s.cameras = hard_cameras();
+    for (Camera& c : s.cameras) c.width = c.height = 20;
+    GradientOptions o;
+    o.background = o.camera = true;
+    SCOPED_TRACE(model == Model::absorption ? "absorption" : "emission_absorption");
+    expect_same_gradient(s, o, 1e-5);
+    if (device().info().fp64) {
+      o.precision = Precision::f64;
+      expect_same_gradient(s, o, 1e-11);
+    }
+  }
+  // Coarse steps across a sharp face just past an empty brick, under a TF whose zero range is
+  // narrow (so that a sample dropped past the brick would show).
+  Scene s = ball_scene(Model::emission_absorption, TfKind::piecewise_linear, 32);
+  s.tf.points = {
+      {0.0, {0.1, 0.2, 0.3}, 0.0}, {0.01, {0.9, 0.5, 0.1}, 0.0}, {0.6, {1.0, 0.9, 0.8}, 30.0}};
+  for (int z = 0; z < 32; ++z)
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 32; ++x)
+        s.volume.data[(std::size_t(z) * 32 + y) * 32 + x] =
+            x < 10 ? 0.f : float(0.8 + 0.15 * std::sin(0.7 * x + 0.3 * y + 0.2 * z));
+  s.cameras = {ortho({-2, 0, 0}, {0, 1, 0}, 16, 16, 1.2), hard_cameras()[0]};
+  s.cameras[1].eye = {-1.6, 0.2, 0.3};
+  s.cameras[1].width = s.cameras[1].height = 16;
+  s.integrator.min_transmittance = 0;
+  for (int brick : {4, 8})
+    for (double step : {2.5, 1.3, 0.7}) {
+      s.integrator.step = step;
+      SCOPED_TRACE("brick " + std::to_string(brick) + " step " + std::to_string(step));
+      GradientOptions o;
+      o.camera = true;
+      o.brick_size = brick;
+      expect_same_gradient(s, o, 1e-5);
+    }
+}
+
+TEST(EmptySpace, GradientsSkipOnlyWhereExact) {
+  Scene s = ball_scene(Model::emission_absorption, TfKind::piecewise_linear, 24);
+  s.cameras = {hard_cameras()[0]};
+  s.cameras[0].width = s.cameras[0].height = 12;
+  const Image target = render(device(), s, {});
+  auto skipped = [&](const Scene& scene, bool density, bool tf, bool background) {
+    GradientOptions o;
+    o.density = density, o.tf = tf, o.background = background;
+    o.empty_space = EmptySpace::on;
+    return gradient(device(), scene, target, o).skipped_empty;
+  };
+  EXPECT_TRUE(skipped(s, true, false, false));
+  EXPECT_FALSE(skipped(s, true, true, false));  // ∂σ/∂extinction ≠ 0 where σ = 0
+  EXPECT_FALSE(skipped(s, false, true, false));
+  s.tf = TransferFunction{};  // identity: σ' = its scale, also where σ = 0
+  s.tf.extinction_scale = 30;
+  EXPECT_FALSE(skipped(s, true, false, false));
+  EXPECT_TRUE(skipped(s, false, false, true));  // the background needs σ = 0 only
+}
+
 }  // namespace
 }  // namespace ivr::test

@@ -23,6 +23,10 @@ struct GradientOptions {
   bool tf = false;          // d loss / d transfer-function parameters (layout: tf_gradient_shape)
   bool background = false;  // d loss / d background (1 value for absorption, 3 for emission)
   bool camera = false;      // d loss / d [eye xyz, target xyz, fov_y] of every view
+  // Empty-space skipping (as RenderOptions), where it leaves the gradient exact: not with tf,
+  // and with density or camera only for piecewise-linear and table TFs (lib/empty_space.hpp).
+  EmptySpace empty_space = EmptySpace::automatic;
+  int brick_size = 0;
 };
 
 struct Gradient {
@@ -35,6 +39,8 @@ struct Gradient {
   std::uint64_t device_bytes = 0;  // peak device memory of the evaluation (all its buffers)
   std::uint64_t samples = 0;       // density samples of the adjoint march
   std::string atomics;             // the scatter's: "cl_ext_float_atomics" or "compare-and-swap"
+  bool skipped_empty = false;      // empty-space skipping ran
+  double empty_fraction = 0;       // of the bricks, when the grid was built
 };
 
 // Shape of the TF gradient: identity → 1 x 2 (extinction_scale, color_scale); piecewise_linear

@@ -160,10 +160,7 @@ ivr_status ivr_scene_image_shape(const ivr_scene* s, int64_t shape[4]) {
 ivr_status ivr_scene_volume_shape(const ivr_scene* s, int64_t shape[3]) {
   return guarded(context_of(s), "ivr_scene_volume_shape", [&] {
     checked(s, Kind::scene, "scene");
-    not_null(shape, "shape");
-    shape[0] = s->scene.volume.nz;
-    shape[1] = s->scene.volume.ny;
-    shape[2] = s->scene.volume.nx;
+    write_shape(s->scene.volume, not_null(shape, "shape"));
   });
 }
 

@@ -249,6 +249,13 @@ inline const ivr_scene* with_volume(const ivr_scene* s) {
   return s;
 }
 
+// A volume's shape as the C API gives it: (nz, ny, nx).
+inline void write_shape(const ivr::Volume& v, int64_t shape[3]) {
+  shape[0] = v.nz;
+  shape[1] = v.ny;
+  shape[2] = v.nx;
+}
+
 // Hands a new handle to the caller: it holds a reference to its context and is live.
 template <class Handle>
 Handle* publish(std::unique_ptr<Handle> h, ivr_context* context, Kind k) {

@@ -62,10 +62,7 @@ ivr_status ivr_volume_release(ivr_volume* v) {
 ivr_status ivr_volume_shape(const ivr_volume* v, int64_t shape[3]) {
   return guarded(context_of(v), "ivr_volume_shape", [&] {
     checked(v, Kind::volume, "volume");
-    not_null(shape, "shape");
-    shape[0] = v->volume.nz;
-    shape[1] = v->volume.ny;
-    shape[2] = v->volume.nx;
+    write_shape(v->volume, not_null(shape, "shape"));
   });
 }
 

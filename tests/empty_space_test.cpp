@@ -169,15 +169,21 @@ TEST(EmptySpace, NoEarlyTerminationAndTinySteps) {
   expect_same_render(s, Precision::f32);
 }
 
+// Voxels x <= 9 zero, dense from x = 10 on: mean + swing·sin(…).
+void set_sharp_face(Scene& s, double mean, double swing) {
+  const Volume& v = s.volume;
+  for (int z = 0; z < v.nz; ++z)
+    for (int y = 0; y < v.ny; ++y)
+      for (int x = 0; x < v.nx; ++x)
+        s.volume.data[(std::size_t(z) * v.ny + y) * v.nx + x] =
+            x < 10 ? 0.f : float(mean + swing * std::sin(0.7 * x + 0.3 * y + 0.2 * z));
+}
+
 // A sharp face just past an empty brick (voxels x <= 9 zero, dense from x = 10), crossed at
 // coarse steps of up to 2.5 voxels: a skip that overshoots by a single sample shows.
 TEST(EmptySpace, CoarseStepsAcrossASharpFace) {
   Scene s = ball_scene(Model::emission_absorption, TfKind::identity, 32);
-  for (int z = 0; z < 32; ++z)
-    for (int y = 0; y < 32; ++y)
-      for (int x = 0; x < 32; ++x)
-        s.volume.data[(std::size_t(z) * 32 + y) * 32 + x] =
-            x < 10 ? 0.f : float(0.6 + 0.3 * std::sin(0.7 * x + 0.3 * y + 0.2 * z));
+  set_sharp_face(s, 0.6, 0.3);
   s.cameras = {ortho({2, 0, 0}, {0, 1, 0}, 24, 24, 1.2), ortho({-2, 0, 0}, {0, 1, 0}, 24, 24, 1.2),
                hard_cameras()[0]};
   s.cameras[2].width = s.cameras[2].height = 24;
@@ -341,11 +347,7 @@ TEST(EmptySpace, GradientsEqualTheGradientsWithoutSkipping) {
   Scene s = ball_scene(Model::emission_absorption, TfKind::piecewise_linear, 32);
   s.tf.points = {
       {0.0, {0.1, 0.2, 0.3}, 0.0}, {0.01, {0.9, 0.5, 0.1}, 0.0}, {0.6, {1.0, 0.9, 0.8}, 30.0}};
-  for (int z = 0; z < 32; ++z)
-    for (int y = 0; y < 32; ++y)
-      for (int x = 0; x < 32; ++x)
-        s.volume.data[(std::size_t(z) * 32 + y) * 32 + x] =
-            x < 10 ? 0.f : float(0.8 + 0.15 * std::sin(0.7 * x + 0.3 * y + 0.2 * z));
+  set_sharp_face(s, 0.8, 0.15);
   s.cameras = {ortho({-2, 0, 0}, {0, 1, 0}, 16, 16, 1.2), hard_cameras()[0]};
   s.cameras[1].eye = {-1.6, 0.2, 0.3};
   s.cameras[1].width = s.cameras[1].height = 16;

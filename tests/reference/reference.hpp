@@ -34,4 +34,30 @@ std::vector<double> render(const ivr::Scene& scene, double step_world,
 // The smallest voxel edge in world units (the unit of the integrator's step).
 double min_voxel_edge(const ivr::Scene& scene);
 
+// --- High-accuracy references (reference_continuous.cpp) ---------------------------------------
+// Both integrate per ray "pieces" on which the density is a polynomial in t (a cubic between the
+// planes through voxel centres, or a linear profile), split further where the density crosses a
+// knot of a piecewise-linear or table TF, then use 8-point Gauss-Legendre on sub-intervals of
+// optical depth <= 1 (emission-absorption), with the transmittance at each node from the exact
+// spectral integration matrix of the same nodes. Emission-absorption rays stop once exp(-tau)
+// < 1e-300 (the rest contributes nothing representable).
+
+// The continuous integral of DESIGN.md with no step parameter (same layout as render). With
+// early_termination the ray stops exactly where tau reaches -log(min_transmittance): the output
+// then holds transmittance min_transmittance and the emission up to that point. `refinement` > 1
+// subdivides every sub-interval that many times more (for self-convergence checks only).
+std::vector<double> render_continuous(const ivr::Scene& scene, bool early_termination = false,
+                                      int refinement = 1);
+
+// The exact optical depth int sigma(d(t)) dt along the ray origin + t*dir, t >= 0 (dir is
+// normalised here, so t is in world units).
+double optical_depth(const ivr::Scene& scene, glm::dvec3 origin, glm::dvec3 dir);
+
+// The definition of the `preintegrated` integrator: each ray clipped to the box [t0, t1] is cut
+// into n = max(1, ceil((t1 - t0) / step_world)) equal segments; the densities at their ends come
+// from `density` (at points clamped into the closed box, which they lie in but for rounding); on
+// each segment the density is taken linear between its ends and the optical model is integrated
+// exactly (to ~1e-13) along that profile through the TF. No early termination.
+std::vector<double> render_linear_segments(const ivr::Scene& scene, double step_world);
+
 }  // namespace ivr::reference

@@ -94,7 +94,14 @@ void write_outputs(const std::vector<Output>& outputs) {
 void add_march_options(CLI::App* cmd, MarchOptions& o) {
   cmd->add_option("--precision", o.precision, "Arithmetic precision: f32 (default) or f64");
   o.step_option =
-      cmd->add_option("--step", o.step, "Integrator step in voxel units (overrides the scene)");
+      cmd->add_option("--step", o.step,
+                      "Integrator step in voxel units (overrides the scene's step and tolerance)");
+  cmd->add_option("--scheme", o.scheme,
+                  "Integrator: midpoint, trapezoid, exact (absorption) or preintegrated "
+                  "(overrides the scene)");
+  o.tolerance_option = cmd->add_option(
+      "--tolerance", o.tolerance,
+      "Choose the step for this relative RMS image error (overrides the scene's tolerance)");
   cmd->add_option("--device", o.device,
                   "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
 }
@@ -104,7 +111,19 @@ Precision checked_precision(const MarchOptions& o) {
     throw input_error("--precision: unknown precision '" + o.precision + "' (known: f32, f64)");
   if (o.step_option && o.step_option->count() > 0 && !(o.step > 0 && std::isfinite(o.step)))
     throw input_error("--step must be > 0, got " + std::to_string(o.step));
+  if (o.tolerance_option && o.tolerance_option->count() > 0 &&
+      !(o.tolerance > 0 && std::isfinite(o.tolerance)))
+    throw input_error("--tolerance must be > 0, got " + std::to_string(o.tolerance));
+  if (!o.scheme.empty()) parse_scheme(o.scheme, "--scheme");
   return o.precision == "f64" ? Precision::f64 : Precision::f32;
+}
+
+Scene with_integrator(Scene scene, const MarchOptions& o) {
+  if (!o.scheme.empty()) scene.integrator.scheme = parse_scheme(o.scheme, "--scheme");
+  if (o.tolerance_option && o.tolerance_option->count() > 0)
+    scene.integrator.tolerance = o.tolerance;
+  validate(scene);
+  return scene;
 }
 
 void check_output_folder(const std::string& path_or_prefix) {

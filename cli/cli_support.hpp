@@ -33,15 +33,19 @@ struct Output {
 // failure leaves none of them behind.
 void write_outputs(const std::vector<Output>& outputs);
 
-// The options of the marching commands (grad, jacobian): --precision, --step, --device.
+// The options of the marching commands (render, grad, jacobian): --precision, --step, --scheme,
+// --tolerance, --device.
 struct MarchOptions {
-  std::string precision = "f32", device;
-  double step = 0;
+  std::string precision = "f32", device, scheme;
+  double step = 0, tolerance = 0;
   CLI::Option* step_option = nullptr;
+  CLI::Option* tolerance_option = nullptr;
 };
 void add_march_options(CLI::App* cmd, MarchOptions& options);
 // Checks them before any work (one-line errors); returns the precision.
 Precision checked_precision(const MarchOptions& options);
+// The scene with --scheme and --tolerance applied (--step is passed to the operations).
+Scene with_integrator(Scene scene, const MarchOptions& options);
 
 // The folder of an output path or prefix must exist (checked before any work).
 void check_output_folder(const std::string& path_or_prefix);

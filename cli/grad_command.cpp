@@ -74,7 +74,7 @@ Runner add_grad_command(CLI::App& app) {
     if (args->loss != "mse" && args->loss != "l1")
       throw input_error("--loss: unknown loss '" + args->loss + "' (known: mse, l1)");
     const Precision precision = checked_precision(args->march);
-    const Scene scene = load_scene(args->scene);
+    const Scene scene = with_integrator(load_scene(args->scene), args->march);
     const Image target = load_target(args->target, scene);
     Device device(args->march.device);
     options.precision = precision;
@@ -107,6 +107,8 @@ Runner add_grad_command(CLI::App& app) {
                             {"device_bytes", d.device_bytes},
                             {"device", device.info().name},
                             {"precision", args->march.precision},
+                            {"scheme", scheme_name(scene.integrator.scheme)},
+                            {"step", d.step},
                             {"plan",
                              {{"forward_seconds", seconds(d.plan.forward_seconds)},
                               {"adjoint_seconds", seconds(d.plan.adjoint_seconds)},

@@ -50,7 +50,7 @@ Runner add_jacobian_command(CLI::App& app) {
   return [args] {
     check_output_folder(args->output);
     const Precision precision = checked_precision(args->march);
-    const Scene scene = load_scene(args->scene);
+    const Scene scene = with_integrator(load_scene(args->scene), args->march);
     nlohmann::json groups = nlohmann::json::array();
     const std::vector<Parameter> params = jacobian_parameters(scene, args->wrt, &groups);
     const Camera& cam = scene.cameras.front();
@@ -81,6 +81,8 @@ Runner add_jacobian_command(CLI::App& app) {
                                   {"device_bytes", t.device_bytes},
                                   {"device", device.info().name},
                                   {"precision", args->march.precision},
+                                  {"scheme", scheme_name(scene.integrator.scheme)},
+                                  {"step", t.step},
                                   {"outputs", {args->output}}}
                        .dump()
                 << "\n";

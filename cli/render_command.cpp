@@ -5,6 +5,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "cli_support.hpp"
 #include "commands.hpp"
 #include "ivr/core.hpp"
 
@@ -15,8 +16,8 @@ namespace ivr::cli {
 namespace {
 
 struct RenderArgs {
-  std::string scene, output, device, precision = "f32";
-  double step = 0;
+  std::string scene, output;
+  MarchOptions march;
   bool json = false;
   std::string empty_space = "auto";
 };
@@ -50,19 +51,14 @@ Runner add_render_command(CLI::App& app) {
                   "Output: .npy (views, H, W, C) float32, or .png/.exr/.tif (one file per view: "
                   "OUT_<v>.ext)")
       ->required();
-  cmd->add_option("--device", args->device,
-                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
-  cmd->add_option("--precision", args->precision, "Arithmetic precision")
-      ->check(CLI::IsMember({"f32", "f64"}));
-  CLI::Option* step =
-      cmd->add_option("--step", args->step, "Integrator step in voxel units (overrides the scene)");
+  add_march_options(cmd, args->march);
   cmd->add_option("--empty-space", args->empty_space,
                   "Empty-space skipping: auto (when the TF is 0 somewhere and >= 5% of the bricks "
                   "are empty), on or off; the image is the same up to rounding")
       ->check(CLI::IsMember({"auto", "on", "off"}));
   cmd->add_flag("--json", args->json,
                 "Print one JSON object with device, timings and sample counts");
-  return [args, step] {
+  return [args] {
     // Check the output name before any work, so that a bad name wastes nothing and writes nothing.
     const std::string ext = lower_ext(args->output);
     if (ext != ".npy" && ext != ".png" && ext != ".exr" && ext != ".tif" && ext != ".tiff")
@@ -73,15 +69,13 @@ Runner add_render_command(CLI::App& app) {
         fs::path(args->output).has_parent_path() ? fs::path(args->output).parent_path() : ".";
     if (!fs::is_directory(folder))
       throw Error(Status::io, "output folder '" + folder.string() + "' does not exist");
-    if (step->count() > 0 && !(args->step > 0 && std::isfinite(args->step)))
-      throw Error(Status::invalid_argument,
-                  "--step must be > 0, got " + std::to_string(args->step));
+    const Precision precision = checked_precision(args->march);
 
-    const Scene scene = load_scene(args->scene);
-    Device device(args->device);
+    const Scene scene = with_integrator(load_scene(args->scene), args->march);
+    Device device(args->march.device);
     RenderOptions options;
-    options.precision = args->precision == "f64" ? Precision::f64 : Precision::f32;
-    options.step = args->step;
+    options.precision = precision;
+    options.step = args->march.step;
     options.empty_space = args->empty_space == "on"    ? EmptySpace::on
                           : args->empty_space == "off" ? EmptySpace::off
                                                        : EmptySpace::automatic;
@@ -101,13 +95,14 @@ Runner add_render_command(CLI::App& app) {
       nlohmann::json out = {{"device", d.name},
                             {"platform", d.platform},
                             {"device_type", d.type},
-                            {"precision", args->precision},
+                            {"precision", args->march.precision},
                             {"variant", stats.variant},
                             {"views", image.views},
                             {"width", image.width},
                             {"height", image.height},
                             {"channels", image.channels},
-                            {"step", options.step > 0 ? options.step : scene.integrator.step},
+                            {"scheme", stats.scheme},
+                            {"step", stats.step},
                             {"kernel_seconds", stats.kernel_seconds},
                             {"build_seconds", stats.build_seconds},
                             {"samples", stats.samples},
@@ -117,6 +112,10 @@ Runner add_render_command(CLI::App& app) {
                               {"empty_fraction", stats.empty_fraction},
                               {"grid_seconds", stats.grid_seconds}}},
                             {"outputs", paths}};
+      if (scene.integrator.tolerance > 0 && options.step == 0)
+        out["tolerance"] = {{"requested", scene.integrator.tolerance},
+                            {"estimated_error", stats.estimated_error},
+                            {"seconds", stats.step_seconds}};
       std::cout << out.dump() << "\n";
     } else {
       std::cout << "rendered " << image.views << " view(s) of " << image.width << "x"

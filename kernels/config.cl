@@ -11,9 +11,21 @@
 #define IVR_TF_TABLE 2
 #define IVR_TF_GAUSSIAN 3
 
+// Integrators (ivr::Scheme, in its order).
+#define IVR_SCHEME_MIDPOINT 0
+#define IVR_SCHEME_TRAPEZOID 1
+#define IVR_SCHEME_EXACT 2
+#define IVR_SCHEME_PREINTEGRATED 3
+
 #ifndef IVR_MODEL
 #define IVR_MODEL IVR_MODEL_EMISSION_ABSORPTION
 #endif
+#ifndef IVR_SCHEME
+#define IVR_SCHEME IVR_SCHEME_MIDPOINT
+#endif
+// Samples at segment ends (t0 + i·dt, i = 0..n) rather than midpoints.
+#define IVR_ENDPOINT_SAMPLES \
+  (IVR_SCHEME == IVR_SCHEME_TRAPEZOID || IVR_SCHEME == IVR_SCHEME_PREINTEGRATED)
 #ifndef IVR_TF
 #define IVR_TF IVR_TF_PIECEWISE_LINEAR
 #endif

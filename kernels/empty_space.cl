@@ -1,8 +1,9 @@
-// empty_space.cl — empty-space skipping: the brick a sample reads, and where the ray leaves it
-// (lib/empty_space.cpp builds the occupancy grid on the host).
+// empty_space.cl — empty-space skipping: the brick a sample reads, where the ray leaves it, and
+// the brick ranges behind the occupancy grid (lib/empty_space.cpp maps them through the TF).
 #ifndef IVR_EMPTY_SPACE_CL
 #define IVR_EMPTY_SPACE_CL
 #include "config.cl"
+#include "march.cl"
 
 // The brick of the cell that trilinear_at() reads at u (clamped as there).
 __attribute__((always_inline)) inline int brick_axis(real u, int n) {
@@ -25,28 +26,35 @@ __attribute__((always_inline)) inline real brick_leave(real u0x, real u0y, real 
               fmin(brick_exit(u0y, duy, by, bricks.y), brick_exit(u0z, duz, bz, bricks.z)));
 }
 
-// The index of the first sample (midpoints t0 + (i + 1/2)·dt) at or past `exit`, where the ray
-// leaves the empty brick that sample i is in; at least i + 1, at most n. Rounding may move a sample
-// on the brick's face to either side: the grid's one-voxel margin keeps both sides' densities in
-// the brick's range.
+// Where voxel coordinates u lie in an empty brick, the ray parameter at which the ray leaves
+// that brick (+inf where it never does); -1 where the brick is occupied.
+__attribute__((always_inline)) inline real empty_brick_exit(real ux, real uy, real uz,
+                                                            const March* m, int4 dims,
+                                                            __global const uchar* occupied,
+                                                            int4 bricks) {
+  const int bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y), bz = brick_axis(uz, dims.z);
+  if (occupied[(bz * bricks.y + by) * bricks.x + bx]) return (real)-1;
+  return brick_leave(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, bx, by, bz, bricks);
+}
+
+// Midpoint samples t0 + (i + 1/2)·dt: the first one at or past `exit`, where the ray leaves the
+// empty brick that sample i is in; at least i + 1, at most n. Rounding may move a sample on the
+// brick's face to either side: the grid's one-voxel margin keeps both sides' densities in the
+// brick's range.
 __attribute__((always_inline)) inline uint skip_to(uint i, uint n, real t0, real dt, real exit) {
   const real k = ceil((exit - t0) / dt - (real)0.5);
   return k >= (real)n ? n : max(i + 1, (uint)fmax(k, (real)0));
 }
 
-// In a marching loop `for (uint i = 0; i < n;)` that advances i at the end of its body: when
-// sample i (at voxel coordinates u) lies in an empty brick, jump i to the first sample past it
-// and go on with the loop (`continue`). Samples there add nothing: σ = 0, so no emission and no
-// attenuation. Names the kernel's own dims, occupied, bricks, t0, dt, u0*, du*.
-#define IVR_SKIP_EMPTY_BRICK(i, n, ux, uy, uz)                                                 \
-  {                                                                                            \
-    const int bx_ = brick_axis(ux, dims.x), by_ = brick_axis(uy, dims.y),                      \
-              bz_ = brick_axis(uz, dims.z);                                                    \
-    if (!occupied[(bz_ * bricks.y + by_) * bricks.x + bx_]) {                                  \
-      i = skip_to(i, n, t0, dt, brick_leave(u0x, u0y, u0z, dux, duy, duz, bx_, by_, bz_, bricks)); \
-      continue;                                                                                \
-    }                                                                                          \
-  }
+// End samples t0 + i·dt: the last one before `exit`, where the ray leaves the empty brick that
+// sample i is in (at least i, at most n). Every segment between sample i and it has both ends in
+// that brick, so its densities, and any density between them, lie in the brick's range, where
+// σ = 0: the segments add nothing, whatever the integrator does between its ends.
+__attribute__((always_inline)) inline uint last_sample_before(uint i, uint n, real t0, real dt,
+                                                              real exit) {
+  const real k = ceil((exit - t0) / dt) - (real)1;
+  return k >= (real)n ? n : max(i, (uint)fmax(k, (real)0));
+}
 
 // Per brick (one work-item each): the min and max density over the voxels its samples read,
 // [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space.hpp), as float pairs.

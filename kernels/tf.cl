@@ -108,4 +108,130 @@ inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, r
   return sigma;
 }
 
+// --- The TF as linear pieces in density (identity, piecewise-linear and table TFs) ---------------
+// `exact` and `preintegrated` integrate through the TF exactly, so they cut the density range at
+// the TF's knots (control points, table entries): between consecutive knots σ and the colour are
+// linear in density. Interval j ∈ [-1, K - 1] holds the densities [knot_j, knot_j+1) (-1: below
+// the first knot, K - 1: at or above the last, where the TF is constant). The identity TF (σ = a·d,
+// colour = b·d) is one linear piece: K = 0, interval -1.
+
+inline int tf_knots(int count) {
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+  return count;
+#else
+  return 0;
+#endif
+}
+
+inline real tf_knot(int k, __global const real* tf, int count, real4 scalars) {
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  return tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+#elif IVR_TF == IVR_TF_TABLE
+  return count > 1 ? scalars.x + (scalars.y - scalars.x) * (real)k / (real)(count - 1) : scalars.x;
+#else
+  return (real)0;
+#endif
+}
+
+// The interval holding density x (knot_j <= x < knot_j+1). *cursor: as tf_sample's search cursor.
+inline int tf_interval(real x, __global const real* tf, int count, real4 scalars, int* cursor) {
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  if (x < tf[0]) return -1;
+  if (x >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) return count - 1;
+  int k = max(*cursor, 0);
+  while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > x) --k;
+  while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= x) ++k;
+  *cursor = k;
+  return k;
+#elif IVR_TF == IVR_TF_TABLE
+  if (x < scalars.x) return -1;
+  if (x >= scalars.y || count < 2) return count - 1;
+  const int j = (int)((x - scalars.x) / (scalars.y - scalars.x) * (real)(count - 1));
+  // Rounding may put x a knot off; the knots themselves decide.
+  int k = clamp(j, 0, count - 2);
+  if (tf_knot(k, tf, count, scalars) > x)
+    --k;
+  else if (tf_knot(k + 1, tf, count, scalars) <= x)
+    ++k;
+  return clamp(k, -1, count - 1);
+#else
+  (void)x, (void)tf, (void)count, (void)scalars, (void)cursor;
+  return -1;
+#endif
+}
+
+// The linear piece of interval j: σ(x) = s0 + s1·(x − x0), colour(x) = c0 + c1·(x − x0) (not
+// premultiplied), and the TF rows it blends, with the weight of row1 w(x) = (x − x0)·inv_width.
+typedef struct {
+  int row0, row1;  // equal: a constant piece; -1: the identity TF
+  real x0, inv_width;
+  real s0, s1;
+  real c0r, c0g, c0b, c1r, c1g, c1b;
+} TfPiece;
+
+inline TfPiece tf_piece(int j, __global const real* tf, int count, real4 scalars) {
+  TfPiece p;
+  p.x0 = (real)0;
+  p.inv_width = (real)0;
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+  p.row0 = max(j, 0);
+  p.row1 = j < 0 ? 0 : min(j + 1, count - 1);
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  __global const real* a = tf + p.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
+  __global const real* b = tf + p.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+#else
+  __global const real* a = tf + p.row0 * IVR_TF_STRIDE_TABLE;
+  __global const real* b = tf + p.row1 * IVR_TF_STRIDE_TABLE;
+#endif
+  p.x0 = tf_knot(p.row0, tf, count, scalars);
+  const real width = tf_knot(p.row1, tf, count, scalars) - p.x0;
+  if (p.row0 != p.row1 && width > (real)0) p.inv_width = (real)1 / width;
+  p.s0 = a[3];
+  p.s1 = (b[3] - a[3]) * p.inv_width;
+  p.c0r = a[0], p.c0g = a[1], p.c0b = a[2];
+  p.c1r = (b[0] - a[0]) * p.inv_width;
+  p.c1g = (b[1] - a[1]) * p.inv_width;
+  p.c1b = (b[2] - a[2]) * p.inv_width;
+#else
+  // identity: σ = a·x, colour = b·x (grey)
+  (void)j, (void)tf, (void)count;
+  p.row0 = p.row1 = -1;
+  p.s0 = (real)0;
+  p.s1 = scalars.x;
+  p.c0r = p.c0g = p.c0b = (real)0;
+  p.c1r = p.c1g = p.c1b = scalars.y;
+#endif
+  return p;
+}
+
+inline real tf_piece_sigma(const TfPiece* p, real x) {
+  return p->s0 + p->s1 * (x - p->x0);
+}
+
+inline void tf_piece_color(const TfPiece* p, real x, real* r, real* g, real* b) {
+  const real dx = x - p->x0;
+  *r = p->c0r + p->c1r * dx;
+  *g = p->c0g + p->c1g * dx;
+  *b = p->c0b + p->c1b * dx;
+}
+
+// The first knot strictly above x (direction > 0) or strictly below it (< 0), given the interval
+// j of x; false when there is none.
+inline bool tf_next_knot(real x, int j, int direction, __global const real* tf, int count,
+                         real4 scalars, real* knot) {
+  const int knots = tf_knots(count);
+  if (direction > 0) {
+    for (int k = j + 1; k < knots; ++k) {
+      *knot = tf_knot(k, tf, count, scalars);
+      if (*knot > x) return true;
+    }
+  } else {
+    for (int k = min(j, knots - 1); k >= 0; --k) {
+      *knot = tf_knot(k, tf, count, scalars);
+      if (*knot < x) return true;
+    }
+  }
+  return false;
+}
+
 #endif

@@ -274,4 +274,37 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
 #endif
 }
 
+// Adds a gradient taken through a TF piece (tf.cl, tf_piece) at density x — gs = dL/dσ(x) and
+// (gr, gg, gb) = dL/d colour(x), the colour not premultiplied — into the rows the piece blends:
+// the parameterisation of the integrators that integrate through the TF exactly.
+inline void tf_scatter_piece(const TfPiece* p, real x, real gs, real gr, real gg, real gb,
+                             TfGradCache* cache, volatile __local real* acc) {
+#if IVR_TF == IVR_TF_IDENTITY
+  (void)p, (void)acc;
+  tf_cache_add(cache, 0, 0, gs * x);              // σ = a·x
+  tf_cache_add(cache, 0, 1, (gr + gg + gb) * x);  // colour = b·x
+#elif IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+  const int row1 = p->row1 == p->row0 ? -1 : p->row1;  // one row for a constant piece
+  if (p->row0 != cache->row[0] || row1 != cache->row[1]) {
+    tf_cache_flush(cache, acc);
+    cache->row[0] = p->row0;
+    cache->row[1] = row1;
+  }
+  const real w1 = (x - p->x0) * p->inv_width;  // 0 for a constant piece
+  const real w[2] = {(real)1 - w1, w1};
+  for (int k = 0; k < (row1 < 0 ? 1 : 2); ++k) {
+#if IVR_EMISSION
+    tf_cache_add(cache, k, 0, w[k] * gr);
+    tf_cache_add(cache, k, 1, w[k] * gg);
+    tf_cache_add(cache, k, 2, w[k] * gb);
+#else
+    (void)gr, (void)gg, (void)gb;
+#endif
+    tf_cache_add(cache, k, 3, w[k] * gs);
+  }
+#else
+  (void)p, (void)x, (void)gs, (void)gr, (void)gg, (void)gb, (void)cache, (void)acc;
+#endif
+}
+
 #endif

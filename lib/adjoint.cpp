@@ -8,6 +8,7 @@
 #include "device_scene.hpp"
 #include "empty_space.hpp"
 #include "ivr/gradient.hpp"
+#include "ivr/tolerance.hpp"
 #include "kernel_sources.hpp"
 #include "scene_checks.hpp"
 #include "variants.hpp"
@@ -91,33 +92,17 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
                             preamble + assemble_kernel("adjoint.cl"), options, label);
   };
   // Empty-space skipping where the gradient stays exact (as the render decides, see there).
-  variant.skip_empty = o.empty_space != EmptySpace::off &&
-                       gradient_may_skip(scene.tf, o.tf, o.density || o.camera) &&
-                       (o.empty_space == EmptySpace::on || tf_has_empty_range(scene.tf));
-  if (variant.skip_empty)
-    variant.brick_size = o.brick_size > 0 ? o.brick_size : auto_brick_size(scene.volume);
-  cl::Program program = program_of(variant);
-  BrickGrid grid;
-  double empty_fraction = 0;
-  if (variant.skip_empty) {
-    grid = scene_grid(dev, program, dscene.volume, scene, variant.brick_size);
-    empty_fraction = grid.empty_fraction;
-    if (o.empty_space == EmptySpace::automatic &&
-        grid.empty_fraction < RenderOptions().min_empty_fraction) {
-      variant.skip_empty = false;
-      variant.brick_size = RenderVariant().brick_size;
-      program = program_of(variant);
-    }
-  }
-  const std::uint8_t none = 0;
-  cl::Buffer occupied =
-      dev.buffer(CL_MEM_READ_ONLY, variant.skip_empty ? grid.occupied.size() : 1,
-                 variant.skip_empty ? grid.occupied.data() : &none, "the occupancy grid");
+  const BrickGrid grid = plan_skipping(
+      dev, dscene.volume, scene, o.empty_space, o.brick_size, RenderOptions().min_empty_fraction,
+      gradient_may_skip(scene.tf, o.tf, o.density || o.camera), variant);
+  const cl::Program program = program_of(variant);
+  const cl::Buffer occupied = occupancy_buffer(dev, grid);
 
   Gradient g;
   g.atomics = native_atomics ? "cl_ext_float_atomics" : "compare-and-swap";
   g.skipped_empty = variant.skip_empty;
-  g.empty_fraction = empty_fraction;
+  g.step = integrator.step;
+  g.empty_fraction = grid.empty_fraction;
   g.device_bytes = dscene.bytes + target_real.size() * sizeof(Real) +
                    pixels * (channels * sizeof(float) + 4 * sizeof(Real) + sizeof(cl_uint)) +
                    (grad_voxels + std::max<std::size_t>(tf_size, 1)) * sizeof(Real);
@@ -164,7 +149,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     k.setArg(a++, camera_partial);
     k.setArg(a++, cl::Local((o.camera ? std::size_t(lx) * ly * 7 : 1) * sizeof(Real)));
     k.setArg(a++, occupied);
-    k.setArg(a++, cl_int4{{grid.nx, grid.ny, grid.nz, 0}});
+    k.setArg(a++, brick_counts(grid));
     dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
                                    cl::NDRange(lx, ly, 1), nullptr, &done);
     done.wait();
@@ -224,8 +209,8 @@ double image_loss(const Image& image, const Image& target, Loss loss) {
 
 Gradient gradient(Device& device, const Scene& scene, const Image& target,
                   const GradientOptions& options) {
-  Integrator integrator = scene.integrator;
-  if (options.step != 0) integrator.step = options.step;
+  const Integrator integrator =
+      integrator_for(device, scene, options.step, options.precision, options.empty_space);
   validate_with(scene, integrator);
   check_target(scene, target);
   Device::Impl& dev = device.impl();

@@ -9,6 +9,7 @@
 
 #include "ivr/error.hpp"
 #include "ivr/tangents.hpp"
+#include "ivr/tolerance.hpp"
 
 namespace ivr {
 
@@ -100,9 +101,13 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
     adjoint_possible = adjoint_possible && plans.back().adjoint;
   }
   if (plans.empty()) throw bad_group("no group asked for");
+  // The step once for both the plan and the mode that runs (a tolerance is estimated here).
+  const double step =
+      integrator_for(device, scene, o.step, o.precision, EmptySpace::automatic).step;
   Differentiation d;
+  d.step = step;
   d.plan = plan_gradient(load_cost_model(device.info()), scene, forward_parameters, true,
-                         adjoint_possible, o.mode, o.step);
+                         adjoint_possible, o.mode, step);
   d.parameters = forward_parameters;
 
   if (d.plan.mode == Mode::forward) {
@@ -111,7 +116,7 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
       all.insert(all.end(), p.parameters.begin(), p.parameters.end());
     TangentOptions to;
     to.precision = o.precision;
-    to.step = o.step;
+    to.step = step;
     to.loss = o.loss;
     const Tangents t = tangents(device, scene, all, &target, to);
     d.loss = t.loss;
@@ -130,7 +135,7 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
 
   GradientOptions go;
   go.precision = o.precision;
-  go.step = o.step;
+  go.step = step;
   go.loss = o.loss;
   go.density = go.tf = go.background = false;
   for (const GroupPlan& p : plans) {

@@ -1,10 +1,15 @@
-// empty_space_device.cpp — the occupancy grid for a launch: brick ranges on the host for CPU
-// devices, by the brick_ranges kernel (kernels/empty_space.cl) elsewhere.
+// empty_space_device.cpp — the occupancy grid for a launch (brick ranges on the host for CPU
+// devices, by the brick_ranges kernel of kernels/empty_space.cl elsewhere) and the decision to
+// skip.
+#include <chrono>
 #include <cstdlib>
 
+#include "device_scene.hpp"
 #include "empty_space.hpp"
 #include "ivr/error.hpp"
+#include "kernel_sources.hpp"
 #include "runtime.hpp"
+#include "variants.hpp"
 
 namespace ivr {
 
@@ -23,10 +28,16 @@ bool grid_on_device(const DeviceInfo& info) {
   return v == "device";
 }
 
-// The occupancy grid from the volume already on the device: brick ranges by a kernel of the
-// skipping variant's program, read back and mapped through the TF on the host.
-BrickGrid device_grid(Device::Impl& dev, const cl::Program& program, const cl::Buffer& volume,
-                      const Scene& scene, int size) {
+// The occupancy grid from the volume already on the device: brick ranges by a kernel, read back
+// and mapped through the TF on the host.
+BrickGrid device_grid(Device::Impl& dev, const cl::Buffer& volume, const Scene& scene, int size,
+                      Precision precision) {
+  RenderVariant variant;
+  variant.precision = precision;
+  variant.brick_size = size;
+  const cl::Program program = dev.programs.get(
+      dev.context, dev.device, dev.info, variant.preamble() + assemble_kernel("empty_space.cl"),
+      extra_build_options(), "empty_space.cl [" + variant.label() + "]");
   BrickGrid grid = brick_layout(scene.volume, size);
   const std::size_t count = std::size_t(grid.nx) * grid.ny * grid.nz;
   std::vector<float> ranges(2 * count);
@@ -47,10 +58,42 @@ BrickGrid device_grid(Device::Impl& dev, const cl::Program& program, const cl::B
 
 }  // namespace
 
-BrickGrid scene_grid(Device::Impl& dev, const cl::Program& program, const cl::Buffer& volume,
-                     const Scene& scene, int size) {
-  return grid_on_device(dev.info) ? device_grid(dev, program, volume, scene, size)
+BrickGrid scene_grid(Device::Impl& dev, const cl::Buffer& volume, const Scene& scene, int size,
+                     Precision precision) {
+  return grid_on_device(dev.info) ? device_grid(dev, volume, scene, size, precision)
                                   : build_brick_grid(scene.volume, scene.tf, size);
+}
+
+BrickGrid plan_skipping(Device::Impl& dev, const cl::Buffer& volume, const Scene& scene,
+                        EmptySpace mode, int brick_size, double min_fraction, bool allowed,
+                        RenderVariant& variant, double* seconds) {
+  BrickGrid grid;
+  variant.skip_empty = allowed && (mode == EmptySpace::on ||
+                                   (mode == EmptySpace::automatic && tf_has_empty_range(scene.tf)));
+  variant.brick_size = RenderVariant().brick_size;
+  if (!variant.skip_empty) return grid;
+  const int size = brick_size > 0 ? brick_size : auto_brick_size(scene.volume);
+  const auto start = std::chrono::steady_clock::now();
+  grid = scene_grid(dev, volume, scene, size, variant.precision);
+  if (seconds)
+    *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (mode == EmptySpace::automatic && grid.empty_fraction < min_fraction) {
+    variant.skip_empty = false;
+    grid.occupied.clear();
+    return grid;
+  }
+  variant.brick_size = size;
+  return grid;
+}
+
+cl::Buffer occupancy_buffer(Device::Impl& dev, const BrickGrid& grid) {
+  const std::uint8_t none = 0;  // kernels need a buffer even when they do not read it
+  return dev.buffer(CL_MEM_READ_ONLY, grid.occupied.empty() ? 1 : grid.occupied.size(),
+                    grid.occupied.empty() ? &none : grid.occupied.data(), "the occupancy grid");
+}
+
+cl_int4 brick_counts(const BrickGrid& grid) {
+  return cl_int4{{grid.nx, grid.ny, grid.nz, 0}};
 }
 
 }  // namespace ivr

@@ -11,6 +11,7 @@
 #include "device_params.hpp"
 #include "device_scene.hpp"
 #include "empty_space.hpp"
+#include "ivr/tolerance.hpp"
 #include "kernel_sources.hpp"
 #include "runtime.hpp"
 #include "scene_checks.hpp"
@@ -50,43 +51,24 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
   const DeviceScene<Real> dscene(dev, scene);
 
   RenderVariant variant = RenderVariant::of(scene, integrator, precision);
-  double build_seconds = 0;
-  BrickGrid grid;
-  // Skipping when asked for, or (automatic) when the TF has a zero range and enough bricks are
-  // empty: the grid comes from the skipping variant's program, which then renders.
-  variant.skip_empty =
-      options.empty_space == EmptySpace::on ||
-      (options.empty_space == EmptySpace::automatic && tf_has_empty_range(scene.tf));
-  if (variant.skip_empty)
-    variant.brick_size =
-        options.brick_size > 0 ? options.brick_size : auto_brick_size(scene.volume);
-  cl::Program program = render_program(dev, variant, &build_seconds);
-  if (variant.skip_empty) {
-    const auto start = std::chrono::steady_clock::now();
-    grid = scene_grid(dev, program, dscene.volume, scene, variant.brick_size);
-    if (stats) {
-      stats->empty_fraction = grid.empty_fraction;
-      stats->grid_seconds =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    }
-    if (options.empty_space == EmptySpace::automatic &&
-        grid.empty_fraction < options.min_empty_fraction) {
-      variant.skip_empty = false;
-      variant.brick_size = RenderVariant().brick_size;
-      program = render_program(dev, variant, &build_seconds);
-    }
+  double grid_seconds = 0;
+  const BrickGrid grid =
+      plan_skipping(dev, dscene.volume, scene, options.empty_space, options.brick_size,
+                    options.min_empty_fraction, true, variant, &grid_seconds);
+  if (stats) {
+    stats->empty_fraction = grid.empty_fraction;
+    stats->grid_seconds = grid_seconds;
   }
-  const std::uint8_t none = 0;  // kernels need a buffer even when they do not read it
-  cl::Buffer occupied =
-      dev.buffer(CL_MEM_READ_ONLY, variant.skip_empty ? grid.occupied.size() : 1,
-                 variant.skip_empty ? grid.occupied.data() : &none, "the occupancy grid");
+  double build_seconds = 0;
+  const cl::Program program = render_program(dev, variant, &build_seconds);
+  const cl::Buffer occupied = occupancy_buffer(dev, grid);
 
   cl::Event done;
   cl_call("running the render kernel on " + dev.info.name, [&] {
     cl::Kernel k(program, "render");
     int a = dscene.set_args(k, scene, integrator);
     k.setArg(a++, occupied);
-    k.setArg(a++, cl_int4{{grid.nx, grid.ny, grid.nz, 0}});
+    k.setArg(a++, brick_counts(grid));
     k.setArg(a++, out_image);
     k.setArg(a++, out_samples);
     const LaunchParams launch = launch_params(dev.info, "render");
@@ -124,9 +106,16 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
 }  // namespace
 
 Image render(Device& device, const Scene& scene, const RenderOptions& options, RenderStats* stats) {
-  Integrator integrator = scene.integrator;
-  if (options.step != 0) integrator.step = options.step;
+  StepChoice choice;
+  const Integrator integrator =
+      integrator_for(device, scene, options.step, options.precision, options.empty_space, &choice);
   validate_with(scene, integrator);
+  if (stats) {
+    stats->scheme = scheme_name(integrator.scheme);
+    stats->step = integrator.step;
+    stats->estimated_error = choice.estimated_error;
+    stats->step_seconds = choice.seconds;
+  }
   Device::Impl& dev = device.impl();
   if (options.precision == Precision::f64) {
     if (!dev.info.fp64)

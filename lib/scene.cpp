@@ -31,7 +31,6 @@ std::string str(double v) {
   return s.str();
 }
 
-
 void validate_camera(const Camera& c, const std::string& w) {
   if (!finite(c.eye) || !finite(c.target) || !finite(c.up))
     fail(w, "eye, target and up must be finite");
@@ -53,7 +52,40 @@ void validate_camera(const Camera& c, const std::string& w) {
                 " is outside 1.." + std::to_string(kMaxImageSide) + " per side");
 }
 
+// The schemes that integrate exactly need what they are exact for.
+void validate_scheme(const Scene& s, Scheme scheme) {
+  const bool piecewise_linear_tf = s.tf.kind != TfKind::gaussian;
+  if (scheme == Scheme::exact && s.model != Model::absorption)
+    fail("integrator.scheme",
+         "'exact' integrates the absorption model only (this scene is emission_absorption); use "
+         "'preintegrated', 'trapezoid' or 'midpoint'");
+  if ((scheme == Scheme::exact || scheme == Scheme::preintegrated) && !piecewise_linear_tf)
+    fail("integrator.scheme", std::string("'") + scheme_name(scheme) +
+                                  "' needs a transfer function piecewise linear in density "
+                                  "(identity, piecewise_linear or table), not gaussian");
+}
+
 }  // namespace
+
+const char* scheme_name(Scheme scheme) {
+  switch (scheme) {
+    case Scheme::midpoint:
+      return "midpoint";
+    case Scheme::trapezoid:
+      return "trapezoid";
+    case Scheme::exact:
+      return "exact";
+    case Scheme::preintegrated:
+      return "preintegrated";
+  }
+  return "?";
+}
+
+Scheme parse_scheme(const std::string& name, const std::string& where) {
+  for (Scheme s : {Scheme::midpoint, Scheme::trapezoid, Scheme::exact, Scheme::preintegrated})
+    if (name == scheme_name(s)) return s;
+  fail(where, "unknown scheme '" + name + "' (known: midpoint, trapezoid, exact, preintegrated)");
+}
 
 void validate_tf(const TransferFunction& tf) {
   auto check_sigma = [](const std::string& where, double sigma) {
@@ -162,10 +194,11 @@ void validate_with(const Scene& s, const Integrator& it) {
                   std::to_string(s.cameras[0].width) + "x" + std::to_string(s.cameras[0].height) +
                   ")");
   }
-  if (it.scheme != "midpoint")
-    fail("integrator.scheme", "unknown scheme '" + it.scheme + "' (known: midpoint)");
+  validate_scheme(s, it.scheme);
   if (!std::isfinite(it.step) || !(it.step > 0))
     fail("integrator.step", "must be > 0, got " + str(it.step));
+  if (!std::isfinite(it.tolerance) || it.tolerance < 0)
+    fail("integrator.tolerance", "must be > 0 (or 0: use the step), got " + str(it.tolerance));
   if (!std::isfinite(it.min_transmittance) || it.min_transmittance < 0 || it.min_transmittance >= 1)
     fail("integrator.min_transmittance", "must be in [0, 1), got " + str(it.min_transmittance));
   const glm::dvec3 h = s.voxel_size();

@@ -199,7 +199,6 @@ Camera read_camera(const Reader& r, const json& j, const std::string& p) {
   return c;
 }
 
-
 json parse_json(const std::string& text, const std::string& where) {
   try {
     return json::parse(text);
@@ -278,8 +277,17 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
     s.cameras.push_back(read_camera(r, cams[i], "cameras[" + std::to_string(i) + "]"));
   if (j.contains("integrator")) {
     const json& it = j["integrator"];
-    r.only_keys(it, "integrator", {"scheme", "step", "min_transmittance"});
-    if (it.contains("scheme")) s.integrator.scheme = r.string(it["scheme"], "integrator.scheme");
+    r.only_keys(it, "integrator", {"scheme", "step", "min_transmittance", "tolerance"});
+    if (it.contains("scheme")) {
+      const std::string name = r.string(it["scheme"], "integrator.scheme");
+      try {
+        s.integrator.scheme = parse_scheme(name);
+      } catch (const Error& e) {
+        throw Error(e.status(), where + ": " + e.what());
+      }
+    }
+    if (it.contains("tolerance"))
+      s.integrator.tolerance = r.number(it["tolerance"], "integrator.tolerance");
     if (it.contains("step")) s.integrator.step = r.number(it["step"], "integrator.step");
     if (it.contains("min_transmittance"))
       s.integrator.min_transmittance =

@@ -10,7 +10,9 @@
 
 #include "device_params.hpp"
 #include "device_scene.hpp"
+#include "empty_space.hpp"
 #include "ivr/error.hpp"
+#include "ivr/tolerance.hpp"
 #include "kernel_sources.hpp"
 #include "scene_checks.hpp"
 #include "variants.hpp"
@@ -134,8 +136,19 @@ void run_passes(Device::Impl& dev, const Scene& scene, const Integrator& integra
       dev.buffer(CL_MEM_WRITE_ONLY, pixels * channels * sizeof(float), nullptr, "the image");
 
   // Work-groups of 8x8 (the database's size where it has one), within the kernel's limit.
-  const RenderVariant variant = RenderVariant::of(
+  RenderVariant variant = RenderVariant::of(
       scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
+  // Empty-space skipping where every pass stays exact (as the adjoint decides, gradient_may_skip).
+  bool any_tf = false, any_position = false;
+  for (const cl_int4& l : all_lanes) {
+    any_tf |= l.s[0] == lane_tf;
+    any_position |= l.s[0] == lane_camera || l.s[0] == lane_voxel;
+  }
+  const BrickGrid grid = plan_skipping(dev, dscene.volume, scene, o.empty_space, o.brick_size,
+                                       RenderOptions().min_empty_fraction,
+                                       gradient_may_skip(scene.tf, any_tf, any_position), variant);
+  const cl::Buffer occupied = occupancy_buffer(dev, grid);
+  out.skipped_empty = variant.skip_empty;
   const LaunchParams launch = launch_params(dev.info, "tangents");
 
   out.image = Image{views, cam0.height, cam0.width, channels, {}};
@@ -196,6 +209,8 @@ void run_passes(Device::Impl& dev, const Scene& scene, const Integrator& integra
       k.setArg(a++, jacobian_buf);
       k.setArg(a++, partial_buf);
       k.setArg(a++, cl::Local(std::size_t(lx) * ly * row * sizeof(Real)));
+      k.setArg(a++, occupied);
+      k.setArg(a++, brick_counts(grid));
       cl::Event done;
       dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
                                      cl::NDRange(lx, ly, 1), nullptr, &done);
@@ -278,8 +293,8 @@ std::vector<Parameter> parameters_of(const Scene& scene, const std::string& grou
 
 Tangents tangents(Device& device, const Scene& scene, const std::vector<Parameter>& parameters,
                   const Image* target, const TangentOptions& options) {
-  Integrator integrator = scene.integrator;
-  if (options.step != 0) integrator.step = options.step;
+  const Integrator integrator =
+      integrator_for(device, scene, options.step, options.precision, options.empty_space);
   validate_with(scene, integrator);
   if (target) check_target(scene, *target);
   std::vector<cl_int4> lanes;
@@ -288,6 +303,7 @@ Tangents tangents(Device& device, const Scene& scene, const std::vector<Paramete
     lanes.push_back(lane_of(scene, parameters[i], i));
   Device::Impl& dev = device.impl();
   Tangents out;
+  out.step = integrator.step;
   if (options.precision == Precision::f64) {
     if (!dev.info.fp64)
       throw Error(Status::unsupported,

@@ -24,6 +24,7 @@ RenderVariant RenderVariant::of(const Scene& scene, const Integrator& integrator
   RenderVariant v;
   v.model = scene.model;
   v.tf = scene.tf.kind;
+  v.scheme = integrator.scheme;
   v.precision = precision;
   v.early_termination = integrator.min_transmittance > 0;
   return v;
@@ -33,6 +34,7 @@ std::string RenderVariant::preamble() const {
   std::ostringstream s;
   s << "#define IVR_MODEL " << (model == Model::absorption ? 0 : 1) << "\n"
     << "#define IVR_TF " << int(tf) << "\n"
+    << "#define IVR_SCHEME " << int(scheme) << "\n"
     << "#define IVR_F64 " << (precision == Precision::f64 ? 1 : 0) << "\n"
     << "#define IVR_EARLY_TERMINATION " << (early_termination ? 1 : 0) << "\n"
     << "#define IVR_SKIP_EMPTY " << (skip_empty ? 1 : 0) << "\n"
@@ -43,7 +45,8 @@ std::string RenderVariant::preamble() const {
 std::string RenderVariant::label() const {
   std::ostringstream s;
   s << "render model=" << (model == Model::absorption ? "absorption" : "emission_absorption")
-    << " tf=" << tf_kind_name(tf) << " " << (precision == Precision::f64 ? "f64" : "f32")
+    << " tf=" << tf_kind_name(tf) << " scheme=" << scheme_name(scheme) << " "
+    << (precision == Precision::f64 ? "f64" : "f32")
     << " ert=" << (early_termination ? "on" : "off") << " skip=" << (skip_empty ? "on" : "off");
   return s.str();
 }

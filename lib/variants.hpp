@@ -11,6 +11,7 @@ namespace ivr {
 struct RenderVariant {
   Model model = Model::emission_absorption;
   TfKind tf = TfKind::identity;
+  Scheme scheme = Scheme::midpoint;
   Precision precision = Precision::f32;
   bool early_termination = true;
   bool skip_empty = false;  // empty-space skipping (render only)
@@ -18,7 +19,8 @@ struct RenderVariant {
 
   static RenderVariant of(const Scene& scene, const Integrator& integrator, Precision precision);
   std::string preamble() const;  // "#define IVR_MODEL 1\n..." for kernels/config.cl
-  std::string label() const;     // "render model=ea tf=gaussian f32 ert=on"
+  std::string label()
+      const;  // "render model=emission_absorption tf=gaussian scheme=midpoint f32 ert=on skip=off"
 };
 
 const char* tf_kind_name(TfKind kind);

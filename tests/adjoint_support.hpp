@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ivr/gradient.hpp"
+#include "ivr/tangents.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -182,6 +183,32 @@ inline double nudge_background(Scene& x, int c, double h) {
     b[c] += h;
   x.background = b;
   return h;
+}
+
+// Adds h to parameter p of the scene; returns the increment applied.
+inline double nudge(Scene& s, const Parameter& p, double h) {
+  switch (p.group) {
+    case ParameterGroup::tf:
+      return nudge_tf(s, std::size_t(p.index), std::size_t(p.column), h);
+    case ParameterGroup::background:
+      return nudge_background(s, int(p.index), h);
+    case ParameterGroup::camera: {
+      Camera& c = s.cameras[std::size_t(p.index)];
+      if (p.column < 3)
+        c.eye[p.column] += h;
+      else if (p.column < 6)
+        c.target[p.column - 3] += h;
+      else
+        c.fov_y += h;
+      return h;
+    }
+    case ParameterGroup::step:
+      s.integrator.step += h;
+      return h;
+    case ParameterGroup::voxel:
+      return nudge_voxel(s, std::size_t(p.index), h);
+  }
+  return 0;
 }
 
 }  // namespace ivr::test

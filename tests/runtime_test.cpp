@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "kernel_sources.hpp"
 #include "program_cache.hpp"
@@ -195,6 +196,29 @@ TEST(KernelSources, EveryFileCompilesOnItsOwn) {
   }
 }
 
+// assemble_kernel() pastes each file once, where its first #include stands, whatever the
+// preprocessor later keeps: an #include under a condition would hide the file from every later
+// includer when the condition is false. So no kernel file includes another under a condition
+// (its own include guard aside).
+TEST(KernelSources, NoIncludeUnderACondition) {
+  for (const auto& [name, text] : detail::embedded_kernels()) {
+    std::istringstream lines(text);
+    std::string line;
+    int depth = 0, number = 0;
+    while (std::getline(lines, line)) {
+      ++number;
+      const std::size_t hash = line.find_first_not_of(" \t");
+      if (hash == std::string::npos || line[hash] != '#') continue;
+      const std::string directive = line.substr(hash);
+      if (directive.rfind("#if", 0) == 0) ++depth;
+      if (directive.rfind("#endif", 0) == 0) --depth;
+      // Depth 1 is the file's include guard.
+      if (directive.rfind("#include", 0) == 0)
+        EXPECT_LE(depth, 1) << name << ":" << number << ": " << line;
+    }
+  }
+}
+
 TEST(Variants, PreambleSelectsOnlyWhatTheSceneUses) {
   Scene s = constant_scene(0.5f);
   RenderVariant v = RenderVariant::of(s, s.integrator, Precision::f32);
@@ -207,12 +231,14 @@ TEST(Variants, PreambleSelectsOnlyWhatTheSceneUses) {
   EXPECT_NE(v.preamble().find("#define IVR_MODEL 1"), std::string::npos);
   EXPECT_NE(v.preamble().find("#define IVR_TF 3"), std::string::npos);
   EXPECT_NE(v.preamble().find("#define IVR_F64 1"), std::string::npos);
-  EXPECT_EQ(v.label(), "render model=emission_absorption tf=gaussian f64 ert=on skip=off");
+  EXPECT_EQ(v.label(),
+            "render model=emission_absorption tf=gaussian scheme=midpoint f64 ert=on skip=off");
   // The render reports the variant it ran.
   Scene a = constant_scene(0.5f);
   RenderStats stats;
   render(device(), a, {}, &stats);
-  EXPECT_EQ(stats.variant, "render model=absorption tf=identity f32 ert=off skip=off");
+  EXPECT_EQ(stats.variant,
+            "render model=absorption tf=identity scheme=midpoint f32 ert=off skip=off");
 }
 
 }  // namespace

@@ -24,32 +24,6 @@ Scene tangent_scene(Model model, TfKind kind, bool ortho = false) {
   return s;
 }
 
-// Adds h to parameter p of the scene; returns the increment applied.
-double nudge(Scene& s, const Parameter& p, double h) {
-  switch (p.group) {
-    case ParameterGroup::tf:
-      return nudge_tf(s, std::size_t(p.index), std::size_t(p.column), h);
-    case ParameterGroup::background:
-      return nudge_background(s, int(p.index), h);
-    case ParameterGroup::camera: {
-      Camera& c = s.cameras[std::size_t(p.index)];
-      if (p.column < 3)
-        c.eye[p.column] += h;
-      else if (p.column < 6)
-        c.target[p.column - 3] += h;
-      else
-        c.fov_y += h;
-      return h;
-    }
-    case ParameterGroup::step:
-      s.integrator.step += h;
-      return h;
-    case ParameterGroup::voxel:
-      return nudge_voxel(s, std::size_t(p.index), h);
-  }
-  return 0;
-}
-
 // Forward-mode float64 gradient of the loss against central differences, parameter by parameter.
 void expect_matches_differences(const Scene& s, const std::vector<Parameter>& params,
                                 const std::string& what, double h = 1e-6) {

@@ -1,5 +1,5 @@
-// ivr/core.hpp — the core C++ API of ivr in one include (what the CLI, tests and benchmarks use; its
-// types may change between versions: for a stable ABI use ivr/ivr.hpp or ivr/ivr.h).
+// ivr/core.hpp — the core C++ API of ivr in one include (what the CLI, tests and benchmarks use;
+// its types may change between versions: for a stable ABI use ivr/ivr.hpp or ivr/ivr.h).
 #pragma once
 #include "ivr/calibrate.hpp"
 #include "ivr/device.hpp"
@@ -10,5 +10,6 @@
 #include "ivr/render.hpp"
 #include "ivr/scene.hpp"
 #include "ivr/tangents.hpp"
+#include "ivr/tolerance.hpp"
 #include "ivr/version.h"
 #include "ivr/volume_io.hpp"

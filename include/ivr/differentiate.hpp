@@ -27,7 +27,7 @@ struct GroupGradient {
 struct DifferentiateOptions {
   Mode mode = Mode::automatic;
   Precision precision = Precision::f32;
-  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+  double step = 0;  // > 0 overrides the scene's integrator step and tolerance (voxel units)
   Loss loss = Loss::mse;
 };
 
@@ -39,6 +39,7 @@ struct Differentiation {
   double kernel_seconds = 0;       // device time of every kernel run
   std::uint64_t device_bytes = 0;  // peak device memory
   std::string atomics;             // adjoint mode: the scatter's atomics
+  double step = 0;                 // the integrator step used (voxel units)
 };
 
 // Splits a --wrt list ("tf,voxels:3,17,40-45,background") into group names; voxel lists take the

@@ -17,7 +17,7 @@ enum class Loss {
 
 struct GradientOptions {
   Precision precision = Precision::f32;
-  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+  double step = 0;  // > 0 overrides the scene's integrator step and tolerance (voxel units)
   Loss loss = Loss::mse;
   bool density = true;      // d loss / d voxel density
   bool tf = false;          // d loss / d transfer-function parameters (layout: tf_gradient_shape)
@@ -41,6 +41,7 @@ struct Gradient {
   std::string atomics;             // the scatter's: "cl_ext_float_atomics" or "compare-and-swap"
   bool skipped_empty = false;      // empty-space skipping ran
   double empty_fraction = 0;       // of the bricks, when the grid was built
+  double step = 0;                 // the integrator step used (voxel units)
 };
 
 // Shape of the TF gradient: identity → 1 x 2 (extinction_scale, color_scale); piecewise_linear

@@ -57,11 +57,30 @@ struct Camera {
   int width = 256, height = 256;
 };
 
+// How each ray's integral is evaluated (DESIGN.md, README "Integrators"):
+//   midpoint       n = ceil(L/step) equal segments, one sample at each segment's midpoint
+//   trapezoid      the same segments, samples at their ends: the trapezoid rule for the optical
+//                  depth, the segment's emission from its two ends' average
+//   exact          absorption only: the ray is split where it crosses the planes through voxel
+//                  centres and where the density crosses a TF control point; the integral of
+//                  each piece is exact (no step; TFs piecewise linear in density)
+//   preintegrated  the midpoint's segments with samples at their ends, the density linear in
+//                  between, integrated exactly through the TF (TFs piecewise linear in density)
+enum class Scheme { midpoint, trapezoid, exact, preintegrated };
+
 struct Integrator {
-  std::string scheme = "midpoint";
+  Scheme scheme = Scheme::midpoint;
   double step = 0.5;                // in units of the smallest voxel edge
   double min_transmittance = 1e-4;  // early ray termination threshold; 0 turns it off
+  // > 0: the step is chosen from an a-priori estimate so that the image's error stays below this
+  // (absolute, per pixel channel; see ivr::choose_step); `step` is then ignored.
+  double tolerance = 0;
 };
+
+IVR_API const char* scheme_name(Scheme scheme);
+// The scheme named `name`; throws ivr::Error(invalid_argument) naming `where` and the known ones.
+IVR_API Scheme parse_scheme(const std::string& name,
+                            const std::string& where = "integrator.scheme");
 
 struct Scene {
   Volume volume;

@@ -38,9 +38,13 @@ IVR_API std::vector<Parameter> parameters_of(const Scene& scene, const std::stri
 
 struct TangentOptions {
   Precision precision = Precision::f32;
-  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+  double step = 0;  // > 0 overrides the scene's integrator step and tolerance (voxel units)
   Loss loss = Loss::mse;
   bool jacobian = false;  // also return d pixel / d parameter for every pixel
+  // Empty-space skipping (as RenderOptions), where it leaves every lane exact: not with TF
+  // lanes, and with camera or voxel lanes only for piecewise-linear and table TFs.
+  EmptySpace empty_space = EmptySpace::automatic;
+  int brick_size = 0;
 };
 
 struct Tangents {
@@ -51,6 +55,8 @@ struct Tangents {
   double kernel_seconds = 0;       // all passes
   int passes = 0, lanes = 0;       // kernel launches, and tangent lanes per launch
   std::uint64_t device_bytes = 0;  // peak device memory of one pass
+  bool skipped_empty = false;      // empty-space skipping ran
+  double step = 0;                 // the integrator step used (voxel units)
 };
 
 // Forward-mode derivatives of the render of `scene` with respect to `parameters`: the Jacobian

@@ -1,0 +1,38 @@
+// end_sample.cl — a sample at a segment end (t0 + i·dt) for the integrators that build each
+// segment from its two ends: trapezoid (σ and the premultiplied emission) and preintegrated (the
+// density alone: the segment integrates through the TF itself).
+#ifndef IVR_END_SAMPLE_CL
+#define IVR_END_SAMPLE_CL
+#include "config.cl"
+#include "geometry.cl"
+#include "march.cl"
+#include "tf.cl"
+
+typedef struct {
+  real ux, uy, uz;  // voxel coordinates (empty-space skipping, gradients)
+  real d;
+  real sigma, er, eg, eb;  // trapezoid: σ and the emission σ·colour (preintegrated: unused)
+} EndSample;
+
+// Sample i of the march; *cursor: the TF search cursor, carried along the ray.
+__attribute__((always_inline)) inline EndSample end_sample(__global const real* volume, int4 dims,
+                                                           const March* m, uint i,
+                                                           __global const real* tf, int tf_count,
+                                                           real4 tf_scalars, int* cursor) {
+  EndSample s;
+  const real t = sample_t(m, i);
+  s.ux = m->u0x + t * m->dux;
+  s.uy = m->u0y + t * m->duy;
+  s.uz = m->u0z + t * m->duz;
+  s.d = trilinear_at(volume, dims, s.ux, s.uy, s.uz);
+#if IVR_SCHEME == IVR_SCHEME_PREINTEGRATED
+  // The segment integrates through the TF itself (kernels/preintegrated.cl).
+  (void)tf, (void)tf_count, (void)tf_scalars, (void)cursor;
+  s.sigma = s.er = s.eg = s.eb = (real)0;
+#else
+  s.sigma = tf_sample(s.d, tf, tf_count, tf_scalars, cursor, &s.er, &s.eg, &s.eb);
+#endif
+  return s;
+}
+
+#endif

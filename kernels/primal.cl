@@ -1,0 +1,158 @@
+// primal.cl — the primal march of every integrator: what the render computes for one ray, and
+// what the gradient kernels re-run first so that they differentiate exactly what was rendered.
+#ifndef IVR_PRIMAL_CL
+#define IVR_PRIMAL_CL
+#include "compositing.cl"
+#include "config.cl"
+#include "empty_space.cl"
+#include "end_sample.cl"
+#include "exact.cl"
+#include "geometry.cl"
+#include "march.cl"
+#include "preintegrated.cl"
+#include "tf.cl"
+
+// What a march hands back: the transmittance left, the emitted colour, the samples taken, and
+// where it stopped (early termination) for the gradient kernels' second march: one past the last
+// segment taken (midpoint, trapezoid, preintegrated) or the pieces walked (exact).
+typedef struct {
+  real transmittance;
+  real cr, cg, cb;
+  real kr, kg, kb;  // compensation (accumulate)
+  uint samples;
+  uint end;
+} Radiance;
+
+// Adds one segment of optical depth tau emitting (er, eg, eb)·weight_scale·fraction(tau) per
+// unit transmittance: the midpoint and trapezoid rules' compositing.
+inline void composite(Radiance* r, real tau, real dt, real er, real eg, real eb) {
+  real fraction;
+  const real decay = decay_and_fraction(tau, &fraction);
+#if IVR_EMISSION
+  const real weight = r->transmittance * dt * fraction;
+  accumulate(&r->cr, &r->kr, weight * er);
+  accumulate(&r->cg, &r->kg, weight * eg);
+  accumulate(&r->cb, &r->kb, weight * eb);
+#else
+  (void)dt, (void)er, (void)eg, (void)eb;
+#endif
+  r->transmittance = attenuate(r->transmittance, tau, fraction, decay);
+}
+
+#if IVR_SCHEME == IVR_SCHEME_MIDPOINT
+// One sample at the middle of each segment.
+inline void primal_march(__global const real* volume, int4 dims, const March* m,
+                         __global const real* tf, int tf_count, real4 tf_scalars,
+                         real min_transmittance, __global const uchar* occupied, int4 bricks,
+                         Radiance* r) {
+  int segment = 0;  // the transfer function's search cursor (tf_sample)
+  for (uint i = 0; i < m->n;) {
+    const real t = sample_t(m, i);
+    const real ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
+#if IVR_SKIP_EMPTY
+    // (Reading the grid at every sample measured faster on PoCL than tracking where the ray
+    // leaves each occupied brick: bench/empty_space_bench.cpp.)
+    const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
+    if (exit >= (real)0) {
+      i = skip_to(i, m->n, m->t0, m->dt, exit);
+      continue;
+    }
+#endif
+    const real d = trilinear_at(volume, dims, ux, uy, uz);
+    real er, eg, eb;
+    const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);
+    composite(r, sigma * m->dt, m->dt, er, eg, eb);
+    ++r->samples;
+    r->end = ++i;
+#if IVR_EARLY_TERMINATION
+    if (r->transmittance < min_transmittance) break;
+#endif
+  }
+}
+
+#elif IVR_ENDPOINT_SAMPLES
+// Samples at the segment ends; each segment from its two ends (trapezoid: their average;
+// preintegrated: the density linear between them, through the TF exactly).
+inline void primal_march(__global const real* volume, int4 dims, const March* m,
+                         __global const real* tf, int tf_count, real4 tf_scalars,
+                         real min_transmittance, __global const uchar* occupied, int4 bricks,
+                         Radiance* r) {
+  int segment = 0;
+  EndSample a = end_sample(volume, dims, m, 0, tf, tf_count, tf_scalars, &segment);
+  ++r->samples;
+  for (uint i = 0; i < m->n;) {
+#if IVR_SKIP_EMPTY
+    const real exit = empty_brick_exit(a.ux, a.uy, a.uz, m, dims, occupied, bricks);
+    if (exit >= (real)0) {
+      const uint k = last_sample_before(i, m->n, m->t0, m->dt, exit);
+      if (k > i) {
+        i = k;
+        if (i >= m->n) break;
+        a = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &segment);
+        ++r->samples;
+      }
+    }
+#endif
+    const EndSample b = end_sample(volume, dims, m, i + 1, tf, tf_count, tf_scalars, &segment);
+    ++r->samples;
+#if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
+    composite(r, (real)0.5 * (a.sigma + b.sigma) * m->dt, m->dt, (real)0.5 * (a.er + b.er),
+              (real)0.5 * (a.eg + b.eg), (real)0.5 * (a.eb + b.eb));
+#else
+    Attenuation at;
+    real er, eg, eb;
+    preintegrated_segment(&a, &b, m->dt, tf, tf_count, tf_scalars, &at, &er, &eg, &eb);
+#if IVR_EMISSION
+    accumulate(&r->cr, &r->kr, r->transmittance * er);
+    accumulate(&r->cg, &r->kg, r->transmittance * eg);
+    accumulate(&r->cb, &r->kb, r->transmittance * eb);
+#endif
+    r->transmittance = attenuation_apply(&at, r->transmittance);
+#endif
+    a = b;
+    r->end = ++i;
+#if IVR_EARLY_TERMINATION
+    if (r->transmittance < min_transmittance) break;
+#endif
+  }
+}
+
+#elif IVR_SCHEME == IVR_SCHEME_EXACT
+// Absorption only: the optical depth of every piece, exactly.
+inline void primal_march(__global const real* volume, int4 dims, const March* m,
+                         __global const real* tf, int tf_count, real4 tf_scalars,
+                         real min_transmittance, __global const uchar* occupied, int4 bricks,
+                         Radiance* r) {
+  real tau = (real)0, k = (real)0;
+  const real tau_stop = min_transmittance > (real)0 ? -log(min_transmittance) : (real)INFINITY;
+  Pieces p;
+  pieces_begin(&p, m, dims, m->t0);
+  real ta, tb;
+  while (pieces_next(&p, m, dims, &ta, &tb)) {
+    ++r->end;
+    if (!(tb > ta)) continue;
+#if IVR_SKIP_EMPTY
+    const real tm = (real)0.5 * (ta + tb);
+    const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
+                                       m->u0z + tm * m->duz, m, dims, occupied, bricks);
+    if (exit >= (real)0) {  // brick faces are centre planes: the next piece starts there
+      pieces_begin(&p, m, dims, fmin(exit, m->t1));
+      continue;
+    }
+#endif
+    const PieceCell cell = piece_cell(m, dims, ta, tb);
+    real v[8];
+    piece_corners(volume, dims, cell, v);
+    const Cubic c = piece_cubic(v, cell);
+    uint nodes = 0;
+    accumulate(&tau, &k, piece_optical_depth(&c, tb - ta, tf, tf_count, tf_scalars, &nodes));
+    r->samples += nodes;
+#if IVR_EARLY_TERMINATION
+    if (tau > tau_stop) break;
+#endif
+  }
+  r->transmittance = exp(-tau);
+}
+#endif
+
+#endif

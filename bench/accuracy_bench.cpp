@@ -139,9 +139,10 @@ int main(int argc, char** argv) {
           scene.integrator.scheme = integ.scheme;
           std::vector<std::pair<double, double>> curve;
           for (double step : steps) {
-            const Timed t = timed_render(
-                device, scene, {ivr::Precision::f32, step, integ.empty_space}, repeats);
-            const ivr::bench::RelativeError e = ivr::bench::relative_error(t.image.pixels, reference);
+            const Timed t = timed_render(device, scene,
+                                         {ivr::Precision::f32, step, integ.empty_space}, repeats);
+            const ivr::bench::RelativeError e =
+                ivr::bench::relative_error(t.image.pixels, reference);
             curve.emplace_back(t.ms, e.rms);
             rows.push_back({{"volume", volume.name},
                             {"look", look.name},
@@ -157,12 +158,13 @@ int main(int argc, char** argv) {
             if (integ.scheme == ivr::Scheme::exact && integ.empty_space == ivr::EmptySpace::off) {
               // The exact scheme in float64 too (the step changes nothing).
               ivr::RenderOptions o{ivr::Precision::f64, step, ivr::EmptySpace::off};
-              const ivr::bench::RelativeError e64 = ivr::bench::relative_error(
-                  ivr::render(device, scene, o).pixels, reference);
-              exact_rows.push_back({{"volume", volume.name},
-                                    {"step", step},
-                                    {"f32", {{"relative_rms", e.rms}, {"relative_max", e.max}}},
-                                    {"f64", {{"relative_rms", e64.rms}, {"relative_max", e64.max}}}});
+              const ivr::bench::RelativeError e64 =
+                  ivr::bench::relative_error(ivr::render(device, scene, o).pixels, reference);
+              exact_rows.push_back(
+                  {{"volume", volume.name},
+                   {"step", step},
+                   {"f32", {{"relative_rms", e.rms}, {"relative_max", e.max}}},
+                   {"f64", {{"relative_rms", e64.rms}, {"relative_max", e64.max}}}});
             }
           }
           const double ms = time_at(curve, target);
@@ -214,21 +216,21 @@ int main(int argc, char** argv) {
                 (error_at(mid) <= tolerance ? good : bad) = mid;
               }
             }
-            tolerance_rows.push_back({{"volume", volume.name},
-                                      {"look", look.name},
-                                      {"scheme", ivr::scheme_name(scheme)},
-                                      {"tolerance", tolerance},
-                                      {"step", c.step},
-                                      {"estimated_error", c.estimated_error},
-                                      {"measured_error", error},
-                                      {"below_tolerance", error <= tolerance},
-                                      {"needed_step", error <= tolerance ? json(good) : json(nullptr)},
-                                      {"needed_over_chosen",
-                                       error <= tolerance ? json(good / c.step) : json(nullptr)},
-                                      {"pilots", c.pilots},
-                                      {"choose_seconds", choose_seconds}});
-            std::cerr << "  tolerance " << tolerance << " " << ivr::scheme_name(scheme)
-                      << ": step " << c.step << ", error " << error << ", needed " << good << "\n";
+            tolerance_rows.push_back(
+                {{"volume", volume.name},
+                 {"look", look.name},
+                 {"scheme", ivr::scheme_name(scheme)},
+                 {"tolerance", tolerance},
+                 {"step", c.step},
+                 {"estimated_error", c.estimated_error},
+                 {"measured_error", error},
+                 {"below_tolerance", error <= tolerance},
+                 {"needed_step", error <= tolerance ? json(good) : json(nullptr)},
+                 {"needed_over_chosen", error <= tolerance ? json(good / c.step) : json(nullptr)},
+                 {"pilots", c.pilots},
+                 {"choose_seconds", choose_seconds}});
+            std::cerr << "  tolerance " << tolerance << " " << ivr::scheme_name(scheme) << ": step "
+                      << c.step << ", error " << error << ", needed " << good << "\n";
           }
       }
     const json result = {{"benchmark", "accuracy"},

@@ -43,20 +43,19 @@ double empty_share(const Volume& v) {
 }  // namespace
 
 std::vector<SuiteLook> suite_looks() {
-  return {
-      {"ramps", Model::emission_absorption, R"({"type": "piecewise_linear", "points": [
+  return {{"ramps", Model::emission_absorption, R"({"type": "piecewise_linear", "points": [
           {"density": 0.0, "color": [0, 0, 0], "extinction": 0},
           {"density": 0.1, "color": [0.2, 0.4, 1.0], "extinction": 0},
           {"density": 0.4, "color": [1.0, 0.7, 0.3], "extinction": 25},
           {"density": 1.0, "color": [1.0, 1.0, 0.9], "extinction": 60}]})"},
-      {"band", Model::emission_absorption, R"({"type": "piecewise_linear", "points": [
+          {"band", Model::emission_absorption, R"({"type": "piecewise_linear", "points": [
           {"density": 0.0, "color": [0, 0, 0], "extinction": 0},
           {"density": 0.1, "color": [0.2, 0.4, 1.0], "extinction": 0},
           {"density": 0.30, "color": [0.3, 0.5, 1.0], "extinction": 1.6},
           {"density": 0.33, "color": [1.0, 0.6, 0.2], "extinction": 80},
           {"density": 0.36, "color": [1.0, 0.9, 0.7], "extinction": 2.1},
           {"density": 1.0, "color": [1.0, 1.0, 1.0], "extinction": 7}]})"},
-      {"absorption", Model::absorption, R"({"type": "piecewise_linear", "points": [
+          {"absorption", Model::absorption, R"({"type": "piecewise_linear", "points": [
           {"density": 0.0, "color": [0, 0, 0], "extinction": 0},
           {"density": 0.1, "color": [0, 0, 0], "extinction": 0},
           {"density": 0.4, "color": [0, 0, 0], "extinction": 3},
@@ -72,7 +71,8 @@ std::vector<SuiteVolume> suite_volumes(const std::string& data, bool quick) {
       {"headsq", R"({"file": "headsq_64x64x93_int16le.raw", "dims": [64, 64, 93],
           "type": "int16", "endian": "little", "range": [0, 4095], "spacing": [3.2, 3.2, 1.5]})"},
       {"neghip", R"({"file": "neghip_64x64x64_uint8.raw", "dims": [64, 64, 64], "type": "uint8"})"},
-      {"tooth", R"({"file": "tooth_103x94x161_uint8.raw", "dims": [103, 94, 161], "type": "uint8"})"},
+      {"tooth",
+       R"({"file": "tooth_103x94x161_uint8.raw", "dims": [103, 94, 161], "type": "uint8"})"},
       {"c60", R"({"file": "C60Large_128x128x128_uint8.cvol"})"},
       {"mni152", R"({"file": "mni_icbm152_t1_tal_nlin_sym_09a_converted.nii.gz"})"}};
   for (const auto& [name, volume] : real) {

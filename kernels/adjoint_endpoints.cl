@@ -133,7 +133,8 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
     b.gsigma += (real)0.5 * dt * gtau;
 #else
     preintegrated_segment_adjoint(&a.s, &b.s, dt, tf, tf_count, tf_scalars, ar, &transmittance, &pr,
-                                  &pg, &pb, &kr, &kg, &kb, &a.gd, &b.gd, &direct, tf_cache, tf_acc);
+                                  &pg, &pb, &kr, &kg, &kb, &a.gd, &b.gd, &direct, &seg_value,
+                                  tf_cache, tf_acc);
 #endif
     finish_sample(&a, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
                   &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);

@@ -124,30 +124,39 @@ __constant real ivr_gl_weights[31] = {
 // coefficients, built from c_00 = p! q! / 3! by ratios of small integers, fold into constants: one
 // fused multiply-add per term, 3·(N + 1)(N + 2)/2 − 3 in all (PoCL's code has no division left;
 // a compiler that did not unroll would compute the same values, only slower).
-inline void ivr_moment_series(real tau, real d, real* m) {
-#pragma unroll
-  for (int p = 0; p <= 2; ++p) {
-    const int q = 2 - p;
-    real g[IVR_PI_DEGREE + 1];  // g[j]: the coefficient of d^j, a polynomial in τ
-    real c0 = p == 1 ? (real)1 / 6 : (real)1 / 3;  // c_0j
-#pragma unroll
-    for (int j = 0; j <= IVR_PI_DEGREE; ++j) {
-      real c[IVR_PI_DEGREE + 1];
-      c[0] = c0;
-#pragma unroll
-      for (int i = 1; i <= IVR_PI_DEGREE; ++i)
-        c[i] = c[i - 1] * (-(real)(i + j + p) / (real)(i * (i + 2 * j + 3)));
-      g[j] = c[IVR_PI_DEGREE - j];
-#pragma unroll
-      for (int i = IVR_PI_DEGREE - 1; i >= 0; --i)
-        if (i < IVR_PI_DEGREE - j) g[j] = g[j] * tau + c[i];
-      c0 *= (real)((j + 1 + p) * (j + 1 + q)) / (real)((j + 1) * (2 * j + 4) * (2 * j + 5));
-    }
-    m[p] = g[IVR_PI_DEGREE];
-#pragma unroll
-    for (int j = IVR_PI_DEGREE - 1; j >= 0; --j) m[p] = m[p] * d + g[j];
+#define IVR_MOMENT_SERIES(NAME, N)                                                             \
+  inline void NAME(real tau, real d, real* m) {                                                \
+    _Pragma("unroll") for (int p = 0; p <= 2; ++p) {                                           \
+      const int q = 2 - p;                                                                     \
+      real g[N + 1];                                                                           \
+      real c0 = p == 1 ? (real)1 / 6 : (real)1 / 3;                                            \
+      _Pragma("unroll") for (int j = 0; j <= N; ++j) {                                         \
+        real c[N + 1];                                                                         \
+        c[0] = c0;                                                                             \
+        _Pragma("unroll") for (int i = 1; i <= N; ++i) c[i] =                                  \
+            c[i - 1] * (-(real)(i + j + p) / (real)(i * (i + 2 * j + 3)));                     \
+        g[j] = c[N - j];                                                                       \
+        _Pragma("unroll") for (int i = N - 1; i >= 0; --i) if (i < N - j) g[j] =               \
+            g[j] * tau + c[i];                                                                 \
+        c0 *= (real)((j + 1 + p) * (j + 1 + q)) / (real)((j + 1) * (2 * j + 4) * (2 * j + 5)); \
+      }                                                                                        \
+      m[p] = g[N];                                                                             \
+      _Pragma("unroll") for (int j = N - 1; j >= 0; --j) m[p] = m[p] * d + g[j];               \
+    }                                                                                          \
   }
-}
+// Lower degrees where τ is small enough for them (truncation below the stated accuracy).
+#if IVR_F64
+IVR_MOMENT_SERIES(ivr_moment_series_low, 4)
+IVR_MOMENT_SERIES(ivr_moment_series_mid, 6)
+#define IVR_PI_LOW 0.001
+#define IVR_PI_MID 0.01
+#else
+IVR_MOMENT_SERIES(ivr_moment_series_low, 2)
+IVR_MOMENT_SERIES(ivr_moment_series_mid, 3)
+#define IVR_PI_LOW 0.008f
+#define IVR_PI_MID 0.04f
+#endif
+IVR_MOMENT_SERIES(ivr_moment_series, IVR_PI_DEGREE)
 
 // x in [0, 1] with E(x) = t, for 0 < t < τ: the root 2t / (a + √(a² + 2(b − a)t)), written without
 // cancellation and scaled by max(a, b) (a² overflows float above 1.8e19). The radicand is ≥ b²
@@ -193,7 +202,12 @@ inline void ivr_linear_segment(real a, real b, real* p, real* q, real* dp_da, re
   if (tau <= IVR_PI_SERIES) {
     const real d = IVR_R(0.5) * b - IVR_R(0.5) * a;
     real m[3];  // M02, M11, M20
-    ivr_moment_series(tau, d, m);
+    if (tau <= IVR_PI_LOW)
+      ivr_moment_series_low(tau, d, m);
+    else if (tau <= IVR_PI_MID)
+      ivr_moment_series_mid(tau, d, m);
+    else
+      ivr_moment_series(tau, d, m);
     *p = a * m[0] + b * m[1];
     *q = a * m[1] + b * m[2];
     *dp_da = m[1] + IVR_R(0.5) * m[2];

@@ -29,9 +29,11 @@ typedef struct {
   real x, phi;    // where the next sub-segment starts
   bool knot;      // ... and whether that is a knot (else the segment's start)
   bool done;
+  int cursor;  // the TF search cursor (tf_interval), carried along the ray by the caller
 } Cuts;
 
-inline void cuts_begin(Cuts* c, real da, real db) {
+inline void cuts_begin(Cuts* c, real da, real db, int cursor) {
+  c->cursor = cursor;
   c->da = da;
   c->delta = db - da;
   const bool cut = fabs(c->delta) > IVR_MIN_CUT_DELTA * fmax(fabs(da), fabs(db));
@@ -56,10 +58,9 @@ inline bool cuts_next(Cuts* c, real db, __global const real* tf, int count, real
   s->xs = c->x;
   s->phis = c->phi;
   s->knot_s = c->knot;
-  int cursor = 0;
   real knot;
   if (c->direction != 0 &&
-      tf_next_knot(c->x, tf_interval(c->x, tf, count, scalars, &cursor), c->direction, tf, count,
+      tf_next_knot(c->x, tf_interval(c->x, tf, count, scalars, &c->cursor), c->direction, tf, count,
                    scalars, &knot) &&
       (c->direction > 0 ? knot < db : knot > db)) {
     s->xe = knot;
@@ -74,7 +75,7 @@ inline bool cuts_next(Cuts* c, real db, __global const real* tf, int count, real
   c->x = s->xe;
   c->phi = s->phie;
   c->knot = s->knot_e;
-  s->piece = tf_piece(tf_interval((real)0.5 * (s->xs + s->xe), tf, count, scalars, &cursor), tf,
+  s->piece = tf_piece(tf_interval((real)0.5 * (s->xs + s->xe), tf, count, scalars, &c->cursor), tf,
                       count, scalars);
   return true;
 }
@@ -99,13 +100,13 @@ inline real attenuation_apply(const Attenuation* at, real t) {
 
 // The segment's emission per unit entering transmittance (er, eg, eb) and its attenuation.
 inline void preintegrated_segment(const EndSample* a, const EndSample* b, real dt,
-                                  __global const real* tf, int count, real4 scalars,
+                                  __global const real* tf, int count, real4 scalars, int* cursor,
                                   Attenuation* at, real* er, real* eg, real* eb) {
   real r = (real)0, g = (real)0, bl = (real)0;
   at->opacity = (real)0;
   at->transmittance = (real)1;
   Cuts c;
-  cuts_begin(&c, a->d, b->d);
+  cuts_begin(&c, a->d, b->d, *cursor);
   SubSegment s;
   while (cuts_next(&c, b->d, tf, count, scalars, &s)) {
     const real length = dt * (s.phie - s.phis);
@@ -123,6 +124,7 @@ inline void preintegrated_segment(const EndSample* a, const EndSample* b, real d
 #endif
     attenuation_add(at, (real)0.5 * (ea + eb_), p + q);  // p + q: the sub-segment's 1 − e^{−τ}
   }
+  *cursor = c.cursor;
   *er = r, *eg = g, *eb = bl;
 }
 

@@ -20,7 +20,7 @@ inline void preintegrated_segment_adjoint(const EndSample* a, const EndSample* b
                                           __global const real* tf, int count, real4 scalars,
                                           const AdjointRay* ar, real* transmittance, real* pr,
                                           real* pg, real* pb, real* kr, real* kg, real* kb,
-                                          real* gd_a, real* gd_b, real* direct,
+                                          real* gd_a, real* gd_b, real* direct, int* cursor,
                                           TfGradCache* tf_cache, __local real* tf_acc) {
   const real t_in = *transmittance;
 #if IVR_EMISSION
@@ -30,7 +30,7 @@ inline void preintegrated_segment_adjoint(const EndSample* a, const EndSample* b
   Attenuation at = {(real)0, (real)1};
   real er = (real)0, eg = (real)0, eb = (real)0;
   Cuts c;
-  cuts_begin(&c, a->d, b->d);
+  cuts_begin(&c, a->d, b->d, *cursor);
   SubSegment s;
   while (cuts_next(&c, b->d, tf, count, scalars, &s)) {
     const real length = dt * (s.phie - s.phis);
@@ -91,6 +91,7 @@ inline void preintegrated_segment_adjoint(const EndSample* a, const EndSample* b
     (void)tf_cache, (void)tf_acc;
 #endif
   }
+  *cursor = c.cursor;
 #if IVR_EMISSION
   accumulate(pr, kr, t_in * er);
   accumulate(pg, kg, t_in * eg);

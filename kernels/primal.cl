@@ -101,7 +101,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
 #else
     Attenuation at;
     real er, eg, eb;
-    preintegrated_segment(&a, &b, m->dt, tf, tf_count, tf_scalars, &at, &er, &eg, &eb);
+    preintegrated_segment(&a, &b, m->dt, tf, tf_count, tf_scalars, &segment, &at, &er, &eg, &eb);
 #if IVR_EMISSION
     accumulate(&r->cr, &r->kr, r->transmittance * er);
     accumulate(&r->cg, &r->kg, r->transmittance * eg);
@@ -135,8 +135,9 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
     const real tm = (real)0.5 * (ta + tb);
     const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
                                        m->u0z + tm * m->duz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {  // brick faces are centre planes: the next piece starts there
-      pieces_begin(&p, m, dims, fmin(exit, m->t1));
+    if (exit >= (real)0) {  // brick faces are centre planes: the next piece starts there (or,
+      // where rounding counts a sliver on the face as the brick's, where this piece ends)
+      pieces_begin(&p, m, dims, fmin(fmax(exit, tb), m->t1));
       continue;
     }
 #endif

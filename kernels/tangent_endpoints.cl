@@ -68,9 +68,9 @@ inline void tangent_sample(TangentSample* a, __global const real* volume, int4 d
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
 // One segment: τ = dt (σa + σb)/2, emission dt·fraction(τ)·(Ea + Eb)/2 (primal.cl, composite()).
 inline void tangent_segment(const TangentSample* a, const TangentSample* b, const March* m,
-                            __global const real* tf, int tf_count, real4 tf_scalars, TangentRay* tr,
-                            Radiance* r) {
-  (void)tf, (void)tf_count, (void)tf_scalars;
+                            __global const real* tf, int tf_count, real4 tf_scalars, int* cursor,
+                            TangentRay* tr, Radiance* r) {
+  (void)tf, (void)tf_count, (void)tf_scalars, (void)cursor;
   const real dt = m->dt;
   const real sigma = (real)0.5 * (a->s.sigma + b->s.sigma), tau = sigma * dt;
   const real er = (real)0.5 * (a->s.er + b->s.er), eg = (real)0.5 * (a->s.eg + b->s.eg),
@@ -107,15 +107,15 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
 // a sample end moves with its density, a knot stays at its density (unless the lane is that
 // control point's density) but moves along the segment, φ = (knot − da)/(db − da).
 inline void tangent_segment(const TangentSample* a, const TangentSample* b, const March* m,
-                            __global const real* tf, int tf_count, real4 tf_scalars, TangentRay* tr,
-                            Radiance* r) {
+                            __global const real* tf, int tf_count, real4 tf_scalars, int* cursor,
+                            TangentRay* tr, Radiance* r) {
   const real dt = m->dt;
   Attenuation at = {(real)0, (real)1};
   real er = (real)0, eg = (real)0, eb = (real)0;
   real dtrans[IVR_LANES], der[IVR_LANES], deg[IVR_LANES], deb[IVR_LANES];
   IVR_FOR_LANES(p) dtrans[p] = der[p] = deg[p] = deb[p] = (real)0;
   Cuts c;
-  cuts_begin(&c, a->s.d, b->s.d);
+  cuts_begin(&c, a->s.d, b->s.d, *cursor);
   SubSegment s;
   while (cuts_next(&c, b->s.d, tf, tf_count, tf_scalars, &s)) {
     const real length = dt * (s.phie - s.phis);
@@ -181,6 +181,7 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
 #endif
     attenuation_add(&at, tau, alpha);
   }
+  *cursor = c.cursor;
   // Into the ray: C += T·e, T = T·(transmittance of the segment) (as primal.cl).
   IVR_FOR_LANES(p) {
 #if IVR_EMISSION
@@ -226,7 +227,7 @@ inline void tangent_march_endpoints(__global const real* volume, int4 dims, cons
     tangent_sample(&b, volume, dims, m, i + 1, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor,
                    &tf_cursor, tr);
     ++r->samples;
-    tangent_segment(&a, &b, m, tf, tf_count, tf_scalars, tr, r);
+    tangent_segment(&a, &b, m, tf, tf_count, tf_scalars, &cursor, tr, r);
     a = b;
     ++i;
 #if IVR_EARLY_TERMINATION

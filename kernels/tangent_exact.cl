@@ -34,7 +34,7 @@ inline void tangent_march_exact(__global const real* volume, int4 dims, const Ma
     const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
                                        m->u0z + tm * m->duz, m, dims, occupied, bricks);
     if (exit >= (real)0) {
-      pieces_begin(&pieces, m, dims, fmin(exit, m->t1));
+      pieces_begin(&pieces, m, dims, fmin(fmax(exit, tb), m->t1));
       continue;
     }
 #endif

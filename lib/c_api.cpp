@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "c_api_handles.hpp"
+#include "ivr/tolerance.hpp"
 
 using namespace ivr::capi;
 
@@ -161,6 +162,21 @@ ivr_status ivr_scene_volume_shape(const ivr_scene* s, int64_t shape[3]) {
   return guarded(context_of(s), "ivr_scene_volume_shape", [&] {
     checked(s, Kind::scene, "scene");
     write_shape(s->scene.volume, not_null(shape, "shape"));
+  });
+}
+
+ivr_status ivr_scene_step(ivr_context* c, const ivr_scene* s, ivr_precision precision,
+                          double* step, double* estimated_error) {
+  return guarded(c, "ivr_scene_step", [&] {
+    checked(c, Kind::context, "context");
+    with_volume(checked(s, Kind::scene, "scene"));
+    same_context(s->context, c, "scene");
+    not_null(step, "step");
+    ivr::StepChoice choice;
+    ivr::integrator_for(c->device, s->scene, 0, precision_of(precision),
+                        ivr::EmptySpace::automatic, &choice);
+    *step = choice.step;
+    if (estimated_error) *estimated_error = choice.estimated_error;
   });
 }
 

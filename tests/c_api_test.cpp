@@ -333,5 +333,34 @@ TEST_F(CApi, SeparateContextsOnSeparateThreads) {
   }
 }
 
+
+// The step a render uses: the scene's own, or the one its tolerance chooses (as the core's).
+TEST_F(CApi, SceneStepIsTheOneRendersUse) {
+  double step = 0, error = -1;
+  ASSERT_EQ(ivr_scene_step(ctx_, scene_, IVR_PRECISION_F32, &step, &error), IVR_OK)
+      << ivr_last_error();
+  EXPECT_EQ(step, cpp_scene().integrator.step);
+  EXPECT_EQ(error, 0.0);
+  std::string text = kSceneText;
+  const std::string integrator = R"("integrator": {"scheme": "midpoint", "step": 0.5})";
+  ASSERT_NE(text.find(integrator), std::string::npos);
+  text.replace(text.find(integrator), integrator.size(),
+               R"("integrator": {"scheme": "trapezoid", "tolerance": 0.002})");
+  ivr_scene* tolerant = nullptr;
+  ASSERT_EQ(ivr_scene_from_json(ctx_, text.c_str(), nullptr, &tolerant), IVR_OK) << ivr_last_error();
+  const int64_t shape[3] = {4, 5, 6};
+  ASSERT_EQ(ivr_scene_set_volume(tolerant, volume_.data(), IVR_FLOAT32, shape), IVR_OK);
+  ASSERT_EQ(ivr_scene_step(ctx_, tolerant, IVR_PRECISION_F32, &step, nullptr), IVR_OK)
+      << ivr_last_error();
+  Scene core = cpp_scene();
+  core.integrator.scheme = Scheme::trapezoid;
+  EXPECT_EQ(step, choose_step(device(), core, 0.002).step);
+  expect_error(ivr_scene_step(ctx_, tolerant, IVR_PRECISION_F32, nullptr, nullptr),
+               IVR_ERROR_INVALID_ARGUMENT, "ivr_scene_step", ctx_);
+  expect_error(ivr_scene_step(ctx_, nullptr, IVR_PRECISION_F32, &step, nullptr),
+               IVR_ERROR_INVALID_ARGUMENT, "ivr_scene_step", ctx_);
+  EXPECT_EQ(ivr_scene_release(tolerant), IVR_OK);
+}
+
 }  // namespace
 }  // namespace ivr::test

@@ -140,8 +140,15 @@ IVR_API ivr_status ivr_scene_image_shape(const ivr_scene* scene, int64_t shape[4
 /* The volume's shape (nz, ny, nx). */
 IVR_API ivr_status ivr_scene_volume_shape(const ivr_scene* scene, int64_t shape[3]);
 
+/* The integrator step (voxel units) a render of the scene uses: the scene's own, or, where its
+ * integrator asks for a "tolerance", the step chosen for it (pilot renders at a quarter of the
+ * resolution, Richardson: README "Integrators"); *estimated_error (may be NULL) receives that
+ * step's estimated relative RMS error (0 without a tolerance). Renders with step 0 use this step. */
+IVR_API ivr_status ivr_scene_step(ivr_context* context, const ivr_scene* scene,
+                                  ivr_precision precision, double* step, double* estimated_error);
+
 /* Renders every view into `image`: float32, shape ivr_scene_image_shape, `capacity` floats. step
- * > 0 overrides the scene's integrator step (voxel units). */
+ * > 0 overrides the scene's integrator step and tolerance (voxel units). */
 IVR_API ivr_status ivr_render(ivr_context* context, const ivr_scene* scene, ivr_precision precision,
                               double step, float* image, size_t capacity);
 

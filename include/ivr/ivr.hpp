@@ -269,6 +269,15 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
     detail::check(ivr_tf_from_json(get(), json.c_str(), &t));
     return TransferFunction(t);
   }
+  // The step (voxel units) a render of the scene uses: its own, or the one chosen for its
+  // integrator's tolerance; *estimated_error (optional): that step's estimated relative RMS error.
+  double step(const Scene& scene, Precision precision = Precision::f32,
+              double* estimated_error = nullptr) {
+    double s = 0;
+    detail::check(
+        ivr_scene_step(get(), scene.get(), ivr_precision(precision), &s, estimated_error));
+    return s;
+  }
   // Every view, shape (views, height, width, channels).
   Array<float> render(const Scene& scene, const Options& options = {}) {
     Array<float> image{scene.image_shape(), {}};

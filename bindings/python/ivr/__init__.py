@@ -181,6 +181,18 @@ class Context:
         _check(self._lib.ivr_scene_image_shape(scene_handle, shape))
         return tuple(shape)
 
+    def step(self, scene, volume=None, base_dir=None):
+        """(step, estimated_error): the integrator step (voxels) a render of the scene uses — its
+        own, or the one chosen for its integrator's "tolerance" (estimated_error 0 without)."""
+        s = self._scene(scene, volume, base_dir)
+        try:
+            step, error = ctypes.c_double(), ctypes.c_double()
+            _check(self._lib.ivr_scene_step(self._live(), s, _PRECISIONS[self.precision],
+                                            ctypes.byref(step), ctypes.byref(error)))
+            return step.value, error.value
+        finally:
+            self._lib.ivr_scene_release(s)
+
     def render(self, scene, volume=None, step=0.0, base_dir=None):
         """The image of every view: float32 (views, H, W, C)."""
         s = self._scene(scene, volume, base_dir)

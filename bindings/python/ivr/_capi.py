@@ -68,6 +68,8 @@ def _declare(lib):
         "ivr_scene_set_volume": (S, [HANDLE, ctypes.c_void_p, ctypes.c_int, c_int64_p]),
         "ivr_scene_image_shape": (S, [HANDLE, c_int64_p]),
         "ivr_scene_volume_shape": (S, [HANDLE, c_int64_p]),
+        "ivr_scene_step": (S, [HANDLE, HANDLE, ctypes.c_int, ctypes.POINTER(ctypes.c_double),
+                               ctypes.POINTER(ctypes.c_double)]),
         "ivr_render": (S, [HANDLE, HANDLE, ctypes.c_int, ctypes.c_double,
                            ctypes.POINTER(ctypes.c_float), ctypes.c_size_t]),
         "ivr_gradient": (S, [HANDLE, HANDLE, ctypes.POINTER(ctypes.c_float), ctypes.c_size_t,

@@ -59,6 +59,21 @@ def test_render_equals_the_cli(ctx, files):
     np.testing.assert_allclose(ctx.render(SCENE, as_bytes), image, atol=0.02)
 
 
+def test_step_and_schemes_equal_the_cli(ctx, files):
+    # The scene's own step; a tolerance's chosen step, as `ivr render --json` reports it.
+    assert ctx.step(SCENE, volume()) == (SCENE["integrator"]["step"], 0.0)
+    scene = dict(SCENE, integrator={"scheme": "preintegrated", "tolerance": 0.002})
+    step, error = ctx.step(scene, volume())
+    assert 0 < error <= 0.002 and step > 0
+    with open(files / "tolerant.json", "w") as f:
+        json.dump(dict(scene, volume={"file": "vol.npy"}), f)
+    out = json.loads(cli("render", files / "tolerant.json", "-o", files / "t.npy", "--json"))
+    assert out["scheme"] == "preintegrated" and out["step"] == step
+    np.testing.assert_array_equal(ctx.render(scene, volume()), np.load(files / "t.npy"))
+    with pytest.raises(ivr.Error, match="exact' integrates the absorption model only"):
+        ctx.render(dict(SCENE, integrator={"scheme": "exact"}), volume())
+
+
 def test_grad_equals_the_cli(ctx, files):
     target = np.full((1, 5, 6, 4), 0.25, dtype=np.float32)
     np.save(files / "target.npy", target)

@@ -1,0 +1,264 @@
+// stability_bench.cpp — the stability section of the speed-against-error suite: DESIGN.md's hard
+// cases (near-opaque walls and media, 1e5 samples per ray, rays grazing faces and edges,
+// axis-aligned rays, a camera inside, one-voxel and anisotropic volumes, density jumps and TF
+// kinks, an all-zero volume) through every integrator: the forward error against the continuous
+// float64 reference (tests/reference) and the float32 gradient's error against the float64 one
+// (density, TF, background; the measure of DESIGN.md's DiffDVR experiment), NaN/Inf counted, with
+// the render and gradient times. Prints JSON.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "accuracy_suite.hpp"
+#include "bench_support.hpp"
+#include "ivr/core.hpp"
+#include "reference/reference.hpp"
+
+using ivr::bench::median;
+using nlohmann::json;
+
+namespace {
+
+struct HardCase {
+  std::string name, what;
+  ivr::Scene scene;
+  double step;  // voxels
+};
+
+ivr::Camera camera(glm::dvec3 eye, int size, double fov = 30) {
+  ivr::Camera c;
+  c.eye = eye;
+  c.width = c.height = size;
+  c.fov_y = fov;
+  return c;
+}
+
+ivr::Camera ortho(glm::dvec3 eye, glm::dvec3 target, glm::dvec3 up, int size, double height) {
+  ivr::Camera c;
+  c.eye = eye;
+  c.target = target;
+  c.up = up;
+  c.projection = ivr::Projection::orthographic;
+  c.ortho_height = height;
+  c.width = c.height = size;
+  return c;
+}
+
+// A smooth medium of n³ voxels (values in [lo, hi]) under a three-point TF scaled by `extinction`.
+ivr::Scene medium(int n, double lo, double hi, double extinction, unsigned seed = 11) {
+  ivr::Scene s;
+  s.volume.nx = s.volume.ny = s.volume.nz = n;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> phase(0, 6.28);
+  const double a = phase(rng), b = phase(rng), c = phase(rng);
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const double v = 0.5 + 0.25 * std::sin(0.9 * x + a) * std::cos(0.7 * y + b) +
+                         0.25 * std::sin(0.8 * z + c);
+        s.volume.data.push_back(float(lo + (hi - lo) * v));
+      }
+  ivr::set_default_box(s);
+  s.model = ivr::Model::emission_absorption;
+  s.tf.kind = ivr::TfKind::piecewise_linear;
+  s.tf.points = {{0.0, {0.1, 0.2, 0.3}, 0.1 * extinction},
+                 {0.25, {0.9, 0.6, 0.2}, 1.0 * extinction},
+                 {1.5, {0.3, 0.8, 1.0}, 3.0 * extinction}};
+  s.background = glm::dvec3(0.3, 0.5, 0.7);
+  s.cameras = {camera({0.3, 0.25, 2.0}, 12, 25)};
+  s.integrator.min_transmittance = 0;
+  return s;
+}
+
+std::vector<HardCase> hard_cases() {
+  std::vector<HardCase> out;
+  {  // A wall two voxels thick: σΔ = 100 per sample at step 0.5 (h = 1/8).
+    ivr::Scene s = medium(8, 0.05, 0.2, 4.0);
+    for (int y = 0; y < 8; ++y)
+      for (int x = 0; x < 8; ++x)
+        for (int z : {3, 4}) s.volume.data[(std::size_t(z) * 8 + y) * 8 + x] = 1.f;
+    s.tf.points[2].extinction = 4.0 + (100 / (0.5 / 8) - 4.0) / 0.6;  // σ(1)·Δ = 100
+    out.push_back({"opaque_wall", "σΔ = 100 in a wall two voxels thick", s, 0.5});
+  }
+  {  // Total optical depth ~1e3 along the rays.
+    ivr::Scene s = medium(8, 0.1, 0.9, 150.0);
+    out.push_back({"depth_1e3", "smooth medium, optical depth ~1e3 per ray", s, 0.25});
+  }
+  {  // >= 1e5 samples per ray.
+    ivr::Scene s = medium(6, 0.1, 0.9, 1.0);
+    s.cameras = {camera({0.1, 0.05, 2.0}, 4, 10)};
+    out.push_back({"tiny_steps", ">= 1e5 samples per ray", s, 6.0 / 1e5 * 0.9});
+  }
+  {  // Rays grazing the +x face (1e-6 inside and outside) and the +x+y edge.
+    ivr::Scene s = medium(8, 0.1, 0.9, 3.0);
+    s.cameras = {ortho({0.5 - 1e-6, 0, 2}, {0.5 - 1e-6, 0, 0}, {0, 1, 0}, 8, 0.3),
+                 ortho({0.5 + 1e-6, 0, 2}, {0.5 + 1e-6, 0, 0}, {0, 1, 0}, 8, 0.3),
+                 camera({1.6, 1.6, 0.3}, 8, 6)};
+    s.cameras[2].target = {0.5, 0.5, 0};
+    out.push_back({"grazing", "rays 1e-6 inside/outside a face, and across an edge", s, 0.5});
+  }
+  {  // Rays along the axes from three sides, orthographic and perspective.
+    ivr::Scene s = medium(7, 0.1, 0.9, 3.0);
+    s.cameras = {ortho({2, 0, 0}, {0, 0, 0}, {0, 1, 0}, 7, 0.5),
+                 ortho({0, 2, 0}, {0, 0, 0}, {0, 0, 1}, 7, 0.5), camera({0, 0, 2}, 7, 10)};
+    out.push_back({"axis_aligned", "rays along the axes (and along centre planes)", s, 0.23});
+  }
+  {  // Camera inside the volume.
+    ivr::Scene s = medium(7, 0.1, 0.9, 3.0);
+    s.cameras = {camera({0.1, -0.05, 0.15}, 12, 60)};
+    s.cameras[0].target = {-0.3, 0.1, -1};
+    out.push_back({"camera_inside", "the eye inside the box", s, 0.3});
+  }
+  {  // One voxel in an anisotropic box.
+    ivr::Scene s = medium(1, 0.6, 0.6, 3.0);
+    s.box_min = {-0.2, -0.5, -0.1};
+    s.box_max = {0.3, 0.4, 0.6};
+    s.cameras = {camera({0.6, 0.4, 2.0}, 12, 35)};
+    out.push_back({"one_voxel", "a single voxel in an anisotropic box", s, 0.3});
+  }
+  {  // Anisotropic volume and spacing.
+    ivr::Scene s = medium(8, 0.1, 0.9, 3.0);
+    s.volume = ivr::Volume{};
+    s.volume.nx = 11, s.volume.ny = 5, s.volume.nz = 7;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(0.1f, 0.9f);
+    for (std::size_t i = 0; i < s.volume.voxel_count(); ++i) s.volume.data.push_back(u(rng));
+    s.volume.spacing = {1.0, 2.5, 0.6};
+    ivr::set_default_box(s);
+    s.cameras = {camera({1.2, 0.8, 1.5}, 12, 35)};
+    out.push_back({"anisotropic", "11x5x7 voxels of spacing (1, 2.5, 0.6), random data", s, 0.4});
+  }
+  {  // A half-empty volume with a dense block and a hot voxel, through a TF with a jump and kinks.
+    ivr::Scene s = medium(10, 0.0, 0.0, 1.0);
+    for (int z = 0; z < 10; ++z)
+      for (int y = 0; y < 10; ++y)
+        for (int x = 0; x < 10; ++x) {
+          float& d = s.volume.data[(std::size_t(z) * 10 + y) * 10 + x];
+          d = x >= 5 ? 0.7f : 0.f;
+          if (x == 2 && y == 5 && z == 5) d = 1.f;
+        }
+    s.tf.points = {{0.0, {0, 0, 0}, 0},      {0.3, {0.2, 0.4, 1}, 2}, {0.3, {0.9, 0.3, 0.1}, 15},
+                   {0.6, {1, 0.8, 0.2}, 30}, {0.8, {1, 1, 1}, 8},     {1.0, {1, 1, 1}, 40}};
+    s.cameras = {camera({1.4, 0.6, 1.2}, 12, 40)};
+    out.push_back({"jumps_kinks", "density jumps, a hot voxel, a TF jump and kinks", s, 0.3});
+  }
+  {  // All zero.
+    ivr::Scene s = medium(6, 0.0, 0.0, 3.0);
+    s.tf.points[0].extinction = 0;
+    out.push_back({"all_zero", "every voxel 0 (σ(0) = 0): the background exactly", s, 0.5});
+  }
+  return out;
+}
+
+double max_abs(const std::vector<double>& v) {
+  double m = 0;
+  for (double x : v) m = std::max(m, std::abs(x));
+  return m;
+}
+
+// max |a − b| / max |b| (0 for two zero vectors), and the count of non-finite elements of a.
+double relative_to_largest(const std::vector<double>& a, const std::vector<double>& b,
+                           std::size_t* bad) {
+  double e = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (!std::isfinite(a[i])) ++*bad;
+    e = std::max(e, std::abs(a[i] - b[i]));
+  }
+  const double s = max_abs(b);
+  return s > 0 ? e / s : (e > 0 ? INFINITY : 0.0);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"ivr stability benchmark: the hard cases through every integrator"};
+  std::string device_sel, out_path;
+  int repeats = 3;
+  app.add_option("--device", device_sel, "Device selector (default: $IVR_DEVICE)");
+  app.add_option("--repeats", repeats, "Timed runs per point (median)")->check(CLI::Range(1, 100));
+  app.add_option("-o,--output", out_path, "Also write the JSON here");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    ivr::Device device(device_sel);
+    json rows = json::array();
+    for (const HardCase& hc : hard_cases())
+      for (ivr::Model model : {ivr::Model::emission_absorption, ivr::Model::absorption})
+        for (ivr::Scheme scheme : {ivr::Scheme::midpoint, ivr::Scheme::trapezoid,
+                                   ivr::Scheme::preintegrated, ivr::Scheme::exact}) {
+          if (scheme == ivr::Scheme::exact && model != ivr::Model::absorption) continue;
+          if (scheme != ivr::Scheme::exact && model == ivr::Model::absorption) continue;
+          ivr::Scene s = hc.scene;
+          s.model = model;
+          s.integrator.scheme = scheme;
+          if (model == ivr::Model::absorption) s.background = glm::dvec3(1.0);
+          const std::vector<double> reference = ivr::reference::render_continuous(s);
+          std::vector<double> ms;
+          ivr::RenderStats stats;
+          ivr::Image image = ivr::render(device, s, {ivr::Precision::f32, hc.step}, &stats);
+          for (int r = 0; r < repeats; ++r) {
+            image = ivr::render(device, s, {ivr::Precision::f32, hc.step}, &stats);
+            ms.push_back(1e3 * stats.kernel_seconds);
+          }
+          const ivr::bench::RelativeError fe = ivr::bench::relative_error(image.pixels, reference);
+          std::size_t bad_image = 0;
+          for (float v : image.pixels) bad_image += std::isfinite(v) ? 0 : 1;
+          // Gradients against a target offset from the render (so that dL/dpixel is not 0).
+          ivr::Image target = ivr::render(device, s, {ivr::Precision::f64, hc.step});
+          for (std::size_t i = 0; i < target.pixels.size(); ++i)
+            target.pixels[i] -=
+                model == ivr::Model::absorption ? 0.1f : 0.15f + 0.05f * float(i % 4);
+          ivr::GradientOptions go;
+          go.step = hc.step;
+          go.tf = go.background = true;
+          go.precision = ivr::Precision::f64;
+          const ivr::Gradient g64 = ivr::gradient(device, s, target, go);
+          go.precision = ivr::Precision::f32;
+          std::vector<double> gms;
+          ivr::Gradient g32;
+          for (int r = 0; r < repeats + 1; ++r) {
+            g32 = ivr::gradient(device, s, target, go);
+            if (r > 0) gms.push_back(1e3 * g32.kernel_seconds);
+          }
+          std::size_t bad_gradient = 0;
+          const double ed = relative_to_largest(
+              std::vector<double>(g32.density.begin(), g32.density.end()),
+              std::vector<double>(g64.density.begin(), g64.density.end()), &bad_gradient);
+          const double et = relative_to_largest(g32.tf, g64.tf, &bad_gradient);
+          const double eb = relative_to_largest(g32.background, g64.background, &bad_gradient);
+          const double rays = double(s.cameras.size()) * s.cameras[0].width * s.cameras[0].height;
+          rows.push_back(
+              {{"case", hc.name},
+               {"what", hc.what},
+               {"model", model == ivr::Model::absorption ? "absorption" : "emission_absorption"},
+               {"integrator", ivr::scheme_name(scheme)},
+               {"step", hc.step},
+               {"samples_per_ray", double(stats.samples) / rays},
+               {"forward_relative_rms", fe.rms},
+               {"forward_relative_max", fe.max},
+               {"nonfinite_pixels", bad_image},
+               {"gradient_f32_vs_f64", {{"density", ed}, {"tf", et}, {"background", eb}}},
+               {"nonfinite_gradient", bad_gradient},
+               {"render_ms", median(ms)},
+               {"gradient_ms", median(gms)}});
+          std::cerr << hc.name << " " << ivr::scheme_name(scheme) << ": forward rel RMS " << fe.rms
+                    << ", gradient f32/f64 density " << ed << " tf " << et << ", non-finite "
+                    << bad_image + bad_gradient << "\n";
+        }
+    const json result = {{"benchmark", "stability"},
+                         {"ivr_version", IVR_VERSION_STRING},
+                         {"device", device.info().name},
+                         {"reference", "tests/reference render_continuous (float64)"},
+                         {"gradient_error", "max |f32 - f64| / max |f64| per group"},
+                         {"repeats", repeats},
+                         {"rows", rows}};
+    std::cout << result.dump(2) << "\n";
+    if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

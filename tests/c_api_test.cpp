@@ -356,9 +356,9 @@ TEST_F(CApi, SceneStepIsTheOneRendersUse) {
   core.integrator.scheme = Scheme::trapezoid;
   EXPECT_EQ(step, choose_step(device(), core, 0.002).step);
   expect_error(ivr_scene_step(ctx_, tolerant, IVR_PRECISION_F32, nullptr, nullptr),
-               IVR_ERROR_INVALID_ARGUMENT, "ivr_scene_step", ctx_);
+               IVR_ERROR_NULL_POINTER, "ivr_scene_step", ctx_);
   expect_error(ivr_scene_step(ctx_, nullptr, IVR_PRECISION_F32, &step, nullptr),
-               IVR_ERROR_INVALID_ARGUMENT, "ivr_scene_step", ctx_);
+               IVR_ERROR_NULL_POINTER, "ivr_scene_step", ctx_);
   EXPECT_EQ(ivr_scene_release(tolerant), IVR_OK);
 }
 

@@ -189,11 +189,24 @@ int main(int argc, char** argv) {
         for (ivr::Scheme scheme : {ivr::Scheme::midpoint, ivr::Scheme::trapezoid,
                                    ivr::Scheme::preintegrated, ivr::Scheme::exact}) {
           if (scheme == ivr::Scheme::exact && model != ivr::Model::absorption) continue;
-          if (scheme != ivr::Scheme::exact && model == ivr::Model::absorption) continue;
           ivr::Scene s = hc.scene;
           s.model = model;
           s.integrator.scheme = scheme;
-          if (model == ivr::Model::absorption) s.background = glm::dvec3(1.0);
+          if (model == ivr::Model::absorption) {
+            // Absorption images of the opaque cases would underflow float32 (I ~ e^−1000): their
+            // extinctions are scaled to an optical depth of at most 60 per ray.
+            s.background = glm::dvec3(1.0);
+            double depth = 0;
+            for (const ivr::Camera& c : s.cameras)
+              for (int y = 0; y < c.height; ++y)
+                for (int x = 0; x < c.width; ++x) {
+                  glm::dvec3 o, d;
+                  ivr::reference::ray(c, x, y, &o, &d);
+                  depth = std::max(depth, ivr::reference::optical_depth(s, o, d));
+                }
+            if (depth > 60)
+              for (ivr::TfPoint& p : s.tf.points) p.extinction *= 60 / depth;
+          }
           const std::vector<double> reference = ivr::reference::render_continuous(s);
           std::vector<double> ms;
           ivr::RenderStats stats;

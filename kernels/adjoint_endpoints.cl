@@ -89,9 +89,8 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
   bool open = true;  // a still waits for its scatter
   for (uint i = 0; i < ar->end;) {
 #if IVR_SKIP_EMPTY
-    const real exit = empty_brick_exit(a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {
-      const uint k = last_sample_before(i, ar->end, m->t0, dt, exit);
+    {
+      const uint k = endpoint_skip(i, ar->end, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks);
       if (k > i) {  // the segments in between add nothing, nor does their gradient
         finish_sample(&a, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
                       &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);

@@ -29,13 +29,7 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
     last_axis = p.axis;
     if (!(tb > ta)) continue;
 #if IVR_SKIP_EMPTY
-    const real tm = (real)0.5 * (ta + tb);
-    const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
-                                       m->u0z + tm * m->duz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {
-      pieces_begin(&p, m, dims, fmin(fmax(exit, tb), m->t1));
-      continue;
-    }
+    if (pieces_skip_empty(&p, m, dims, ta, tb, occupied, bricks)) continue;
 #endif
     const PieceCell pc = piece_cell(m, dims, ta, tb);
     cell_enter(&cell, pc.ix, pc.iy, pc.iz, volume, dims, grad_volume);

@@ -56,6 +56,16 @@ __attribute__((always_inline)) inline uint last_sample_before(uint i, uint n, re
   return k >= (real)n ? n : max(i, (uint)fmax(k, (real)0));
 }
 
+// End-sample schemes: where sample i (at voxel coordinates u) lies in an empty brick, the last
+// sample before the ray leaves it (last_sample_before); i where it is occupied.
+__attribute__((always_inline)) inline uint endpoint_skip(uint i, uint n, real ux, real uy, real uz,
+                                                         const March* m, int4 dims,
+                                                         __global const uchar* occupied,
+                                                         int4 bricks) {
+  const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
+  return exit < (real)0 ? i : last_sample_before(i, n, m->t0, m->dt, exit);
+}
+
 // Per brick (one work-item each): the min and max density over the voxels its samples read,
 // [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space.hpp), as float pairs.
 __kernel void brick_ranges(__global const real* restrict volume, const int4 dims, const int4 bricks,

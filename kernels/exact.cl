@@ -6,6 +6,7 @@
 #ifndef IVR_EXACT_CL
 #define IVR_EXACT_CL
 #include "config.cl"
+#include "empty_space.cl"
 #include "march.cl"
 #include "tf.cl"
 
@@ -60,6 +61,20 @@ inline bool pieces_next(Pieces* p, const March* m, int4 dims, real* ta, real* tb
   while (p->ty <= end) p->ty = next_plane(m->u0y, m->duy, dims.y, &p->ky, p->sy);
   while (p->tz <= end) p->tz = next_plane(m->u0z, m->duz, dims.z, &p->kz, p->sz);
   p->t = end;
+  return true;
+}
+
+// Empty-space skipping for the pieces: where piece [ta, tb] lies in an empty brick, restarts the
+// walk where the ray leaves that brick (brick faces are centre planes: a piece starts there; or,
+// where rounding counts a sliver on the face as the brick's, where this piece ends) and returns
+// true. The skipped pieces add nothing: σ = 0 there.
+inline bool pieces_skip_empty(Pieces* p, const March* m, int4 dims, real ta, real tb,
+                              __global const uchar* occupied, int4 bricks) {
+  const real tm = (real)0.5 * (ta + tb);
+  const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
+                                     m->u0z + tm * m->duz, m, dims, occupied, bricks);
+  if (exit < (real)0) return false;
+  pieces_begin(p, m, dims, fmin(fmax(exit, tb), m->t1));
   return true;
 }
 

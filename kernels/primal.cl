@@ -82,9 +82,8 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
   ++r->samples;
   for (uint i = 0; i < m->n;) {
 #if IVR_SKIP_EMPTY
-    const real exit = empty_brick_exit(a.ux, a.uy, a.uz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {
-      const uint k = last_sample_before(i, m->n, m->t0, m->dt, exit);
+    {
+      const uint k = endpoint_skip(i, m->n, a.ux, a.uy, a.uz, m, dims, occupied, bricks);
       if (k > i) {
         i = k;
         if (i >= m->n) break;
@@ -132,14 +131,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
     ++r->end;
     if (!(tb > ta)) continue;
 #if IVR_SKIP_EMPTY
-    const real tm = (real)0.5 * (ta + tb);
-    const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
-                                       m->u0z + tm * m->duz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {  // brick faces are centre planes: the next piece starts there (or,
-      // where rounding counts a sliver on the face as the brick's, where this piece ends)
-      pieces_begin(&p, m, dims, fmin(fmax(exit, tb), m->t1));
-      continue;
-    }
+    if (pieces_skip_empty(&p, m, dims, ta, tb, occupied, bricks)) continue;
 #endif
     const PieceCell cell = piece_cell(m, dims, ta, tb);
     real v[8];

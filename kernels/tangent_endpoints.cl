@@ -212,9 +212,8 @@ inline void tangent_march_endpoints(__global const real* volume, int4 dims, cons
   ++r->samples;
   for (uint i = 0; i < m->n;) {
 #if IVR_SKIP_EMPTY
-    const real exit = empty_brick_exit(a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {
-      const uint k = last_sample_before(i, m->n, m->t0, m->dt, exit);
+    {
+      const uint k = endpoint_skip(i, m->n, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks);
       if (k > i) {
         i = k;
         if (i >= m->n) break;

@@ -30,13 +30,7 @@ inline void tangent_march_exact(__global const real* volume, int4 dims, const Ma
     last_axis = pieces.axis;
     if (!(tb > ta)) continue;
 #if IVR_SKIP_EMPTY
-    const real tm = (real)0.5 * (ta + tb);
-    const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
-                                       m->u0z + tm * m->duz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {
-      pieces_begin(&pieces, m, dims, fmin(fmax(exit, tb), m->t1));
-      continue;
-    }
+    if (pieces_skip_empty(&pieces, m, dims, ta, tb, occupied, bricks)) continue;
 #endif
     const PieceCell pc = piece_cell(m, dims, ta, tb);
     real v[8];

@@ -92,5 +92,42 @@ TEST(Exact, IsTheContinuousAbsorptionIntegralAtAnyStep) {
   }
 }
 
+
+// The exact scheme's traversal where it is easiest to get wrong: rays along the axes, lying in
+// centre planes and on the lines where they meet (through every node), starting inside the box,
+// on random data with a TF whose knots sit at voxel values.
+TEST(Exact, AxisAlignedRaysRaysInCentrePlanesThroughNodesAndInside) {
+  Scene s = random_scene(Model::absorption, TfKind::piecewise_linear, Scheme::exact);
+  s.box_min = {-0.5, -0.5, -0.5};
+  s.box_max = {0.5, 0.5, 0.5};
+  s.volume = Volume{};
+  s.volume.nx = s.volume.ny = s.volume.nz = 8;
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> u(0, 8);
+  for (int i = 0; i < 512; ++i) s.volume.data.push_back(float(u(rng)) / 8.f);  // knots at k/8 hit
+  s.tf.points = {{0.25, {0, 0, 0}, 0.0}, {0.5, {0, 0, 0}, 9.0}, {0.75, {0, 0, 0}, 3.0}};
+  // h = 1/8: centre planes at odd multiples of 1/16. 2x2 pixels 1/8 apart around the eye.
+  s.cameras = {ortho({0, 0, 2}, {0, 1, 0}, 2, 2, 0.25),              // on node lines
+               ortho({0.0625, 0.0625, 2}, {0, 1, 0}, 2, 2, 0.25),    // on cell faces
+               ortho({-2, 0.0625, 0}, {0, 0, 1}, 2, 2, 0.25),        // along x, in planes
+               ortho({0.0625, -2, 0.0625}, {0, 0, 1}, 2, 2, 0.25)};  // along y
+  s.cameras[0].target = {0, 0, 0}, s.cameras[1].target = {0.0625, 0.0625, 0};
+  s.cameras[2].target = {0, 0.0625, 0}, s.cameras[3].target = {0.0625, 0, 0.0625};
+  Camera inside;  // perspective from inside the box
+  inside.eye = {0.1, -0.05, 0.15};
+  inside.target = {-0.3, 0.1, -1};
+  inside.fov_y = 60;
+  inside.width = inside.height = 2;
+  s.cameras.push_back(inside);
+  const std::vector<double> want = reference::render_continuous(s);
+  for (Precision p : {Precision::f64, Precision::f32}) {
+    const Image got = render_at(s, p, 0.5);
+    double e = 0;
+    for (std::size_t i = 0; i < want.size(); ++i)
+      e = std::max(e, std::abs(double(got.pixels[i]) - want[i]) / std::max(want[i], 1e-3));
+    EXPECT_LT(e, p == Precision::f64 ? 1e-6 : 1e-5) << name(p);
+  }
+}
+
 }  // namespace
 }  // namespace ivr::test

@@ -145,6 +145,22 @@ bool clip_to_box(const glm::dvec3& lo, const glm::dvec3& hi, const glm::dvec3& o
   return true;
 }
 
+std::vector<double> centre_plane_cuts(const ivr::Scene& scene, const glm::dvec3& o,
+                                      const glm::dvec3& dir, double t0, double t1) {
+  std::vector<double> cuts{t0, t1};
+  const int n[3] = {scene.volume.nx, scene.volume.ny, scene.volume.nz};
+  for (int a = 0; a < 3; ++a) {
+    if (dir[a] == 0.0) continue;
+    const double h = (scene.box_max[a] - scene.box_min[a]) / n[a];
+    for (int i = 0; i < n[a]; ++i) {
+      const double t = (scene.box_min[a] + (i + 0.5) * h - o[a]) / dir[a];
+      if (t > t0 && t < t1) cuts.push_back(t);
+    }
+  }
+  std::sort(cuts.begin(), cuts.end());
+  return cuts;
+}
+
 namespace {
 
 // Integrates one ray. The interval is split where the ray crosses a plane through voxel centres:
@@ -163,17 +179,7 @@ void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec
     }
     return;
   }
-  std::vector<double> cuts{t0, t1};
-  const int n[3] = {scene.volume.nx, scene.volume.ny, scene.volume.nz};
-  for (int a = 0; a < 3; ++a) {
-    if (dir[a] == 0.0) continue;
-    const double h = (scene.box_max[a] - scene.box_min[a]) / n[a];
-    for (int i = 0; i < n[a]; ++i) {
-      const double t = (scene.box_min[a] + (i + 0.5) * h - o[a]) / dir[a];
-      if (t > t0 && t < t1) cuts.push_back(t);
-    }
-  }
-  std::sort(cuts.begin(), cuts.end());
+  const std::vector<double> cuts = centre_plane_cuts(scene, o, dir, t0, t1);
 
   const double t_min = early ? scene.integrator.min_transmittance : 0.0;
   double tau = 0.0;

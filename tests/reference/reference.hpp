@@ -25,6 +25,11 @@ TfSample transfer(const ivr::TransferFunction& tf, double d);
 bool clip_to_box(const glm::dvec3& box_min, const glm::dvec3& box_max, const glm::dvec3& origin,
                  const glm::dvec3& dir, double* t0, double* t1);
 
+// [t0, t1] cut where the ray o + t·dir crosses a plane through voxel centres, sorted (t0 and t1
+// included): between two cuts the trilinear density is one polynomial in t.
+std::vector<double> centre_plane_cuts(const ivr::Scene& scene, const glm::dvec3& o,
+                                      const glm::dvec3& dir, double t0, double t1);
+
 // Images of shape (views, H, W, C) like ivr::Image, integrated with a midpoint rule on the
 // continuous integrand with sub-intervals of at most step_world (world units). With
 // early_termination the march stops once exp(-tau) < scene.integrator.min_transmittance.

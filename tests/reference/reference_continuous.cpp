@@ -407,17 +407,7 @@ void continuous_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dve
   ri.reset();
   double t0, t1;
   if (!clip_to_box(scene.box_min, scene.box_max, o, dir, &t0, &t1)) return;
-  std::vector<double> cuts{t0, t1};
-  const int n[3] = {scene.volume.nx, scene.volume.ny, scene.volume.nz};
-  for (int a = 0; a < 3; ++a) {
-    if (dir[a] == 0.0) continue;
-    const double h = (scene.box_max[a] - scene.box_min[a]) / n[a];
-    for (int i = 0; i < n[a]; ++i) {
-      const double t = (scene.box_min[a] + (i + 0.5) * h - o[a]) / dir[a];
-      if (t > t0 && t < t1) cuts.push_back(t);
-    }
-  }
-  std::sort(cuts.begin(), cuts.end());
+  const std::vector<double> cuts = centre_plane_cuts(scene, o, dir, t0, t1);
   for (std::size_t p = 0; p + 1 < cuts.size() && !ri.done(); ++p) {
     if (!(cuts[p + 1] > cuts[p])) continue;
     double c[4];

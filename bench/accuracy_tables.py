@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""accuracy_tables.py — the README's tables from ivr_accuracy_bench's JSON: the time at the
+target error per look, volume and integrator with the best against midpoint; the exact scheme's
+error in both precisions; the tolerance section's worst cases (error over the tolerance, needed
+step over the chosen one). Prints Markdown.
+
+Usage: /usr/bin/python3 bench/accuracy_tables.py RESULTS.json
+"""
+import json
+import sys
+
+
+def fmt(v, spec=".1f"):
+    return "—" if v is None else format(v, spec)
+
+
+def time_tables(doc):
+    target = doc["time_at_target"][0]["target_relative_rms"]
+    looks = list(dict.fromkeys(r["look"] for r in doc["time_at_target"]))
+    for look in looks:
+        rows = [r for r in doc["time_at_target"] if r["look"] == look]
+        integrators = list(dict.fromkeys(r["integrator"] for r in rows))
+        print(f"\nLook `{look}`: ms to reach a relative RMS error of {target:g} "
+              "(— : not reached at the smallest step)\n")
+        print("| volume | " + " | ".join(integrators) + " | best | best / midpoint |")
+        print("|---" * (len(integrators) + 3) + "|")
+        for volume in dict.fromkeys(r["volume"] for r in rows):
+            ms = {r["integrator"]: r["ms_at_target"] for r in rows if r["volume"] == volume}
+            best = next(b for b in doc["best_against_midpoint"]
+                        if b["volume"] == volume and b["look"] == look)
+            speed = best["speedup"]
+            print(f"| {volume} | " + " | ".join(fmt(ms[i]) for i in integrators) +
+                  f" | {best['best'] or '—'} | {fmt(speed, '.2f')} |")
+
+
+def exact_table(doc):
+    if not doc["exact"]:
+        return
+    print("\nThe exact scheme (absorption look): error against the continuous integral, worst over "
+          "every step setting\n")
+    print("| volume | f32 relative RMS | f32 relative max | f64 relative RMS | f64 relative max |")
+    print("|---|---|---|---|---|")
+    for volume in dict.fromkeys(r["volume"] for r in doc["exact"]):
+        rs = [r for r in doc["exact"] if r["volume"] == volume]
+        worst = {(p, m): max(r[p][m] for r in rs) for p in ("f32", "f64")
+                 for m in ("relative_rms", "relative_max")}
+        print(f"| {volume} | {worst['f32', 'relative_rms']:.1e} | {worst['f32', 'relative_max']:.1e}"
+              f" | {worst['f64', 'relative_rms']:.1e} | {worst['f64', 'relative_max']:.1e} |")
+
+
+def tolerance_table(doc):
+    rows = doc["tolerance"]
+    if not rows:
+        return
+    print("\nTolerance: per look, scheme and tolerance, over every volume: the worst measured "
+          "error / tolerance, and the range of needed step / chosen step\n")
+    print("| look | scheme | tolerance | cases | below | worst error / tolerance | "
+          "needed / chosen | pilots | choose s (max) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    keys = list(dict.fromkeys((r["look"], r["scheme"], r["tolerance"]) for r in rows))
+    for look, scheme, tol in keys:
+        rs = [r for r in rows if (r["look"], r["scheme"], r["tolerance"]) == (look, scheme, tol)]
+        below = sum(r["below_tolerance"] for r in rs)
+        worst = max(r["measured_error"] / tol for r in rs)
+        ratios = [r["needed_over_chosen"] for r in rs if r["needed_over_chosen"] is not None]
+        span = f"{min(ratios):.2f}–{max(ratios):.2f}" if ratios else "—"
+        print(f"| {look} | {scheme} | {tol:g} | {len(rs)} | {below} | {worst:.2f} | {span} | "
+              f"{max(r['pilots'] for r in rs)} | {max(r['choose_seconds'] for r in rs):.2f} |")
+
+
+def main():
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
+    with open(sys.argv[1]) as f:
+        doc = json.load(f)
+    time_tables(doc)
+    exact_table(doc)
+    tolerance_table(doc)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""accuracy_tables.py — the README's tables from ivr_accuracy_bench's JSON: the time at the
+"""accuracy_tables.py — the README's tables from ivr_accuracy_bench's JSON (the time at the
 target error per look, volume and integrator with the best against midpoint; the exact scheme's
-error in both precisions; the tolerance section's worst cases (error over the tolerance, needed
-step over the chosen one). Prints Markdown.
+error in both precisions; the tolerance section's worst cases) or from ivr_stability_bench's (per
+hard case and integrator: forward error, float32-vs-float64 gradient error, non-finite values).
+Prints Markdown.
 
 Usage: /usr/bin/python3 bench/accuracy_tables.py RESULTS.json
 """
@@ -68,11 +69,38 @@ def tolerance_table(doc):
               f"{max(r['pilots'] for r in rs)} | {max(r['choose_seconds'] for r in rs):.2f} |")
 
 
+def stability_table(doc):
+    print("\nPer hard case and integrator: forward relative RMS error against the continuous "
+          "integral / float32 gradient's max error against float64 (density; TF), relative to "
+          "the largest float64 entry; every value finite unless marked\n")
+    rows = doc["rows"]
+    columns = list(dict.fromkeys((r["model"], r["integrator"]) for r in rows))
+    print("| case | " + " | ".join(f"{i} ({'abs' if m == 'absorption' else 'ea'})"
+                                   for m, i in columns) + " |")
+    print("|---" * (len(columns) + 1) + "|")
+    for case in dict.fromkeys(r["case"] for r in rows):
+        cells = []
+        for m, i in columns:
+            r = next((r for r in rows if (r["case"], r["model"], r["integrator"]) == (case, m, i)),
+                     None)
+            if r is None:
+                cells.append("—")
+                continue
+            g = r["gradient_f32_vs_f64"]
+            bad = r["nonfinite_pixels"] + r["nonfinite_gradient"]
+            cells.append(f"{r['forward_relative_rms']:.0e} / {g['density']:.0e}; {g['tf']:.0e}" +
+                         (f" ({bad} NaN/Inf)" if bad else ""))
+        print(f"| {case} | " + " | ".join(cells) + " |")
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
     with open(sys.argv[1]) as f:
         doc = json.load(f)
+    if doc.get("benchmark") == "stability":
+        stability_table(doc)
+        return
     time_tables(doc)
     exact_table(doc)
     tolerance_table(doc)

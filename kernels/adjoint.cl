@@ -53,7 +53,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
     March m;
     const bool hit = march_begin(ray, box_min, box_max, inv_voxel, step, &m);
-    Radiance r = {(real)1, (real)0, (real)0, (real)0, (real)0, (real)0, (real)0, 0, 0};
+    Radiance r = radiance_begin();
     if (hit)
       primal_march(volume, dims, &m, tf, tf_count, tf_scalars, min_transmittance, occupied, bricks,
                    &r);

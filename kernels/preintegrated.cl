@@ -85,9 +85,11 @@ inline bool cuts_next(Cuts* c, real db, __global const real* tf, int count, real
 // where that keeps the precision; exp(−τ) above, where 1 − α would lose it to α ≈ 1).
 typedef struct {
   real opacity, transmittance;
+  real tau;  // the segment's optical depth (absorption sums it along the ray)
 } Attenuation;
 
 inline void attenuation_add(Attenuation* at, real tau, real alpha) {
+  at->tau += tau;
   at->opacity = fma(at->transmittance, alpha, at->opacity);
   at->transmittance = tau < (real)0.1 ? fma(-at->transmittance, alpha, at->transmittance)
                                       : at->transmittance * exp(-tau);
@@ -103,7 +105,7 @@ inline void preintegrated_segment(const EndSample* a, const EndSample* b, real d
                                   __global const real* tf, int count, real4 scalars, int* cursor,
                                   Attenuation* at, real* er, real* eg, real* eb) {
   real r = (real)0, g = (real)0, bl = (real)0;
-  at->opacity = (real)0;
+  at->opacity = at->tau = (real)0;
   at->transmittance = (real)1;
   Cuts c;
   cuts_begin(&c, a->d, b->d, *cursor);

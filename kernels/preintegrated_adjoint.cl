@@ -27,7 +27,7 @@ inline void preintegrated_segment_adjoint(const EndSample* a, const EndSample* b
   // Remaining radiance at the segment's start, grouped as the primal summed it.
   const real rem_r = ar->total_r - *pr, rem_g = ar->total_g - *pg, rem_b = ar->total_b - *pb;
 #endif
-  Attenuation at = {(real)0, (real)1};
+  Attenuation at = {(real)0, (real)1, (real)0};
   real er = (real)0, eg = (real)0, eb = (real)0;
   Cuts c;
   cuts_begin(&c, a->d, b->d, *cursor);

@@ -15,28 +15,68 @@
 // What a march hands back: the transmittance left, the emitted colour, the samples taken, and
 // where it stopped (early termination) for the gradient kernels' second march: one past the last
 // segment taken (midpoint, trapezoid, preintegrated) or the pieces walked (exact).
+// The absorption model needs the transmittance at the end only: its marches sum the optical
+// depth instead (compensated, so that 1e5-sample rays keep float32's precision: the product of
+// 1e5 factors would not) and take T = e^−τ once (march_finish).
 typedef struct {
   real transmittance;
   real cr, cg, cb;
   real kr, kg, kb;  // compensation (accumulate)
+  real tau, ktau;   // absorption: the optical depth so far, and its compensation
   uint samples;
   uint end;
 } Radiance;
 
-// Adds one segment of optical depth tau emitting (er, eg, eb)·weight_scale·fraction(tau) per
-// unit transmittance: the midpoint and trapezoid rules' compositing.
+inline Radiance radiance_begin(void) {
+  Radiance r;
+  r.transmittance = (real)1;
+  r.cr = r.cg = r.cb = r.kr = r.kg = r.kb = r.tau = r.ktau = (real)0;
+  r.samples = r.end = 0;
+  return r;
+}
+
+// What early termination compares: the transmittance with min_transmittance (emission–
+// absorption), or the optical depth with −log(min_transmittance) (absorption).
+inline real march_threshold(real min_transmittance) {
+#if IVR_EMISSION
+  return min_transmittance;
+#else
+  return min_transmittance > (real)0 ? -log(min_transmittance) : (real)INFINITY;
+#endif
+}
+
+inline bool march_stopped(const Radiance* r, real threshold) {
+#if IVR_EMISSION
+  return r->transmittance < threshold;
+#else
+  return r->tau > threshold;
+#endif
+}
+
+// The end of a march: absorption's transmittance from its optical depth.
+inline void march_finish(Radiance* r) {
+#if !IVR_EMISSION
+  r->transmittance = exp(-r->tau);
+#else
+  (void)r;
+#endif
+}
+
+// Adds one segment of optical depth tau emitting (er, eg, eb)·dt·fraction(tau) per unit
+// transmittance: the midpoint and trapezoid rules' compositing.
 inline void composite(Radiance* r, real tau, real dt, real er, real eg, real eb) {
+#if IVR_EMISSION
   real fraction;
   const real decay = decay_and_fraction(tau, &fraction);
-#if IVR_EMISSION
   const real weight = r->transmittance * dt * fraction;
   accumulate(&r->cr, &r->kr, weight * er);
   accumulate(&r->cg, &r->kg, weight * eg);
   accumulate(&r->cb, &r->kb, weight * eb);
+  r->transmittance = attenuate(r->transmittance, tau, fraction, decay);
 #else
   (void)dt, (void)er, (void)eg, (void)eb;
+  accumulate(&r->tau, &r->ktau, tau);
 #endif
-  r->transmittance = attenuate(r->transmittance, tau, fraction, decay);
 }
 
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT
@@ -46,6 +86,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
                          real min_transmittance, __global const uchar* occupied, int4 bricks,
                          Radiance* r) {
   int segment = 0;  // the transfer function's search cursor (tf_sample)
+  const real threshold = march_threshold(min_transmittance);
   for (uint i = 0; i < m->n;) {
     const real t = sample_t(m, i);
     const real ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
@@ -65,9 +106,10 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
     ++r->samples;
     r->end = ++i;
 #if IVR_EARLY_TERMINATION
-    if (r->transmittance < min_transmittance) break;
+    if (march_stopped(r, threshold)) break;
 #endif
   }
+  march_finish(r);
 }
 
 #elif IVR_ENDPOINT_SAMPLES
@@ -78,6 +120,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
                          real min_transmittance, __global const uchar* occupied, int4 bricks,
                          Radiance* r) {
   int segment = 0;
+  const real threshold = march_threshold(min_transmittance);
   EndSample a = end_sample(volume, dims, m, 0, tf, tf_count, tf_scalars, &segment);
   ++r->samples;
   for (uint i = 0; i < m->n;) {
@@ -105,15 +148,18 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
     accumulate(&r->cr, &r->kr, r->transmittance * er);
     accumulate(&r->cg, &r->kg, r->transmittance * eg);
     accumulate(&r->cb, &r->kb, r->transmittance * eb);
-#endif
     r->transmittance = attenuation_apply(&at, r->transmittance);
+#else
+    accumulate(&r->tau, &r->ktau, at.tau);
+#endif
 #endif
     a = b;
     r->end = ++i;
 #if IVR_EARLY_TERMINATION
-    if (r->transmittance < min_transmittance) break;
+    if (march_stopped(r, threshold)) break;
 #endif
   }
+  march_finish(r);
 }
 
 #elif IVR_SCHEME == IVR_SCHEME_EXACT

@@ -17,7 +17,7 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
   if (x >= width || y >= height) return;
 
   const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
-  Radiance r = {(real)1, (real)0, (real)0, (real)0, (real)0, (real)0, (real)0, 0, 0};
+  Radiance r = radiance_begin();
   March m;
   if (march_begin(ray, box_min, box_max, inv_voxel, step, &m))
     primal_march(volume, dims, &m, tf, tf_count, tf_scalars, min_transmittance, occupied, bricks,

@@ -75,13 +75,15 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
   const real sigma = (real)0.5 * (a->s.sigma + b->s.sigma), tau = sigma * dt;
   const real er = (real)0.5 * (a->s.er + b->s.er), eg = (real)0.5 * (a->s.eg + b->s.eg),
              eb = (real)0.5 * (a->s.eb + b->s.eb);
+#if IVR_EMISSION
   real fraction;
   const real decay = decay_and_fraction(tau, &fraction);
-#if IVR_EMISSION
   const real weight = r->transmittance * dt * fraction;
   const real fslope = fraction_slope(tau, decay, fraction);
-#endif
   const real next = attenuate(r->transmittance, tau, fraction, decay);
+#else
+  (void)er, (void)eg, (void)eb;
+#endif
   IVR_FOR_LANES(p) {
     const real ddt = (tr->dt1[p] - tr->dt0[p]) / (real)m->n;
     const real dtau = (real)0.5 * (a->dsig[p] + b->dsig[p]) * dt + sigma * ddt;
@@ -91,15 +93,19 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
     tr->dcr[p] += dweight * er + weight * (real)0.5 * (a->der[p] + b->der[p]);
     tr->dcg[p] += dweight * eg + weight * (real)0.5 * (a->deg[p] + b->deg[p]);
     tr->dcb[p] += dweight * eb + weight * (real)0.5 * (a->deb[p] + b->deb[p]);
-#endif
     tr->dT[p] = tr->dT[p] * decay - next * dtau;
+#else
+    tr->dT[p] += dtau;  // absorption: dτ (tangent_finish)
+#endif
   }
 #if IVR_EMISSION
   accumulate(&r->cr, &r->kr, weight * er);
   accumulate(&r->cg, &r->kg, weight * eg);
   accumulate(&r->cb, &r->kb, weight * eb);
-#endif
   r->transmittance = next;
+#else
+  accumulate(&r->tau, &r->ktau, tau);
+#endif
 }
 
 #else
@@ -110,10 +116,10 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
                             __global const real* tf, int tf_count, real4 tf_scalars, int* cursor,
                             TangentRay* tr, Radiance* r) {
   const real dt = m->dt;
-  Attenuation at = {(real)0, (real)1};
+  Attenuation at = {(real)0, (real)1, (real)0};
   real er = (real)0, eg = (real)0, eb = (real)0;
   real dtrans[IVR_LANES], der[IVR_LANES], deg[IVR_LANES], deb[IVR_LANES];
-  IVR_FOR_LANES(p) dtrans[p] = der[p] = deg[p] = deb[p] = (real)0;
+  IVR_FOR_LANES(p) dtrans[p] = der[p] = deg[p] = deb[p] = (real)0;  // absorption: dτ in dtrans
   Cuts c;
   cuts_begin(&c, a->s.d, b->s.d, *cursor);
   SubSegment s;
@@ -172,7 +178,11 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
 #else
       (void)dcsr, (void)dcsg, (void)dcsb, (void)dcer, (void)dceg, (void)dceb;
 #endif
+#if IVR_EMISSION
       dtrans[p] = dtrans[p] * decay - trans * (dp + dq);  // dα = e^{−τ} dτ = dp + dq
+#else
+      dtrans[p] += (real)0.5 * (da + db);  // absorption: dτ (tangent_finish)
+#endif
     }
 #if IVR_EMISSION
     er += trans * (csr * ls.p + cer * ls.q);
@@ -183,20 +193,21 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
   }
   *cursor = c.cursor;
   // Into the ray: C += T·e, T = T·(transmittance of the segment) (as primal.cl).
-  IVR_FOR_LANES(p) {
 #if IVR_EMISSION
+  IVR_FOR_LANES(p) {
     tr->dcr[p] += tr->dT[p] * er + r->transmittance * der[p];
     tr->dcg[p] += tr->dT[p] * eg + r->transmittance * deg[p];
     tr->dcb[p] += tr->dT[p] * eb + r->transmittance * deb[p];
-#endif
     tr->dT[p] = tr->dT[p] * at.transmittance + r->transmittance * dtrans[p];
   }
-#if IVR_EMISSION
   accumulate(&r->cr, &r->kr, r->transmittance * er);
   accumulate(&r->cg, &r->kg, r->transmittance * eg);
   accumulate(&r->cb, &r->kb, r->transmittance * eb);
-#endif
   r->transmittance = attenuation_apply(&at, r->transmittance);
+#else
+  IVR_FOR_LANES(p) tr->dT[p] += dtrans[p];
+  accumulate(&r->tau, &r->ktau, at.tau);
+#endif
 }
 #endif
 
@@ -206,6 +217,7 @@ inline void tangent_march_endpoints(__global const real* volume, int4 dims, cons
                                     __global const uchar* occupied, int4 bricks, TangentRay* tr,
                                     Radiance* r) {
   int cursor = 0, tf_cursor = 0;
+  const real threshold = march_threshold(min_transmittance);
   TangentSample a, b;
   tangent_sample(&a, volume, dims, m, 0, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor,
                  &tf_cursor, tr);
@@ -230,9 +242,10 @@ inline void tangent_march_endpoints(__global const real* volume, int4 dims, cons
     a = b;
     ++i;
 #if IVR_EARLY_TERMINATION
-    if (r->transmittance < min_transmittance) break;
+    if (march_stopped(r, threshold)) break;
 #endif
   }
+  tangent_finish(tr, r);
 }
 
 #endif

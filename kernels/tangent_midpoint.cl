@@ -15,6 +15,7 @@ inline void tangent_march_midpoint(__global const real* volume, int4 dims, const
                                    __global const uchar* occupied, int4 bricks, TangentRay* tr,
                                    Radiance* r) {
   const real dt = m->dt;
+  const real threshold = march_threshold(min_transmittance);
   int segment = 0, cursor = 0;
   for (uint i = 0; i < m->n;) {
     const real mid = (real)i + (real)0.5;
@@ -33,13 +34,13 @@ inline void tangent_march_midpoint(__global const real* volume, int4 dims, const
     const real sigma = tf_sample_slope(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb,
                                        &dsigma_dd, &der_dd, &deg_dd, &deb_dd);
     const real tau = sigma * dt;
+#if IVR_EMISSION
     real fraction;
     const real decay = decay_and_fraction(tau, &fraction);
-#if IVR_EMISSION
     const real weight = r->transmittance * dt * fraction;
     const real fslope = fraction_slope(tau, decay, fraction);
-#endif
     const real next = attenuate(r->transmittance, tau, fraction, decay);
+#endif
 
     // The sample's cell and weights (as trilinear_at() clamps them), and d density / d u.
     real fx, fy, fz, gx, gy, gz;
@@ -73,23 +74,28 @@ inline void tangent_march_midpoint(__global const real* volume, int4 dims, const
       tr->dcr[p] += dweight * er + weight * der;
       tr->dcg[p] += dweight * eg + weight * deg;
       tr->dcb[p] += dweight * eb + weight * deb;
+      tr->dT[p] = tr->dT[p] * decay - next * dtau;  // d (T e^-tau)
 #else
       (void)der, (void)deg, (void)deb;
+      tr->dT[p] += dtau;  // absorption: dτ (tangent_finish)
 #endif
-      tr->dT[p] = tr->dT[p] * decay - next * dtau;  // d (T e^-tau)
     }
 #if IVR_EMISSION
     accumulate(&r->cr, &r->kr, weight * er);
     accumulate(&r->cg, &r->kg, weight * eg);
     accumulate(&r->cb, &r->kb, weight * eb);
-#endif
     r->transmittance = next;
+#else
+    (void)er, (void)eg, (void)eb;
+    accumulate(&r->tau, &r->ktau, tau);
+#endif
     ++r->samples;
     ++i;
 #if IVR_EARLY_TERMINATION
-    if (r->transmittance < min_transmittance) break;
+    if (march_stopped(r, threshold)) break;
 #endif
   }
+  tangent_finish(tr, r);
 }
 
 #endif

@@ -7,6 +7,7 @@
 #include "geometry.cl"
 #include "geometry_tangent.cl"
 #include "march.cl"
+#include "primal.cl"
 
 #ifndef IVR_LANES
 #define IVR_LANES 1
@@ -130,6 +131,17 @@ inline void sample_gradient(__global const real* volume, int4 dims, int ix, int 
   (void)volume, (void)dims, (void)ix, (void)iy, (void)iz, (void)fx, (void)fy, (void)fz;
   (void)ux, (void)uy, (void)uz;
   *gx = *gy = *gz = (real)0;
+#endif
+}
+
+// The end of a march: absorption sums the optical depth's tangent in dT along the ray (as it sums
+// τ itself, march_finish), then dT = −T·dτ.
+inline void tangent_finish(TangentRay* tr, Radiance* r) {
+  march_finish(r);
+#if !IVR_EMISSION
+  IVR_FOR_LANES(p) tr->dT[p] *= -r->transmittance;
+#else
+  (void)tr;
 #endif
 }
 

@@ -53,7 +53,7 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
     TangentRay tr;
     tangent_ray_begin(&tr, lanes, camera_params, view, x, y, width, height, ray,
                       hit ? &m : (const March*)0, box_min, box_max);
-    Radiance r = {(real)1, (real)0, (real)0, (real)0, (real)0, (real)0, (real)0, 0, 0};
+    Radiance r = radiance_begin();
     if (hit)
       tangent_march(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, min_transmittance,
                     occupied, bricks, &tr, &r);

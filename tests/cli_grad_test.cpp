@@ -295,5 +295,36 @@ TEST_F(CliGrad, BadOutputFolder) {
   EXPECT_FALSE(fs::exists(dir_ + "/no"));
 }
 
+// --scheme and --tolerance reach the gradient: its file equals the library's for that
+// integrator, the JSON names the scheme and the step used, and the checks come first.
+TEST_F(CliGrad, SchemeAndToleranceOptions) {
+  const CliResult r = grad("--wrt density --scheme preintegrated --tolerance 0.003 --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const json out = json::parse(r.out);
+  EXPECT_EQ(out["scheme"], "preintegrated");
+  Scene scene = load_scene(scene_path_);
+  scene.integrator.scheme = Scheme::preintegrated;
+  scene.integrator.tolerance = 0.003;
+  EXPECT_DOUBLE_EQ(out["step"].get<double>(), choose_step(device(), scene, 0.003).step);
+  Image target;
+  target.views = 1, target.height = 7, target.width = 8, target.channels = 4;
+  target.pixels.assign(7 * 8 * 4, 0.25f);
+  const Gradient g = gradient(device(), scene, target, {});
+  const NpyArray file = load_npy(prefix() + "_density.npy");
+  ASSERT_EQ(file.data.size(), g.density.size());
+  double largest = 0;
+  for (float x : g.density) largest = std::max(largest, double(std::abs(x)));
+  for (std::size_t i = 0; i < g.density.size(); ++i)
+    EXPECT_NEAR(file.data[i], g.density[i], 1e-5 * largest) << "voxel " << i;
+  // The exact scheme needs the absorption model: a clear error, nothing written.
+  fs::remove(prefix() + "_density.npy");
+  const CliResult bad = grad("--wrt density --scheme exact");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("'exact' integrates the absorption model only"), std::string::npos)
+      << bad.err;
+  EXPECT_FALSE(fs::exists(prefix() + "_density.npy"));
+  EXPECT_EQ(grad("--wrt density --tolerance -2").status, 1);
+}
+
 }  // namespace
 }  // namespace ivr::test

@@ -37,14 +37,12 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
     const real length = tb - ta;
     SubPieces sp;
     sub_pieces_begin(&sp, c);
-    real sa, sb;
     int cursor = 0;
-    while (sub_pieces_next(&sp, tf, tf_count, tf_scalars, &sa, &sb)) {
-      const real s[3] = {sa, (real)0.5 * (sa + sb), sb};
-      const real d[3] = {cubic_at(&c, s[0]), cubic_at(&c, s[1]), cubic_at(&c, s[2])};
-      const TfPiece tp =
-          tf_piece(tf_interval(d[1], tf, tf_count, tf_scalars, &cursor), tf, tf_count, tf_scalars);
-      const real sub = length * (sb - sa);
+    SimpsonNodes n;
+    while (simpson_nodes_next(&sp, length, tf, tf_count, tf_scalars, &cursor, &n)) {
+      const real* s = n.s;
+      const TfPiece tp = n.tf;
+      const real sub = n.length;
       for (int k = 0; k < 3; ++k) {
         // Simpson's weights (1, 4, 1)/6 of dL/dτ · dσ/dd at the node.
         const real gd = gtau * tp.s1 * sub * (k == 1 ? (real)4 : (real)1) / (real)6;
@@ -60,7 +58,7 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
 #endif
       }
 #if IVR_GRAD_TF
-      tf_scatter_piece(&tp, (d[0] + (real)4 * d[1] + d[2]) / (real)6, gtau * sub, (real)0, (real)0,
+      tf_scatter_piece(&tp, simpson_mean(&n), gtau * sub, (real)0, (real)0,
                        (real)0, tf_cache, tf_acc);
 #else
       (void)tf_cache, (void)tf_acc;

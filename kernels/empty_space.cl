@@ -57,13 +57,33 @@ __attribute__((always_inline)) inline uint last_sample_before(uint i, uint n, re
 }
 
 // End-sample schemes: where sample i (at voxel coordinates u) lies in an empty brick, the last
-// sample before the ray leaves it (last_sample_before); i where it is occupied.
+// sample before the ray leaves it (last_sample_before), and on through the following empty bricks:
+// where sample k + 1 past the exit lies in an empty brick that touches the current one (face, edge
+// or corner), the segment [k, k + 1] adds nothing either — both bricks' ranges hold their shared
+// margin voxels, so they overlap and σ = 0 on every density between the two ends, whatever the
+// integrator does between them. i where sample i's brick is occupied.
 __attribute__((always_inline)) inline uint endpoint_skip(uint i, uint n, real ux, real uy, real uz,
                                                          const March* m, int4 dims,
                                                          __global const uchar* occupied,
                                                          int4 bricks) {
   const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
-  return exit < (real)0 ? i : last_sample_before(i, n, m->t0, m->dt, exit);
+  if (exit < (real)0) return i;
+  uint k = last_sample_before(i, n, m->t0, m->dt, exit);
+  int bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y), bz = brick_axis(uz, dims.z);
+  while (k < n) {
+    const real t = m->t0 + (real)(k + 1) * m->dt;
+    const int cx = brick_axis(m->u0x + t * m->dux, dims.x),
+              cy = brick_axis(m->u0y + t * m->duy, dims.y),
+              cz = brick_axis(m->u0z + t * m->duz, dims.z);
+    if (abs(cx - bx) > 1 || abs(cy - by) > 1 || abs(cz - bz) > 1 ||
+        occupied[(cz * bricks.y + cy) * bricks.x + cx])
+      break;
+    const real leave = brick_leave(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, cx, cy, cz,
+                                   bricks);
+    k = last_sample_before(k + 1, n, m->t0, m->dt, leave);
+    bx = cx, by = cy, bz = cz;
+  }
+  return k;
 }
 
 // Per brick (one work-item each): the min and max density over the voxels its samples read,

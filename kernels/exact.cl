@@ -262,6 +262,31 @@ inline bool sub_pieces_next(SubPieces* sp, __global const real* tf, int count, r
   return true;
 }
 
+// One sub-piece as Simpson's nodes: their positions s in the piece, densities, the TF piece that
+// holds them (σ linear in the density there) and the sub-piece's length along the ray.
+typedef struct {
+  real s[3], d[3];
+  real length;
+  TfPiece tf;
+} SimpsonNodes;
+
+// The next sub-piece of a piece of length L as Simpson's nodes; false once [0, 1] is covered.
+inline bool simpson_nodes_next(SubPieces* sp, real L, __global const real* tf, int count,
+                               real4 scalars, int* cursor, SimpsonNodes* n) {
+  real sa, sb;
+  if (!sub_pieces_next(sp, tf, count, scalars, &sa, &sb)) return false;
+  n->s[0] = sa, n->s[1] = (real)0.5 * (sa + sb), n->s[2] = sb;
+  for (int k = 0; k < 3; ++k) n->d[k] = cubic_at(&sp->c, n->s[k]);
+  n->tf = tf_piece(tf_interval(n->d[1], tf, count, scalars, cursor), tf, count, scalars);
+  n->length = L * (sb - sa);
+  return true;
+}
+
+// Simpson's mean of the density over the sub-piece (exact for the cubic).
+inline real simpson_mean(const SimpsonNodes* n) {
+  return (n->d[0] + (real)4 * n->d[1] + n->d[2]) / (real)6;
+}
+
 // ∫ σ(d) along a piece of length L with density cubic c: Simpson's rule on each sub-piece, where
 // σ is linear in the density (exact). *subpieces counts the sub-pieces (the sample statistic).
 inline real piece_optical_depth(const Cubic* c, real L, __global const real* tf, int count,
@@ -272,13 +297,11 @@ inline real piece_optical_depth(const Cubic* c, real L, __global const real* tf,
 #else
   SubPieces sp;
   sub_pieces_begin(&sp, *c);
-  real tau = (real)0, sa, sb;
+  real tau = (real)0;
   int cursor = 0;
-  while (sub_pieces_next(&sp, tf, count, scalars, &sa, &sb)) {
-    const real dm = cubic_at(c, (real)0.5 * (sa + sb));
-    const real mean = (cubic_at(c, sa) + (real)4 * dm + cubic_at(c, sb)) / (real)6;
-    const TfPiece p = tf_piece(tf_interval(dm, tf, count, scalars, &cursor), tf, count, scalars);
-    tau += L * (sb - sa) * tf_piece_sigma(&p, mean);
+  SimpsonNodes n;
+  while (simpson_nodes_next(&sp, L, tf, count, scalars, &cursor, &n)) {
+    tau += n.length * tf_piece_sigma(&n.tf, simpson_mean(&n));
     ++*subpieces;
   }
   return tau;

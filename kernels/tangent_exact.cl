@@ -42,14 +42,12 @@ inline void tangent_march_exact(__global const real* volume, int4 dims, const Ma
     r->samples += nodes;
     SubPieces sp;
     sub_pieces_begin(&sp, c);
-    real sa, sb;
     int cursor = 0;
-    while (sub_pieces_next(&sp, tf, tf_count, tf_scalars, &sa, &sb)) {
-      const real s[3] = {sa, (real)0.5 * (sa + sb), sb};
-      const real d[3] = {cubic_at(&c, s[0]), cubic_at(&c, s[1]), cubic_at(&c, s[2])};
-      const TfPiece tp =
-          tf_piece(tf_interval(d[1], tf, tf_count, tf_scalars, &cursor), tf, tf_count, tf_scalars);
-      const real sub = length * (sb - sa);
+    SimpsonNodes n;
+    while (simpson_nodes_next(&sp, length, tf, tf_count, tf_scalars, &cursor, &n)) {
+      const real* s = n.s;
+      const TfPiece tp = n.tf;
+      const real sub = n.length;
       for (int j = 0; j < 3; ++j) {
         const real w = sub * (j == 1 ? (real)4 : (real)1) / (real)6;  // Simpson's weights
         real gx, gy, gz;
@@ -63,7 +61,7 @@ inline void tangent_march_exact(__global const real* volume, int4 dims, const Ma
                                    fz, dims, inv_voxel);
       }
 #if IVR_TANGENT_TF
-      const real mean = (d[0] + (real)4 * d[1] + d[2]) / (real)6;
+      const real mean = simpson_mean(&n);
       IVR_FOR_LANES(p) {
         if (tr->lane[p].x != IVR_LANE_TF) continue;
         real ds, dr, dg, db;

@@ -18,9 +18,9 @@ struct StepChoice {
   double seconds = 0;          // host time spent choosing
 };
 
-// Smallest and largest steps a tolerance may choose (voxel units): beyond 4 voxels a march can
-// step over whole features that no pilot sees either.
-constexpr double kToleranceMinStep = 1.0 / 512, kToleranceMaxStep = 4.0;
+// Smallest and largest steps a tolerance may choose (voxel units): beyond 16 voxels a march takes
+// a handful of samples per ray and can step over whole features that no pilot sees either.
+constexpr double kToleranceMinStep = 1.0 / 512, kToleranceMaxStep = 16.0;
 
 // Chooses the step for `tolerance` (> 0) before rendering: the error of the scene's scheme is
 // estimated from pilot renders of the scene's cameras at a quarter of the resolution at two steps s

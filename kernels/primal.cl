@@ -62,17 +62,25 @@ inline void march_finish(Radiance* r) {
 #endif
 }
 
+#if IVR_EMISSION
+// Adds a segment's emitted colour, weighted, to the ray's (compensated) sums; the transmittance
+// behind the segment becomes `next`.
+inline void radiance_emit(Radiance* r, real weight, real er, real eg, real eb, real next) {
+  accumulate(&r->cr, &r->kr, weight * er);
+  accumulate(&r->cg, &r->kg, weight * eg);
+  accumulate(&r->cb, &r->kb, weight * eb);
+  r->transmittance = next;
+}
+#endif
+
 // Adds one segment of optical depth tau emitting (er, eg, eb)·dt·fraction(tau) per unit
 // transmittance: the midpoint and trapezoid rules' compositing.
 inline void composite(Radiance* r, real tau, real dt, real er, real eg, real eb) {
 #if IVR_EMISSION
   real fraction;
   const real decay = decay_and_fraction(tau, &fraction);
-  const real weight = r->transmittance * dt * fraction;
-  accumulate(&r->cr, &r->kr, weight * er);
-  accumulate(&r->cg, &r->kg, weight * eg);
-  accumulate(&r->cb, &r->kb, weight * eb);
-  r->transmittance = attenuate(r->transmittance, tau, fraction, decay);
+  radiance_emit(r, r->transmittance * dt * fraction, er, eg, eb,
+                attenuate(r->transmittance, tau, fraction, decay));
 #else
   (void)dt, (void)er, (void)eg, (void)eb;
   accumulate(&r->tau, &r->ktau, tau);
@@ -145,10 +153,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
     real er, eg, eb;
     preintegrated_segment(&a, &b, m->dt, tf, tf_count, tf_scalars, &segment, &at, &er, &eg, &eb);
 #if IVR_EMISSION
-    accumulate(&r->cr, &r->kr, r->transmittance * er);
-    accumulate(&r->cg, &r->kg, r->transmittance * eg);
-    accumulate(&r->cb, &r->kb, r->transmittance * eb);
-    r->transmittance = attenuation_apply(&at, r->transmittance);
+    radiance_emit(r, r->transmittance, er, eg, eb, attenuation_apply(&at, r->transmittance));
 #else
     accumulate(&r->tau, &r->ktau, at.tau);
 #endif

@@ -99,10 +99,7 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
 #endif
   }
 #if IVR_EMISSION
-  accumulate(&r->cr, &r->kr, weight * er);
-  accumulate(&r->cg, &r->kg, weight * eg);
-  accumulate(&r->cb, &r->kb, weight * eb);
-  r->transmittance = next;
+  radiance_emit(r, weight, er, eg, eb, next);
 #else
   accumulate(&r->tau, &r->ktau, tau);
 #endif
@@ -200,10 +197,7 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
     tr->dcb[p] += tr->dT[p] * eb + r->transmittance * deb[p];
     tr->dT[p] = tr->dT[p] * at.transmittance + r->transmittance * dtrans[p];
   }
-  accumulate(&r->cr, &r->kr, r->transmittance * er);
-  accumulate(&r->cg, &r->kg, r->transmittance * eg);
-  accumulate(&r->cb, &r->kb, r->transmittance * eb);
-  r->transmittance = attenuation_apply(&at, r->transmittance);
+  radiance_emit(r, r->transmittance, er, eg, eb, attenuation_apply(&at, r->transmittance));
 #else
   IVR_FOR_LANES(p) tr->dT[p] += dtrans[p];
   accumulate(&r->tau, &r->ktau, at.tau);

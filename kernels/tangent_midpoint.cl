@@ -81,10 +81,7 @@ inline void tangent_march_midpoint(__global const real* volume, int4 dims, const
 #endif
     }
 #if IVR_EMISSION
-    accumulate(&r->cr, &r->kr, weight * er);
-    accumulate(&r->cg, &r->kg, weight * eg);
-    accumulate(&r->cb, &r->kb, weight * eb);
-    r->transmittance = next;
+    radiance_emit(r, weight, er, eg, eb, next);
 #else
     (void)er, (void)eg, (void)eb;
     accumulate(&r->tau, &r->ktau, tau);

@@ -247,8 +247,7 @@ int main(int argc, char** argv) {
                          {"best_against_midpoint", best},
                          {"exact", exact_rows},
                          {"tolerance", tolerance_rows}};
-    std::cout << result.dump(2) << "\n";
-    if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
+    ivr::bench::emit_json(result, out_path);
     if (!csv_path.empty()) {
       std::ofstream csv(csv_path);
       csv << "volume,look,integrator,step,relative_rms,relative_max,ms,samples\n";
@@ -256,6 +255,7 @@ int main(int argc, char** argv) {
         csv << r["volume"].get<std::string>() << "," << r["look"].get<std::string>() << ","
             << r["integrator"].get<std::string>() << "," << r["step"] << "," << r["relative_rms"]
             << "," << r["relative_max"] << "," << r["ms"] << "," << r["samples"] << "\n";
+      if (!csv) throw ivr::Error(ivr::Status::io, "cannot write the rows to " + csv_path);
     }
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";

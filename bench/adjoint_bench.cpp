@@ -291,8 +291,7 @@ int main(int argc, char** argv) {
             {"worst", worst_memory},
             {"pass", memory_pass},
             {"checks", memory_checks}}}}}};
-    std::cout << result.dump(2) << "\n";
-    if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
+    ivr::bench::emit_json(result, out_path);
   } catch (const ivr::Error& e) {
     std::cerr << "ivr_adjoint_bench: error: " << e.what() << "\n";
     return 1;

@@ -1,14 +1,30 @@
-// bench_support.hpp — what the benchmark runners share: medians, wall-clock timing, and the
-// target image rendered from a smoothly perturbed volume (so that d loss / d pixel is non-zero).
+// bench_support.hpp — what the benchmark runners share: medians, wall-clock timing, the target
+// image rendered from a smoothly perturbed volume (so that d loss / d pixel is non-zero), and the
+// JSON result printed and written.
 #pragma once
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <string>
 #include <vector>
 
 #include "ivr/core.hpp"
 
 namespace ivr::bench {
+
+// Prints a benchmark's JSON document and, where `path` is given, writes it there too: a file that
+// cannot be written is an error naming it, not a result silently missing.
+inline void emit_json(const nlohmann::json& doc, const std::string& path) {
+  const std::string text = doc.dump(2) + "\n";
+  std::cout << text;
+  if (path.empty()) return;
+  std::ofstream out(path);
+  out << text;
+  if (!out) throw Error(Status::io, "cannot write the results to " + path);
+}
 
 inline double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());

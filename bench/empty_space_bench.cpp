@@ -175,8 +175,7 @@ int main(int argc, char** argv) {
                          {"device", device.info().name}, {"repeats", repeats},
                          {"statistic", "median"},        {"configs", configs},
                          {"gradients", gradients}};
-    std::cout << result.dump(2) << "\n";
-    if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
+    ivr::bench::emit_json(result, out_path);
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;

@@ -119,8 +119,7 @@ int main(int argc, char** argv) {
         {"geomean_speed_ratio_kernel", geomean(kernel_ratios)},
         {"geomean_speed_ratio_total", geomean(total_ratios)},
         {"min_speed_ratio_kernel", *std::min_element(kernel_ratios.begin(), kernel_ratios.end())}};
-    std::cout << result.dump(2) << "\n";
-    if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
+    ivr::bench::emit_json(result, out_path);
   } catch (const ivr::Error& e) {
     std::cerr << "ivr_bench: error: " << e.what() << "\n";
     return 1;

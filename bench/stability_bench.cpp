@@ -267,8 +267,7 @@ int main(int argc, char** argv) {
                          {"gradient_error", "max |f32 - f64| / max |f64| per group"},
                          {"repeats", repeats},
                          {"rows", rows}};
-    std::cout << result.dump(2) << "\n";
-    if (!out_path.empty()) std::ofstream(out_path) << result.dump(2) << "\n";
+    ivr::bench::emit_json(result, out_path);
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;

@@ -16,8 +16,8 @@
 #include "bench_support.hpp"
 #include "ivr/core.hpp"
 
-using nlohmann::json;
 using ivr::bench::median;
+using nlohmann::json;
 
 namespace {
 
@@ -35,7 +35,8 @@ std::string voxel_list(const ivr::Scene& scene, int p) {
     if (std::find(picked.begin(), picked.end(), i) == picked.end()) picked.push_back(i);
   }
   std::string list = "voxels:";
-  for (std::size_t k = 0; k < picked.size(); ++k) list += (k ? "," : "") + std::to_string(picked[k]);
+  for (std::size_t k = 0; k < picked.size(); ++k)
+    list += (k ? "," : "") + std::to_string(picked[k]);
   return list;
 }
 
@@ -149,8 +150,7 @@ int main(int argc, char** argv) {
          {{"auto_within_1.25x_of_faster", {{"pass", auto_ok}, {"worst", worst_auto}}},
           {"forward_at_most_1_plus_half_P_renders",
            {{"pass", lanes_ok}, {"worst_ratio_to_limit", worst_lanes}}}}}};
-    std::cout << doc.dump(2) << "\n";
-    if (!out_path.empty()) std::ofstream(out_path) << doc.dump(2) << "\n";
+    ivr::bench::emit_json(doc, out_path);
   } catch (const std::exception& e) {
     std::cerr << "ivr_tangents_bench: " << e.what() << "\n";
     return 1;

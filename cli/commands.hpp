@@ -12,5 +12,9 @@ Runner add_render_command(CLI::App& app);
 Runner add_grad_command(CLI::App& app);
 Runner add_jacobian_command(CLI::App& app);
 Runner add_calibrate_command(CLI::App& app);
+Runner add_phantom_command(CLI::App& app);
+Runner add_project_command(CLI::App& app);  // tomo_commands.cpp
+Runner add_backproject_command(CLI::App& app);
+Runner add_tomo_command(CLI::App& app);
 
 }  // namespace ivr::cli

@@ -17,6 +17,10 @@ int main(int argc, char** argv) {
   const ivr::cli::Runner grad = ivr::cli::add_grad_command(app);
   const ivr::cli::Runner jacobian = ivr::cli::add_jacobian_command(app);
   const ivr::cli::Runner calibrate = ivr::cli::add_calibrate_command(app);
+  const ivr::cli::Runner phantom = ivr::cli::add_phantom_command(app);
+  const ivr::cli::Runner project = ivr::cli::add_project_command(app);
+  const ivr::cli::Runner backproject = ivr::cli::add_backproject_command(app);
+  const ivr::cli::Runner tomo = ivr::cli::add_tomo_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -32,6 +36,10 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("grad")) return grad();
     if (app.got_subcommand("jacobian")) return jacobian();
     if (app.got_subcommand("calibrate")) return calibrate();
+    if (app.got_subcommand("phantom")) return phantom();
+    if (app.got_subcommand("project")) return project();
+    if (app.got_subcommand("backproject")) return backproject();
+    if (app.got_subcommand("tomo")) return tomo();  // 130 after SIGINT, 143 after SIGTERM
   } catch (const ivr::Error& e) {
     std::cerr << "ivr: error: " << e.what() << "\n";
     return 1;

@@ -40,14 +40,6 @@ std::string gradient_preamble(const RenderVariant& variant, const GradientOption
          "\n#define IVR_LOSS_L1 " + (o.loss == Loss::l1 ? "1" : "0") + "\n";
 }
 
-// The device's own float atomic add (cl_ext_float_atomics) where it has one for this precision,
-// unless $IVR_FLOAT_ATOMICS=0 asks for the compare-and-swap loop (for comparisons).
-bool use_float_atomics(const DeviceInfo& info, bool f64) {
-  if (const char* env = std::getenv("IVR_FLOAT_ATOMICS"); env && std::string(env) == "0")
-    return false;
-  return f64 ? info.double_atomic_add : info.float_atomic_add;
-}
-
 template <class Real>
 Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
                      const Image& target, const GradientOptions& o) {

@@ -273,4 +273,10 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
   });
 }
 
+bool use_float_atomics(const DeviceInfo& info, bool f64) {
+  if (const char* env = std::getenv("IVR_FLOAT_ATOMICS"); env && std::string(env) == "0")
+    return false;
+  return f64 ? info.double_atomic_add : info.float_atomic_add;
+}
+
 }  // namespace ivr

@@ -26,6 +26,10 @@ auto cl_call(const std::string& doing, F&& f) -> decltype(f()) {
   }
 }
 
+// The device's own float atomic add (cl_ext_float_atomics) where it has one for this precision,
+// unless $IVR_FLOAT_ATOMICS=0 asks for the compare-and-swap loop (for comparisons).
+bool use_float_atomics(const DeviceInfo& info, bool f64);
+
 struct Device::Impl {
   DeviceInfo info;
   cl::Platform platform;

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "ivr/error.hpp"
+#include "ivr/phantom.hpp"
 #include "scene_checks.hpp"
 
 namespace ivr {
@@ -155,11 +156,29 @@ void validate(const Scene& s) {
   validate_with(s, s.integrator);
 }
 
-void validate_with(const Scene& s, const Integrator& it) {
+void validate_geometry(const Scene& s) {
   const Volume& v = s.volume;
   if (v.nx < 1 || v.ny < 1 || v.nz < 1)
     fail("volume", "dims must be >= 1, got " + std::to_string(v.nx) + "x" + std::to_string(v.ny) +
                        "x" + std::to_string(v.nz));
+  if (!finite(s.box_min) || !finite(s.box_max) || !(s.box_max.x > s.box_min.x) ||
+      !(s.box_max.y > s.box_min.y) || !(s.box_max.z > s.box_min.z))
+    fail("box", "max must exceed min on every axis");
+  if (s.cameras.empty()) fail("cameras", "a scene needs at least one camera");
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    const std::string w = "cameras[" + std::to_string(i) + "]";
+    validate_camera(s.cameras[i], w);
+    if (s.cameras[i].width != s.cameras[0].width || s.cameras[i].height != s.cameras[0].height)
+      fail(w, "all cameras must share width and height (" + std::to_string(s.cameras[i].width) +
+                  "x" + std::to_string(s.cameras[i].height) + " vs " +
+                  std::to_string(s.cameras[0].width) + "x" + std::to_string(s.cameras[0].height) +
+                  ")");
+  }
+}
+
+void validate_with(const Scene& s, const Integrator& it) {
+  validate_geometry(s);
+  const Volume& v = s.volume;
   if (v.data.size() != v.voxel_count())
     fail("volume", "holds " + std::to_string(v.data.size()) + " values but dims need " +
                        std::to_string(v.voxel_count()));
@@ -179,21 +198,8 @@ void validate_with(const Scene& s, const Integrator& it) {
                          "; densities must be finite and >= 0");
     }
   }
-  if (!finite(s.box_min) || !finite(s.box_max) || !(s.box_max.x > s.box_min.x) ||
-      !(s.box_max.y > s.box_min.y) || !(s.box_max.z > s.box_min.z))
-    fail("box", "max must exceed min on every axis");
   validate_tf(s.tf);
   if (s.background && !finite(*s.background)) fail("background", "must be finite");
-  if (s.cameras.empty()) fail("cameras", "a scene needs at least one camera");
-  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
-    const std::string w = "cameras[" + std::to_string(i) + "]";
-    validate_camera(s.cameras[i], w);
-    if (s.cameras[i].width != s.cameras[0].width || s.cameras[i].height != s.cameras[0].height)
-      fail(w, "all cameras must share width and height (" + std::to_string(s.cameras[i].width) +
-                  "x" + std::to_string(s.cameras[i].height) + " vs " +
-                  std::to_string(s.cameras[0].width) + "x" + std::to_string(s.cameras[0].height) +
-                  ")");
-  }
   validate_scheme(s, it.scheme);
   if (!std::isfinite(it.step) || !(it.step > 0))
     fail("integrator.step", "must be > 0, got " + str(it.step));
@@ -212,6 +218,16 @@ void validate_with(const Scene& s, const Integrator& it) {
 Volume synthetic_volume(const std::string& name, int nx, int ny, int nz) {
   if (nx < 1 || ny < 1 || nz < 1 || double(nx) * ny * nz > 2147483647.0)
     fail("volume.dims", "synthetic volume dims must be >= 1 and hold at most 2^31 voxels");
+  // Shepp–Logan on the same [-1, 1] cell-centre grid as the others, so non-cubic dims stretch it.
+  if (name == "shepp_logan") return phantom_from_ellipsoids(shepp_logan_ellipsoids(), nx, ny, nz);
+  if (name == "zeros") {  // only the grid's shape matters (ivr tomo, ivr backproject)
+    Volume z;
+    z.nx = nx;
+    z.ny = ny;
+    z.nz = nz;
+    z.data.assign(z.voxel_count(), 0.0f);
+    return z;
+  }
   Volume v;
   v.nx = nx;
   v.ny = ny;
@@ -236,8 +252,8 @@ Volume synthetic_volume(const std::string& name, int nx, int ny, int nz) {
               std::cos(2 * pi * fm * std::cos(pi * std::sqrt(px * px + py * py) / 2));
           d = (1 - std::sin(pi * pz / 2) + alpha * (1 + rho)) / (2 * (1 + alpha));
         } else {
-          fail("volume.synthetic",
-               "unknown synthetic volume '" + name + "' (known: sphere, marschner_lobb)");
+          fail("volume.synthetic", "unknown synthetic volume '" + name +
+                                       "' (known: sphere, marschner_lobb, shepp_logan, zeros)");
         }
         v.data[(std::size_t(z) * ny + y) * nx + x] = float(std::max(0.0, d));
       }

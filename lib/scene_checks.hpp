@@ -8,6 +8,9 @@ namespace ivr {
 // validate(scene) as if scene.integrator were `integrator` (e.g. a --step override).
 void validate_with(const Scene& scene, const Integrator& integrator);
 
+// The grid (dims), box and cameras only: what the projector needs (lib/project.cpp).
+void validate_geometry(const Scene& scene);
+
 // A loss target must have the render's shape (views, H, W, C) and finite values; throws
 // ivr::Error(invalid_argument) naming the shapes or the first bad element.
 void check_target(const Scene& scene, const Image& target);

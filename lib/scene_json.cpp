@@ -1,6 +1,8 @@
 // scene_json.cpp — scene files: DESIGN.md's JSON, exact field names, unknown keys and values
 // rejected with the path of the offending field.
+#include <cmath>
 #include <filesystem>
+#include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 #include <set>
 
@@ -175,13 +177,8 @@ TransferFunction read_tf(const Reader& r, const json& j) {
   return tf;
 }
 
-Camera read_camera(const Reader& r, const json& j, const std::string& p) {
-  r.only_keys(j, p,
-              {"eye", "target", "up", "fov_y", "projection", "ortho_height", "width", "height"});
-  Camera c;
-  if (j.contains("eye")) c.eye = r.vec3(j["eye"], p + ".eye");
-  if (j.contains("target")) c.target = r.vec3(j["target"], p + ".target");
-  if (j.contains("up")) c.up = r.vec3(j["up"], p + ".up");
+// The keys a camera and an orbit share: projection and image size.
+void read_lens(const Reader& r, const json& j, const std::string& p, Camera& c) {
   if (j.contains("fov_y")) c.fov_y = r.number(j["fov_y"], p + ".fov_y");
   if (j.contains("ortho_height")) c.ortho_height = r.number(j["ortho_height"], p + ".ortho_height");
   if (j.contains("width")) c.width = r.integer(j["width"], p + ".width");
@@ -196,7 +193,63 @@ Camera read_camera(const Reader& r, const json& j, const std::string& p) {
       r.fail(p + ".projection",
              "unknown projection '" + proj + "' (known: perspective, orthographic)");
   }
+}
+
+Camera read_camera(const Reader& r, const json& j, const std::string& p) {
+  r.only_keys(j, p,
+              {"eye", "target", "up", "fov_y", "projection", "ortho_height", "width", "height"});
+  Camera c;
+  if (j.contains("eye")) c.eye = r.vec3(j["eye"], p + ".eye");
+  if (j.contains("target")) c.target = r.vec3(j["target"], p + ".target");
+  if (j.contains("up")) c.up = r.vec3(j["up"], p + ".up");
+  read_lens(r, j, p, c);
   return c;
+}
+
+// {"orbit": {...}}: `views` cameras on a circle of `radius` about `axis` through `target`, camera
+// k at angle start + k·arc/views (degrees), counter-clockwise seen from the axis's tip, each
+// looking at the target with up = axis. Angle 0 is e1 = the unit part of +x orthogonal to the
+// axis (of +y when the axis is within ~26° of x), e2 = axis × e1: for axis z, e1 = +x, e2 = +y.
+void read_orbit(const Reader& r, const json& j, const std::string& where,
+                std::vector<Camera>& out) {
+  r.only_keys(j, where, {"orbit"});
+  const std::string p = where + ".orbit";
+  const json& o = j["orbit"];
+  r.only_keys(o, p,
+              {"views", "radius", "target", "axis", "start", "arc", "projection", "ortho_height",
+               "fov_y", "width", "height"});
+  if (!o.contains("views")) r.fail(p, "needs 'views' (the number of cameras)");
+  const json& vj = o["views"];
+  if (!vj.is_number() || vj.get<double>() < 1 || vj.get<double>() != std::floor(vj.get<double>()))
+    r.fail(p + ".views", "expected an integer >= 1");
+  if (vj.get<double>() > 100000) r.fail(p + ".views", "at most 100000 views");
+  const int views = int(vj.get<double>());
+  const double radius = o.contains("radius") ? r.number(o["radius"], p + ".radius") : 2.0;
+  if (!(radius > 0) || !std::isfinite(radius)) r.fail(p + ".radius", "must be > 0 and finite");
+  const glm::dvec3 target =
+      o.contains("target") ? r.vec3(o["target"], p + ".target") : glm::dvec3(0);
+  glm::dvec3 axis = o.contains("axis") ? r.vec3(o["axis"], p + ".axis") : glm::dvec3(0, 0, 1);
+  const double len = glm::length(axis);
+  if (!(len > 0) || !std::isfinite(len)) r.fail(p + ".axis", "must be a non-zero finite vector");
+  axis /= len;
+  const double start = o.contains("start") ? r.number(o["start"], p + ".start") : 0.0;
+  const double arc = o.contains("arc") ? r.number(o["arc"], p + ".arc") : 360.0;
+  if (!std::isfinite(start)) r.fail(p + ".start", "must be finite");
+  if (!std::isfinite(arc)) r.fail(p + ".arc", "must be finite");
+  const glm::dvec3 helper = std::abs(axis.x) > 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+  const glm::dvec3 e1 = glm::normalize(helper - glm::dot(helper, axis) * axis);
+  const glm::dvec3 e2 = glm::cross(axis, e1);
+  Camera lens;
+  read_lens(r, o, p, lens);
+  constexpr double kPi = 3.14159265358979323846;
+  for (int k = 0; k < views; ++k) {
+    const double theta = (start + k * arc / views) * kPi / 180.0;
+    Camera c = lens;
+    c.target = target;
+    c.eye = target + radius * (std::cos(theta) * e1 + std::sin(theta) * e2);
+    c.up = axis;
+    out.push_back(c);
+  }
 }
 
 json parse_json(const std::string& text, const std::string& where) {
@@ -273,8 +326,13 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
   }
   if (!j.contains("cameras")) r.fail("cameras", "a scene needs at least one camera");
   const json& cams = r.array(j["cameras"], "cameras");
-  for (std::size_t i = 0; i < cams.size(); ++i)
-    s.cameras.push_back(read_camera(r, cams[i], "cameras[" + std::to_string(i) + "]"));
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    const std::string p = "cameras[" + std::to_string(i) + "]";
+    if (cams[i].is_object() && cams[i].contains("orbit"))
+      read_orbit(r, cams[i], p, s.cameras);
+    else
+      s.cameras.push_back(read_camera(r, cams[i], p));
+  }
   if (j.contains("integrator")) {
     const json& it = j["integrator"];
     r.only_keys(it, "integrator", {"scheme", "step", "min_transmittance", "tolerance"});

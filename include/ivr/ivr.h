@@ -116,7 +116,8 @@ IVR_API ivr_status ivr_scene_set_volume(ivr_scene* scene, const void* data, ivr_
 IVR_API ivr_status ivr_volume_create(ivr_context* context, const void* data, ivr_dtype dtype,
                                      const int64_t shape[3], ivr_volume** volume);
 /* A volume from DESIGN.md's "volume" object, e.g. {"file": "head.nrrd"} or {"synthetic":
- * "sphere", "dims": [32, 32, 32]}; relative paths resolve against base_dir (NULL: working folder). */
+ * "sphere", "dims": [32, 32, 32]}; relative paths resolve against base_dir (NULL: working folder).
+ */
 IVR_API ivr_status ivr_volume_from_json(ivr_context* context, const char* json,
                                         const char* base_dir, ivr_volume** volume);
 IVR_API ivr_status ivr_volume_retain(ivr_volume* volume);
@@ -143,7 +144,8 @@ IVR_API ivr_status ivr_scene_volume_shape(const ivr_scene* scene, int64_t shape[
 /* The integrator step (voxel units) a render of the scene uses: the scene's own, or, where its
  * integrator asks for a "tolerance", the step chosen for it (pilot renders at a quarter of the
  * resolution, Richardson: README "Integrators"); *estimated_error (may be NULL) receives that
- * step's estimated relative RMS error (0 without a tolerance). Renders with step 0 use this step. */
+ * step's estimated relative RMS error (0 without a tolerance). Renders with step 0 use this step.
+ */
 IVR_API ivr_status ivr_scene_step(ivr_context* context, const ivr_scene* scene,
                                   ivr_precision precision, double* step, double* estimated_error);
 
@@ -178,6 +180,95 @@ IVR_API ivr_status ivr_result_array_shape(const ivr_result* result, size_t index
                                           int* rank, int64_t shape[5]);
 IVR_API ivr_status ivr_result_array_data(const ivr_result* result, size_t index, double* values,
                                          size_t capacity);
+
+/* --- Absorption tomography: log(I / I_in) = -N v (c_api_tomo.cpp) ----------------------------
+ * The rays are the cameras' pixel rays ordered (view, y, x): views * height * width of them (the
+ * image shape with one channel); the grid is the scene volume's (nz, ny, nx) in its box.
+ * (N v)[ray] is the integral of the trilinear volume along the ray (world units), evaluated
+ * exactly whatever the scene's integrator; the model and TF are not used. Inputs must be finite. */
+
+/* Line integrals N v into `lines` (`capacity` floats >= the ray count). `volume` (`count` floats
+ * = nz * ny * nx, x fastest) stands in for the scene's densities; NULL: the scene's own (`count`
+ * is then ignored). */
+IVR_API ivr_status ivr_project(ivr_context* context, const ivr_scene* scene,
+                               ivr_precision precision, const float* volume, size_t count,
+                               float* lines, size_t capacity);
+/* The exact transpose of ivr_project, N^T p: `lines` (`count` floats = the ray count) onto the
+ * scene's grid, into `volume` (`capacity` floats >= nz * ny * nx). */
+IVR_API ivr_status ivr_backproject(ivr_context* context, const ivr_scene* scene,
+                                   ivr_precision precision, const float* lines, size_t count,
+                                   float* volume, size_t capacity);
+
+typedef enum ivr_solver {
+  IVR_SOLVER_CGLS = 0,
+  IVR_SOLVER_SIRT = 1,
+  IVR_SOLVER_LSQR = 2,
+  IVR_SOLVER_MAX_ENUM = 0x7fffffff
+} ivr_solver;
+
+/* What ivr_tomo solves: min 1/2 |N x - p|^2 (SIRT: row-normalised) + an optional regulariser,
+ * optionally x >= 0. Fill it with ivr_tomo_options_init, then change fields. */
+typedef struct ivr_tomo_options {
+  ivr_solver solver;       /* IVR_SOLVER_CGLS */
+  ivr_precision precision; /* IVR_PRECISION_F32 */
+  int iterations;          /* 50: the most iterations, >= 1 */
+  int nonneg;              /* 0; non-zero: project onto x >= 0 after every iteration */
+  int tv_reweight;         /* 10: CGLS/LSQR iterations between TV re-weightings, >= 1 */
+  double tolerance;        /* 0; > 0: stop once |p - N x| / |p| <= tolerance */
+  double tikhonov;         /* 0: lambda >= 0 of lambda/2 |x|^2 */
+  double tv;               /* 0: lambda >= 0 of the smoothed TV (not with tikhonov) */
+  double tv_epsilon;       /* 1e-3: the TV's smoothing epsilon, > 0 */
+  double relaxation;       /* 1: SIRT's omega in (0, 2) */
+} ivr_tomo_options;
+/* The defaults above. */
+IVR_API ivr_status ivr_tomo_options_init(ivr_tomo_options* options);
+
+/* One completed iteration: its number (from 1), |p - N x| / |p| (0 when p = 0), and the wall
+ * seconds since the solver started. */
+typedef struct ivr_tomo_iteration {
+  int iteration;
+  double residual;
+  double seconds;
+} ivr_tomo_iteration;
+/* Called after every iteration with `user`; return 0 to stop (the last iterate is the result,
+ * stop reason "interrupted"), non-zero to go on. It must not call ivr on the same context. */
+typedef int (*ivr_tomo_progress)(const ivr_tomo_iteration* iteration, void* user);
+
+typedef struct ivr_tomo_summary {
+  int iterations;          /* completed iterations */
+  const char* stop_reason; /* static: "iterations", "tolerance", "converged" or "interrupted" */
+  double residual;         /* the last iteration's (0 if none ran) */
+  double seconds;          /* solver wall time (after the setup) */
+  double setup_seconds;    /* compiling, uploads, SIRT's normalisations */
+} ivr_tomo_summary;
+
+/* Reconstructs the scene's grid from line integrals `lines` (`count` floats = the ray count)
+ * into `volume` (`capacity` floats >= nz * ny * nx), starting from zeros. options: NULL for the
+ * defaults. progress (may be NULL) is called with `user` after every iteration. history (may be
+ * NULL with history_capacity 0; else history_capacity >= options->iterations) receives one entry
+ * per completed iteration; summary (may be NULL) how it ended. Stopped by the callback, the call
+ * still succeeds. */
+IVR_API ivr_status ivr_tomo(ivr_context* context, const ivr_scene* scene,
+                            const ivr_tomo_options* options, const float* lines, size_t count,
+                            float* volume, size_t capacity, ivr_tomo_progress progress, void* user,
+                            ivr_tomo_iteration* history, size_t history_capacity,
+                            ivr_tomo_summary* summary);
+
+/* Line integrals from intensities, p = -log(I / I_in) / a (I_in: the scene's background, a: its
+ * identity TF's extinction_scale; other TFs are refused): `count` floats = the ray count into
+ * `lines` (`capacity` floats). I <= 0 is an error unless clamp in (0, 1): then I is raised to
+ * clamp * I_in first. */
+IVR_API ivr_status ivr_lines_from_intensities(const ivr_scene* scene, const float* intensities,
+                                              size_t count, double clamp, float* lines,
+                                              size_t capacity);
+
+/* A tomography test volume of shape (n, n, n), n in 1..1024, sampled at the voxel centres of
+ * [-1, 1]^3 into `volume` (`capacity` floats >= n^3): name "shepp-logan" (3D Shepp-Logan of Kak
+ * & Slaney) or "ellipsoids" (10 random ellipsoids from `seed`, the same on every platform).
+ * supersample s in 1..16: each voxel the mean of s^3 samples at its sub-cell centres (1: the
+ * voxel centre). */
+IVR_API ivr_status ivr_phantom(const char* name, int n, uint64_t seed, int supersample,
+                               float* volume, size_t capacity);
 
 #ifdef __cplusplus
 }

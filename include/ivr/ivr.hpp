@@ -4,6 +4,8 @@
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <exception>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -72,6 +74,7 @@ enum class Mode {
   adjoint = IVR_MODE_ADJOINT
 };
 enum class Loss { mse = IVR_LOSS_MSE, l1 = IVR_LOSS_L1 };
+enum class Solver { cgls = IVR_SOLVER_CGLS, sirt = IVR_SOLVER_SIRT, lsqr = IVR_SOLVER_LSQR };
 
 inline int version() {
   return ivr_version();
@@ -214,6 +217,46 @@ struct GradientOptions : Options {
   Loss loss = Loss::mse;
 };
 
+// What Context::tomo solves (ivr_tomo_options; these are the library's defaults).
+struct TomoOptions {
+  Solver solver = Solver::cgls;
+  Precision precision = Precision::f32;
+  int iterations = 50;       // the most iterations
+  bool nonneg = false;       // keep x >= 0
+  double tolerance = 0;      // > 0: stop once |p - N x| / |p| <= tolerance
+  double tikhonov = 0;       // lambda/2 |x|^2
+  double tv = 0;             // smoothed total variation (not with tikhonov)
+  double tv_epsilon = 1e-3;  // the TV's smoothing
+  int tv_reweight = 10;      // CGLS/LSQR iterations between TV re-weightings
+  double relaxation = 1;     // SIRT's omega in (0, 2)
+};
+// Called after every iteration (number, relative residual, seconds); return false to stop.
+using TomoProgress = std::function<bool(const ivr_tomo_iteration&)>;
+struct TomoResult {
+  Array<float> volume;                      // the last iterate, (nz, ny, nx)
+  std::vector<ivr_tomo_iteration> history;  // one entry per completed iteration
+  std::string stop_reason;  // "iterations", "tolerance", "converged" or "interrupted"
+  double residual = 0, seconds = 0, setup_seconds = 0;
+};
+
+namespace detail {
+// Carries a C++ progress function through the C callback; an exception it throws stops the
+// solver and is rethrown once ivr_tomo has returned (none may cross the C boundary).
+struct Progress {
+  const TomoProgress* function;
+  std::exception_ptr error;
+  static int call(const ivr_tomo_iteration* it, void* user) {
+    auto* self = static_cast<Progress*>(user);
+    try {
+      return (*self->function)(*it) ? 1 : 0;
+    } catch (...) {
+      self->error = std::current_exception();
+      return 0;
+    }
+  }
+};
+}  // namespace detail
+
 // A device with its queue and kernel cache. One context serves one thread at a time; separate
 // contexts work concurrently on separate threads.
 class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_context_release> {
@@ -306,7 +349,95 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                                options.step, &r));
     return Result(r);
   }
+  // Absorption tomography (ivr_project …): line integrals (views, H, W, 1) of the scene's
+  // volume, or of `volume` (the grid's nz * ny * nx values), along every camera ray.
+  Array<float> project(const Scene& scene, Precision precision = Precision::f32) {
+    return project(scene, nullptr, 0, precision);
+  }
+  Array<float> project(const Scene& scene, const std::vector<float>& volume,
+                       Precision precision = Precision::f32) {
+    return project(scene, volume.data(), volume.size(), precision);
+  }
+  // N^T p onto the scene's grid, (nz, ny, nx); `lines` has views * H * W values.
+  Array<float> backproject(const Scene& scene, const std::vector<float>& lines,
+                           Precision precision = Precision::f32) {
+    Array<float> volume{scene.volume_shape(), {}};
+    volume.values.resize(detail::product(volume.shape));
+    detail::check(ivr_backproject(get(), scene.get(), ivr_precision(precision), lines.data(),
+                                  lines.size(), volume.values.data(), volume.size()));
+    return volume;
+  }
+  // Reconstructs the scene's grid from line integrals (views * H * W values).
+  TomoResult tomo(const Scene& scene, const std::vector<float>& lines,
+                  const TomoOptions& options = {}, const TomoProgress& progress = {}) {
+    ivr_tomo_options o;
+    detail::check(ivr_tomo_options_init(&o));
+    o.solver = ivr_solver(options.solver);
+    o.precision = ivr_precision(options.precision);
+    o.iterations = options.iterations;
+    o.nonneg = options.nonneg ? 1 : 0;
+    o.tolerance = options.tolerance;
+    o.tikhonov = options.tikhonov;
+    o.tv = options.tv;
+    o.tv_epsilon = options.tv_epsilon;
+    o.tv_reweight = options.tv_reweight;
+    o.relaxation = options.relaxation;
+    TomoResult r;
+    r.volume.shape = scene.volume_shape();
+    r.volume.values.resize(detail::product(r.volume.shape));
+    r.history.resize(size_t(options.iterations > 0 ? options.iterations : 0));
+    detail::Progress state{&progress, nullptr};
+    ivr_tomo_summary summary{};
+    const ivr_status status =
+        ivr_tomo(get(), scene.get(), &o, lines.data(), lines.size(), r.volume.values.data(),
+                 r.volume.size(), progress ? &detail::Progress::call : nullptr, &state,
+                 r.history.empty() ? nullptr : r.history.data(), r.history.size(), &summary);
+    if (state.error) std::rethrow_exception(state.error);
+    detail::check(status);
+    r.history.resize(size_t(summary.iterations));
+    r.stop_reason = summary.stop_reason;
+    r.residual = summary.residual;
+    r.seconds = summary.seconds;
+    r.setup_seconds = summary.setup_seconds;
+    return r;
+  }
+
+ private:
+  Array<float> project(const Scene& scene, const float* volume, size_t count, Precision precision) {
+    std::vector<int64_t> shape = scene.image_shape();
+    shape[3] = 1;
+    Array<float> lines{shape, std::vector<float>(detail::product(shape))};
+    detail::check(ivr_project(get(), scene.get(), ivr_precision(precision), volume, count,
+                              lines.values.data(), lines.size()));
+    return lines;
+  }
 };
+
+// Line integrals (views, H, W, 1) from intensities of the scene's image shape:
+// p = -log(I / I_in) / a (ivr_lines_from_intensities); clamp in (0, 1) raises I to clamp * I_in.
+inline Array<float> lines_from_intensities(const Scene& scene,
+                                           const std::vector<float>& intensities,
+                                           double clamp = 0) {
+  std::vector<int64_t> shape = scene.image_shape();
+  shape[3] = 1;
+  Array<float> lines{shape, std::vector<float>(detail::product(shape))};
+  detail::check(ivr_lines_from_intensities(scene.get(), intensities.data(), intensities.size(),
+                                           clamp, lines.values.data(), lines.size()));
+  return lines;
+}
+
+// A tomography test volume (n, n, n): "shepp-logan" or "ellipsoids" (random, from `seed`);
+// supersample s > 1: each voxel the mean of s³ sub-cell samples.
+inline Array<float> phantom(const std::string& name, int n, uint64_t seed = 1,
+                            int supersample = 1) {
+  if (n < 1 || n > 1024)
+    throw Exception(IVR_ERROR_INVALID_ARGUMENT,
+                    "phantom: n = " + std::to_string(n) + " (1 .. 1024)");
+  Array<float> volume{{n, n, n}, std::vector<float>(size_t(n) * size_t(n) * size_t(n))};
+  detail::check(
+      ivr_phantom(name.c_str(), n, seed, supersample, volume.values.data(), volume.size()));
+  return volume;
+}
 
 // The loss (mean over every element) of `image` against `target`.
 inline double image_loss(const std::vector<float>& image, const std::vector<float>& target,

@@ -104,8 +104,11 @@ struct Scene {
 // Box centred at the origin, longest side 1, proportional to dims x spacing.
 IVR_API void set_default_box(Scene& scene);
 
-// Built-in test volumes of any size, densities in [0, 1]: "sphere" (a smooth ball with a soft
-// shell), "marschner_lobb" (the classic band-limited test signal, f_M = 6, alpha = 0.25).
+// Built-in test volumes of any size, sampled at cell centres over [-1, 1] on each axis: "sphere"
+// (a smooth ball with a soft shell), "marschner_lobb" (the classic band-limited test signal,
+// f_M = 6, alpha = 0.25), both in [0, 1]; "shepp_logan" (ivr/phantom.hpp's 3D Shepp–Logan,
+// skull 2.0, brain 1.02; non-cubic dims stretch it) and "zeros" (for scenes that need only the
+// grid's shape, e.g. tomography).
 IVR_API Volume synthetic_volume(const std::string& name, int nx, int ny, int nz);
 
 // Throws ivr::Error(invalid_argument) naming the first problem: sizes, cameras, TF, step, data.

@@ -5,6 +5,8 @@
     image = ctx.render(scene, volume)                  # (views, H, W, C) float32
     loss, grads = ctx.grad(scene, volume, target, wrt=("density", "tf"), mode="auto")
     J = ctx.jacobian(scene, volume, wrt=("camera",))   # (views, H, W, C, P)
+    p = ctx.project(scene, volume)                     # line integrals (views, H, W, 1)
+    x, history = ctx.tomo(scene, p, solver="cgls", iterations=50)   # (Z, Y, X)
 
 `scene` is a dict with the JSON fields of DESIGN.md (or JSON text); `volume`, a (Z, Y, X) array
 of float32/float64/uint8/uint16, replaces the scene's own volume (which may then be left out).
@@ -19,7 +21,8 @@ import numpy as np
 
 from . import _capi
 
-__all__ = ["Error", "Context", "devices", "version", "loss"]
+__all__ = ["Error", "Context", "devices", "version", "loss", "project", "backproject", "tomo",
+           "lines_from_intensities", "phantom"]
 
 _lib = None
 _lib_lock = threading.Lock()
@@ -83,6 +86,50 @@ _PRECISIONS = {"f32": 0, "f64": 1}
 _MODES = {"auto": 0, "forward": 1, "adjoint": 2}
 _MODE_NAMES = {1: "forward", 2: "adjoint"}
 _LOSSES = {"mse": 0, "l1": 1}
+_SOLVERS = {"cgls": 0, "sirt": 1, "lsqr": 2}
+_FLOAT_P = ctypes.POINTER(ctypes.c_float)
+
+
+def phantom(name, n, seed=1, supersample=1):
+    """A tomography test volume, float32 (n, n, n) sampled at the voxel centres of [-1, 1]^3:
+    "shepp-logan" (3D Shepp-Logan of Kak & Slaney) or "ellipsoids" (10 random ellipsoids from
+    `seed`, the same on every platform). supersample s > 1: each voxel the mean of s^3 samples at
+    its sub-cell centres (the cell average)."""
+    if not 1 <= int(n) <= 1024:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT", f"phantom: n = {n} (1 .. 1024)")
+    out = np.empty((int(n),) * 3, dtype=np.float32)
+    _check(_library().ivr_phantom(name.encode(), int(n), int(seed), int(supersample),
+                                  out.ctypes.data_as(_FLOAT_P),
+                                  out.size))
+    return out
+
+
+# Module-level tomography: one context for the call (kernels come from the on-disk cache after
+# the first); use a Context's methods to keep one across calls.
+def project(scene, volume=None, precision="f32", device=None, base_dir=None):
+    """Line integrals N v, float32 (views, H, W, 1): see Context.project."""
+    with Context(device, precision) as c:
+        return c.project(scene, volume, base_dir=base_dir)
+
+
+def backproject(scene, lines, precision="f32", device=None, grid=None, base_dir=None):
+    """N^T p, float32 (Z, Y, X): see Context.backproject."""
+    with Context(device, precision) as c:
+        return c.backproject(scene, lines, grid=grid, base_dir=base_dir)
+
+
+def tomo(scene, lines, solver="cgls", iterations=50, nonneg=False, tv=0.0, tikhonov=0.0,
+         tolerance=0.0, precision="f32", progress=None, device=None, **options):
+    """(volume, history) reconstructed from line integrals: see Context.tomo."""
+    with Context(device, precision) as c:
+        return c.tomo(scene, lines, solver=solver, iterations=iterations, nonneg=nonneg, tv=tv,
+                      tikhonov=tikhonov, tolerance=tolerance, progress=progress, **options)
+
+
+def lines_from_intensities(scene, intensities, clamp=0.0, device=None, base_dir=None):
+    """Line integrals from intensities: see Context.lines_from_intensities."""
+    with Context(device) as c:
+        return c.lines_from_intensities(scene, intensities, clamp=clamp, base_dir=base_dir)
 
 
 def _choice(table, value, what):
@@ -251,6 +298,124 @@ class Context:
             return self._result(r)[1]["jacobian"]
         finally:
             self._lib.ivr_result_release(r)
+
+    # --- absorption tomography: log(I / I_in) = -N v (the scene's model and TF are not used) --
+
+    def _ray_shape(self, scene_handle):
+        return self._image_shape(scene_handle)[:3] + (1,)
+
+    def _rays(self, scene_handle, values, what):
+        """`values` as contiguous float32 of the scene's ray shape; (views, H, W) also accepted."""
+        shape = self._ray_shape(scene_handle)
+        a = np.ascontiguousarray(values, dtype=np.float32)
+        if a.shape == shape[:3]:
+            a = a.reshape(shape)
+        if a.shape != shape:
+            raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                        f"{what} have shape {a.shape} but the scene's cameras give {shape} "
+                        f"(or {shape[:3]})")
+        return a
+
+    def _grid_scene(self, scene, grid, base_dir):
+        """A scene handle whose volume is the grid: the scene's own, or zeros of shape `grid`."""
+        volume = None if grid is None else np.zeros(tuple(grid), dtype=np.float32)
+        return self._scene(scene, volume, base_dir)
+
+    def _volume_out(self, scene_handle):
+        shape = (ctypes.c_int64 * 3)()
+        _check(self._lib.ivr_scene_volume_shape(scene_handle, shape))
+        return np.empty(tuple(shape), dtype=np.float32)
+
+    def project(self, scene, volume=None, base_dir=None):
+        """Line integrals N v of the scene's volume (or `volume`, (Z, Y, X)) along every camera
+        ray, evaluated exactly: float32 (views, H, W, 1)."""
+        s = self._scene(scene, volume, base_dir)
+        try:
+            out = np.empty(self._ray_shape(s), dtype=np.float32)
+            _check(self._lib.ivr_project(self._live(), s, _PRECISIONS[self.precision], None, 0,
+                                         out.ctypes.data_as(_FLOAT_P), out.size))
+            return out
+        finally:
+            self._lib.ivr_scene_release(s)
+
+    def backproject(self, scene, lines, grid=None, base_dir=None):
+        """N^T p, the exact transpose of project: `lines` (views, H, W[, 1]) onto the scene's
+        grid (or a grid of shape `grid` = (Z, Y, X)): float32 (Z, Y, X)."""
+        s = self._grid_scene(scene, grid, base_dir)
+        try:
+            p = self._rays(s, lines, "lines")
+            out = self._volume_out(s)
+            _check(self._lib.ivr_backproject(self._live(), s, _PRECISIONS[self.precision],
+                                             p.ctypes.data_as(_FLOAT_P), p.size,
+                                             out.ctypes.data_as(_FLOAT_P), out.size))
+            return out
+        finally:
+            self._lib.ivr_scene_release(s)
+
+    def tomo(self, scene, lines, solver="cgls", iterations=50, nonneg=False, tv=0.0, tikhonov=0.0,
+             tolerance=0.0, tv_epsilon=1e-3, tv_reweight=10, relaxation=1.0, progress=None,
+             grid=None, base_dir=None, info=None):
+        """(volume, history): the scene's grid (or `grid`) reconstructed from line integrals
+        `lines` (views, H, W[, 1]) by least squares (cgls, sirt or lsqr), optionally with x >= 0,
+        Tikhonov or smoothed-TV regularisation; volume float32 (Z, Y, X), history a list of
+        {"iteration", "residual" (|p - N x| / |p|), "seconds"}. progress(entry) is called after
+        every iteration with that entry; returning False stops (the last iterate is returned).
+        `info`, a dict, receives stop_reason, setup_seconds and seconds."""
+        o = _capi.TomoOptions()
+        _check(self._lib.ivr_tomo_options_init(ctypes.byref(o)))
+        o.solver = _choice(_SOLVERS, solver, "solver")
+        o.precision = _PRECISIONS[self.precision]
+        o.iterations, o.nonneg, o.tv_reweight = int(iterations), int(bool(nonneg)), int(tv_reweight)
+        o.tolerance, o.tikhonov, o.tv = float(tolerance), float(tikhonov), float(tv)
+        o.tv_epsilon, o.relaxation = float(tv_epsilon), float(relaxation)
+        failure = []
+
+        def call(entry, _user):
+            e = entry.contents
+            try:
+                go = progress({"iteration": e.iteration, "residual": e.residual,
+                               "seconds": e.seconds})
+                return 0 if go is False else 1
+            except BaseException as error:  # noqa: BLE001 — re-raised once ivr_tomo returns
+                failure.append(error)
+                return 0
+
+        callback = _capi.TOMO_PROGRESS(call) if progress else ctypes.cast(None, _capi.TOMO_PROGRESS)
+        s = self._grid_scene(scene, grid, base_dir)
+        try:
+            p = self._rays(s, lines, "lines")
+            out = self._volume_out(s)
+            history = (_capi.TomoIteration * max(o.iterations, 1))()
+            summary = _capi.TomoSummary()
+            status = self._lib.ivr_tomo(self._live(), s, ctypes.byref(o),
+                                        p.ctypes.data_as(_FLOAT_P), p.size,
+                                        out.ctypes.data_as(_FLOAT_P), out.size, callback, None,
+                                        history, len(history), ctypes.byref(summary))
+            if failure:
+                raise failure[0]
+            _check(status)  # before the release below replaces the thread's last error
+        finally:
+            self._lib.ivr_scene_release(s)
+        if info is not None:
+            info.update(stop_reason=summary.stop_reason.decode(), seconds=summary.seconds,
+                        setup_seconds=summary.setup_seconds)
+        return out, [{"iteration": h.iteration, "residual": h.residual, "seconds": h.seconds}
+                     for h in history[:summary.iterations]]
+
+    def lines_from_intensities(self, scene, intensities, clamp=0.0, base_dir=None):
+        """Line integrals p = -log(I / I_in) / a from intensities (views, H, W[, 1]), with I_in
+        the scene's background and a its identity TF's extinction_scale: float32
+        (views, H, W, 1). I <= 0 raises unless clamp in (0, 1) raises I to clamp * I_in."""
+        s = self._scene(scene, None, base_dir)
+        try:
+            i = self._rays(s, intensities, "intensities")
+            out = np.empty(i.shape, dtype=np.float32)
+            _check(self._lib.ivr_lines_from_intensities(s, i.ctypes.data_as(_FLOAT_P), i.size,
+                                                        float(clamp),
+                                                        out.ctypes.data_as(_FLOAT_P), out.size))
+            return out
+        finally:
+            self._lib.ivr_scene_release(s)
 
     def _result(self, r):
         loss, mode = ctypes.c_double(), ctypes.c_int()

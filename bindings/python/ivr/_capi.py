@@ -16,6 +16,31 @@ class _Handle(ctypes.Structure):
 HANDLE = ctypes.POINTER(_Handle)
 
 
+class TomoOptions(ctypes.Structure):
+    """ivr_tomo_options"""
+    _fields_ = [("solver", ctypes.c_int), ("precision", ctypes.c_int),
+                ("iterations", ctypes.c_int), ("nonneg", ctypes.c_int),
+                ("tv_reweight", ctypes.c_int), ("tolerance", ctypes.c_double),
+                ("tikhonov", ctypes.c_double), ("tv", ctypes.c_double),
+                ("tv_epsilon", ctypes.c_double), ("relaxation", ctypes.c_double)]
+
+
+class TomoIteration(ctypes.Structure):
+    """ivr_tomo_iteration"""
+    _fields_ = [("iteration", ctypes.c_int), ("residual", ctypes.c_double),
+                ("seconds", ctypes.c_double)]
+
+
+class TomoSummary(ctypes.Structure):
+    """ivr_tomo_summary"""
+    _fields_ = [("iterations", ctypes.c_int), ("stop_reason", ctypes.c_char_p),
+                ("residual", ctypes.c_double), ("seconds", ctypes.c_double),
+                ("setup_seconds", ctypes.c_double)]
+
+
+TOMO_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(TomoIteration), ctypes.c_void_p)
+
+
 def _candidates():
     env = os.environ.get("IVR_LIBRARY")
     if env:
@@ -49,6 +74,7 @@ def load():
 def _declare(lib):
     S = ctypes.c_int  # ivr_status
     pp = ctypes.POINTER(HANDLE)
+    fp = ctypes.POINTER(ctypes.c_float)
     sigs = {
         "ivr_status_string": (ctypes.c_char_p, [ctypes.c_int]),
         "ivr_version": (ctypes.c_int, []),
@@ -91,6 +117,19 @@ def _declare(lib):
                                        ctypes.POINTER(ctypes.c_int), c_int64_p]),
         "ivr_result_array_data": (S, [HANDLE, ctypes.c_size_t, ctypes.POINTER(ctypes.c_double),
                                       ctypes.c_size_t]),
+        "ivr_project": (S, [HANDLE, HANDLE, ctypes.c_int, fp, ctypes.c_size_t, fp,
+                            ctypes.c_size_t]),
+        "ivr_backproject": (S, [HANDLE, HANDLE, ctypes.c_int, fp, ctypes.c_size_t, fp,
+                                ctypes.c_size_t]),
+        "ivr_tomo_options_init": (S, [ctypes.POINTER(TomoOptions)]),
+        "ivr_tomo": (S, [HANDLE, HANDLE, ctypes.POINTER(TomoOptions), fp, ctypes.c_size_t, fp,
+                         ctypes.c_size_t, TOMO_PROGRESS, ctypes.c_void_p,
+                         ctypes.POINTER(TomoIteration), ctypes.c_size_t,
+                         ctypes.POINTER(TomoSummary)]),
+        "ivr_lines_from_intensities": (S, [HANDLE, fp, ctypes.c_size_t, ctypes.c_double, fp,
+                                           ctypes.c_size_t]),
+        "ivr_phantom": (S, [ctypes.c_char_p, ctypes.c_int, ctypes.c_uint64, ctypes.c_int, fp,
+                            ctypes.c_size_t]),
     }
     for name, (restype, argtypes) in sigs.items():
         f = getattr(lib, name)

@@ -1,0 +1,348 @@
+// tomo_commands.cpp — `ivr project`, `ivr backproject` and `ivr tomo`: absorption tomography
+// (ivr/tomo.hpp) from the command line, with .npy arrays in and out.
+#include <algorithm>
+#include <cmath>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli_support.hpp"
+#include "commands.hpp"
+#include "ivr/core.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ivr::cli {
+
+namespace {
+
+// What the three commands share: the scene, one .npy output, precision, device, --json.
+struct CommonArgs {
+  std::string scene, output, precision = "f32", device;
+  bool json = false;
+};
+
+void add_common(CLI::App* cmd, CommonArgs& a, const std::string& output_help) {
+  cmd->add_option("scene", a.scene,
+                  "Scene JSON file: its volume gives the grid, its cameras the rays (model, TF "
+                  "and integrator are not used)")
+      ->required();
+  cmd->add_option("-o,--output", a.output, output_help)->required();
+  cmd->add_option("--precision", a.precision, "Arithmetic precision: f32 (default) or f64");
+  cmd->add_option("--device", a.device,
+                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+  cmd->add_flag("--json", a.json, "Print one JSON object with timings and the output path");
+}
+
+// Checks the precision and the output path before any work; returns the precision.
+Precision checked_common(const CommonArgs& a) {
+  if (a.precision != "f32" && a.precision != "f64")
+    throw input_error("--precision: unknown precision '" + a.precision + "' (known: f32, f64)");
+  if (fs::path(a.output).extension() != ".npy")
+    throw input_error("-o: output '" + a.output + "' needs the extension .npy");
+  check_output_folder(a.output);
+  return a.precision == "f64" ? Precision::f64 : Precision::f32;
+}
+
+// The dtype of a .npy ("<f4", "<f8", "|u1", …) from its header; "" where it cannot be read (then
+// load_npy, called first, has already named the problem).
+std::string npy_dtype(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char head[12] = {};
+  if (!in.read(head, 10) || std::memcmp(head, "\x93NUMPY", 6) != 0) return "";
+  std::size_t length = std::uint8_t(head[8]) | std::size_t(std::uint8_t(head[9])) << 8;
+  if (head[6] >= 2) {  // versions 2 and 3: a 4-byte header length
+    if (!in.read(head + 10, 2)) return "";
+    length |= std::size_t(std::uint8_t(head[10])) << 16 | std::size_t(std::uint8_t(head[11])) << 24;
+  }
+  std::string header(std::min<std::size_t>(length, 1 << 16), '\0');
+  in.read(&header[0], std::streamsize(header.size()));
+  const std::size_t key = header.find("'descr'");
+  const std::size_t open = header.find('\'', header.find(':', key));
+  const std::size_t close = header.find('\'', open + 1);
+  if (key == std::string::npos || open == std::string::npos || close == std::string::npos)
+    return "";
+  return header.substr(open + 1, close - open - 1);
+}
+
+// One value per ray (view, y, x) from an .npy of shape (views, H, W, 1) or (views, H, W) that
+// matches the scene's cameras; every value finite. `floats_only`: float32/float64 data only.
+std::vector<double> load_rays(const std::string& path, const std::string& option,
+                              const Scene& scene, bool floats_only) {
+  const NpyArray a = load_npy(path);
+  const std::string what = option + " '" + path + "'";
+  if (floats_only) {
+    const std::string dtype = npy_dtype(path);
+    if (dtype.size() > 1 && dtype.substr(1) != "f4" && dtype.substr(1) != "f8")
+      throw input_error(what + " has dtype '" + dtype + "'; expected float32 or float64");
+  }
+  const std::size_t v = scene.cameras.size(), h = std::size_t(scene.cameras.front().height),
+                    w = std::size_t(scene.cameras.front().width);
+  if (a.shape != std::vector<std::size_t>{v, h, w, 1} &&
+      a.shape != std::vector<std::size_t>{v, h, w})
+    throw input_error(what + " has shape " + shape_text(a.shape) + " but the scene's " +
+                      std::to_string(v) + " camera(s) of " + std::to_string(w) + "x" +
+                      std::to_string(h) + " need " + shape_text({v, h, w, 1}) + " or " +
+                      shape_text({v, h, w}));
+  for (std::size_t i = 0; i < a.data.size(); ++i) {
+    if (std::isfinite(a.data[i])) continue;
+    std::ostringstream value;
+    value << a.data[i];
+    throw input_error(what + " has a non-finite value (" + value.str() + ") at (view " +
+                      std::to_string(i / (h * w)) + ", y " + std::to_string(i / w % h) + ", x " +
+                      std::to_string(i % w) + ")");
+  }
+  return a.data;
+}
+
+std::vector<float> to_float(const std::vector<double>& v) {
+  return std::vector<float>(v.begin(), v.end());
+}
+
+std::vector<std::size_t> volume_shape(const Scene& s) {
+  return {std::size_t(s.volume.nz), std::size_t(s.volume.ny), std::size_t(s.volume.nx)};
+}
+
+// SIGINT / SIGTERM during `ivr tomo`: the handler only records the signal (and puts the default
+// back, so that a second Ctrl-C ends the process at once); the progress callback then stops the
+// solver after the current iteration and the last iterate is written.
+volatile std::sig_atomic_t g_signal = 0;
+
+void on_signal(int signal) {
+  g_signal = signal;
+  std::signal(signal, SIG_DFL);
+}
+
+// Installs the handler for the scope of the solve and the write, then restores what was there.
+// A signal the parent set to be ignored (e.g. SIGINT of a background job) stays ignored.
+class InterruptGuard {
+ public:
+  InterruptGuard() {
+    g_signal = 0;
+    for (int i = 0; i < 2; ++i) {
+      previous_[i] = std::signal(kSignals[i], on_signal);
+      if (previous_[i] == SIG_IGN) std::signal(kSignals[i], SIG_IGN);
+    }
+  }
+  ~InterruptGuard() {
+    for (int i = 0; i < 2; ++i)
+      std::signal(kSignals[i], previous_[i] == SIG_ERR ? SIG_DFL : previous_[i]);
+  }
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+  int signal() const { return g_signal; }
+
+ private:
+  static constexpr int kSignals[2] = {SIGINT, SIGTERM};
+  void (*previous_[2])(int) = {SIG_DFL, SIG_DFL};
+};
+
+struct TomoArgs {
+  CommonArgs common;
+  std::string projections, intensities, solver = "cgls";
+  TomoOptions options;
+  double clamp = 0;
+  CLI::Option* clamp_option = nullptr;
+};
+
+// Every option's range, named as on the command line, before any work.
+void check_tomo_args(TomoArgs& a) {
+  if (a.projections.empty() == a.intensities.empty())
+    throw input_error("give exactly one of --projections and --intensities");
+  if (a.clamp_option->count() > 0 && a.intensities.empty())
+    throw input_error("--clamp-intensity applies to --intensities only");
+  a.options.solver = parse_solver(a.solver, "--solver");
+  const TomoOptions& o = a.options;
+  const auto text = [](double x) {
+    std::ostringstream s;
+    s << x;
+    return s.str();
+  };
+  if (o.iterations < 1)
+    throw input_error("--iterations must be >= 1, got " + std::to_string(o.iterations));
+  if (!(o.tolerance >= 0 && std::isfinite(o.tolerance)))
+    throw input_error("--tolerance must be >= 0, got " + text(o.tolerance));
+  if (!(o.tv >= 0 && std::isfinite(o.tv)))
+    throw input_error("--tv must be >= 0, got " + text(o.tv));
+  if (!(o.tikhonov >= 0 && std::isfinite(o.tikhonov)))
+    throw input_error("--tikhonov must be >= 0, got " + text(o.tikhonov));
+  if (o.tv > 0 && o.tikhonov > 0) throw input_error("give either --tv or --tikhonov, not both");
+  if (!(o.tv_epsilon > 0 && std::isfinite(o.tv_epsilon)))
+    throw input_error("--tv-epsilon must be > 0, got " + text(o.tv_epsilon));
+  if (o.tv_reweight < 1)
+    throw input_error("--tv-reweight must be >= 1, got " + std::to_string(o.tv_reweight));
+  if (!(o.relaxation > 0 && o.relaxation < 2))
+    throw input_error("--relaxation must be in (0, 2), got " + text(o.relaxation));
+  if (!(a.clamp >= 0 && a.clamp < 1))
+    throw input_error("--clamp-intensity must be in [0, 1), got " + text(a.clamp));
+}
+
+}  // namespace
+
+Runner add_project_command(CLI::App& app) {
+  auto args = std::make_shared<CommonArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "project", "Line integrals N v of the scene's volume along every camera ray (exact)");
+  add_common(cmd, *args, "Output .npy: float32 of shape (views, H, W, 1)");
+  return [args] {
+    const Precision precision = checked_common(*args);
+    const Scene scene = load_scene(args->scene);
+    Device device(args->device);
+    const Projector projector(device, scene, precision);
+    const std::vector<double> lines =
+        projector.project({scene.volume.data.begin(), scene.volume.data.end()});
+    const std::size_t views = std::size_t(projector.views()), h = std::size_t(projector.height()),
+                      w = std::size_t(projector.width());
+    write_outputs({{args->output, {views, h, w, 1}, to_float(lines)}});
+    const double seconds = projector.last_kernel_seconds();
+    if (args->json) {
+      std::cout << nlohmann::json{{"device", device.info().name},
+                                  {"precision", args->precision},
+                                  {"views", views},
+                                  {"height", h},
+                                  {"width", w},
+                                  {"rays", projector.ray_count()},
+                                  {"kernel_seconds", seconds},
+                                  {"output", args->output}}
+                       .dump()
+                << "\n";
+    } else {
+      std::cout << "projected " << views << " view(s) of " << w << "x" << h << " ("
+                << projector.ray_count() << " rays) on " << device.info().name << ": "
+                << seconds * 1e3 << " ms -> " << args->output << "\n";
+    }
+    return 0;
+  };
+}
+
+Runner add_backproject_command(CLI::App& app) {
+  struct Args {
+    CommonArgs common;
+    std::string images;
+  };
+  auto args = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand(
+      "backproject", "Back-projection N^T p of line integrals onto the scene's grid (exact)");
+  add_common(cmd, args->common, "Output .npy: float32 of the volume's shape (Z, Y, X)");
+  cmd->add_option("--images", args->images,
+                  "Line integrals, .npy float32/float64 of shape (views, H, W, 1) or (views, H, W)")
+      ->required();
+  return [args] {
+    const CommonArgs& c = args->common;
+    const Precision precision = checked_common(c);
+    const Scene scene = load_scene(c.scene);
+    const std::vector<double> lines = load_rays(args->images, "--images", scene, true);
+    Device device(c.device);
+    const Projector projector(device, scene, precision);
+    const std::vector<double> volume = projector.backproject(lines);
+    write_outputs({{c.output, volume_shape(scene), to_float(volume)}});
+    const double seconds = projector.last_kernel_seconds();
+    if (c.json) {
+      std::cout << nlohmann::json{{"device", device.info().name}, {"precision", c.precision},
+                                  {"shape", volume_shape(scene)}, {"rays", projector.ray_count()},
+                                  {"kernel_seconds", seconds},    {"output", c.output}}
+                       .dump()
+                << "\n";
+    } else {
+      std::cout << "back-projected " << projector.ray_count() << " rays onto " << scene.volume.nx
+                << "x" << scene.volume.ny << "x" << scene.volume.nz << " voxels on "
+                << device.info().name << ": " << seconds * 1e3 << " ms -> " << c.output << "\n";
+    }
+    return 0;
+  };
+}
+
+Runner add_tomo_command(CLI::App& app) {
+  auto args = std::make_shared<TomoArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "tomo",
+      "Reconstruct the volume from line integrals (or intensities) by least squares; Ctrl-C "
+      "stops after the current iteration, writes the last iterate and exits with status 130");
+  add_common(cmd, args->common, "Output .npy: float32 of the volume's shape (Z, Y, X)");
+  TomoOptions& o = args->options;
+  cmd->add_option("--projections", args->projections,
+                  "Line integrals p = N v, .npy float32/float64 of shape (views, H, W, 1) or "
+                  "(views, H, W)");
+  cmd->add_option("--intensities", args->intensities,
+                  "Intensities I instead (same shapes, any numeric dtype): p = -log(I / I_in) / a "
+                  "with I_in the scene's background and a its identity TF's extinction_scale");
+  args->clamp_option =
+      cmd->add_option("--clamp-intensity", args->clamp,
+                      "Raise intensities to at least c * I_in before the log (0 <= c < 1; default "
+                      "0: an intensity <= 0 is an error)");
+  cmd->add_option("--solver", args->solver, "cgls (default), sirt or lsqr");
+  cmd->add_option("--iterations", o.iterations, "Most iterations (default 50)");
+  cmd->add_flag("--nonneg", o.nonneg, "Keep every voxel >= 0");
+  cmd->add_option("--tv", o.tv, "Weight of the smoothed total variation (>= 0)");
+  cmd->add_option("--tikhonov", o.tikhonov, "Weight of lambda/2 |x|^2 (>= 0; not with --tv)");
+  cmd->add_option("--tv-epsilon", o.tv_epsilon, "Smoothing epsilon of the TV (default 1e-3)");
+  cmd->add_option("--tv-reweight", o.tv_reweight,
+                  "CGLS/LSQR iterations between TV re-weightings (default 10)");
+  cmd->add_option("--tolerance", o.tolerance,
+                  "Stop once |p - N x| / |p| <= this (default 0: run every iteration)");
+  cmd->add_option("--relaxation", o.relaxation, "SIRT's relaxation omega in (0, 2) (default 1)");
+  return [args] {
+    const CommonArgs& c = args->common;
+    args->options.precision = checked_common(c);
+    check_tomo_args(*args);
+    const Scene scene = load_scene(c.scene);
+    const bool from_intensities = !args->intensities.empty();
+    std::vector<double> lines = from_intensities
+                                    ? load_rays(args->intensities, "--intensities", scene, false)
+                                    : load_rays(args->projections, "--projections", scene, true);
+    if (from_intensities) lines = lines_from_intensities(scene, lines, args->clamp);
+    Device device(c.device);
+
+    const InterruptGuard interrupt;
+    const int total = args->options.iterations;
+    const TomoResult r = tomo(device, scene, lines, args->options, [&](const TomoIteration& it) {
+      std::ostringstream line;
+      line << "iteration " << it.iteration << "/" << total << "  residual " << std::scientific
+           << std::setprecision(3) << it.residual << "  " << std::fixed << std::setprecision(2)
+           << it.seconds << " s\n";
+      std::cerr << line.str() << std::flush;
+      return interrupt.signal() == 0;
+    });
+    write_outputs({{c.output, volume_shape(scene), r.volume}});
+
+    const double seconds = r.history.empty() ? 0.0 : r.history.back().seconds;
+    if (c.json) {
+      nlohmann::json history = nlohmann::json::array();
+      for (const TomoIteration& it : r.history)
+        history.push_back(
+            {{"iteration", it.iteration}, {"residual", it.residual}, {"seconds", it.seconds}});
+      std::cout << nlohmann::json{{"solver", solver_name(args->options.solver)},
+                                  {"precision", c.precision},
+                                  {"device", device.info().name},
+                                  {"iterations", r.history.size()},
+                                  {"max_iterations", total},
+                                  {"stop_reason", r.stop_reason},
+                                  {"residual", r.history.empty()
+                                                   ? nlohmann::json(nullptr)
+                                                   : nlohmann::json(r.history.back().residual)},
+                                  {"history", history},
+                                  {"seconds", seconds},
+                                  {"setup_seconds", r.setup_seconds},
+                                  {"output", c.output}}
+                       .dump()
+                << "\n";
+    } else {
+      std::cout << solver_name(args->options.solver) << ": " << r.history.size()
+                << " iteration(s), stopped by " << r.stop_reason << ", residual "
+                << (r.history.empty() ? 0.0 : r.history.back().residual) << ", " << seconds
+                << " s -> " << c.output << "\n";
+    }
+    // 128 + the signal, as a shell reports a process that the signal ended.
+    return interrupt.signal() == SIGINT ? 130 : interrupt.signal() == SIGTERM ? 143 : 0;
+  };
+}
+
+}  // namespace ivr::cli

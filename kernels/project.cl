@@ -1,0 +1,126 @@
+// project.cl — the absorption projector N (line integrals of the trilinear volume along every
+// camera ray) and its exact transpose Nᵀ (the same traversal scattering into the voxels). Both walk
+// a ray with the `exact` integrator's centre-plane pieces (kernels/exact.cl) and use the same
+// per-piece corner weights, so ⟨N x, y⟩ = ⟨x, Nᵀ y⟩ holds to rounding.
+#include "atomics.cl"
+#include "config.cl"
+#include "exact.cl"
+#include "geometry.cl"
+#include "march.cl"
+
+// The voxel index of each of the piece's 8 cell corners (bit 0: +x, bit 1: +y, bit 2: +z; the
+// upper neighbour is the voxel itself on a clamped upper edge: the voxels piece_corners() reads).
+inline void piece_corner_index(int4 dims, PieceCell c, int* index) {
+  const int ox = c.ix + 1 < dims.x ? 1 : 0;
+  const int oy = c.iy + 1 < dims.y ? dims.x : 0;
+  const int oz = c.iz + 1 < dims.z ? dims.x * dims.y : 0;
+  const int b = (c.iz * dims.y + c.iy) * dims.x + c.ix;
+  index[0] = b, index[1] = b + ox, index[2] = b + oy, index[3] = b + oy + ox;
+  index[4] = b + oz, index[5] = b + oz + ox, index[6] = b + oz + oy, index[7] = b + oz + oy + ox;
+}
+
+// ∫ over the piece of each corner's trilinear weight, factored. Along the piece each axis's weight
+// is linear in s: m + d·(s − ½), m its value at the piece's middle; the integral of a product of
+// three such factors over [0, 1] is m₁m₂m₃ + (m₁d₂d₃ + d₁m₂d₃ + d₁d₂m₃)/12 (odd moments of s − ½
+// vanish). Grouped by the (y, z) corner pair j = b + 2e: weight(a, b, e) = L·(mx[a]·p[j] +
+// dx[a]·q[j]). Clamped axes have f = g = 0: their upper corners get weight 0.
+typedef struct {
+  real mx1, gx;     // x: m = (1 − mx1, mx1), d = (−gx, gx)
+  real p[4], q[4];  // per (y, z) pair, times the piece length
+} PieceWeights;
+
+inline PieceWeights piece_weights(PieceCell c, real L) {
+  PieceWeights w;
+  w.mx1 = c.fx + (real)0.5 * c.gx;
+  w.gx = c.gx;
+  const real my1 = c.fy + (real)0.5 * c.gy, mz1 = c.fz + (real)0.5 * c.gz;
+  const real my[2] = {(real)1 - my1, my1}, mz[2] = {(real)1 - mz1, mz1};
+  const real dy[2] = {-c.gy, c.gy}, dz[2] = {-c.gz, c.gz};
+  const real L12 = L / (real)12;
+  for (int j = 0; j < 4; ++j) {
+    const int b = j & 1, e = j >> 1;
+    w.p[j] = L * my[b] * mz[e] + L12 * dy[b] * dz[e];
+    w.q[j] = L12 * (my[b] * dz[e] + dy[b] * mz[e]);
+  }
+  return w;
+}
+
+// The weight of corner k (bit 0: +x, bit 1: +y, bit 2: +z).
+inline real piece_weight(const PieceWeights* w, int k) {
+  const int j = k >> 1;
+  return (k & 1) ? w->mx1 * w->p[j] + w->gx * w->q[j]
+                 : ((real)1 - w->mx1) * w->p[j] - w->gx * w->q[j];
+}
+
+// Starts the ray of pixel (x, y) of `view`; false where it misses the box.
+inline bool projector_ray(__global const real* cameras, int x, int y, int view, int width,
+                          int height, int4 dims, real4 box_min, real4 box_max, real4 inv_voxel,
+                          March* m, Pieces* p) {
+  const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
+  // The step only sizes the fixed-step schemes' segments; the pieces ignore it.
+  if (!march_begin(ray, box_min, box_max, inv_voxel, (real)INFINITY, m)) return false;
+  // t from the box entry rather than the eye: piece lengths are differences of t, whose rounding
+  // scales with |t| (the eye may be far away; float32 entries of N would lose digits).
+  m->u0x += m->t0 * m->dux, m->u0y += m->t0 * m->duy, m->u0z += m->t0 * m->duz;
+  m->t1 -= m->t0;
+  m->t0 = (real)0;
+  pieces_begin(p, m, dims, m->t0);
+  return true;
+}
+
+// N: one work-item per ray; line[ray] = ∫ v(t) dt over the ray's part in the box.
+__kernel void project(__global const real* restrict volume, const int4 dims, const real4 box_min,
+                      const real4 box_max, const real4 inv_voxel,
+                      __global const real* restrict cameras, const int width, const int height,
+                      __global real* restrict line) {
+  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  if (x >= width || y >= height) return;
+  March m;
+  Pieces p;
+  real sum = (real)0;
+  if (projector_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel, &m,
+                    &p)) {
+    real ta, tb;
+    while (pieces_next(&p, &m, dims, &ta, &tb)) {
+      if (!(tb > ta)) continue;
+      const PieceCell c = piece_cell(&m, dims, ta, tb);
+      real v[8];
+      piece_corners(volume, dims, c, v);
+      const PieceWeights w = piece_weights(c, tb - ta);
+      // Σ_k weight_k·v_k, the x pairs first: v0·(mx0·p + dx0·q) + v1·(mx1·p + dx1·q).
+      for (int j = 0; j < 4; ++j) {
+        const real v0 = v[2 * j], v1 = v[2 * j + 1];
+        sum += w.p[j] * (v0 + w.mx1 * (v1 - v0)) + w.q[j] * w.gx * (v1 - v0);
+      }
+    }
+  }
+  line[((size_t)view * height + y) * width + x] = sum;
+}
+
+// Nᵀ: one work-item per ray; adds line[ray] × (each corner's weight) to the voxels (atomically:
+// rays share voxels). `volume` must be zeroed first.
+__kernel void backproject(__global const real* restrict line, const int4 dims, const real4 box_min,
+                          const real4 box_max, const real4 inv_voxel,
+                          __global const real* restrict cameras, const int width, const int height,
+                          __global real* volume) {
+  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  if (x >= width || y >= height) return;
+  const real value = line[((size_t)view * height + y) * width + x];
+  March m;
+  Pieces p;
+  if (value == (real)0 ||
+      !projector_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel, &m, &p))
+    return;
+  real ta, tb;
+  while (pieces_next(&p, &m, dims, &ta, &tb)) {
+    if (!(tb > ta)) continue;
+    const PieceCell c = piece_cell(&m, dims, ta, tb);
+    int index[8];
+    piece_corner_index(dims, c, index);
+    const PieceWeights w = piece_weights(c, tb - ta);
+    for (int k = 0; k < 8; ++k) {
+      const real wk = piece_weight(&w, k);
+      if (wk != (real)0) atomic_add_global(volume + index[k], value * wk);
+    }
+  }
+}

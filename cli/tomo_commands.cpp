@@ -3,9 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <csignal>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -52,38 +50,14 @@ Precision checked_common(const CommonArgs& a) {
   return a.precision == "f64" ? Precision::f64 : Precision::f32;
 }
 
-// The dtype of a .npy ("<f4", "<f8", "|u1", …) from its header; "" where it cannot be read (then
-// load_npy, called first, has already named the problem).
-std::string npy_dtype(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  char head[12] = {};
-  if (!in.read(head, 10) || std::memcmp(head, "\x93NUMPY", 6) != 0) return "";
-  std::size_t length = std::uint8_t(head[8]) | std::size_t(std::uint8_t(head[9])) << 8;
-  if (head[6] >= 2) {  // versions 2 and 3: a 4-byte header length
-    if (!in.read(head + 10, 2)) return "";
-    length |= std::size_t(std::uint8_t(head[10])) << 16 | std::size_t(std::uint8_t(head[11])) << 24;
-  }
-  std::string header(std::min<std::size_t>(length, 1 << 16), '\0');
-  in.read(&header[0], std::streamsize(header.size()));
-  const std::size_t key = header.find("'descr'");
-  const std::size_t open = header.find('\'', header.find(':', key));
-  const std::size_t close = header.find('\'', open + 1);
-  if (key == std::string::npos || open == std::string::npos || close == std::string::npos)
-    return "";
-  return header.substr(open + 1, close - open - 1);
-}
-
 // One value per ray (view, y, x) from an .npy of shape (views, H, W, 1) or (views, H, W) that
 // matches the scene's cameras; every value finite. `floats_only`: float32/float64 data only.
 std::vector<double> load_rays(const std::string& path, const std::string& option,
                               const Scene& scene, bool floats_only) {
   const NpyArray a = load_npy(path);
   const std::string what = option + " '" + path + "'";
-  if (floats_only) {
-    const std::string dtype = npy_dtype(path);
-    if (dtype.size() > 1 && dtype.substr(1) != "f4" && dtype.substr(1) != "f8")
-      throw input_error(what + " has dtype '" + dtype + "'; expected float32 or float64");
-  }
+  if (floats_only && a.dtype != "float32" && a.dtype != "float64")
+    throw input_error(what + " has dtype " + a.dtype + "; expected float32 or float64");
   const std::size_t v = scene.cameras.size(), h = std::size_t(scene.cameras.front().height),
                     w = std::size_t(scene.cameras.front().width);
   if (a.shape != std::vector<std::size_t>{v, h, w, 1} &&

@@ -435,6 +435,7 @@ NpyArray load_npy(const std::string& path) {
   const volfile::TypedArray a = volfile::read_npy(path);
   NpyArray result;
   result.shape = a.shape;
+  result.dtype = volfile::scalar_name(a.type);
   std::size_t count = 1;
   for (std::size_t n : a.shape) count *= n;  // read_npy checked it against the file size
   result.data.resize(count);

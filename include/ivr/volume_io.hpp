@@ -34,10 +34,12 @@ IVR_API Volume load_volume(const VolumeSource& source);
 IVR_API void save_npy(const std::string& path, const std::vector<std::size_t>& shape,
                       const float* data);
 
-// A .npy read back as float64 with its shape (tests, tools); throws ivr::Error(io).
+// A .npy read back as float64 with its shape and stored type (tests, tools); throws
+// ivr::Error(io).
 struct NpyArray {
   std::vector<std::size_t> shape;
   std::vector<double> data;
+  std::string dtype;  // the stored type: "float32", "float64", "uint16", …
 };
 IVR_API NpyArray load_npy(const std::string& path);
 

@@ -98,7 +98,9 @@ __kernel void project(__global const real* restrict volume, const int4 dims, con
 }
 
 // Nᵀ: one work-item per ray; adds line[ray] × (each corner's weight) to the voxels (atomically:
-// rays share voxels). `volume` must be zeroed first.
+// rays share voxels). `volume` must be zeroed first. Consecutive pieces share the corners on the
+// plane between their cells: a corner's weight is held while the ray stays at it and added once
+// when the ray leaves it, halving the atomic adds.
 __kernel void backproject(__global const real* restrict line, const int4 dims, const real4 box_min,
                           const real4 box_max, const real4 inv_voxel,
                           __global const real* restrict cameras, const int width, const int height,
@@ -111,6 +113,10 @@ __kernel void backproject(__global const real* restrict line, const int4 dims, c
   if (value == (real)0 ||
       !projector_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel, &m, &p))
     return;
+  int held_index[8];
+  real held[8];
+  int hx = 0, hy = 0, hz = 0;
+  bool holding = false;
   real ta, tb;
   while (pieces_next(&p, &m, dims, &ta, &tb)) {
     if (!(tb > ta)) continue;
@@ -118,9 +124,25 @@ __kernel void backproject(__global const real* restrict line, const int4 dims, c
     int index[8];
     piece_corner_index(dims, c, index);
     const PieceWeights w = piece_weights(c, tb - ta);
-    for (int k = 0; k < 8; ++k) {
-      const real wk = piece_weight(&w, k);
-      if (wk != (real)0) atomic_add_global(volume + index[k], value * wk);
+    real wk[8];
+    for (int k = 0; k < 8; ++k) wk[k] = piece_weight(&w, k);
+    if (holding) {
+      // Held corner j (bits a, b, e) is corner (a − Δx, b − Δy, e − Δz) of this cell, if any.
+      const int sx = c.ix - hx, sy = c.iy - hy, sz = c.iz - hz;
+      for (int j = 0; j < 8; ++j) {
+        const int a = (j & 1) - sx, b = ((j >> 1) & 1) - sy, e = (j >> 2) - sz;
+        const int k = a | (b << 1) | (e << 2);
+        if (a >= 0 && a <= 1 && b >= 0 && b <= 1 && e >= 0 && e <= 1 && held_index[j] == index[k])
+          wk[k] += held[j];
+        else if (held[j] != (real)0)
+          atomic_add_global(volume + held_index[j], value * held[j]);
+      }
     }
+    for (int k = 0; k < 8; ++k) held_index[k] = index[k], held[k] = wk[k];
+    hx = c.ix, hy = c.iy, hz = c.iz;
+    holding = true;
   }
+  if (holding)
+    for (int k = 0; k < 8; ++k)
+      if (held[k] != (real)0) atomic_add_global(volume + held_index[k], value * held[k]);
 }

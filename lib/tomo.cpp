@@ -356,7 +356,15 @@ std::vector<double> lines_from_intensities(const Scene& scene,
   if (!(clamp >= 0) || !(clamp < 1))
     throw Error(Status::invalid_argument,
                 "intensities: the clamp must be in [0, 1), got " + str(clamp));
+  if (scene.cameras.empty())
+    throw Error(Status::invalid_argument, "intensities: the scene has no cameras");
   const Camera& c = scene.cameras.front();
+  const std::size_t rays = scene.cameras.size() * std::size_t(c.width) * std::size_t(c.height);
+  if (intensities.size() != rays)
+    throw Error(Status::invalid_argument, "intensities: " + std::to_string(intensities.size()) +
+                                              " values, but the scene's " +
+                                              std::to_string(scene.cameras.size()) +
+                                              " cameras have " + std::to_string(rays) + " rays");
   std::vector<double> out(intensities.size());
   for (std::size_t i = 0; i < intensities.size(); ++i) {
     double I = intensities[i];

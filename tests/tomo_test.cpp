@@ -201,6 +201,7 @@ TEST(Tomo, LinesFromIntensitiesInvertTheRender) {
   }
   const std::vector<double> clamped = lines_from_intensities(scene, zero, 1e-6);
   EXPECT_NEAR(clamped[17], -std::log(1e-6) / 2.0, 1e-9);
+  EXPECT_THROW(lines_from_intensities(scene, std::vector<double>(zero.size() - 1, 0.5)), Error);
   scene.tf.kind = TfKind::piecewise_linear;
   EXPECT_THROW(lines_from_intensities(scene, zero), Error);
 }

@@ -98,9 +98,9 @@ IVR_API TomoResult tomo(Device& device, const Scene& scene, const std::vector<do
                         const std::vector<double>* x0 = nullptr);
 
 // Line integrals from intensities: p = −log(I / I_in) / a, with I_in the scene's background and a
-// the identity TF's extinction_scale (1 for other TFs is refused: only the identity TF keeps
-// log I linear in the voxels). I ≤ 0 or non-finite → ivr::Error naming the view and pixel, unless
-// clamp > 0: then I is raised to clamp·I_in first (documented, never NaN).
+// the identity TF's extinction_scale (other TFs are refused: only the identity TF keeps log I
+// linear in the voxels). I ≤ 0 or non-finite → ivr::Error naming the view and pixel, unless
+// clamp > 0: then I is raised to clamp·I_in first (never NaN). The count must be ray_count().
 IVR_API std::vector<double> lines_from_intensities(const Scene& scene,
                                                    const std::vector<double>& intensities,
                                                    double clamp = 0);

@@ -88,26 +88,11 @@ cl::Buffer Projector::Impl::vector(std::size_t n, const char* what) const {
 }
 
 cl::Buffer Projector::Impl::upload(const std::vector<double>& values, const char* what) const {
-  if (precision == Precision::f64)
-    return dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, values.size() * 8, values.data(),
-                      what);
-  const std::vector<float> converted(values.begin(), values.end());
-  return dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, converted.size() * 4,
-                    converted.data(), what);
+  return upload_reals(dev, precision == Precision::f64, values, what);
 }
 
 std::vector<double> Projector::Impl::download(const cl::Buffer& buffer, std::size_t n) const {
-  std::vector<double> out(n);
-  cl_call("reading a vector back from the device", [&] {
-    if (precision == Precision::f64) {
-      dev.queue.enqueueReadBuffer(buffer, CL_TRUE, 0, n * 8, out.data());
-    } else {
-      std::vector<float> values(n);
-      dev.queue.enqueueReadBuffer(buffer, CL_TRUE, 0, n * 4, values.data());
-      std::copy(values.begin(), values.end(), out.begin());
-    }
-  });
-  return out;
+  return download_reals(dev, precision == Precision::f64, buffer, n);
 }
 
 void Projector::Impl::run_rays(cl::Kernel& kernel, const char* what) {

@@ -6,6 +6,7 @@
 #include "ivr/differentiate.hpp"
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
+#include "ivr/optimize.hpp"
 #include "ivr/phantom.hpp"
 #include "ivr/planner.hpp"
 #include "ivr/render.hpp"

@@ -3,22 +3,16 @@
 #include "optimizer.hpp"
 
 #include <cmath>
-#include <cstdio>
 
 #include "device_scene.hpp"
 #include "ivr/error.hpp"
 #include "kernel_sources.hpp"
 #include "real_args.hpp"
+#include "scene_checks.hpp"
 
 namespace ivr {
 
 namespace {
-
-std::string str(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 [[noreturn]] void fail(const std::string& what) {
   throw Error(Status::invalid_argument, what);
@@ -55,26 +49,28 @@ Schedule parse_schedule(const std::string& name, const std::string& where) {
 }
 
 void validate_optimizer(const OptimizerOptions& o) {
-  if (!(o.lr > 0) || !std::isfinite(o.lr)) fail("lr must be > 0 and finite, got " + str(o.lr));
-  if (!(o.beta1 >= 0 && o.beta1 < 1)) fail("beta1 must be in [0, 1), got " + str(o.beta1));
-  if (!(o.beta2 >= 0 && o.beta2 < 1)) fail("beta2 must be in [0, 1), got " + str(o.beta2));
+  if (!(o.lr > 0) || !std::isfinite(o.lr))
+    fail("lr must be > 0 and finite, got " + number_text(o.lr));
+  if (!(o.beta1 >= 0 && o.beta1 < 1)) fail("beta1 must be in [0, 1), got " + number_text(o.beta1));
+  if (!(o.beta2 >= 0 && o.beta2 < 1)) fail("beta2 must be in [0, 1), got " + number_text(o.beta2));
   if (!(o.epsilon > 0) || !std::isfinite(o.epsilon))
-    fail("epsilon must be > 0, got " + str(o.epsilon));
+    fail("epsilon must be > 0, got " + number_text(o.epsilon));
   if (!(o.momentum >= 0 && o.momentum < 1))
-    fail("momentum must be in [0, 1), got " + str(o.momentum));
+    fail("momentum must be in [0, 1), got " + number_text(o.momentum));
   if (std::isnan(o.lower) || std::isnan(o.upper) || !(o.lower <= o.upper))
-    fail("the bounds need lower <= upper, got [" + str(o.lower) + ", " + str(o.upper) + "]");
+    fail("the bounds need lower <= upper, got [" + number_text(o.lower) + ", " +
+         number_text(o.upper) + "]");
   if (o.schedule == Schedule::step) {
     if (o.step_every < 1) fail("step_every must be >= 1, got " + std::to_string(o.step_every));
     if (!(o.step_gamma > 0 && o.step_gamma <= 1))
-      fail("step_gamma must be in (0, 1], got " + str(o.step_gamma));
+      fail("step_gamma must be in (0, 1], got " + number_text(o.step_gamma));
   }
   if (o.schedule == Schedule::cosine) {
     if (o.total_iterations < 1)
       fail("the cosine schedule needs total_iterations >= 1, got " +
            std::to_string(o.total_iterations));
     if (!(o.min_lr >= 0 && o.min_lr <= o.lr))
-      fail("min_lr must be in [0, lr], got " + str(o.min_lr));
+      fail("min_lr must be in [0, lr], got " + number_text(o.min_lr));
   }
 }
 

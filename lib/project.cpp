@@ -60,12 +60,11 @@ Projector::Impl::Impl(Device::Impl& device, const Scene& scene, Precision prec)
       std::string(f64 ? "f64" : "f32") + (native_atomics ? " float_atomics" : "");
   const cl::Program program =
       dev.programs.get(dev.context, dev.device, dev.info, preamble + assemble_kernel("project.cl"),
-                       options, "project.cl [" + tag + "]", &build_seconds);
+                       options, "project.cl [" + tag + "]");
   linalg_program = dev.programs.get(
       dev.context, dev.device, dev.info,
       std::string("#define IVR_F64 ") + (f64 ? "1" : "0") + "\n" + assemble_kernel("linalg.cl"),
-      extra_build_options(), std::string("linalg.cl [") + (f64 ? "f64" : "f32") + "]",
-      &build_seconds);
+      extra_build_options(), std::string("linalg.cl [") + (f64 ? "f64" : "f32") + "]");
 
   const glm::dvec3 h = scene.voxel_size();
   cl_call("setting up the projector kernels", [&] {

@@ -19,7 +19,6 @@ struct Projector::Impl {
   cl::Kernel project_kernel, backproject_kernel;
   cl::Program linalg_program;
   double last_seconds = 0;  // device time of the last projector kernel
-  double build_seconds = 0;
 
   Impl(Device::Impl& device, const Scene& scene, Precision precision);
 

@@ -26,12 +26,6 @@ bool finite(const glm::dvec3& v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 
-std::string str(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-
 void validate_camera(const Camera& c, const std::string& w) {
   if (!finite(c.eye) || !finite(c.target) || !finite(c.up))
     fail(w, "eye, target and up must be finite");
@@ -44,9 +38,9 @@ void validate_camera(const Camera& c, const std::string& w) {
   if (!(sine > 1e-9)) fail(w, "up is parallel to the view direction (target - eye)");
   if (c.projection == Projection::perspective) {
     if (!std::isfinite(c.fov_y) || !(c.fov_y > 0) || !(c.fov_y < 180))
-      fail(w, "fov_y must be in (0, 180) degrees, got " + str(c.fov_y));
+      fail(w, "fov_y must be in (0, 180) degrees, got " + number_text(c.fov_y));
   } else if (!std::isfinite(c.ortho_height) || !(c.ortho_height > 0)) {
-    fail(w, "ortho_height must be > 0, got " + str(c.ortho_height));
+    fail(w, "ortho_height must be > 0, got " + number_text(c.ortho_height));
   }
   if (c.width < 1 || c.height < 1 || c.width > kMaxImageSide || c.height > kMaxImageSide)
     fail(w, "image size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
@@ -91,7 +85,7 @@ Scheme parse_scheme(const std::string& name, const std::string& where) {
 void validate_tf(const TransferFunction& tf) {
   auto check_sigma = [](const std::string& where, double sigma) {
     if (!std::isfinite(sigma) || sigma < 0)
-      fail(where, "extinction must be finite and >= 0, got " + str(sigma));
+      fail(where, "extinction must be finite and >= 0, got " + number_text(sigma));
   };
   auto check_color = [](const std::string& where, const glm::dvec3& c) {
     if (!finite(c)) fail(where, "color must be finite");
@@ -108,8 +102,8 @@ void validate_tf(const TransferFunction& tf) {
         const std::string w = "tf.points[" + std::to_string(i) + "]";
         if (!std::isfinite(tf.points[i].density)) fail(w, "density must be finite");
         if (i > 0 && tf.points[i].density < tf.points[i - 1].density)
-          fail(w, "points must be sorted by density (" + str(tf.points[i].density) + " < " +
-                      str(tf.points[i - 1].density) + ")");
+          fail(w, "points must be sorted by density (" + number_text(tf.points[i].density) + " < " +
+                      number_text(tf.points[i - 1].density) + ")");
         check_sigma(w, tf.points[i].extinction);
         check_color(w, tf.points[i].color);
       }
@@ -118,8 +112,8 @@ void validate_tf(const TransferFunction& tf) {
       if (tf.entries.empty())
         fail("tf.entries", "a table transfer function needs at least one entry");
       if (!std::isfinite(tf.range.x) || !std::isfinite(tf.range.y) || !(tf.range.y > tf.range.x))
-        fail("tf.range", "must be [lo, hi] with lo < hi, got [" + str(tf.range.x) + ", " +
-                             str(tf.range.y) + "]");
+        fail("tf.range", "must be [lo, hi] with lo < hi, got [" + number_text(tf.range.x) + ", " +
+                             number_text(tf.range.y) + "]");
       for (std::size_t i = 0; i < tf.entries.size(); ++i) {
         const std::string w = "tf.entries[" + std::to_string(i) + "]";
         check_color(w, glm::dvec3(tf.entries[i]));
@@ -134,7 +128,7 @@ void validate_tf(const TransferFunction& tf) {
         const TfGaussian& g = tf.gaussians[i];
         if (!std::isfinite(g.mean)) fail(w, "mean must be finite");
         if (!std::isfinite(g.width) || !(g.width > 0))
-          fail(w, "width must be > 0, got " + str(g.width));
+          fail(w, "width must be > 0, got " + number_text(g.width));
         check_sigma(w, g.extinction);
         check_color(w, g.color);
       }
@@ -150,6 +144,12 @@ void set_default_box(Scene& scene) {
     fail("volume", "spacing must be positive and finite to derive the default box");
   scene.box_max = 0.5 * extent / longest;
   scene.box_min = -scene.box_max;
+}
+
+std::string number_text(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
 }
 
 void validate(const Scene& s) {
@@ -194,7 +194,7 @@ void validate_with(const Scene& s, const Integrator& it) {
       if (d >= 0.0f && d <= FLT_MAX) continue;
       const std::size_t x = i % v.nx, y = (i / v.nx) % v.ny, z = i / (std::size_t(v.nx) * v.ny);
       fail("volume", "density at (x, y, z) = (" + std::to_string(x) + ", " + std::to_string(y) +
-                         ", " + std::to_string(z) + ") is " + str(d) +
+                         ", " + std::to_string(z) + ") is " + number_text(d) +
                          "; densities must be finite and >= 0");
     }
   }
@@ -202,17 +202,19 @@ void validate_with(const Scene& s, const Integrator& it) {
   if (s.background && !finite(*s.background)) fail("background", "must be finite");
   validate_scheme(s, it.scheme);
   if (!std::isfinite(it.step) || !(it.step > 0))
-    fail("integrator.step", "must be > 0, got " + str(it.step));
+    fail("integrator.step", "must be > 0, got " + number_text(it.step));
   if (!std::isfinite(it.tolerance) || it.tolerance < 0)
-    fail("integrator.tolerance", "must be > 0 (or 0: use the step), got " + str(it.tolerance));
+    fail("integrator.tolerance",
+         "must be > 0 (or 0: use the step), got " + number_text(it.tolerance));
   if (!std::isfinite(it.min_transmittance) || it.min_transmittance < 0 || it.min_transmittance >= 1)
-    fail("integrator.min_transmittance", "must be in [0, 1), got " + str(it.min_transmittance));
+    fail("integrator.min_transmittance",
+         "must be in [0, 1), got " + number_text(it.min_transmittance));
   const glm::dvec3 h = s.voxel_size();
   const double diagonal = glm::length(s.box_max - s.box_min);
   const double per_ray = diagonal / (it.step * std::min(h.x, std::min(h.y, h.z)));
   if (!(per_ray <= kMaxSamplesPerRay))
-    fail("integrator.step", str(it.step) + " would take up to " + str(per_ray) +
-                                " samples per ray (limit " + str(kMaxSamplesPerRay) + ")");
+    fail("integrator.step", number_text(it.step) + " would take up to " + number_text(per_ray) +
+                                " samples per ray (limit " + number_text(kMaxSamplesPerRay) + ")");
 }
 
 Volume synthetic_volume(const std::string& name, int nx, int ny, int nz) {

@@ -8,6 +8,9 @@ namespace ivr {
 // validate(scene) as if scene.integrator were `integrator` (e.g. a --step override).
 void validate_with(const Scene& scene, const Integrator& integrator);
 
+// A number as error messages show it (the shortest of 6 significant digits: 0.001, 1e+30, nan).
+std::string number_text(double v);
+
 // The grid (dims), box and cameras only: what the projector needs (lib/project.cpp).
 void validate_geometry(const Scene& scene);
 

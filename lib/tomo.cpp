@@ -8,6 +8,7 @@
 
 #include "ivr/error.hpp"
 #include "projector.hpp"
+#include "scene_checks.hpp"
 
 namespace ivr {
 
@@ -32,43 +33,30 @@ Solver parse_solver(const std::string& name, const std::string& where) {
 
 namespace {
 
-std::string str(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
 void check_options(const TomoOptions& o) {
   auto fail = [](const std::string& what) { throw Error(Status::invalid_argument, what); };
   if (o.iterations < 1) fail("iterations must be >= 1, got " + std::to_string(o.iterations));
   if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))
-    fail("tolerance must be >= 0, got " + str(o.tolerance));
+    fail("tolerance must be >= 0, got " + number_text(o.tolerance));
   if (!(o.tikhonov >= 0) || !std::isfinite(o.tikhonov))
-    fail("tikhonov must be >= 0, got " + str(o.tikhonov));
-  if (!(o.tv >= 0) || !std::isfinite(o.tv)) fail("tv must be >= 0, got " + str(o.tv));
+    fail("tikhonov must be >= 0, got " + number_text(o.tikhonov));
+  if (!(o.tv >= 0) || !std::isfinite(o.tv)) fail("tv must be >= 0, got " + number_text(o.tv));
   if (o.tikhonov > 0 && o.tv > 0) fail("give either tikhonov or tv, not both");
   if (!(o.tv_epsilon > 0) || !std::isfinite(o.tv_epsilon))
-    fail("tv_epsilon must be > 0, got " + str(o.tv_epsilon));
+    fail("tv_epsilon must be > 0, got " + number_text(o.tv_epsilon));
   if (o.tv_reweight < 1) fail("tv_reweight must be >= 1, got " + std::to_string(o.tv_reweight));
   if (!(o.relaxation > 0 && o.relaxation < 2))
-    fail("relaxation must be in (0, 2), got " + str(o.relaxation));
+    fail("relaxation must be in (0, 2), got " + number_text(o.relaxation));
 }
 
-// The first non-finite value of `v` as "(view v, y, x)" for rays or "(x, y, z)" for voxels.
-void check_finite(const std::vector<double>& v, const char* what, int d0, int d1) {
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    if (std::isfinite(v[i])) continue;
-    const std::size_t a = i % std::size_t(d0), b = (i / d0) % std::size_t(d1),
-                      c = i / (std::size_t(d0) * d1);
-    throw Error(Status::invalid_argument,
-                std::string(what) + ": value " + str(v[i]) + " at index " + std::to_string(i) +
-                    (std::string(what) == "projections"
-                         ? " (view " + std::to_string(c) + ", y " + std::to_string(b) + ", x " +
-                               std::to_string(a) + ")"
-                         : " (x " + std::to_string(a) + ", y " + std::to_string(b) + ", z " +
-                               std::to_string(c) + ")") +
-                    "; values must be finite");
-  }
+// The first non-finite value of `v`, named with `where(i)` (its view and pixel, or its voxel).
+template <class Where>
+void check_finite(const std::vector<double>& v, const char* what, Where&& where) {
+  for (std::size_t i = 0; i < v.size(); ++i)
+    if (!std::isfinite(v[i]))
+      throw Error(Status::invalid_argument, std::string(what) + ": value " + number_text(v[i]) +
+                                                " at index " + std::to_string(i) + " (" + where(i) +
+                                                "); values must be finite");
 }
 
 // A vector of the stacked system A = [N; L], b = [p; 0]: ray values, then the regulariser's rows.
@@ -308,13 +296,19 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
                 "projections: " + std::to_string(lines.size()) + " values, but the scene's " +
                     std::to_string(P.views) + " cameras of " + std::to_string(P.width) + "x" +
                     std::to_string(P.height) + " have " + std::to_string(P.rays) + " rays");
-  check_finite(lines, "projections", P.width, P.height);
+  check_finite(lines, "projections", [&](std::size_t i) {
+    return "view " + std::to_string(i / (std::size_t(P.width) * P.height)) + ", y " +
+           std::to_string(i / P.width % P.height) + ", x " + std::to_string(i % P.width);
+  });
   if (x0) {
     if (x0->size() != P.voxels)
       throw Error(Status::invalid_argument, "initial volume: " + std::to_string(x0->size()) +
                                                 " values, the grid has " +
                                                 std::to_string(P.voxels));
-    check_finite(*x0, "initial volume", P.nx, P.ny);
+    check_finite(*x0, "initial volume", [&](std::size_t i) {
+      return "x " + std::to_string(i % P.nx) + ", y " + std::to_string(i / P.nx % P.ny) + ", z " +
+             std::to_string(i / (std::size_t(P.nx) * P.ny));
+    });
   }
   DeviceVectors V(P);
   StackedSystem A(P, V, options);
@@ -355,7 +349,7 @@ std::vector<double> lines_from_intensities(const Scene& scene,
     throw Error(Status::invalid_argument, "intensities: the scene's background (I_in) must be > 0");
   if (!(clamp >= 0) || !(clamp < 1))
     throw Error(Status::invalid_argument,
-                "intensities: the clamp must be in [0, 1), got " + str(clamp));
+                "intensities: the clamp must be in [0, 1), got " + number_text(clamp));
   if (scene.cameras.empty())
     throw Error(Status::invalid_argument, "intensities: the scene has no cameras");
   const Camera& c = scene.cameras.front();
@@ -372,8 +366,8 @@ std::vector<double> lines_from_intensities(const Scene& scene,
       const std::size_t x = i % c.width, y = (i / c.width) % c.height,
                         view = i / (std::size_t(c.width) * c.height);
       throw Error(Status::invalid_argument,
-                  "intensities: value " + str(I) + " at (view " + std::to_string(view) + ", y " +
-                      std::to_string(y) + ", x " + std::to_string(x) +
+                  "intensities: value " + number_text(I) + " at (view " + std::to_string(view) +
+                      ", y " + std::to_string(y) + ", x " + std::to_string(x) +
                       (std::isfinite(I) ? ") is not > 0; log I needs positive intensities "
                                           "(or a clamp, --clamp-intensity)"
                                         : ") is not finite"));

@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <numeric>
 
+#include "adjoint_device.hpp"
 #include "device_params.hpp"
 #include "device_scene.hpp"
 #include "empty_space.hpp"
@@ -42,7 +43,8 @@ std::string gradient_preamble(const RenderVariant& variant, const GradientOption
 
 template <class Real>
 Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
-                     const Image& target, const GradientOptions& o) {
+                     const Image& target, const GradientOptions& o,
+                     const cl::Buffer* resident = nullptr, cl::Buffer* density_out = nullptr) {
   const Camera& cam0 = scene.cameras.front();
   const int views = int(scene.cameras.size()), channels = scene.channels();
   const std::size_t pixels = std::size_t(views) * cam0.height * cam0.width;
@@ -65,7 +67,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
   cl::Buffer grad_tf =
       dev.buffer(CL_MEM_READ_WRITE, std::max<std::size_t>(tf_size, 1) * sizeof(Real), nullptr,
                  "the transfer-function gradient");
-  const DeviceScene<Real> dscene(dev, scene);
+  const DeviceScene<Real> dscene(dev, scene, resident);
 
   RenderVariant variant = RenderVariant::of(
       scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
@@ -154,7 +156,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     dev.queue.enqueueReadBuffer(terms_buf, CL_TRUE, 0, terms.size() * sizeof(Real), terms.data());
     dev.queue.enqueueReadBuffer(samples_buf, CL_TRUE, 0, samples.size() * sizeof(cl_uint),
                                 samples.data());
-    if (o.density)
+    if (o.density && !density_out)
       dev.queue.enqueueReadBuffer(grad_volume, CL_TRUE, 0, grad.size() * sizeof(Real), grad.data());
     if (o.tf)
       dev.queue.enqueueReadBuffer(grad_tf, CL_TRUE, 0, grad_tf_host.size() * sizeof(Real),
@@ -176,7 +178,10 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     g.loss += double(terms[p * 4]);
     for (int c = 0; c < 3; ++c) background[c] += double(terms[p * 4 + 1 + c]);
   }
-  if (o.density) g.density.assign(grad.begin(), grad.end());
+  if (o.density && density_out)
+    *density_out = grad_volume;
+  else if (o.density)
+    g.density.assign(grad.begin(), grad.end());
   if (o.tf) g.tf.assign(grad_tf_host.begin(), grad_tf_host.end());
   if (o.background) g.background.assign(background, background + (channels == 4 ? 3 : 1));
   g.samples = std::accumulate(samples.begin(), samples.end(), std::uint64_t(0));
@@ -185,6 +190,15 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
 }
 
 }  // namespace
+
+Gradient gradient_on_device(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
+                            const Image& target, const GradientOptions& options,
+                            const cl::Buffer& volume, cl::Buffer* density_out) {
+  check_target(scene, target);
+  if (options.precision == Precision::f64)
+    return gradient_as<double>(dev, scene, integrator, target, options, &volume, density_out);
+  return gradient_as<float>(dev, scene, integrator, target, options, &volume, density_out);
+}
 
 double image_loss(const Image& image, const Image& target, Loss loss) {
   if (image.pixels.size() != target.pixels.size() || image.views != target.views ||

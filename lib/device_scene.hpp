@@ -132,8 +132,24 @@ struct DeviceScene {
   double tf_scalars[2] = {0, 0};
   std::uint64_t bytes = 0;  // device memory held by these buffers
 
-  DeviceScene(Device::Impl& dev, const Scene& scene) {
+  // `resident`: a volume already on the device (Real, the scene's shape) used instead of
+  // uploading scene.volume.data, which is then not read (the reconstruction loops).
+  DeviceScene(Device::Impl& dev, const Scene& scene, const cl::Buffer* resident = nullptr) {
     const std::size_t voxels = scene.volume.voxel_count();
+    if (resident) {
+      volume = *resident;
+    } else {
+      upload_volume(dev, scene, voxels);
+    }
+    const std::vector<Real> cams = pack_cameras<Real>(scene.cameras);
+    cameras = dev.buffer(CL_MEM_READ_ONLY, cams.size() * sizeof(Real), cams.data(), "the cameras");
+    const std::vector<Real> packed = pack_tf<Real>(scene.tf, &tf_count, tf_scalars);
+    tf = dev.buffer(CL_MEM_READ_ONLY, packed.size() * sizeof(Real), packed.data(),
+                    "the transfer function");
+    bytes = (voxels + cams.size() + packed.size()) * sizeof(Real);
+  }
+
+  void upload_volume(Device::Impl& dev, const Scene& scene, std::size_t voxels) {
     std::vector<Real> converted;
     const void* volume_host = scene.volume.data.data();
     if constexpr (!std::is_same_v<Real, float>) {
@@ -143,12 +159,6 @@ struct DeviceScene {
       volume_host = converted.data();
     }
     volume = dev.buffer(CL_MEM_READ_ONLY, voxels * sizeof(Real), volume_host, "the volume");
-    const std::vector<Real> cams = pack_cameras<Real>(scene.cameras);
-    cameras = dev.buffer(CL_MEM_READ_ONLY, cams.size() * sizeof(Real), cams.data(), "the cameras");
-    const std::vector<Real> packed = pack_tf<Real>(scene.tf, &tf_count, tf_scalars);
-    tf = dev.buffer(CL_MEM_READ_ONLY, packed.size() * sizeof(Real), packed.data(),
-                    "the transfer function");
-    bytes = (voxels + cams.size() + packed.size()) * sizeof(Real);
   }
 
   // Sets the shared leading arguments (volume … min_transmittance); returns the next index.

@@ -60,8 +60,10 @@ BrickGrid device_grid(Device::Impl& dev, const cl::Buffer& volume, const Scene& 
 
 BrickGrid scene_grid(Device::Impl& dev, const cl::Buffer& volume, const Scene& scene, int size,
                      Precision precision) {
-  return grid_on_device(dev.info) ? device_grid(dev, volume, scene, size, precision)
-                                  : build_brick_grid(scene.volume, scene.tf, size);
+  // A volume that lives only on the device (a reconstruction's) is gridded there too.
+  const bool host_data = scene.volume.data.size() == scene.volume.voxel_count();
+  return grid_on_device(dev.info) || !host_data ? device_grid(dev, volume, scene, size, precision)
+                                                : build_brick_grid(scene.volume, scene.tf, size);
 }
 
 BrickGrid plan_skipping(Device::Impl& dev, const cl::Buffer& volume, const Scene& scene,

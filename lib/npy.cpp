@@ -381,12 +381,17 @@ TypedArray read_npy(const std::string& path) {
 
 }  // namespace volfile
 
-void save_npy(const std::string& path, const std::vector<std::size_t>& shape, const float* data) {
+namespace {
+
+// A little-endian .npy of float32 or float64 (T), through a temporary file and a rename.
+template <class T>
+void save_npy_as(const std::string& path, const std::vector<std::size_t>& shape, const T* data) {
   const std::size_t count =
-      volfile::checked_count(shape, std::numeric_limits<std::size_t>::max() / sizeof(float), path);
+      volfile::checked_count(shape, std::numeric_limits<std::size_t>::max() / sizeof(T), path);
   if (count != 0 && data == nullptr)
     throw Error(Status::invalid_argument, "no data given to write to .npy: '" + path + "'");
-  std::string dict = "{'descr': '<f4', 'fortran_order': False, 'shape': (";
+  std::string dict = std::string("{'descr': '") + (sizeof(T) == 8 ? "<f8" : "<f4") +
+                     "', 'fortran_order': False, 'shape': (";
   for (std::size_t i = 0; i < shape.size(); ++i) dict += (i ? ", " : "") + std::to_string(shape[i]);
   dict += shape.size() == 1 ? ",), }" : "), }";
   // Version 1.0 has a 10-byte preamble; numpy pads the header with blanks so data is 64-aligned.
@@ -412,16 +417,16 @@ void save_npy(const std::string& path, const std::vector<std::size_t>& shape, co
     if (!out) throw Error(Status::io, "cannot open a temporary file to write .npy: '" + path + "'");
     out.write(head.data(), std::streamsize(head.size()));
     if (!volfile::host_is_big_endian()) {
-      out.write(reinterpret_cast<const char*>(data), std::streamsize(count * sizeof(float)));
+      out.write(reinterpret_cast<const char*>(data), std::streamsize(count * sizeof(T)));
     } else {
       std::vector<unsigned char> chunk;
       for (std::size_t i = 0; i < count; i += 65536) {
         const std::size_t n = std::min<std::size_t>(65536, count - i);
-        chunk.resize(n * sizeof(float));
+        chunk.resize(n * sizeof(T));
         for (std::size_t j = 0; j < n; ++j) {
-          const float v = volfile::load_scalar<float>(
-              reinterpret_cast<const unsigned char*>(data + i + j), true);
-          std::memcpy(chunk.data() + j * sizeof(float), &v, sizeof(float));
+          const T v =
+              volfile::load_scalar<T>(reinterpret_cast<const unsigned char*>(data + i + j), true);
+          std::memcpy(chunk.data() + j * sizeof(T), &v, sizeof(T));
         }
         out.write(reinterpret_cast<const char*>(chunk.data()), std::streamsize(chunk.size()));
       }
@@ -429,6 +434,16 @@ void save_npy(const std::string& path, const std::vector<std::size_t>& shape, co
     out.close();
     if (!out) throw Error(Status::io, "cannot write .npy (disk full?): '" + path + "'");
   });
+}
+
+}  // namespace
+
+void save_npy(const std::string& path, const std::vector<std::size_t>& shape, const float* data) {
+  save_npy_as(path, shape, data);
+}
+
+void save_npy(const std::string& path, const std::vector<std::size_t>& shape, const double* data) {
+  save_npy_as(path, shape, data);
 }
 
 NpyArray load_npy(const std::string& path) {

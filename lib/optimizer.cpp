@@ -21,7 +21,15 @@ namespace {
 }  // namespace
 
 const char* optimizer_name(OptimizerKind kind) {
-  return kind == OptimizerKind::adam ? "adam" : "sgd";
+  switch (kind) {
+    case OptimizerKind::adam:
+      return "adam";
+    case OptimizerKind::sgd:
+      return "sgd";
+    case OptimizerKind::lbfgs:
+      return "lbfgs";
+  }
+  return "?";
 }
 
 const char* schedule_name(Schedule schedule) {
@@ -37,9 +45,9 @@ const char* schedule_name(Schedule schedule) {
 }
 
 OptimizerKind parse_optimizer(const std::string& name, const std::string& where) {
-  for (OptimizerKind k : {OptimizerKind::adam, OptimizerKind::sgd})
+  for (OptimizerKind k : {OptimizerKind::adam, OptimizerKind::sgd, OptimizerKind::lbfgs})
     if (name == optimizer_name(k)) return k;
-  fail(where + ": unknown optimizer '" + name + "' (known: adam, sgd)");
+  fail(where + ": unknown optimizer '" + name + "' (known: adam, sgd, lbfgs)");
 }
 
 Schedule parse_schedule(const std::string& name, const std::string& where) {
@@ -57,6 +65,7 @@ void validate_optimizer(const OptimizerOptions& o) {
     fail("epsilon must be > 0, got " + number_text(o.epsilon));
   if (!(o.momentum >= 0 && o.momentum < 1))
     fail("momentum must be in [0, 1), got " + number_text(o.momentum));
+  if (o.history < 1) fail("history must be >= 1, got " + std::to_string(o.history));
   if (std::isnan(o.lower) || std::isnan(o.upper) || !(o.lower <= o.upper))
     fail("the bounds need lower <= upper, got [" + number_text(o.lower) + ", " +
          number_text(o.upper) + "]");
@@ -93,6 +102,10 @@ Optimizer::Impl::Impl(Device::Impl& device, std::size_t n, const OptimizerOption
                       Precision precision)
     : dev(device), options(o), count(n), f64(precision == Precision::f64) {
   validate_optimizer(o);
+  if (o.kind == OptimizerKind::lbfgs)
+    fail(
+        "lbfgs runs on the host with a line search (ivr::reconstruct, ivr::select_viewpoint); "
+        "ivr::Optimizer runs adam and sgd");
   if (n == 0 || n > 2147483647u)
     fail("an optimizer needs 1 .. 2^31 - 1 parameters, got " + std::to_string(n));
   if (f64 && !dev.info.fp64)

@@ -13,7 +13,10 @@
 
 namespace ivr {
 
-enum class OptimizerKind { adam, sgd };
+// lbfgs: limited-memory BFGS with projected backtracking line searches on the host, for small
+// parameter sets (transfer functions, viewpoints) and full batches (see ivr/reconstruct.hpp);
+// ivr::Optimizer runs adam and sgd.
+enum class OptimizerKind { adam, sgd, lbfgs };
 // constant: lr; step: lr·γ^⌊k / step_every⌋; cosine: min_lr + (lr − min_lr)·(1 + cos(π k / K))/2
 // over K = total_iterations (then min_lr), k the 0-based iteration.
 enum class Schedule { constant, step, cosine };
@@ -28,6 +31,7 @@ struct OptimizerOptions {
   double min_lr = 0;                                  // cosine schedule, in [0, lr]
   double beta1 = 0.9, beta2 = 0.999, epsilon = 1e-8;  // Adam
   double momentum = 0.9;                              // SGD, in [0, 1)
+  int history = 10;                                   // L-BFGS: curvature pairs kept (>= 1)
   // Every parameter is projected onto [lower, upper] after each step (lower = 0: densities).
   double lower = -std::numeric_limits<double>::infinity();
   double upper = std::numeric_limits<double>::infinity();
@@ -35,8 +39,8 @@ struct OptimizerOptions {
 
 IVR_API const char* optimizer_name(OptimizerKind kind);
 IVR_API const char* schedule_name(Schedule schedule);
-// By name ("adam", "sgd"; "constant", "step", "cosine"); ivr::Error(invalid_argument) naming
-// `where` and the known ones.
+// By name ("adam", "sgd", "lbfgs"; "constant", "step", "cosine"); ivr::Error(invalid_argument)
+// naming `where` and the known ones.
 IVR_API OptimizerKind parse_optimizer(const std::string& name,
                                       const std::string& where = "optimizer");
 IVR_API Schedule parse_schedule(const std::string& name, const std::string& where = "schedule");

@@ -125,4 +125,9 @@ IVR_API Volume parse_volume(const std::string& json_text, const std::string& bas
                             const std::string& where = "volume");
 IVR_API TransferFunction parse_tf(const std::string& json_text, const std::string& where = "tf");
 
+// A TF or a camera as the scene file's JSON object (parse_tf / a "cameras" entry read them back
+// exactly): what reconstructions and `ivr viewpoint` write.
+IVR_API std::string tf_json(const TransferFunction& tf);
+IVR_API std::string camera_json(const Camera& camera);
+
 }  // namespace ivr

@@ -30,9 +30,15 @@ struct VolumeSource {
 // ivr::Error(invalid_argument) for sizes that do not match, NaN/Inf or negative densities.
 IVR_API Volume load_volume(const VolumeSource& source);
 
-// Writes a float32 .npy of the given shape (C order), through a temporary file and a rename.
+// Writes a float32 (float64) .npy of the given shape (C order), through a temporary file and a
+// rename.
 IVR_API void save_npy(const std::string& path, const std::vector<std::size_t>& shape,
                       const float* data);
+IVR_API void save_npy(const std::string& path, const std::vector<std::size_t>& shape,
+                      const double* data);
+
+// Writes the volume as NRRD (float, raw, little-endian, with its spacing), atomically.
+IVR_API void save_nrrd(const std::string& path, const Volume& volume);
 
 // A .npy read back as float64 with its shape and stored type (tests, tools); throws
 // ivr::Error(io).

@@ -1,0 +1,109 @@
+// ivr/reconstruct.hpp — inverse rendering: recover the voxel densities, the transfer function or
+// both from images of known cameras, one iteration at a time (coarse to fine, random view
+// batches, priors), with checkpoints that continue bit-for-bit. What `ivr reconstruct` runs.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ivr/device.hpp"
+#include "ivr/export.h"
+#include "ivr/gradient.hpp"
+#include "ivr/optimize.hpp"
+#include "ivr/planner.hpp"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+// Where the unknowns start: the scene's own volume / TF, zeros, or a constant density
+// (init_value; a TF is then the scene's). Zero densities are a stationary point of the
+// emission–absorption loss (σ = 0 and c·σ = 0 have zero derivatives there), so `zeros` suits
+// absorption scenes only; `constant` is the usual start for emission–absorption.
+enum class Init { scene, zeros, constant };
+
+struct ReconstructOptions {
+  // What is optimised (at least one): every voxel (adjoint mode) and/or the TF's parameters in
+  // the layout of tf_gradient_shape (forward mode when alone, as the planner picks).
+  bool density = true;
+  bool tf = false;
+  int iterations = 300;  // in total, over every coarse-to-fine level
+  // kind, lr (0: automatic, see below), schedule, Adam/SGD/L-BFGS settings; the bounds are set
+  // per parameter (density ≥ 0, colours in [0, 1], extinction ≥ 0, Gaussian widths > 0).
+  OptimizerOptions optimizer;
+  bool automatic_optimizer = true;  // adam, or lbfgs when only the TF is optimised
+  Loss loss = Loss::mse;
+  // Priors added to the image loss: tv · mean(sqrt(|∇x|² + ε²) − ε) + smoothness · mean |∇x|²
+  // over the voxels (forward differences), and tf_smoothness · mean over consecutive TF rows of
+  // the squared difference of their normalised parameters.
+  double tv = 0, smoothness = 0, tf_smoothness = 0, tv_epsilon = 1e-2;
+  int batch = 0;   // views per iteration, drawn at random (0: every view)
+  int levels = 0;  // coarse-to-fine levels, each doubling the grid (0: 3 when the grid allows)
+  Init init = Init::scene;
+  double init_value = 0.5;  // Init::constant
+  std::uint64_t seed = 1;   // of the view batches
+  Precision precision = Precision::f32;
+  double step = 0;              // > 0 overrides the scene's integrator step (voxel units)
+  Mode mode = Mode::automatic;  // for the TF alone: forward or adjoint (planner by default)
+};
+
+// Throws ivr::Error(invalid_argument) naming the first bad option.
+IVR_API void validate_reconstruct(const ReconstructOptions& options);
+
+struct IterationRecord {
+  int iteration = 0;   // 1-based, over all levels
+  int level = 0;       // 0 = the coarsest
+  double loss = 0;     // image loss of the iteration's batch, at its start
+  double prior = 0;    // the priors' value there
+  double lr = 0;       // the learning rate used (L-BFGS: its initial step)
+  double seconds = 0;  // wall time of the iteration
+  int views = 0;       // in the batch
+};
+
+class IVR_API Reconstruction {
+ public:
+  // `targets`: the images of every camera of `scene` (its render's shape). The scene's volume
+  // gives the grid (and the start with Init::scene), its TF the known or starting TF.
+  Reconstruction(Device& device, const Scene& scene, const Image& targets,
+                 const ReconstructOptions& options = {});
+  ~Reconstruction();
+  Reconstruction(Reconstruction&&) noexcept;
+  Reconstruction& operator=(Reconstruction&&) noexcept;
+
+  const IterationRecord& step();  // one iteration; ivr::Error(invalid_argument) once done()
+  bool done() const;
+  int iteration() const;  // completed iterations
+  const std::vector<IterationRecord>& history() const;
+  const ReconstructOptions& options() const;  // with the optimiser and lr actually used
+  int levels() const;
+  std::vector<int> level_dims(int level) const;  // (nx, ny, nz) of a level
+
+  // The estimate so far: the scene with the current densities (at the full grid: upsampled
+  // from a coarser level) and TF.
+  Scene result() const;
+
+  // PREFIX_checkpoint.json and PREFIX_checkpoint_*.npy (float64): iteration, level, parameters,
+  // optimiser state and history; each file replaced atomically, the JSON last.
+  void save_checkpoint(const std::string& prefix) const;
+  // Continues from a checkpoint of the same scene, targets' shape and options (an error names
+  // the first that differs); the run then proceeds exactly as the one that wrote it.
+  void resume(const std::string& prefix);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Peak signal-to-noise ratio of `image` against `reference` over every element, with peak 1
+// (images in [0, 1]): 10·log10(1 / mse); +infinity when they are equal.
+IVR_API double psnr(const Image& image, const Image& reference);
+
+// ‖a − b‖₂ / ‖b‖₂ over the voxels (same shape; 0 when both are zero).
+IVR_API double relative_volume_error(const Volume& a, const Volume& b);
+
+// The volume resampled to nx × ny × nz cells over the same box: each new cell is the mean of the
+// trilinear density (DESIGN.md's convention) at ⌈old/new⌉³ points spread over it.
+IVR_API Volume resample_volume(const Volume& volume, int nx, int ny, int nz);
+
+}  // namespace ivr

@@ -281,6 +281,9 @@ const IterationRecord& Reconstruction::Impl::step() {
     cl::Buffer g;
     const Gradient gr = gradient_on_device(dev, batch, integrator, target, go, x, &g);
     r.loss = gr.loss;
+    const std::uint64_t real_size = f64 ? 8 : 4, voxels = batch.volume.voxel_count();
+    r.device_bytes =
+        gr.device_bytes + voxels * real_size * (o.optimizer.kind == OptimizerKind::adam ? 2 : 1);
     if (o.tv > 0 || o.smoothness > 0)
       r.prior = prior->add_gradient(batch.volume.nx, batch.volume.ny, batch.volume.nz, o.tv,
                                     o.smoothness, o.tv_epsilon, x, g);

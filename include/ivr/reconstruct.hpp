@@ -22,15 +22,25 @@ namespace ivr {
 // absorption scenes only; `constant` is the usual start for emission–absorption.
 enum class Init { scene, zeros, constant };
 
+// OptimizerOptions with lr = 0: the reconstruction chooses it.
+inline OptimizerOptions automatic_lr() {
+  OptimizerOptions o;
+  o.lr = 0;
+  return o;
+}
+
 struct ReconstructOptions {
   // What is optimised (at least one): every voxel (adjoint mode) and/or the TF's parameters in
-  // the layout of tf_gradient_shape (forward mode when alone, as the planner picks).
+  // the layout of tf_gradient_shape (alone: in the mode the planner picks for their count).
   bool density = true;
   bool tf = false;
   int iterations = 300;  // in total, over every coarse-to-fine level
-  // kind, lr (0: automatic, see below), schedule, Adam/SGD/L-BFGS settings; the bounds are set
-  // per parameter (density ≥ 0, colours in [0, 1], extinction ≥ 0, Gaussian widths > 0).
-  OptimizerOptions optimizer;
+  // kind, lr, schedule, Adam/SGD/L-BFGS settings. lr is relative to each parameter's scale
+  // (densities: the TF's density span, see density_scale; TF columns: colours 1, extinctions
+  // their largest value): 0 (the default) picks 0.025 for Adam, 0.05 as L-BFGS's first step; SGD
+  // needs one. The bounds are set per parameter (density ≥ 0, colours in [0, 1], extinction ≥ 0,
+  // Gaussian widths > 0); schedules restart with the fresh moments of every level.
+  OptimizerOptions optimizer = automatic_lr();
   bool automatic_optimizer = true;  // adam, or lbfgs when only the TF is optimised
   Loss loss = Loss::mse;
   // Priors added to the image loss: tv · mean(sqrt(|∇x|² + ε²) − ε) + smoothness · mean |∇x|²
@@ -58,6 +68,9 @@ struct IterationRecord {
   double lr = 0;       // the learning rate used (L-BFGS: its initial step)
   double seconds = 0;  // wall time of the iteration
   int views = 0;       // in the batch
+  // Device memory held during the iteration: the gradient evaluation's buffers plus the
+  // densities and the optimiser's moments (0 for the TF alone, whose state is a few values).
+  std::uint64_t device_bytes = 0;
 };
 
 class IVR_API Reconstruction {

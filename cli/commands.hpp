@@ -16,5 +16,7 @@ Runner add_phantom_command(CLI::App& app);
 Runner add_project_command(CLI::App& app);  // tomo_commands.cpp
 Runner add_backproject_command(CLI::App& app);
 Runner add_tomo_command(CLI::App& app);
+Runner add_reconstruct_command(CLI::App& app);  // reconstruct_command.cpp
+Runner add_viewpoint_command(CLI::App& app);
 
 }  // namespace ivr::cli

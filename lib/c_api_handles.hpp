@@ -59,7 +59,7 @@ struct ivr_result {
 
 namespace ivr::capi {
 
-enum class Kind { context, scene, result, volume, tf };
+enum class Kind { context, scene, result, volume, tf, reconstruction };
 
 // Live handles and their types: a released or foreign pointer is found out before use.
 inline std::mutex registry_mutex;
@@ -103,6 +103,8 @@ inline const char* kind_name(Kind k) {
       return "volume";
     case Kind::tf:
       return "transfer_function";
+    case Kind::reconstruction:
+      return "reconstruction";
   }
   return "handle";
 }
@@ -191,8 +193,14 @@ inline ivr_status release(Handle* h, Kind k, const char* function) {
     checked(h, k, "the handle");
     if (h->references.fetch_sub(1) == 1) {
       untrack(h);
-      if constexpr (!std::is_same_v<Handle, ivr_context>) ivr_context_release(h->context);
-      delete h;
+      // The handle first: what it owns (device buffers) must go before its device does.
+      if constexpr (!std::is_same_v<Handle, ivr_context>) {
+        ivr_context* context = h->context;
+        delete h;
+        ivr_context_release(context);
+      } else {
+        delete h;
+      }
     }
   });
 }

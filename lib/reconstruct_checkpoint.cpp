@@ -2,6 +2,7 @@
 // level, options' fingerprint, TF and optimiser state, history; doubles round-trip exactly) and
 // PREFIX_checkpoint_{density,first,second}.npy (float64). Resuming restores every bit.
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -28,12 +29,23 @@ std::string base_name(const std::string& path) {
 json fingerprint(const Reconstruction::Impl& p) {
   const ReconstructOptions& o = p.o;
   const Image& t = p.targets;
+  const OptimizerOptions& q = o.optimizer;
+  const char* init = o.init == Init::scene ? "scene" : o.init == Init::zeros ? "zeros" : "constant";
   return {{"density", o.density},
           {"tf", o.tf},
           {"iterations", o.iterations},
-          {"optimizer", optimizer_name(o.optimizer.kind)},
-          {"lr", o.optimizer.lr},
-          {"schedule", schedule_name(o.optimizer.schedule)},
+          {"optimizer", optimizer_name(q.kind)},
+          {"lr", q.lr},
+          {"schedule", schedule_name(q.schedule)},
+          {"step_every", q.step_every},
+          {"step_gamma", q.step_gamma},
+          {"total_iterations", q.total_iterations},
+          {"min_lr", q.min_lr},
+          {"beta1", q.beta1},
+          {"beta2", q.beta2},
+          {"epsilon", q.epsilon},
+          {"momentum", q.momentum},
+          {"history", q.history},
           {"levels", o.levels},
           {"batch", o.batch},
           {"seed", o.seed},
@@ -41,8 +53,12 @@ json fingerprint(const Reconstruction::Impl& p) {
           {"tv", o.tv},
           {"smoothness", o.smoothness},
           {"tf_smoothness", o.tf_smoothness},
+          {"tv_epsilon", o.tv_epsilon},
+          {"init", init},
+          {"init_value", o.init_value},
           {"precision", o.precision == Precision::f64 ? "f64" : "f32"},
           {"step", o.step},
+          {"mode", mode_name(o.mode)},
           {"grid", {p.scene.volume.nx, p.scene.volume.ny, p.scene.volume.nz}},
           {"targets", {t.views, t.height, t.width, t.channels}},
           {"tf_parameters", p.o.tf ? p.u.size() : 0}};
@@ -129,6 +145,12 @@ void Reconstruction::save_checkpoint(const std::string& prefix) const {
     out.close();
     if (!out) throw Error(Status::io, "cannot write the checkpoint '" + path + "'");
   });
+}
+
+void Reconstruction::remove_checkpoint(const std::string& prefix) {
+  for (const char* suffix : {"_checkpoint.json", "_checkpoint_density.npy", "_checkpoint_first.npy",
+                             "_checkpoint_second.npy"})
+    std::remove((prefix + suffix).c_str());  // a file that is not there is fine
 }
 
 void Reconstruction::resume(const std::string& prefix) {

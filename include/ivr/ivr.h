@@ -270,6 +270,216 @@ IVR_API ivr_status ivr_lines_from_intensities(const ivr_scene* scene, const floa
 IVR_API ivr_status ivr_phantom(const char* name, int n, uint64_t seed, int supersample,
                                float* volume, size_t capacity);
 
+/* --- Reconstruction and viewpoint selection (c_api_reconstruct.cpp) ---------------------------
+ * Inverse rendering: the voxel densities, the transfer function or both recovered from images of
+ * the scene's cameras, one iteration at a time (coarse to fine, random view batches, priors),
+ * with checkpoints; and the camera on an orbit whose image has the highest entropy. */
+
+typedef enum ivr_optimizer {
+  IVR_OPTIMIZER_AUTO = 0, /* adam; lbfgs when only the TF is optimised (viewpoints: adam) */
+  IVR_OPTIMIZER_ADAM = 1,
+  IVR_OPTIMIZER_SGD = 2,   /* with momentum; needs an explicit lr */
+  IVR_OPTIMIZER_LBFGS = 3, /* small parameter sets only (TF, viewpoint), every view per step */
+  IVR_OPTIMIZER_MAX_ENUM = 0x7fffffff
+} ivr_optimizer;
+/* The learning rate of 0-based iteration k: constant lr; step lr * gamma^floor(k / step_every);
+ * cosine min_lr + (lr - min_lr) * (1 + cos(pi k / K)) / 2 over K = the level's iterations (the
+ * TF alone: all of them). */
+typedef enum ivr_schedule {
+  IVR_SCHEDULE_CONSTANT = 0,
+  IVR_SCHEDULE_STEP = 1,
+  IVR_SCHEDULE_COSINE = 2,
+  IVR_SCHEDULE_MAX_ENUM = 0x7fffffff
+} ivr_schedule;
+/* Where the densities start: the scene's volume, zeros (absorption scenes only: zero densities
+ * are a stationary point of emission-absorption), or init_value everywhere. */
+typedef enum ivr_init {
+  IVR_INIT_SCENE = 0,
+  IVR_INIT_ZEROS = 1,
+  IVR_INIT_CONSTANT = 2,
+  IVR_INIT_MAX_ENUM = 0x7fffffff
+} ivr_init;
+
+/* What a reconstruction optimises and how. Fill it with ivr_reconstruct_options_init, then
+ * change fields; ranges are checked by ivr_reconstruction_create, naming the field. */
+typedef struct ivr_reconstruct_options {
+  int density;             /* 1: optimise every voxel (adjoint mode) */
+  int tf;                  /* 0: optimise the TF's parameters (rows as ivr_reconstruction_tf) */
+  int iterations;          /* 300: in total, over every level, >= 1 */
+  ivr_optimizer optimizer; /* IVR_OPTIMIZER_AUTO */
+  double lr;               /* 0: automatic (adam 0.025, lbfgs 0.05; sgd needs one), else > 0 */
+  ivr_schedule schedule;   /* IVR_SCHEDULE_CONSTANT */
+  int step_every;          /* 100: iterations per factor of the step schedule */
+  double step_gamma;       /* 0.5: the step schedule's factor, in (0, 1] */
+  double min_lr;           /* 0: the cosine schedule's floor, in [0, lr] */
+  ivr_loss loss;           /* IVR_LOSS_MSE */
+  double tv;               /* 0: weight of the smoothed total variation of the densities */
+  double smoothness;       /* 0: weight of the mean squared density gradient */
+  double tf_smoothness;    /* 0: weight of the squared differences of consecutive TF rows */
+  double tv_epsilon;       /* 0.01: the TV's smoothing, > 0 */
+  int batch;               /* 0: views per iteration drawn at random (0: every view) */
+  int levels;              /* 0: coarse-to-fine levels, 0..8 (0: 3 where the grid allows) */
+  ivr_init init;           /* IVR_INIT_SCENE */
+  double init_value;       /* 0.5: the density of IVR_INIT_CONSTANT, >= 0 */
+  uint64_t seed;           /* 1: of the view batches */
+  ivr_precision precision; /* IVR_PRECISION_F32 */
+  double step;             /* 0; > 0 overrides the scene's integrator step (voxel units) */
+  ivr_mode mode;           /* IVR_MODE_AUTO: forward or adjoint for the TF alone */
+} ivr_reconstruct_options;
+/* The defaults above (the C++ core's). */
+IVR_API ivr_status ivr_reconstruct_options_init(ivr_reconstruct_options* options);
+
+/* One completed iteration: its number (from 1, over all levels), level (0 = the coarsest), the
+ * image loss of its batch at its start and the priors' value there, the learning rate used
+ * (L-BFGS: its initial step), its wall seconds and the views in its batch. */
+typedef struct ivr_reconstruct_iteration {
+  int iteration;
+  int level;
+  double loss;
+  double prior;
+  double lr;
+  double seconds;
+  int views;
+} ivr_reconstruct_iteration;
+/* Called after every iteration of ivr_reconstruction_run with `user`; return 0 to stop, non-zero
+ * to go on. It must not call ivr on the same context. */
+typedef int (*ivr_reconstruct_progress)(const ivr_reconstruct_iteration* iteration, void* user);
+
+typedef struct ivr_reconstruct_summary {
+  int iterations;          /* completed iterations in total (a resumed run counts the earlier) */
+  int steps;               /* iterations this call ran */
+  const char* stop_reason; /* static: "done" or "interrupted" */
+  double loss;             /* the last iteration's loss (0 if none ran) */
+  double seconds;          /* this call's wall time */
+} ivr_reconstruct_summary;
+
+/* The state of a reconstruction, with what "automatic" resolved to. */
+typedef struct ivr_reconstruct_info {
+  int iteration;           /* completed iterations */
+  int iterations;          /* in total */
+  int levels;              /* coarse-to-fine levels */
+  ivr_optimizer optimizer; /* the optimiser in use (never AUTO) */
+  double lr;               /* its base learning rate */
+} ivr_reconstruct_info;
+
+/* A reconstruction of `scene` (its volume gives the grid and, with IVR_INIT_SCENE, the start;
+ * its TF the known or starting TF) from `targets`: float32 in the scene's image shape, `count`
+ * floats, finite. options: NULL for the defaults. Nothing runs until a step; the scene and
+ * targets are copied, and the handle keeps its context alive. */
+typedef struct ivr_reconstruction ivr_reconstruction;
+IVR_API ivr_status ivr_reconstruction_create(ivr_context* context, const ivr_scene* scene,
+                                             const float* targets, size_t count,
+                                             const ivr_reconstruct_options* options,
+                                             ivr_reconstruction** reconstruction);
+IVR_API ivr_status ivr_reconstruction_retain(ivr_reconstruction* reconstruction);
+IVR_API ivr_status ivr_reconstruction_release(ivr_reconstruction* reconstruction);
+/* One iteration; `iteration` (may be NULL) receives its record. IVR_ERROR_INVALID_ARGUMENT once
+ * done. */
+IVR_API ivr_status ivr_reconstruction_step(ivr_reconstruction* reconstruction,
+                                           ivr_reconstruct_iteration* iteration);
+/* Iterations until done or until `progress` (may be NULL) returns 0; summary may be NULL.
+ * Stopped by the callback, the call still succeeds and later steps continue the run. */
+IVR_API ivr_status ivr_reconstruction_run(ivr_reconstruction* reconstruction,
+                                          ivr_reconstruct_progress progress, void* user,
+                                          ivr_reconstruct_summary* summary);
+/* *done = 1 once every iteration has run, else 0. */
+IVR_API ivr_status ivr_reconstruction_done(const ivr_reconstruction* reconstruction, int* done);
+IVR_API ivr_status ivr_reconstruction_info(const ivr_reconstruction* reconstruction,
+                                           ivr_reconstruct_info* info);
+/* Level `level`'s grid, (nz, ny, nx). */
+IVR_API ivr_status ivr_reconstruction_level_shape(const ivr_reconstruction* reconstruction,
+                                                  int level, int64_t shape[3]);
+/* The completed iterations' records (restored ones included after a resume): *count gets their
+ * number (may be NULL); up to `capacity` are written to `history` (NULL with capacity 0: count
+ * only). */
+IVR_API ivr_status ivr_reconstruction_history(const ivr_reconstruction* reconstruction,
+                                              ivr_reconstruct_iteration* history, size_t capacity,
+                                              size_t* count);
+/* The current densities at the scene's full grid (upsampled from a coarser level; the scene's
+ * own volume when only the TF is optimised): float32, x fastest, into `volume` (`capacity`
+ * floats); shape (may be NULL) gets (nz, ny, nx). NULL volume with capacity 0: the shape only. */
+IVR_API ivr_status ivr_reconstruction_volume(const ivr_reconstruction* reconstruction,
+                                             float* volume, size_t capacity, int64_t shape[3]);
+/* The current TF's parameters, rows x columns in the layout of its gradient (DESIGN.md: one row
+ * per control point / table entry [r, g, b, extinction], Gaussian [r, g, b, extinction, mean,
+ * width], identity one row [extinction_scale, color_scale]): float64 into `values` (`capacity`),
+ * shape (may be NULL) gets (rows, columns). NULL values with capacity 0: the shape only. */
+IVR_API ivr_status ivr_reconstruction_tf(const ivr_reconstruction* reconstruction, double* values,
+                                         size_t capacity, int64_t shape[2]);
+/* The estimate as a new scene of the same context: the current densities (full grid) and TF. */
+IVR_API ivr_status ivr_reconstruction_result_scene(const ivr_reconstruction* reconstruction,
+                                                   ivr_scene** scene);
+/* PREFIX_checkpoint.json and PREFIX_checkpoint_*.npy (the folder must exist); each file replaced
+ * atomically. */
+IVR_API ivr_status ivr_reconstruction_save_checkpoint(const ivr_reconstruction* reconstruction,
+                                                      const char* prefix);
+/* Continues from a checkpoint written with the same scene grid, targets' shape and options (the
+ * message names the first that differs); the history is restored with it. */
+IVR_API ivr_status ivr_reconstruction_resume(ivr_reconstruction* reconstruction,
+                                             const char* prefix);
+
+/* Viewpoint selection: gradient ascent of the entropy of view `view`'s image over the camera's
+ * orbit about its target (azimuth about its up axis, elevation within +-85 degrees, distance
+ * kept), derivatives in forward mode. */
+typedef struct ivr_viewpoint_options {
+  int view;                /* 0: the scene's camera to start from */
+  int iterations;          /* 40: >= 0 (0: the start's entropy only) */
+  ivr_optimizer optimizer; /* IVR_OPTIMIZER_AUTO (adam); sgd or lbfgs */
+  double lr;               /* 0: 0.05 radians per step, else > 0 */
+  ivr_precision precision; /* IVR_PRECISION_F32 */
+  double step;             /* 0; > 0 overrides the scene's integrator step (voxel units) */
+} ivr_viewpoint_options;
+IVR_API ivr_status ivr_viewpoint_options_init(ivr_viewpoint_options* options);
+
+/* An iterate of the ascent: number (0 = the start), its entropy and orbit angles (degrees). */
+typedef struct ivr_viewpoint_step {
+  int iteration;
+  double entropy;
+  double azimuth;
+  double elevation;
+} ivr_viewpoint_step;
+/* Called with every iterate (the start included); return 0 to stop. It must not call ivr on the
+ * same context. */
+typedef int (*ivr_viewpoint_progress)(const ivr_viewpoint_step* step, void* user);
+
+/* A camera as DESIGN.md's JSON object has it. */
+typedef struct ivr_camera {
+  double eye[3];
+  double target[3];
+  double up[3];
+  double fov_y;        /* degrees (perspective) */
+  int orthographic;    /* non-zero: "projection": "orthographic" */
+  double ortho_height; /* world units (orthographic) */
+  int width;
+  int height;
+} ivr_camera;
+
+typedef struct ivr_viewpoint_result {
+  ivr_camera camera;    /* the best camera seen (highest entropy) */
+  double entropy_start; /* of the starting camera */
+  double entropy_best;  /* of `camera`, >= entropy_start */
+  int iterations;       /* completed iterations (the start not counted) */
+} ivr_viewpoint_result;
+
+/* The camera of the highest image entropy found (ivr_image_entropy) into *result. history (may
+ * be NULL with history_capacity 0; else history_capacity >= options->iterations + 1) receives
+ * every iterate from the start. Stopped by the callback, the call still succeeds. */
+IVR_API ivr_status ivr_select_viewpoint(ivr_context* context, const ivr_scene* scene,
+                                        const ivr_viewpoint_options* options,
+                                        ivr_viewpoint_progress progress, void* user,
+                                        ivr_viewpoint_step* history, size_t history_capacity,
+                                        ivr_viewpoint_result* result);
+
+/* Normalised entropy in [0, 1] of view 0 of `image` (float32, shape (views, H, W, C), C = 1 or 4):
+ * brightness q (emission-absorption: mean of R, G, B; absorption: 1 - I / background) + 1e-6,
+ * p = q / sum q, H = -sum p ln p / ln(pixels). */
+IVR_API ivr_status ivr_image_entropy(const float* image, const int64_t shape[4], double background,
+                                     double* entropy);
+/* Peak signal-to-noise ratio with peak 1 of `image` against `reference` (`count` floats each):
+ * 10 log10(1 / mse), +infinity when they are equal. */
+IVR_API ivr_status ivr_psnr(const float* image, const float* reference, size_t count,
+                            double* value);
+
 #ifdef __cplusplus
 }
 #endif

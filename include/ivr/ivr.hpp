@@ -452,3 +452,6 @@ inline double image_loss(const std::vector<float>& image, const std::vector<floa
 }
 
 }  // namespace ivr::api
+
+// Reconstruction, viewpoint selection, entropy and PSNR: kept in their own header for size.
+#include "ivr/ivr_reconstruct.hpp"

@@ -31,7 +31,7 @@ inline OptimizerOptions automatic_lr() {
 
 struct ReconstructOptions {
   // What is optimised (at least one): every voxel (adjoint mode) and/or the TF's parameters in
-  // the layout of tf_gradient_shape (alone: in the mode the planner picks for their count).
+  // the layout of tf_gradient_shape (alone: in forward mode, see `mode`).
   bool density = true;
   bool tf = false;
   int iterations = 300;  // in total, over every coarse-to-fine level
@@ -53,8 +53,10 @@ struct ReconstructOptions {
   double init_value = 0.5;  // Init::constant
   std::uint64_t seed = 1;   // of the view batches
   Precision precision = Precision::f32;
-  double step = 0;              // > 0 overrides the scene's integrator step (voxel units)
-  Mode mode = Mode::automatic;  // for the TF alone: forward or adjoint (planner by default)
+  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
+  // The TF alone: forward or adjoint; automatic = forward up to 32 parameters (deterministic:
+  // runs repeat bit for bit), else the planner's choice. Density gradients are always adjoint.
+  Mode mode = Mode::automatic;
 };
 
 // Throws ivr::Error(invalid_argument) naming the first bad option.
@@ -101,6 +103,8 @@ class IVR_API Reconstruction {
   // Continues from a checkpoint of the same scene, targets' shape and options (an error names
   // the first that differs); the run then proceeds exactly as the one that wrote it.
   void resume(const std::string& prefix);
+  // Deletes the checkpoint files of `prefix` (those that exist): after a finished run.
+  static void remove_checkpoint(const std::string& prefix);
 
   struct Impl;
 

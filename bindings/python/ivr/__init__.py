@@ -7,6 +7,8 @@
     J = ctx.jacobian(scene, volume, wrt=("camera",))   # (views, H, W, C, P)
     p = ctx.project(scene, volume)                     # line integrals (views, H, W, 1)
     x, history = ctx.tomo(scene, p, solver="cgls", iterations=50)   # (Z, Y, X)
+    out = ctx.reconstruct(scene, images, wrt=("density",))  # out["volume"], out["history"]
+    best = ctx.viewpoint(scene, view=0)                # best["camera"], best["entropy_best"]
 
 `scene` is a dict with the JSON fields of DESIGN.md (or JSON text); `volume`, a (Z, Y, X) array
 of float32/float64/uint8/uint16, replaces the scene's own volume (which may then be left out).
@@ -22,7 +24,8 @@ import numpy as np
 from . import _capi
 
 __all__ = ["Error", "Context", "devices", "version", "loss", "project", "backproject", "tomo",
-           "lines_from_intensities", "phantom"]
+           "lines_from_intensities", "phantom", "reconstruct", "viewpoint", "image_entropy",
+           "psnr"]
 
 _lib = None
 _lib_lock = threading.Lock()
@@ -130,6 +133,33 @@ def lines_from_intensities(scene, intensities, clamp=0.0, device=None, base_dir=
     """Line integrals from intensities: see Context.lines_from_intensities."""
     with Context(device) as c:
         return c.lines_from_intensities(scene, intensities, clamp=clamp, base_dir=base_dir)
+
+
+def reconstruct(scene, targets, precision="f32", device=None, **options):
+    """{"volume", "tf", "history", ...} recovered from images: see Context.reconstruct."""
+    with Context(device, precision) as c:
+        return c.reconstruct(scene, targets, **options)
+
+
+def viewpoint(scene, precision="f32", device=None, **options):
+    """{"camera", "entropy_start", "entropy_best", "history"}: see Context.viewpoint."""
+    with Context(device, precision) as c:
+        return c.viewpoint(scene, **options)
+
+
+def image_entropy(image, background=1.0):
+    """Normalised entropy in [0, 1] of view 0 of `image` ((views, H, W, C) or (H, W, C), C = 1
+    or 4): pixel brightness q (mean of R, G, B; absorption 1 - I / background) + 1e-6,
+    p = q / sum q, -sum p ln p / ln(pixels). What Context.viewpoint maximises."""
+    from . import _reconstruct
+    return _reconstruct.image_entropy(_library(), image, background)
+
+
+def psnr(image, reference):
+    """Peak signal-to-noise ratio with peak 1: 10 log10(1 / mean((image - reference)^2)), over
+    every element (same shapes); inf when they are equal."""
+    from . import _reconstruct
+    return _reconstruct.psnr(_library(), image, reference)
 
 
 def _choice(table, value, what):
@@ -416,6 +446,50 @@ class Context:
             return out
         finally:
             self._lib.ivr_scene_release(s)
+
+    # --- inverse rendering (bindings/python/ivr/_reconstruct.py) ------------------------------
+
+    def reconstruct(self, scene, targets, volume=None, wrt=("density",), iterations=300, lr=0.0,
+                    optimizer="auto", schedule="constant", loss="mse", tv=0.0, smoothness=0.0,
+                    tf_smoothness=0.0, batch=0, levels=0, init="scene", init_value=0.5, seed=1,
+                    step=0.0, progress=None, checkpoint=None, resume=False, checkpoint_every=0,
+                    step_every=100, step_gamma=0.5, min_lr=0.0, tv_epsilon=1e-2, mode="auto",
+                    base_dir=None):
+        """Recovers the densities (wrt "density"), the TF's parameters ("tf") or both from
+        `targets`, the images (views, H, W, C) of the scene's cameras. The scene's volume (or
+        `volume`, (Z, Y, X)) gives the grid and, with init="scene", the start ("zeros",
+        "constant": init_value everywhere; emission-absorption needs "constant" or "scene"); its
+        TF is the known or starting TF. Coarse to fine over `levels` (0: automatic), `batch`
+        random views per iteration (0: all), priors tv / smoothness / tf_smoothness; optimizer
+        "auto" (adam; lbfgs for the TF alone), "adam", "sgd" (needs lr) or "lbfgs" (TF only);
+        lr 0: automatic; schedule "constant", "step" (lr * step_gamma^(k // step_every)) or
+        "cosine" (down to min_lr). progress(entry) is called after every iteration with its
+        history entry; returning False stops. checkpoint: a path prefix, written at the end
+        (and every checkpoint_every iterations); resume=True continues from it first.
+        Returns a dict: "volume" (float32 (Z, Y, X), with density), "tf" (float64 rows x
+        columns in the TF-gradient layout, e.g. [r, g, b, extinction] per control point, with
+        tf), "history" (a list of {"iteration", "level", "loss", "prior", "lr", "seconds",
+        "views"}), "iterations" (completed), "stopped" (by progress), and the "optimizer",
+        "lr" and "levels" that ran."""
+        from . import _reconstruct
+        return _reconstruct.reconstruct(
+            self, scene, targets, volume, wrt, iterations, lr, optimizer, schedule, loss, tv,
+            smoothness, tf_smoothness, batch, levels, init, init_value, seed, step, progress,
+            checkpoint, resume, checkpoint_every, step_every, step_gamma, min_lr, tv_epsilon,
+            mode, base_dir)
+
+    def viewpoint(self, scene, volume=None, view=0, iterations=40, lr=0.0, optimizer="adam",
+                  step=0.0, progress=None, base_dir=None):
+        """The camera on camera `view`'s orbit (about its target and up axis, distance kept)
+        whose image has the highest entropy (ivr.image_entropy), by gradient ascent in
+        azimuth and elevation (optimizer "adam", "sgd" or "lbfgs"; lr in radians, 0: 0.05).
+        Returns {"camera": {"eye", "target", "up", "fov_y", "width", "height"} (a scene's
+        camera object), "entropy_start", "entropy_best", "history": [{"iteration", "entropy",
+        "azimuth", "elevation"} (degrees), the start first]}. progress(entry) returning False
+        stops."""
+        from . import _reconstruct
+        return _reconstruct.viewpoint(self, scene, volume, view, iterations, lr, optimizer, step,
+                                      progress, base_dir)
 
     def _result(self, r):
         loss, mode = ctypes.c_double(), ctypes.c_int()

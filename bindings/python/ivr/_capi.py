@@ -41,6 +41,63 @@ class TomoSummary(ctypes.Structure):
 TOMO_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(TomoIteration), ctypes.c_void_p)
 
 
+class ReconstructOptions(ctypes.Structure):
+    """ivr_reconstruct_options"""
+    _fields_ = [("density", ctypes.c_int), ("tf", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("optimizer", ctypes.c_int), ("lr", ctypes.c_double),
+                ("schedule", ctypes.c_int), ("step_every", ctypes.c_int),
+                ("step_gamma", ctypes.c_double), ("min_lr", ctypes.c_double),
+                ("loss", ctypes.c_int), ("tv", ctypes.c_double), ("smoothness", ctypes.c_double),
+                ("tf_smoothness", ctypes.c_double), ("tv_epsilon", ctypes.c_double),
+                ("batch", ctypes.c_int), ("levels", ctypes.c_int), ("init", ctypes.c_int),
+                ("init_value", ctypes.c_double), ("seed", ctypes.c_uint64),
+                ("precision", ctypes.c_int), ("step", ctypes.c_double), ("mode", ctypes.c_int)]
+
+
+class ReconstructIteration(ctypes.Structure):
+    """ivr_reconstruct_iteration"""
+    _fields_ = [("iteration", ctypes.c_int), ("level", ctypes.c_int), ("loss", ctypes.c_double),
+                ("prior", ctypes.c_double), ("lr", ctypes.c_double),
+                ("seconds", ctypes.c_double), ("views", ctypes.c_int)]
+
+
+class ReconstructInfo(ctypes.Structure):
+    """ivr_reconstruct_info"""
+    _fields_ = [("iteration", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("levels", ctypes.c_int), ("optimizer", ctypes.c_int), ("lr", ctypes.c_double)]
+
+
+class ViewpointOptions(ctypes.Structure):
+    """ivr_viewpoint_options"""
+    _fields_ = [("view", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("optimizer", ctypes.c_int), ("lr", ctypes.c_double),
+                ("precision", ctypes.c_int), ("step", ctypes.c_double)]
+
+
+class ViewpointStep(ctypes.Structure):
+    """ivr_viewpoint_step"""
+    _fields_ = [("iteration", ctypes.c_int), ("entropy", ctypes.c_double),
+                ("azimuth", ctypes.c_double), ("elevation", ctypes.c_double)]
+
+
+class Camera(ctypes.Structure):
+    """ivr_camera"""
+    _fields_ = [("eye", ctypes.c_double * 3), ("target", ctypes.c_double * 3),
+                ("up", ctypes.c_double * 3), ("fov_y", ctypes.c_double),
+                ("orthographic", ctypes.c_int), ("ortho_height", ctypes.c_double),
+                ("width", ctypes.c_int), ("height", ctypes.c_int)]
+
+
+class ViewpointResult(ctypes.Structure):
+    """ivr_viewpoint_result"""
+    _fields_ = [("camera", Camera), ("entropy_start", ctypes.c_double),
+                ("entropy_best", ctypes.c_double), ("iterations", ctypes.c_int)]
+
+
+VIEWPOINT_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(ViewpointStep),
+                                      ctypes.c_void_p)
+
+
 def _candidates():
     env = os.environ.get("IVR_LIBRARY")
     if env:
@@ -130,6 +187,28 @@ def _declare(lib):
                                            ctypes.c_size_t]),
         "ivr_phantom": (S, [ctypes.c_char_p, ctypes.c_int, ctypes.c_uint64, ctypes.c_int, fp,
                             ctypes.c_size_t]),
+        "ivr_reconstruct_options_init": (S, [ctypes.POINTER(ReconstructOptions)]),
+        "ivr_reconstruction_create": (S, [HANDLE, HANDLE, fp, ctypes.c_size_t,
+                                          ctypes.POINTER(ReconstructOptions), pp]),
+        "ivr_reconstruction_release": (S, [HANDLE]),
+        "ivr_reconstruction_step": (S, [HANDLE, ctypes.POINTER(ReconstructIteration)]),
+        "ivr_reconstruction_done": (S, [HANDLE, ctypes.POINTER(ctypes.c_int)]),
+        "ivr_reconstruction_info": (S, [HANDLE, ctypes.POINTER(ReconstructInfo)]),
+        "ivr_reconstruction_history": (S, [HANDLE, ctypes.POINTER(ReconstructIteration),
+                                           ctypes.c_size_t, ctypes.POINTER(ctypes.c_size_t)]),
+        "ivr_reconstruction_volume": (S, [HANDLE, fp, ctypes.c_size_t, c_int64_p]),
+        "ivr_reconstruction_tf": (S, [HANDLE, ctypes.POINTER(ctypes.c_double), ctypes.c_size_t,
+                                      c_int64_p]),
+        "ivr_reconstruction_save_checkpoint": (S, [HANDLE, ctypes.c_char_p]),
+        "ivr_reconstruction_resume": (S, [HANDLE, ctypes.c_char_p]),
+        "ivr_viewpoint_options_init": (S, [ctypes.POINTER(ViewpointOptions)]),
+        "ivr_select_viewpoint": (S, [HANDLE, HANDLE, ctypes.POINTER(ViewpointOptions),
+                                     VIEWPOINT_PROGRESS, ctypes.c_void_p,
+                                     ctypes.POINTER(ViewpointStep), ctypes.c_size_t,
+                                     ctypes.POINTER(ViewpointResult)]),
+        "ivr_image_entropy": (S, [fp, c_int64_p, ctypes.c_double,
+                                  ctypes.POINTER(ctypes.c_double)]),
+        "ivr_psnr": (S, [fp, fp, ctypes.c_size_t, ctypes.POINTER(ctypes.c_double)]),
     }
     for name, (restype, argtypes) in sigs.items():
         f = getattr(lib, name)

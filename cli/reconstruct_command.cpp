@@ -1,0 +1,551 @@
+// reconstruct_command.cpp — `ivr reconstruct`: densities and/or the TF from target images
+// (ivr/reconstruct.hpp), with progress, checkpoints, Ctrl-C that --resume continues, and the
+// result, loss curve and before/after images as files.
+#include <unistd.h>
+
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli_support.hpp"
+#include "commands.hpp"
+#include "ivr/core.hpp"
+#include "loss_plot.hpp"
+
+namespace fs = std::filesystem;
+
+namespace ivr::cli {
+
+namespace {
+
+struct ReconstructArgs {
+  std::string scene, targets, prefix, wrt = "density", optimizer, schedule = "constant",
+                                      loss = "mse", init = "scene", precision = "f32",
+                                      mode = "auto", device, truth, held_out, held_out_targets;
+  int iterations = 300, batch = 0, levels = 0, checkpoint_every = 25;
+  double lr = 0, tv = 0, smoothness = 0, tf_smoothness = 0, step = 0;
+  std::uint64_t seed = 1;
+  bool resume = false, json = false;
+  CLI::Option* lr_option = nullptr;
+  CLI::Option* step_option = nullptr;
+  CLI::Option* init_option = nullptr;
+};
+
+std::string text(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
+// The options as ReconstructOptions, every range checked under its command-line name first (the
+// library's own checks follow, for what only it knows).
+ReconstructOptions checked_options(const ReconstructArgs& a) {
+  ReconstructOptions o;
+  o.density = false;
+  std::stringstream groups(a.wrt);
+  for (std::string g; std::getline(groups, g, ',');) {
+    if (g == "density")
+      o.density = true;
+    else if (g == "tf")
+      o.tf = true;
+    else
+      throw input_error("--wrt: unknown group '" + g + "' (known: density, tf, density,tf)");
+  }
+  if (!o.density && !o.tf) throw input_error("--wrt: give density, tf or density,tf");
+  if (a.iterations < 1)
+    throw input_error("--iterations must be >= 1, got " + std::to_string(a.iterations));
+  o.iterations = a.iterations;
+  if (a.lr_option->count() > 0 && !(a.lr > 0 && std::isfinite(a.lr)))
+    throw input_error("--lr must be > 0, got " + text(a.lr));
+  o.optimizer.lr = a.lr_option->count() > 0 ? a.lr : 0;  // 0: the library's automatic lr
+  if (!a.optimizer.empty()) {
+    o.optimizer.kind = parse_optimizer(a.optimizer, "--optimizer");
+    o.automatic_optimizer = false;
+  }
+  o.optimizer.schedule = parse_schedule(a.schedule, "--schedule");
+  if (a.loss != "mse" && a.loss != "l1")
+    throw input_error("--loss: unknown loss '" + a.loss + "' (known: mse, l1)");
+  o.loss = a.loss == "l1" ? Loss::l1 : Loss::mse;
+  const std::pair<const char*, double> weights[] = {
+      {"--tv", a.tv}, {"--smoothness", a.smoothness}, {"--tf-smoothness", a.tf_smoothness}};
+  for (const auto& [name, value] : weights)
+    if (!(value >= 0 && std::isfinite(value)))
+      throw input_error(std::string(name) + " must be >= 0, got " + text(value));
+  if ((a.tv > 0 || a.smoothness > 0) && !o.density)
+    throw input_error("--tv and --smoothness are priors on the density: add it to --wrt");
+  if (a.tf_smoothness > 0 && !o.tf)
+    throw input_error("--tf-smoothness is a prior on the TF: add tf to --wrt");
+  o.tv = a.tv;
+  o.smoothness = a.smoothness;
+  o.tf_smoothness = a.tf_smoothness;
+
+  const std::string forms = "(known: scene, zeros, constant:X with X >= 0 the density)";
+  if (a.init == "scene") {
+    o.init = Init::scene;
+  } else if (a.init == "zeros") {
+    o.init = Init::zeros;
+  } else if (a.init.rfind("constant:", 0) == 0) {
+    const std::string value = a.init.substr(9);
+    std::size_t used = 0;
+    double x = NAN;
+    try {
+      x = std::stod(value, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (value.empty() || used != value.size() || !(x >= 0) || !std::isfinite(x))
+      throw input_error("--init: bad constant '" + value + "' in '" + a.init + "' " + forms);
+    o.init = Init::constant;
+    o.init_value = x;
+  } else {
+    throw input_error("--init: unknown start '" + a.init + "' " + forms);
+  }
+  if (a.init_option->count() > 0 && !o.density)
+    throw input_error("--init sets the starting density: add density to --wrt");
+
+  if (a.batch < 0)
+    throw input_error("--batch must be >= 0 (0: every view), got " + std::to_string(a.batch));
+  if (a.levels < 0 || a.levels > 8)
+    throw input_error("--levels must be in 0 .. 8 (0: automatic), got " + std::to_string(a.levels));
+  o.batch = a.batch;
+  o.levels = a.levels;
+  o.seed = a.seed;
+  if (a.precision != "f32" && a.precision != "f64")
+    throw input_error("--precision: unknown precision '" + a.precision + "' (known: f32, f64)");
+  o.precision = a.precision == "f64" ? Precision::f64 : Precision::f32;
+  if (a.step_option->count() > 0 && !(a.step > 0 && std::isfinite(a.step)))
+    throw input_error("--step must be > 0, got " + text(a.step));
+  o.step = a.step;
+  if (a.mode != "auto" && a.mode != "forward" && a.mode != "adjoint")
+    throw input_error("--mode: unknown mode '" + a.mode + "' (known: auto, forward, adjoint)");
+  o.mode = a.mode == "forward"   ? Mode::forward
+           : a.mode == "adjoint" ? Mode::adjoint
+                                 : Mode::automatic;
+  if (o.mode != Mode::automatic && o.density)
+    throw input_error("--mode applies to --wrt tf alone (densities take the adjoint)");
+  if (a.checkpoint_every < 0)
+    throw input_error("--checkpoint-every must be >= 0 (0: only on interrupt), got " +
+                      std::to_string(a.checkpoint_every));
+  if (a.held_out.empty() != a.held_out_targets.empty())
+    throw input_error("give both --held-out and --held-out-targets, or neither");
+  validate_reconstruct(o);
+  return o;
+}
+
+// An .npy of float32/float64 images of exactly the scene's render shape (views, H, W, C).
+Image load_images(const std::string& path, const std::string& option, const Scene& scene) {
+  const NpyArray a = load_npy(path);
+  const std::string what = option + " '" + path + "'";
+  if (a.dtype != "float32" && a.dtype != "float64")
+    throw input_error(what + " has dtype " + a.dtype + "; expected float32 or float64");
+  const Camera& cam = scene.cameras.front();
+  const std::vector<std::size_t> shape = {scene.cameras.size(), std::size_t(cam.height),
+                                          std::size_t(cam.width), std::size_t(scene.channels())};
+  if (a.shape != shape)
+    throw input_error(what + " has shape " + shape_text(a.shape) + " but the scene renders " +
+                      shape_text(shape) + " (views, H, W, C)");
+  Image image;
+  image.views = int(shape[0]);
+  image.height = int(shape[1]);
+  image.width = int(shape[2]);
+  image.channels = int(shape[3]);
+  image.pixels.resize(a.data.size());
+  for (std::size_t i = 0; i < a.data.size(); ++i) {
+    const double x = a.data[i];
+    if (!std::isfinite(x) || std::abs(x) > double(std::numeric_limits<float>::max()))
+      throw input_error(what + " has a non-finite or out-of-range value (" + text(x) +
+                        ") at flat index " + std::to_string(i));
+    image.pixels[i] = float(x);
+  }
+  return image;
+}
+
+// The TF's values as rows x columns of tf_gradient_shape (what `ivr grad --wrt tf` writes).
+std::vector<float> tf_rows(const TransferFunction& tf) {
+  std::vector<float> v;
+  switch (tf.kind) {
+    case TfKind::identity:
+      v = {float(tf.extinction_scale), float(tf.color_scale)};
+      break;
+    case TfKind::piecewise_linear:
+      for (const TfPoint& p : tf.points)
+        v.insert(v.end(),
+                 {float(p.color.x), float(p.color.y), float(p.color.z), float(p.extinction)});
+      break;
+    case TfKind::table:
+      for (const glm::dvec4& e : tf.entries)
+        v.insert(v.end(), {float(e.x), float(e.y), float(e.z), float(e.w)});
+      break;
+    case TfKind::gaussian:
+      for (const TfGaussian& g : tf.gaussians)
+        v.insert(v.end(), {float(g.color.x), float(g.color.y), float(g.color.z),
+                           float(g.extinction), float(g.mean), float(g.width)});
+      break;
+  }
+  return v;
+}
+
+// A text file written under a hidden temporary name in its folder, then renamed over PATH.
+void write_text_atomically(const std::string& path, const std::string& content) {
+  const fs::path p(path);
+  const fs::path tmp =
+      p.parent_path() / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid()));
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << content;
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw Error(Status::io, "cannot write '" + path + "'");
+    }
+  }
+  fs::rename(tmp, p);
+}
+
+// SIGINT / SIGTERM: the handler only records the signal (and puts the default back, so that a
+// second Ctrl-C ends the process at once); the loop stops after the current iteration and writes
+// a checkpoint. A signal the parent set to be ignored (a background job's SIGINT) stays ignored.
+volatile std::sig_atomic_t g_signal = 0;
+
+void on_signal(int signal) {
+  g_signal = signal;
+  std::signal(signal, SIG_DFL);
+}
+
+class InterruptGuard {
+ public:
+  InterruptGuard() {
+    g_signal = 0;
+    for (int i = 0; i < 2; ++i) {
+      previous_[i] = std::signal(kSignals[i], on_signal);
+      if (previous_[i] == SIG_IGN) std::signal(kSignals[i], SIG_IGN);
+    }
+  }
+  ~InterruptGuard() {
+    for (int i = 0; i < 2; ++i)
+      std::signal(kSignals[i], previous_[i] == SIG_ERR ? SIG_DFL : previous_[i]);
+  }
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+  int signal() const { return g_signal; }
+
+ private:
+  static constexpr int kSignals[2] = {SIGINT, SIGTERM};
+  void (*previous_[2])(int) = {SIG_DFL, SIG_DFL};
+};
+
+std::string clock_text(double seconds) {
+  const long s = std::lround(std::max(seconds, 0.0));
+  char buf[32];
+  if (s >= 3600)
+    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", s / 3600, s / 60 % 60, s % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%ld:%02ld", s / 60, s % 60);
+  return buf;
+}
+
+// Progress on stderr: one line redrawn in place on a terminal, else a plain line every
+// max(1, N/20) iterations and at the last. Rates count this run's iterations only (a resumed
+// run's earlier ones took their time in another process).
+class Progress {
+ public:
+  Progress(int total, int first)
+      : tty_(::isatty(STDERR_FILENO) == 1),
+        total_(total),
+        first_(first),
+        every_(std::max(1, total / 20)),
+        start_(std::chrono::steady_clock::now()) {}
+
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  double rate(int done) const {
+    const double s = seconds();
+    return s > 0 ? (done - first_) / s : 0.0;
+  }
+
+  void update(const IterationRecord& r) {
+    const int k = r.iteration;
+    const double per_second = rate(k), eta = per_second > 0 ? (total_ - k) / per_second : 0.0;
+    char line[256];
+    if (tty_) {
+      const int width = 10, filled = int(double(width) * k / total_);
+      const std::string bar =
+          std::string(std::size_t(filled), '#') + std::string(std::size_t(width - filled), '-');
+      std::snprintf(line, sizeof line, "\r[%s] it %d/%d  loss %.3e  %.1f it/s  ETA %s ",
+                    bar.c_str(), k, total_, r.loss, per_second, clock_text(eta).c_str());
+      drawn_ = true;
+    } else {
+      if (k % every_ != 0 && k != total_) return;
+      std::snprintf(line, sizeof line,
+                    "iteration %d/%d loss %.3e prior %g lr %g %.1f it/s eta %lds\n", k, total_,
+                    r.loss, r.prior, r.lr, per_second, std::lround(eta));
+    }
+    std::cerr << line << std::flush;
+  }
+  // Ends the terminal's progress line before anything else is printed.
+  void finish() {
+    if (drawn_) std::cerr << "\n" << std::flush;
+    drawn_ = false;
+  }
+
+ private:
+  bool tty_;
+  int total_, first_, every_;
+  std::chrono::steady_clock::time_point start_;
+  bool drawn_ = false;
+};
+
+// View 0 of the scene (its volume and TF as they are) at the reconstruction's precision and step.
+Image render_view0(Device& device, Scene scene, const ReconstructOptions& o) {
+  scene.cameras.resize(1);
+  RenderOptions r;
+  r.precision = o.precision;
+  r.step = o.step;
+  return render(device, scene, r);
+}
+
+// The shortest text that reads back as the same double, so the CSV holds the exact values.
+std::string exact(double x) {
+  char buf[32];
+  return std::string(buf, std::to_chars(buf, buf + sizeof buf, x).ptr);
+}
+
+std::string csv_text(const std::vector<IterationRecord>& history) {
+  std::string s = "iteration,level,views,loss,prior,lr,seconds\n";
+  for (const IterationRecord& r : history)
+    s += std::to_string(r.iteration) + "," + std::to_string(r.level) + "," +
+         std::to_string(r.views) + "," + exact(r.loss) + "," + exact(r.prior) + "," + exact(r.lr) +
+         "," + exact(r.seconds) + "\n";
+  return s;
+}
+
+LossCurve loss_curve(const std::vector<IterationRecord>& history) {
+  LossCurve c;
+  for (std::size_t i = 0; i < history.size(); ++i) {
+    c.iterations.push_back(history[i].iteration);
+    c.losses.push_back(history[i].loss);
+    if (i > 0 && history[i].level != history[i - 1].level)
+      c.markers.push_back(history[i].iteration - 0.5);  // between the levels' iterations
+  }
+  return c;
+}
+
+}  // namespace
+
+Runner add_reconstruct_command(CLI::App& app) {
+  auto args = std::make_shared<ReconstructArgs>();
+  ReconstructArgs& a = *args;
+  CLI::App* cmd = app.add_subcommand(
+      "reconstruct",
+      "Recover the densities and/or the TF from target images by gradient descent; Ctrl-C "
+      "stops after the current iteration, writes a checkpoint and exits with status 130");
+  cmd->add_option("scene", a.scene,
+                  "Scene JSON file: its cameras see the targets, its volume gives the grid (and "
+                  "the start with --init scene), its TF the known or starting TF")
+      ->required();
+  cmd->add_option("--targets", a.targets,
+                  "Target images, .npy float32/float64 of the render's shape (views, H, W, C)")
+      ->required();
+  cmd->add_option("-o,--output", a.prefix,
+                  "Output prefix: PREFIX_density.{npy,nrrd}, PREFIX_tf.{npy,json}, "
+                  "PREFIX_loss.{csv,png}, PREFIX_{before,after,target}.png")
+      ->required();
+  cmd->add_option("--wrt", a.wrt, "What to optimise: density (default), tf or density,tf");
+  cmd->add_option("--iterations", a.iterations, "Iterations in total over every level (300)");
+  a.lr_option =
+      cmd->add_option("--lr", a.lr, "Learning rate (default: automatic, 0.025 Adam, 0.05 L-BFGS)");
+  cmd->add_option("--optimizer", a.optimizer,
+                  "adam, sgd or lbfgs (default: adam, or lbfgs for the TF alone)");
+  cmd->add_option("--schedule", a.schedule, "Learning-rate schedule: constant, step or cosine");
+  cmd->add_option("--loss", a.loss, "Image loss: mse (default) or l1");
+  cmd->add_option("--tv", a.tv, "Weight of the densities' smoothed total variation (>= 0)");
+  cmd->add_option("--smoothness", a.smoothness, "Weight of the densities' mean |grad|^2 (>= 0)");
+  cmd->add_option("--tf-smoothness", a.tf_smoothness,
+                  "Weight of the squared differences of consecutive TF rows (>= 0)");
+  a.init_option =
+      cmd->add_option("--init", a.init, "Starting density: scene (default), zeros or constant:X");
+  cmd->add_option("--batch", a.batch, "Views per iteration, drawn at random (0: every view)");
+  cmd->add_option("--levels", a.levels, "Coarse-to-fine levels, 0 .. 8 (0: up to 3)");
+  cmd->add_option("--seed", a.seed, "Seed of the view batches (1)");
+  cmd->add_option("--precision", a.precision, "Arithmetic precision: f32 (default) or f64");
+  a.step_option =
+      cmd->add_option("--step", a.step, "Integrator step in voxel units (overrides the scene's)");
+  cmd->add_option("--mode", a.mode, "Gradient mode of the TF alone: auto, forward or adjoint");
+  cmd->add_option("--checkpoint-every", a.checkpoint_every,
+                  "Write PREFIX_checkpoint* every N iterations (25; 0: only on interrupt)");
+  cmd->add_flag("--resume", a.resume,
+                "Continue from PREFIX_checkpoint.json (same scene, targets and options)");
+  cmd->add_option("--truth", a.truth, "True volume file: report the relative volume error");
+  cmd->add_option("--held-out", a.held_out,
+                  "Scene whose cameras render the result for a held-out PSNR");
+  cmd->add_option("--held-out-targets", a.held_out_targets,
+                  "The held-out views' images, .npy of that render's shape");
+  cmd->add_option("--device", a.device,
+                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+  cmd->add_flag("--json", a.json, "Print one JSON object with timings, losses and outputs");
+
+  return [args] {
+    const ReconstructArgs& a = *args;
+    // Every input is checked before any work, so that a bad call wastes nothing and writes
+    // nothing.
+    const ReconstructOptions options = checked_options(a);
+    check_output_folder(a.prefix);
+    const std::string checkpoint = a.prefix + "_checkpoint.json";
+    if (a.resume && !fs::exists(checkpoint))
+      throw input_error("--resume: no checkpoint '" + checkpoint + "' to continue from");
+    const Scene scene = load_scene(a.scene);
+    const Image targets = load_images(a.targets, "--targets", scene);
+    Volume truth;
+    if (!a.truth.empty()) {
+      VolumeSource source;
+      source.path = a.truth;
+      truth = load_volume(source);
+      if (truth.nx != scene.volume.nx || truth.ny != scene.volume.ny || truth.nz != scene.volume.nz)
+        throw input_error("--truth '" + a.truth + "' has " + std::to_string(truth.nx) + "x" +
+                          std::to_string(truth.ny) + "x" + std::to_string(truth.nz) +
+                          " voxels but the scene's grid is " + std::to_string(scene.volume.nx) +
+                          "x" + std::to_string(scene.volume.ny) + "x" +
+                          std::to_string(scene.volume.nz));
+    }
+    Scene held_out;  // the scene with the held-out cameras; the result's volume and TF go in
+    Image held_out_targets;
+    if (!a.held_out.empty()) {
+      held_out = scene;
+      held_out.cameras = load_scene(a.held_out).cameras;
+      held_out_targets = load_images(a.held_out_targets, "--held-out-targets", held_out);
+    }
+
+    Device device(a.device);
+    // Signals from here on: construction compiles kernels, which may take a while.
+    const InterruptGuard interrupt;
+    Reconstruction r(device, scene, targets, options);
+    // The start at the full grid (the first level's coarse copy would blur it).
+    Scene start = scene;
+    if (options.density && options.init != Init::scene)
+      std::fill(start.volume.data.begin(), start.volume.data.end(),
+                options.init == Init::zeros ? 0.f : float(options.init_value));
+    const Image before = render_view0(device, start, options);
+    int resumed_from = -1;
+    if (a.resume) {
+      r.resume(a.prefix);
+      resumed_from = r.iteration();
+    }
+
+    const ReconstructOptions& used = r.options();
+    const int total = used.iterations;
+    Progress progress(total, r.iteration());
+    const auto stop_code = [&] {
+      return interrupt.signal() == SIGINT ? 130 : interrupt.signal() == SIGTERM ? 143 : 0;
+    };
+    while (!r.done()) {
+      if (interrupt.signal() != 0) break;
+      const IterationRecord& rec = r.step();
+      progress.update(rec);
+      if (a.checkpoint_every > 0 && rec.iteration % a.checkpoint_every == 0 && !r.done())
+        r.save_checkpoint(a.prefix);
+    }
+    const double seconds = progress.seconds(), rate = progress.rate(r.iteration());
+    progress.finish();
+    if (!r.done()) {
+      // Interrupted: the state to continue from, then 128 + the signal, as a shell reports it.
+      r.save_checkpoint(a.prefix);
+      std::cerr << "interrupted after iteration " << r.iteration() << " of " << total
+                << "; continue with --resume\n";
+      return stop_code();
+    }
+
+    // Everything is computed before the first file is written.
+    const Scene result = r.result();
+    const Image after = render_view0(device, result, options);
+    double volume_error = NAN, held_out_psnr = NAN;
+    if (!a.truth.empty()) volume_error = relative_volume_error(result.volume, truth);
+    if (!a.held_out.empty()) {
+      held_out.volume = result.volume;
+      held_out.tf = result.tf;
+      RenderOptions ro;
+      ro.precision = used.precision;
+      ro.step = used.step;
+      held_out_psnr = psnr(render(device, held_out, ro), held_out_targets);
+    }
+    const std::vector<IterationRecord>& history = r.history();
+
+    std::vector<std::string> outputs;
+    const std::string& p = a.prefix;
+    if (used.density) {
+      const Volume& v = result.volume;
+      save_npy(p + "_density.npy", {std::size_t(v.nz), std::size_t(v.ny), std::size_t(v.nx)},
+               v.data.data());
+      save_nrrd(p + "_density.nrrd", v);
+      outputs.insert(outputs.end(), {p + "_density.npy", p + "_density.nrrd"});
+    }
+    if (used.tf) {
+      const std::vector<float> rows = tf_rows(result.tf);
+      save_npy(p + "_tf.npy", tf_gradient_shape(result.tf), rows.data());
+      write_text_atomically(p + "_tf.json", tf_json(result.tf) + "\n");
+      outputs.insert(outputs.end(), {p + "_tf.npy", p + "_tf.json"});
+    }
+    write_text_atomically(p + "_loss.csv", csv_text(history));
+    save_image_file(p + "_loss.png", plot_loss(loss_curve(history)));
+    save_image_file(p + "_before.png", before);
+    save_image_file(p + "_after.png", after);
+    save_image_file(p + "_target.png", targets, 0);
+    outputs.insert(outputs.end(), {p + "_loss.csv", p + "_loss.png", p + "_before.png",
+                                   p + "_after.png", p + "_target.png"});
+    Reconstruction::remove_checkpoint(p);
+
+    const double loss_first = history.empty() ? NAN : history.front().loss;
+    const double loss_final = history.empty() ? NAN : history.back().loss;
+    std::vector<std::vector<int>> levels;
+    for (int l = 0; l < r.levels(); ++l) levels.push_back(r.level_dims(l));
+    if (a.json) {
+      nlohmann::json j = {
+          {"iterations", r.iteration()},   {"seconds", seconds},
+          {"iterations_per_second", rate}, {"loss_first", loss_first},
+          {"loss_final", loss_final},      {"optimizer", optimizer_name(used.optimizer.kind)},
+          {"lr", used.optimizer.lr},       {"levels", levels},
+          {"device", device.info().name},  {"outputs", outputs}};
+      if (!a.truth.empty()) j["volume_error"] = volume_error;
+      if (!a.held_out.empty()) j["held_out_psnr"] = held_out_psnr;  // null where +infinity
+      if (resumed_from >= 0) j["resumed_from"] = resumed_from;
+      std::cout << j.dump() << "\n";
+    } else {
+      std::ostringstream s;
+      s << "reconstructed "
+        << (used.density && used.tf ? "density and TF"
+            : used.density          ? "density"
+                                    : "TF")
+        << " in " << r.iteration() << " iteration(s)"
+        << (resumed_from >= 0 ? " (resumed from " + std::to_string(resumed_from) + ")" : "")
+        << " on " << device.info().name << ": " << std::setprecision(3) << seconds << " s, " << rate
+        << " it/s, " << optimizer_name(used.optimizer.kind) << " lr " << used.optimizer.lr << "\n";
+      s << "loss " << std::scientific << loss_first << " -> " << loss_final << std::defaultfloat
+        << ", levels";
+      for (const std::vector<int>& d : levels) s << " " << d[0] << "x" << d[1] << "x" << d[2];
+      s << "\n";
+      if (!a.truth.empty()) s << "volume error " << volume_error << " against " << a.truth << "\n";
+      if (!a.held_out.empty())
+        s << "held-out PSNR " << held_out_psnr << " dB over " << held_out.cameras.size()
+          << " view(s)\n";
+      for (const std::string& o : outputs) s << "-> " << o << "\n";
+      std::cout << s.str();
+    }
+    // A signal during the last iteration: the run is complete, so it is not an interruption.
+    return 0;
+  };
+}
+
+}  // namespace ivr::cli

@@ -4,7 +4,9 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <csignal>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <sstream>
 
@@ -132,6 +134,49 @@ void check_output_folder(const std::string& path_or_prefix) {
   const fs::path folder = p.has_parent_path() ? p.parent_path() : ".";
   if (!fs::is_directory(folder))
     throw Error(Status::io, "output folder '" + folder.string() + "' does not exist");
+}
+
+void write_text_atomically(const std::string& path, const std::string& content) {
+  const fs::path p(path);
+  const fs::path tmp =
+      p.parent_path() / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid()));
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << content;
+    out.close();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw Error(Status::io, "cannot write '" + path + "'");
+    }
+  }
+  fs::rename(tmp, p);
+}
+
+namespace {
+volatile std::sig_atomic_t g_signal = 0;
+constexpr int kSignals[2] = {SIGINT, SIGTERM};
+void on_signal(int signal) {
+  g_signal = signal;
+  std::signal(signal, SIG_DFL);
+}
+}  // namespace
+
+InterruptGuard::InterruptGuard() {
+  g_signal = 0;
+  for (int i = 0; i < 2; ++i) {
+    previous_[i] = std::signal(kSignals[i], on_signal);
+    if (previous_[i] == SIG_IGN) std::signal(kSignals[i], SIG_IGN);
+  }
+}
+
+InterruptGuard::~InterruptGuard() {
+  for (int i = 0; i < 2; ++i)
+    std::signal(kSignals[i], previous_[i] == SIG_ERR ? SIG_DFL : previous_[i]);
+}
+
+int InterruptGuard::signal() const {
+  return g_signal;
 }
 
 }  // namespace ivr::cli

@@ -50,4 +50,24 @@ Scene with_integrator(Scene scene, const MarchOptions& options);
 // The folder of an output path or prefix must exist (checked before any work).
 void check_output_folder(const std::string& path_or_prefix);
 
+// A text file that appears whole or not at all: written under a hidden name in its folder, then
+// renamed over `path`; throws ivr::Error(io) naming it.
+void write_text_atomically(const std::string& path, const std::string& content);
+
+// SIGINT / SIGTERM while a long command runs (tomo, reconstruct): the handler only records the
+// signal and puts the default back (a second Ctrl-C ends the process at once); the command stops
+// after its current iteration. Installed for the guard's scope, then what was there is restored;
+// a signal the parent set to be ignored (a background job's SIGINT) stays ignored.
+class InterruptGuard {
+ public:
+  InterruptGuard();
+  ~InterruptGuard();
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+  int signal() const;  // 0, SIGINT or SIGTERM
+
+ private:
+  void (*previous_[2])(int) = {nullptr, nullptr};
+};
+
 }  // namespace ivr::cli

@@ -197,56 +197,6 @@ std::vector<float> tf_rows(const TransferFunction& tf) {
   return v;
 }
 
-// A text file written under a hidden temporary name in its folder, then renamed over PATH.
-void write_text_atomically(const std::string& path, const std::string& content) {
-  const fs::path p(path);
-  const fs::path tmp =
-      p.parent_path() / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid()));
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    out << content;
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw Error(Status::io, "cannot write '" + path + "'");
-    }
-  }
-  fs::rename(tmp, p);
-}
-
-// SIGINT / SIGTERM: the handler only records the signal (and puts the default back, so that a
-// second Ctrl-C ends the process at once); the loop stops after the current iteration and writes
-// a checkpoint. A signal the parent set to be ignored (a background job's SIGINT) stays ignored.
-volatile std::sig_atomic_t g_signal = 0;
-
-void on_signal(int signal) {
-  g_signal = signal;
-  std::signal(signal, SIG_DFL);
-}
-
-class InterruptGuard {
- public:
-  InterruptGuard() {
-    g_signal = 0;
-    for (int i = 0; i < 2; ++i) {
-      previous_[i] = std::signal(kSignals[i], on_signal);
-      if (previous_[i] == SIG_IGN) std::signal(kSignals[i], SIG_IGN);
-    }
-  }
-  ~InterruptGuard() {
-    for (int i = 0; i < 2; ++i)
-      std::signal(kSignals[i], previous_[i] == SIG_ERR ? SIG_DFL : previous_[i]);
-  }
-  InterruptGuard(const InterruptGuard&) = delete;
-  InterruptGuard& operator=(const InterruptGuard&) = delete;
-  int signal() const { return g_signal; }
-
- private:
-  static constexpr int kSignals[2] = {SIGINT, SIGTERM};
-  void (*previous_[2])(int) = {SIG_DFL, SIG_DFL};
-};
-
 std::string clock_text(double seconds) {
   const long s = std::lround(std::max(seconds, 0.0));
   char buf[32];

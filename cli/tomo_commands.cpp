@@ -85,40 +85,6 @@ std::vector<std::size_t> volume_shape(const Scene& s) {
   return {std::size_t(s.volume.nz), std::size_t(s.volume.ny), std::size_t(s.volume.nx)};
 }
 
-// SIGINT / SIGTERM during `ivr tomo`: the handler only records the signal (and puts the default
-// back, so that a second Ctrl-C ends the process at once); the progress callback then stops the
-// solver after the current iteration and the last iterate is written.
-volatile std::sig_atomic_t g_signal = 0;
-
-void on_signal(int signal) {
-  g_signal = signal;
-  std::signal(signal, SIG_DFL);
-}
-
-// Installs the handler for the scope of the solve and the write, then restores what was there.
-// A signal the parent set to be ignored (e.g. SIGINT of a background job) stays ignored.
-class InterruptGuard {
- public:
-  InterruptGuard() {
-    g_signal = 0;
-    for (int i = 0; i < 2; ++i) {
-      previous_[i] = std::signal(kSignals[i], on_signal);
-      if (previous_[i] == SIG_IGN) std::signal(kSignals[i], SIG_IGN);
-    }
-  }
-  ~InterruptGuard() {
-    for (int i = 0; i < 2; ++i)
-      std::signal(kSignals[i], previous_[i] == SIG_ERR ? SIG_DFL : previous_[i]);
-  }
-  InterruptGuard(const InterruptGuard&) = delete;
-  InterruptGuard& operator=(const InterruptGuard&) = delete;
-  int signal() const { return g_signal; }
-
- private:
-  static constexpr int kSignals[2] = {SIGINT, SIGTERM};
-  void (*previous_[2])(int) = {SIG_DFL, SIG_DFL};
-};
-
 struct TomoArgs {
   CommonArgs common;
   std::string projections, intensities, solver = "cgls";

@@ -73,24 +73,6 @@ ViewpointOptions checked_options(const ViewpointArgs& a) {
   return o;
 }
 
-// The file appears whole or not at all: written under a hidden name in its folder, then renamed.
-void write_text_atomically(const std::string& path, const std::string& content) {
-  const fs::path p(path);
-  const fs::path tmp =
-      p.parent_path() / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid()));
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    out << content;
-    out.close();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw Error(Status::io, "cannot write '" + path + "'");
-    }
-  }
-  fs::rename(tmp, p);
-}
-
 }  // namespace
 
 Runner add_viewpoint_command(CLI::App& app) {

@@ -10,6 +10,42 @@
 #ifndef IVR_GRAD_DENSITY
 #define IVR_GRAD_DENSITY 1
 #endif
+#ifndef IVR_DETERMINISTIC
+#define IVR_DETERMINISTIC 0
+#endif
+
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+#pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
+// The deterministic density gradient (lib/adjoint.cpp): integer adds do not depend on their
+// order, so each contribution is scaled by 2^S, rounded to a long and added with atom_add. `grad`
+// then points at longs: [0] S, [1] the cap on a scaled contribution (the host keeps every sum
+// below 2^62 with it), [2] contributions over the cap (the host runs again with a smaller S),
+// [3] the largest |contribution| seen, as float bits (order-independent atomic_max: the host's
+// next S), and voxel i at [IVR_FIXED_HEADER + i].
+#define IVR_FIXED_HEADER 4
+inline void fixed_add(__global real* grad, const int index, const real value) {
+  volatile __global long* fx = (volatile __global long*)grad;
+  volatile __global uint* largest = (volatile __global uint*)(fx + 3);
+  const uint bits = as_uint((float)fabs(value));
+  if (bits > *largest) atomic_max(largest, bits);  // the plain read only filters
+  const real scaled = ldexp(value, (int)fx[0]);
+  if (!(fabs(scaled) <= (real)fx[1])) {
+    atom_inc(fx + 2);
+    return;
+  }
+  atom_add(fx + IVR_FIXED_HEADER + index, convert_long_rte(scaled));
+}
+#define IVR_ADD_DENSITY_GRAD(index, value) fixed_add(grad, index, value)
+
+// The fixed-point sums back to reals: out[i] = fx[header + i]·2^−S.
+__kernel void fixed_to_real(const int n, __global const long* restrict fx,
+                            __global real* restrict out) {
+  const int i = get_global_id(0);
+  if (i < n) out[i] = ldexp((real)fx[IVR_FIXED_HEADER + i], -(int)fx[0]);
+}
+#else
+#define IVR_ADD_DENSITY_GRAD(index, value) atomic_add_global(grad + (index), value)
+#endif
 
 // Corner k (bit 0: +x, bit 1: +y, bit 2: +z) is voxel base + IVR_CORNER(c, k); the offsets are 0
 // on the clamped upper edges, as in trilinear_at().
@@ -27,7 +63,7 @@ typedef struct {
 #if IVR_GRAD_DENSITY
 #define IVR_FLUSH(c, k)                                                                          \
   do {                                                                                           \
-    if ((c)->g[k] != (real)0) atomic_add_global(grad + (c)->base + IVR_CORNER(c, k), (c)->g[k]); \
+    if ((c)->g[k] != (real)0) IVR_ADD_DENSITY_GRAD((c)->base + IVR_CORNER(c, k), (c)->g[k]);    \
     (c)->g[k] = (real)0;                                                                         \
   } while (0)
 #define IVR_MOVE_GRAD(c, to, from) \

@@ -2,6 +2,7 @@
 // the constant-memory adjoint march) per evaluation, reductions of the per-pixel terms on the host.
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <numeric>
 
 #include "adjoint_device.hpp"
@@ -33,18 +34,35 @@ std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf) {
 namespace {
 
 std::string gradient_preamble(const RenderVariant& variant, const GradientOptions& o,
-                              std::size_t tf_rows) {
+                              std::size_t tf_rows, bool fixed) {
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/tf_grad.cl).
   return variant.preamble() + "#define IVR_TF_ROWS " + std::to_string(tf_rows) +
          "\n#define IVR_GRAD_DENSITY " + (o.density ? "1" : "0") + "\n#define IVR_GRAD_TF " +
          (o.tf ? "1" : "0") + "\n#define IVR_GRAD_CAMERA " + (o.camera ? "1" : "0") +
-         "\n#define IVR_LOSS_L1 " + (o.loss == Loss::l1 ? "1" : "0") + "\n";
+         "\n#define IVR_LOSS_L1 " + (o.loss == Loss::l1 ? "1" : "0") +
+         "\n#define IVR_DETERMINISTIC " + (fixed ? "1" : "0") + "\n";
+}
+
+constexpr std::size_t kFixedHeader = 4;  // IVR_FIXED_HEADER (kernels/adjoint_scatter.cl)
+
+bool has_int64_atomics(Device::Impl& dev) {
+  return dev.device.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_khr_int64_base_atomics") !=
+         std::string::npos;
+}
+
+// The scale 2^S that puts the largest contribution |c| just under cap/2 (so that no sum of up to
+// 8 contributions per ray and voxel passes 2^62); frexp keeps it a function of |c|'s bits alone.
+int fixed_exponent_for(float largest, int cap_exponent) {
+  int e = 0;
+  std::frexp(double(largest), &e);  // largest < 2^e
+  return cap_exponent - 1 - e;
 }
 
 template <class Real>
 Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
                      const Image& target, const GradientOptions& o,
-                     const cl::Buffer* resident = nullptr, cl::Buffer* density_out = nullptr) {
+                     const cl::Buffer* resident = nullptr, cl::Buffer* density_out = nullptr,
+                     int* fixed_exponent = nullptr) {
   const Camera& cam0 = scene.cameras.front();
   const int views = int(scene.cameras.size()), channels = scene.channels();
   const std::size_t pixels = std::size_t(views) * cam0.height * cam0.width;
@@ -62,8 +80,13 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
   cl::Buffer samples_buf =
       dev.buffer(CL_MEM_WRITE_ONLY, pixels * sizeof(cl_uint), nullptr, "the sample counts");
   const std::size_t grad_voxels = o.density ? voxels : 1;
+  // Deterministic: the density gradient summed in fixed point, where the device has 64-bit
+  // integer atomics (else the float atomics below, and Gradient::deterministic stays false).
+  const bool fixed = o.density && o.deterministic && has_int64_atomics(dev);
+  const std::size_t grad_bytes =
+      fixed ? (voxels + kFixedHeader) * sizeof(cl_long) : grad_voxels * sizeof(Real);
   cl::Buffer grad_volume =
-      dev.buffer(CL_MEM_READ_WRITE, grad_voxels * sizeof(Real), nullptr, "the density gradient");
+      dev.buffer(CL_MEM_READ_WRITE, grad_bytes, nullptr, "the density gradient");
   cl::Buffer grad_tf =
       dev.buffer(CL_MEM_READ_WRITE, std::max<std::size_t>(tf_size, 1) * sizeof(Real), nullptr,
                  "the transfer-function gradient");
@@ -73,10 +96,10 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
       scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
   const bool native_atomics = use_float_atomics(dev.info, std::is_same_v<Real, double>);
   auto program_of = [&](const RenderVariant& v) {
-    const std::string label = "adjoint.cl [" + v.label() + (o.tf ? " grad_tf" : "") +
-                              (o.camera ? " grad_camera" : "") +
-                              (native_atomics ? " float_atomics" : "") + "]";
-    std::string preamble = gradient_preamble(v, o, tf_shape[0]);
+    const std::string label =
+        "adjoint.cl [" + v.label() + (o.tf ? " grad_tf" : "") + (o.camera ? " grad_camera" : "") +
+        (native_atomics ? " float_atomics" : "") + (fixed ? " deterministic" : "") + "]";
+    std::string preamble = gradient_preamble(v, o, tf_shape[0], fixed);
     std::string options = extra_build_options();
     if (native_atomics) {
       preamble += "#define IVR_FLOAT_ATOMICS 1\n";
@@ -94,12 +117,14 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
 
   Gradient g;
   g.atomics = native_atomics ? "cl_ext_float_atomics" : "compare-and-swap";
+  g.deterministic = fixed;
   g.skipped_empty = variant.skip_empty;
   g.step = integrator.step;
   g.empty_fraction = grid.empty_fraction;
   g.device_bytes = dscene.bytes + target_real.size() * sizeof(Real) +
                    pixels * (channels * sizeof(float) + 4 * sizeof(Real) + sizeof(cl_uint)) +
-                   (grad_voxels + std::max<std::size_t>(tf_size, 1)) * sizeof(Real);
+                   grad_bytes + std::max<std::size_t>(tf_size, 1) * sizeof(Real) +
+                   (fixed ? voxels * sizeof(Real) : 0);
   cl::Event zero_volume, zero_tf, done;
   const std::vector<Real> camera_values = pack_camera_params<Real>(scene.cameras);
   cl::Buffer camera_params =
@@ -107,11 +132,8 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
                  const_cast<Real*>(camera_values.data()), "the camera parameters");
   cl::Buffer camera_partial;
   std::size_t groups_x = 0, groups_per_view = 0;
+  cl::Buffer density = grad_volume;  // the density gradient as reals
   cl_call("running the adjoint kernel on " + dev.info.name, [&] {
-    dev.queue.enqueueFillBuffer(grad_volume, Real(0), 0, grad_voxels * sizeof(Real), nullptr,
-                                &zero_volume);
-    dev.queue.enqueueFillBuffer(
-        grad_tf, Real(0), 0, std::max<std::size_t>(tf_size, 1) * sizeof(Real), nullptr, &zero_tf);
     cl::Kernel k(program, "adjoint");
     int a = dscene.set_args(k, scene, integrator);
     k.setArg(a++, target_buf);
@@ -144,9 +166,58 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     k.setArg(a++, cl::Local((o.camera ? std::size_t(lx) * ly * 7 : 1) * sizeof(Real)));
     k.setArg(a++, occupied);
     k.setArg(a++, brick_counts(grid));
-    dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
-                                   cl::NDRange(lx, ly, 1), nullptr, &done);
-    done.wait();
+    auto run_pass = [&](int exponent) {
+      if (fixed) {
+        dev.queue.enqueueFillBuffer(grad_volume, cl_long(0), 0, grad_bytes, nullptr, &zero_volume);
+        // No scaled contribution above 2^62 / (8 · rays): at most 8 per ray reach a voxel.
+        const int cap_exponent = 62 - int(std::ceil(std::log2(8.0 * double(pixels))));
+        const cl_long header[kFixedHeader] = {exponent, cl_long(1) << cap_exponent, 0, 0};
+        dev.queue.enqueueWriteBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
+      } else {
+        dev.queue.enqueueFillBuffer(grad_volume, Real(0), 0, grad_bytes, nullptr, &zero_volume);
+      }
+      dev.queue.enqueueFillBuffer(
+          grad_tf, Real(0), 0, std::max<std::size_t>(tf_size, 1) * sizeof(Real), nullptr, &zero_tf);
+      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
+                                     cl::NDRange(lx, ly, 1), nullptr, &done);
+      done.wait();
+    };
+    if (!fixed) {
+      run_pass(0);
+      return;
+    }
+    // The scale comes from the largest contribution, which an order-independent atomic max
+    // records: the previous call's where the caller keeps it, else a first pass's. A pass whose
+    // contributions outgrew the cap runs again at the scale it measured, so every decision is a
+    // function of the inputs alone.
+    const int cap_exponent = 62 - int(std::ceil(std::log2(8.0 * double(pixels))));
+    bool known = fixed_exponent && *fixed_exponent != kUnknownExponent;
+    int exponent = known ? *fixed_exponent : 0;
+    for (int pass = 0;; ++pass) {
+      run_pass(exponent);
+      cl_long header[kFixedHeader];
+      dev.queue.enqueueReadBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
+      float largest = 0;
+      std::memcpy(&largest, &header[3], sizeof largest);
+      const int ideal = largest > 0 ? fixed_exponent_for(largest, cap_exponent) : exponent;
+      if (fixed_exponent) *fixed_exponent = ideal;
+      if ((header[2] > 0 || !known) && largest > 0 && pass == 0) {
+        exponent = ideal;
+        known = true;
+        continue;
+      }
+      if (header[2] > 0)
+        throw Error(Status::opencl, "the fixed-point density gradient overflowed at scale 2^" +
+                                        std::to_string(exponent));
+      break;
+    }
+    g.fixed_exponent = exponent;
+    density = dev.buffer(CL_MEM_READ_WRITE, voxels * sizeof(Real), nullptr, "the density gradient");
+    cl::Kernel convert(program, "fixed_to_real");
+    convert.setArg(0, cl_int(voxels));
+    convert.setArg(1, grad_volume);
+    convert.setArg(2, density);
+    dev.queue.enqueueNDRangeKernel(convert, cl::NullRange, cl::NDRange(voxels), cl::NullRange);
   });
 
   std::vector<Real> terms(pixels * 4);
@@ -157,7 +228,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     dev.queue.enqueueReadBuffer(samples_buf, CL_TRUE, 0, samples.size() * sizeof(cl_uint),
                                 samples.data());
     if (o.density && !density_out)
-      dev.queue.enqueueReadBuffer(grad_volume, CL_TRUE, 0, grad.size() * sizeof(Real), grad.data());
+      dev.queue.enqueueReadBuffer(density, CL_TRUE, 0, grad.size() * sizeof(Real), grad.data());
     if (o.tf)
       dev.queue.enqueueReadBuffer(grad_tf, CL_TRUE, 0, grad_tf_host.size() * sizeof(Real),
                                   grad_tf_host.data());
@@ -179,7 +250,7 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     for (int c = 0; c < 3; ++c) background[c] += double(terms[p * 4 + 1 + c]);
   }
   if (o.density && density_out)
-    *density_out = grad_volume;
+    *density_out = density;
   else if (o.density)
     g.density.assign(grad.begin(), grad.end());
   if (o.tf) g.tf.assign(grad_tf_host.begin(), grad_tf_host.end());
@@ -193,11 +264,14 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
 
 Gradient gradient_on_device(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
                             const Image& target, const GradientOptions& options,
-                            const cl::Buffer& volume, cl::Buffer* density_out) {
+                            const cl::Buffer& volume, cl::Buffer* density_out,
+                            int* fixed_exponent) {
   check_target(scene, target);
   if (options.precision == Precision::f64)
-    return gradient_as<double>(dev, scene, integrator, target, options, &volume, density_out);
-  return gradient_as<float>(dev, scene, integrator, target, options, &volume, density_out);
+    return gradient_as<double>(dev, scene, integrator, target, options, &volume, density_out,
+                               fixed_exponent);
+  return gradient_as<float>(dev, scene, integrator, target, options, &volume, density_out,
+                            fixed_exponent);
 }
 
 double image_loss(const Image& image, const Image& target, Loss loss) {

@@ -115,7 +115,7 @@ void validate_reconstruct(const ReconstructOptions& o) {
 }
 
 Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const ReconstructOptions& opt)
-    : device(d), dev(d.impl()), scene(s), targets(t), o(opt) {
+    : device(d), dev(d.impl()), scene(s), targets(t), o(opt), fixed_exponent(kUnknownExponent) {
   validate_reconstruct(o);
   validate(scene);
   check_target(scene, targets);
@@ -284,8 +284,10 @@ const IterationRecord& Reconstruction::Impl::step() {
     go.loss = o.loss;
     go.density = true;
     go.tf = o.tf;
+    go.deterministic = o.deterministic;
     cl::Buffer g;
-    const Gradient gr = gradient_on_device(dev, batch, integrator, target, go, x, &g);
+    const Gradient gr =
+        gradient_on_device(dev, batch, integrator, target, go, x, &g, &fixed_exponent);
     r.loss = gr.loss;
     const std::uint64_t real_size = f64 ? 8 : 4, voxels = batch.volume.voxel_count();
     r.device_bytes =

@@ -59,6 +59,7 @@ json fingerprint(const Reconstruction::Impl& p) {
           {"precision", o.precision == Precision::f64 ? "f64" : "f32"},
           {"step", o.step},
           {"mode", mode_name(o.mode)},
+          {"deterministic", o.deterministic},
           {"grid", {p.scene.volume.nx, p.scene.volume.ny, p.scene.volume.nz}},
           {"targets", {t.views, t.height, t.width, t.channels}},
           {"tf_parameters", p.o.tf ? p.u.size() : 0}};
@@ -116,7 +117,8 @@ void Reconstruction::save_checkpoint(const std::string& prefix) const {
     j["density"] = {{"values", base_name(names[0])},
                     {"first", base_name(names[1])},
                     {"second", s.second.empty() ? json(nullptr) : json(base_name(names[2]))},
-                    {"iterations", s.iterations}};
+                    {"iterations", s.iterations},
+                    {"fixed_exponent", p.fixed_exponent}};
   }
   if (p.o.tf) {
     json tf = {{"u", p.u}};
@@ -192,6 +194,7 @@ void Reconstruction::resume(const std::string& prefix) {
       if (!d.at("second").is_null())
         s.second = read_array(dir + "/" + d.at("second").get<std::string>(), n);
       p.density_opt->restore(s);
+      p.fixed_exponent = d.at("fixed_exponent").get<int>();
     }
     if (p.o.tf) {
       const json& tf = j.at("tf");

@@ -4,6 +4,7 @@
 #include <memory>
 #include <vector>
 
+#include "adjoint_device.hpp"
 #include "ivr/reconstruct.hpp"
 #include "lbfgs.hpp"
 #include "priors.hpp"
@@ -33,6 +34,7 @@ struct Reconstruction::Impl {
   cl::Buffer x;
   std::unique_ptr<Optimizer> density_opt;
   std::unique_ptr<DensityPrior> prior;
+  int fixed_exponent;  // the deterministic gradient's scale, carried between iterations
 
   // TF (o.tf): normalised parameters u = value / bounds.scale.
   std::vector<double> u;

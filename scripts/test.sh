@@ -7,10 +7,10 @@ cd "$(dirname "$0")/.."
 "$(pwd)/scripts/install-deps.sh"
 
 build=build
-flags=(-DCMAKE_BUILD_TYPE=Release)
+flags=(-DCMAKE_BUILD_TYPE=Release -DIVR_BUILD_TESTS=ON)  # ON: scripts/demo.sh may have turned it off in build/
 if [ "${1:-}" = "--sanitize" ]; then
   build=build-asan
-  flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DIVR_SANITIZE=ON -DIVR_BUILD_BENCH=OFF)
+  flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DIVR_SANITIZE=ON -DIVR_BUILD_BENCH=OFF -DIVR_BUILD_TESTS=ON)
 fi
 jobs=$(nproc 2>/dev/null || echo 2)
 cmake -S . -B "$build" "${flags[@]}"

@@ -27,6 +27,15 @@ struct GradientOptions {
   // and with density or camera only for piecewise-linear and table TFs (lib/empty_space.hpp).
   EmptySpace empty_space = EmptySpace::automatic;
   int brick_size = 0;
+  // Sums the density gradient in 64-bit fixed point (where the device has
+  // cl_khr_int64_base_atomics), so that it does not depend on the order in which rays add to a
+  // voxel: the same inputs give the same bits on every run. Each ray's share is scaled by a
+  // power of two that puts the largest just under 2^62 / (16 · rays) and rounded to an integer
+  // (an absolute error of ~2^-41 of the largest share at 10^5 rays, far below float rounding of
+  // the sums); the integer sums are exact. The scale is measured by a first pass (a
+  // reconstruction carries it from one iteration to the next instead). The TF, background and
+  // camera gradients keep their float atomics.
+  bool deterministic = false;
 };
 
 struct Gradient {
@@ -42,6 +51,8 @@ struct Gradient {
   bool skipped_empty = false;      // empty-space skipping ran
   double empty_fraction = 0;       // of the bricks, when the grid was built
   double step = 0;                 // the integrator step used (voxel units)
+  bool deterministic = false;      // the density gradient was summed in fixed point
+  int fixed_exponent = 0;          // its scale 2^S, when it was
 };
 
 // Shape of the TF gradient: identity → 1 x 2 (extinction_scale, color_scale); piecewise_linear

@@ -57,6 +57,11 @@ struct ReconstructOptions {
   // The TF alone: forward or adjoint; automatic = forward up to 32 parameters (deterministic:
   // runs repeat bit for bit), else the planner's choice. Density gradients are always adjoint.
   Mode mode = Mode::automatic;
+  // Densities' gradients summed in fixed point (GradientOptions::deterministic, where the
+  // device has 64-bit integer atomics): a run repeats bit for bit whatever the thread
+  // scheduling, so a resumed run equals an uninterrupted one. The joint mode's TF rows keep
+  // their float atomics (their last bits vary).
+  bool deterministic = true;
 };
 
 // Throws ivr::Error(invalid_argument) naming the first bad option.
@@ -101,7 +106,8 @@ class IVR_API Reconstruction {
   // optimiser state and history; each file replaced atomically, the JSON last.
   void save_checkpoint(const std::string& prefix) const;
   // Continues from a checkpoint of the same scene, targets' shape and options (an error names
-  // the first that differs); the run then proceeds exactly as the one that wrote it.
+  // the first that differs); the run then proceeds exactly as the one that wrote it (bit for bit
+  // with `deterministic` gradients, the TF alone, or a device that orders its atomics).
   void resume(const std::string& prefix);
   // Deletes the checkpoint files of `prefix` (those that exist): after a finished run.
   static void remove_checkpoint(const std::string& prefix);

@@ -74,22 +74,29 @@ json run_size(ivr::Device& device, int n, int views, int batch, int image, int r
   const ivr::Image held_targets = ivr::render(device, held);
   json out = {{"n", n}, {"views", views}, {"batch", batch}, {"image", image}};
 
-  // Throughput on the full grid (one level), after two warm-up iterations (kernel builds).
-  ivr::ReconstructOptions o;
-  o.levels = 1;
-  o.batch = batch;
-  o.init = ivr::Init::constant;
-  o.iterations = repeats + 2;
-  ivr::Reconstruction r(device, truth, targets, o);
-  r.step();
-  r.step();
-  std::vector<double> seconds;
-  std::uint64_t device_bytes = 0;
-  while (!r.done()) {
-    const ivr::IterationRecord& rec = r.step();
-    seconds.push_back(rec.seconds);
-    device_bytes = std::max(device_bytes, rec.device_bytes);
-  }
+  // Throughput on the full grid (one level), after two warm-up iterations (kernel builds): the
+  // default fixed-point (deterministic) gradient, and the float atomics' for comparison.
+  auto throughput = [&](bool deterministic, std::uint64_t* device_bytes) {
+    ivr::ReconstructOptions o;
+    o.levels = 1;
+    o.batch = batch;
+    o.init = ivr::Init::constant;
+    o.iterations = repeats + 2;
+    o.deterministic = deterministic;
+    ivr::Reconstruction r(device, truth, targets, o);
+    r.step();
+    r.step();
+    std::vector<double> seconds;
+    while (!r.done()) {
+      const ivr::IterationRecord& rec = r.step();
+      seconds.push_back(rec.seconds);
+      *device_bytes = std::max(*device_bytes, rec.device_bytes);
+    }
+    return median(seconds);
+  };
+  std::uint64_t device_bytes = 0, float_bytes = 0;
+  const double it = throughput(true, &device_bytes);
+  const double it_float = throughput(false, &float_bytes);
   // Baseline: rendering the same number of views of the same volume.
   ivr::Scene eight = truth;
   eight.cameras.resize(std::size_t(batch));
@@ -97,11 +104,13 @@ json run_size(ivr::Device& device, int n, int views, int batch, int image, int r
   std::vector<double> render_seconds;
   for (int i = 0; i < repeats; ++i)
     render_seconds.push_back(wall_seconds([&] { ivr::render(device, eight); }));
-  const double it = median(seconds), rend = median(render_seconds);
+  const double rend = median(render_seconds);
   out["seconds_per_iteration"] = it;
   out["iterations_per_second"] = 1 / it;
   out["render_seconds_same_views"] = rend;
   out["iteration_over_render"] = it / rend;
+  out["iterations_per_second_float_atomics"] = 1 / it_float;
+  out["peak_device_mib_float_atomics"] = double(float_bytes) / (1 << 20);
   out["peak_device_mib"] = double(device_bytes) / (1 << 20);
   std::cerr << n << "³: " << 1 / it << " it/s (" << it / rend << "× a render of " << batch
             << " views), device " << double(device_bytes) / (1 << 20) << " MiB\n";

@@ -4,6 +4,7 @@
 #include "ivr/viewpoint.hpp"
 
 #include <cmath>
+#include <limits>
 #include <glm/geometric.hpp>
 
 #include "ivr/error.hpp"
@@ -17,6 +18,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kMaxElevation = 85 * kPi / 180;  // keeps the view direction off the up axis
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 [[noreturn]] void fail(const std::string& what) {
   throw Error(Status::invalid_argument, what);
@@ -147,11 +149,12 @@ Viewpoint select_viewpoint(Device& device, const Scene& scene, const ViewpointOp
   double value = objective(x, g);
   if (!record(0, -value)) return result;
   if (opt.kind == OptimizerKind::lbfgs) {
-    Lbfgs lbfgs({-1e300, -kMaxElevation}, {1e300, kMaxElevation}, opt.history, opt.lr);
+    Lbfgs lbfgs({-kInf, -kMaxElevation}, {kInf, kMaxElevation}, opt.history, opt.lr);
     for (int k = 1; k <= options.iterations; ++k)
       if (!record(k, -lbfgs.step(x, objective))) break;
   } else {
-    opt.lower = -1e300;  // the elevation's bounds are applied below
+    opt.lower = -kInf;  // the angles are free; the elevation is clamped below
+    opt.upper = kInf;
     Optimizer optimizer(device, 2, opt, options.precision);
     for (int k = 1; k <= options.iterations; ++k) {
       optimizer.step(x, g);

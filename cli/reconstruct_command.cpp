@@ -172,31 +172,6 @@ Image load_images(const std::string& path, const std::string& option, const Scen
   return image;
 }
 
-// The TF's values as rows x columns of tf_gradient_shape (what `ivr grad --wrt tf` writes).
-std::vector<float> tf_rows(const TransferFunction& tf) {
-  std::vector<float> v;
-  switch (tf.kind) {
-    case TfKind::identity:
-      v = {float(tf.extinction_scale), float(tf.color_scale)};
-      break;
-    case TfKind::piecewise_linear:
-      for (const TfPoint& p : tf.points)
-        v.insert(v.end(),
-                 {float(p.color.x), float(p.color.y), float(p.color.z), float(p.extinction)});
-      break;
-    case TfKind::table:
-      for (const glm::dvec4& e : tf.entries)
-        v.insert(v.end(), {float(e.x), float(e.y), float(e.z), float(e.w)});
-      break;
-    case TfKind::gaussian:
-      for (const TfGaussian& g : tf.gaussians)
-        v.insert(v.end(), {float(g.color.x), float(g.color.y), float(g.color.z),
-                           float(g.extinction), float(g.mean), float(g.width)});
-      break;
-  }
-  return v;
-}
-
 std::string clock_text(double seconds) {
   const long s = std::lround(std::max(seconds, 0.0));
   char buf[32];
@@ -443,7 +418,8 @@ Runner add_reconstruct_command(CLI::App& app) {
       outputs.insert(outputs.end(), {p + "_density.npy", p + "_density.nrrd"});
     }
     if (used.tf) {
-      const std::vector<float> rows = tf_rows(result.tf);
+      const std::vector<double> values = tf_parameters(result.tf);
+      const std::vector<float> rows(values.begin(), values.end());
       save_npy(p + "_tf.npy", tf_gradient_shape(result.tf), rows.data());
       write_text_atomically(p + "_tf.json", tf_json(result.tf) + "\n");
       outputs.insert(outputs.end(), {p + "_tf.npy", p + "_tf.json"});

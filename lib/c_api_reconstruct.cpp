@@ -331,7 +331,7 @@ ivr_status ivr_reconstruction_tf(const ivr_reconstruction* r, double* values, si
     const ivr::Reconstruction& rec = *checked_reconstruction(r)->reconstruction;
     const ivr::TransferFunction tf = rec.result().tf;
     const std::vector<std::size_t> dims = ivr::tf_gradient_shape(tf);
-    const std::vector<double> v = ivr::tf_values(tf);
+    const std::vector<double> v = ivr::tf_parameters(tf);
     if (shape) {
       shape[0] = int64_t(dims[0]);
       shape[1] = int64_t(dims[1]);

@@ -138,7 +138,7 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
   // gradient is reduced in a fixed order, where the adjoint's atomic adds are not, so L-BFGS's
   // line searches see one consistent objective and a run repeats (and resumes) bit for bit; it
   // costs about 1.4x the adjoint's time on the default cost model. Beyond that, the planner.
-  if (!o.density && o.mode == Mode::automatic && tf_values(scene.tf).size() <= 32)
+  if (!o.density && o.mode == Mode::automatic && tf_parameters(scene.tf).size() <= 32)
     o.mode = Mode::forward;
 
   // Levels: each halves the grid, the coarsest at least 4 cells on its shortest axis.
@@ -168,7 +168,7 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
 
   if (o.tf) {
     bounds = tf_bounds(scene.tf, scale);
-    const std::vector<double> values = tf_values(scene.tf);
+    const std::vector<double> values = tf_parameters(scene.tf);
     u.resize(values.size());
     for (std::size_t i = 0; i < u.size(); ++i) u[i] = values[i] / bounds.scale[i];
     if (o.optimizer.kind == OptimizerKind::lbfgs) {
@@ -250,7 +250,7 @@ Volume Reconstruction::Impl::level_volume() const {
 void Reconstruction::Impl::apply_tf() {
   std::vector<double> values(u.size());
   for (std::size_t i = 0; i < u.size(); ++i) values[i] = u[i] * bounds.scale[i];
-  set_tf_values(scene.tf, values);
+  set_tf_parameters(scene.tf, values);
   level_scene.tf = scene.tf;
 }
 
@@ -313,7 +313,7 @@ const IterationRecord& Reconstruction::Impl::step() {
     auto objective = [&](const std::vector<double>& at, std::vector<double>& grad) {
       std::vector<double> values(at.size());
       for (std::size_t i = 0; i < at.size(); ++i) values[i] = at[i] * bounds.scale[i];
-      set_tf_values(batch.tf, values);
+      set_tf_parameters(batch.tf, values);
       const Differentiation diff = differentiate(device, batch, target, {"tf"}, d);
       const std::vector<double>& gv = diff.groups.front().values;
       grad.assign(at.size(), 0.0);

@@ -16,7 +16,7 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 }
 
-std::vector<double> tf_values(const TransferFunction& tf) {
+std::vector<double> tf_parameters(const TransferFunction& tf) {
   std::vector<double> v;
   switch (tf.kind) {
     case TfKind::identity:
@@ -37,11 +37,11 @@ std::vector<double> tf_values(const TransferFunction& tf) {
   return v;
 }
 
-void set_tf_values(TransferFunction& tf, const std::vector<double>& v) {
-  if (v.size() != tf_values(tf).size())
+void set_tf_parameters(TransferFunction& tf, const std::vector<double>& v) {
+  if (v.size() != tf_parameters(tf).size())
     throw Error(Status::invalid_argument, "TF values: " + std::to_string(v.size()) +
                                               " values for a TF of " +
-                                              std::to_string(tf_values(tf).size()));
+                                              std::to_string(tf_parameters(tf).size()));
   switch (tf.kind) {
     case TfKind::identity:
       tf.extinction_scale = v[0];
@@ -70,7 +70,7 @@ void set_tf_values(TransferFunction& tf, const std::vector<double>& v) {
 }
 
 TfBounds tf_bounds(const TransferFunction& tf, double density_scale) {
-  const std::vector<double> v = tf_values(tf);
+  const std::vector<double> v = tf_parameters(tf);
   TfBounds b;
   if (tf.kind == TfKind::identity) {
     b.lower = {0, 0};

@@ -3,17 +3,14 @@
 #pragma once
 #include <vector>
 
+#include "ivr/gradient.hpp"
 #include "ivr/scene.hpp"
 
 namespace ivr {
 
-// The TF's parameters, row-major in the layout of tf_gradient_shape.
-std::vector<double> tf_values(const TransferFunction& tf);
-void set_tf_values(TransferFunction& tf, const std::vector<double>& values);
-
-// Per parameter of tf_values: the box it is kept in and the scale that normalises it for the
-// optimiser (colours 1, extinctions their largest value, Gaussian means and widths the density
-// scale), so one learning rate fits every column.
+// Per parameter of tf_parameters (ivr/gradient.hpp): the box it is kept in and the scale that
+// normalises it for the optimiser (colours 1, extinctions their largest value, Gaussian means and
+// widths the density scale), so one learning rate fits every column.
 struct TfBounds {
   std::vector<double> lower, upper, scale;
 };

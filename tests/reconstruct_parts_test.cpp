@@ -136,9 +136,9 @@ struct Small {
 TEST(ReconstructPartsTest, BatchesAndJointDensityAndTf) {
   const Small p;
   Scene start = p.scene;
-  std::vector<double> tf = tf_values(start.tf);
+  std::vector<double> tf = tf_parameters(start.tf);
   for (double& v : tf) v *= 0.8;
-  set_tf_values(start.tf, tf);
+  set_tf_parameters(start.tf, tf);
   ReconstructOptions o;
   o.tf = true;
   o.iterations = 40;
@@ -150,7 +150,7 @@ TEST(ReconstructPartsTest, BatchesAndJointDensityAndTf) {
   const std::vector<IterationRecord>& h = r.history();
   EXPECT_LT(h.back().loss, 0.1 * h.front().loss);
   EXPECT_GT(h.back().device_bytes, 16u * 16 * 16 * 4 * 3);
-  const std::vector<double> got = tf_values(r.result().tf);
+  const std::vector<double> got = tf_parameters(r.result().tf);
   EXPECT_NE(got, tf);  // the TF moved
 }
 
@@ -161,9 +161,9 @@ TEST(ReconstructPartsTest, BatchesAndJointDensityAndTf) {
 TEST(ReconstructPartsTest, TfResumeIsBitForBit) {
   const Small p;
   Scene start = p.scene;
-  std::vector<double> tf = tf_values(start.tf);
+  std::vector<double> tf = tf_parameters(start.tf);
   for (double& v : tf) v *= 0.7;
-  set_tf_values(start.tf, tf);
+  set_tf_parameters(start.tf, tf);
   const std::string dir = test::temp_dir("tf_resume");
   for (OptimizerKind kind : {OptimizerKind::adam, OptimizerKind::lbfgs}) {
     ReconstructOptions o;
@@ -182,7 +182,8 @@ TEST(ReconstructPartsTest, TfResumeIsBitForBit) {
     second.resume(dir + "/tf");
     EXPECT_EQ(second.iteration(), 4);
     while (!second.done()) second.step();
-    EXPECT_EQ(tf_values(second.result().tf), tf_values(whole.result().tf)) << optimizer_name(kind);
+    EXPECT_EQ(tf_parameters(second.result().tf), tf_parameters(whole.result().tf))
+        << optimizer_name(kind);
     ASSERT_EQ(second.history().size(), whole.history().size());
     for (std::size_t i = 0; i < whole.history().size(); ++i)
       EXPECT_EQ(second.history()[i].loss, whole.history()[i].loss) << "iteration " << i + 1;

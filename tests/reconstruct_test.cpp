@@ -62,11 +62,11 @@ TEST(ReconstructTest, TfFromEightViewsWithinTwoPercent) {
   const Scene truth = parse_scene(text, ".", "tf test scene");
   const Image targets = render(device(), truth);
   Scene start = truth;
-  std::vector<double> wrong = tf_values(truth.tf);
+  std::vector<double> wrong = tf_parameters(truth.tf);
   for (std::size_t i = 0; i < wrong.size(); ++i) wrong[i] *= i % 2 ? 0.7 : 1.3;
   for (std::size_t i = 0; i < wrong.size(); ++i)
     if (i % 4 != 3) wrong[i] = std::min(wrong[i], 1.0);
-  set_tf_values(start.tf, wrong);
+  set_tf_parameters(start.tf, wrong);
   ReconstructOptions o;
   o.density = false;
   o.tf = true;
@@ -74,7 +74,7 @@ TEST(ReconstructTest, TfFromEightViewsWithinTwoPercent) {
   Reconstruction r(device(), start, targets, o);
   EXPECT_EQ(r.options().optimizer.kind, OptimizerKind::lbfgs);
   while (!r.done()) r.step();
-  const std::vector<double> got = tf_values(r.result().tf), want = tf_values(truth.tf);
+  const std::vector<double> got = tf_parameters(r.result().tf), want = tf_parameters(truth.tf);
   double worst = 0;
   for (std::size_t i = 0; i < got.size(); ++i)
     worst = std::max(worst, std::abs(got[i] - want[i]) / std::abs(want[i]));

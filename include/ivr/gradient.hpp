@@ -60,6 +60,11 @@ struct Gradient {
 // width]. Where the TF is not differentiable (at a control point's density, at a table entry)
 // the derivative is one-sided: the segment [d_k, d_k+1) holding the density is used.
 IVR_API std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf);
+// The TF's parameters in that layout, row-major (what a "tf" gradient is the derivative by; what
+// reconstructions write as PREFIX_tf.npy), and back; set_tf_parameters throws
+// ivr::Error(invalid_argument) for a count that does not fit.
+IVR_API std::vector<double> tf_parameters(const TransferFunction& tf);
+IVR_API void set_tf_parameters(TransferFunction& tf, const std::vector<double>& values);
 
 // Loss of `image` against `target` (same shape) — evaluated on the host in double precision.
 IVR_API double image_loss(const Image& image, const Image& target, Loss loss);

@@ -166,11 +166,12 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     k.setArg(a++, cl::Local((o.camera ? std::size_t(lx) * ly * 7 : 1) * sizeof(Real)));
     k.setArg(a++, occupied);
     k.setArg(a++, brick_counts(grid));
+    // Fixed point: no scaled contribution above 2^62 / (8 · rays) (at most 8 per ray reach a
+    // voxel), so no sum leaves the long range.
+    const int cap_exponent = 62 - int(std::ceil(std::log2(8.0 * double(pixels))));
     auto run_pass = [&](int exponent) {
       if (fixed) {
         dev.queue.enqueueFillBuffer(grad_volume, cl_long(0), 0, grad_bytes, nullptr, &zero_volume);
-        // No scaled contribution above 2^62 / (8 · rays): at most 8 per ray reach a voxel.
-        const int cap_exponent = 62 - int(std::ceil(std::log2(8.0 * double(pixels))));
         const cl_long header[kFixedHeader] = {exponent, cl_long(1) << cap_exponent, 0, 0};
         dev.queue.enqueueWriteBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
       } else {
@@ -190,7 +191,6 @@ Gradient gradient_as(Device::Impl& dev, const Scene& scene, const Integrator& in
     // records: the previous call's where the caller keeps it, else a first pass's. A pass whose
     // contributions outgrew the cap runs again at the scale it measured, so every decision is a
     // function of the inputs alone.
-    const int cap_exponent = 62 - int(std::ceil(std::log2(8.0 * double(pixels))));
     bool known = fixed_exponent && *fixed_exponent != kUnknownExponent;
     int exponent = known ? *fixed_exponent : 0;
     for (int pass = 0;; ++pass) {

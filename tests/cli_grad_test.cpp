@@ -85,10 +85,6 @@ class CliGrad : public ::testing::Test {
   json scene_;
 };
 
-bool has(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 TEST_F(CliGrad, WritesEveryAskedGroupWithItsShape) {
   const CliResult r = grad("--wrt density,tf,background --json");
   ASSERT_EQ(r.status, 0) << r.err;

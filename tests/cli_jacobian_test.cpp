@@ -16,10 +16,6 @@ using nlohmann::json;
 namespace ivr::test {
 namespace {
 
-bool has(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 class CliJacobian : public ::testing::Test {
  protected:
   void SetUp() override {

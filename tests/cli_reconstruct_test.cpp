@@ -26,15 +26,6 @@ using nlohmann::json;
 namespace ivr::test {
 namespace {
 
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), {});
-}
-
-bool has(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 std::set<std::string> listing(const std::string& dir) {
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(dir)) names.insert(e.path().filename().string());
@@ -43,7 +34,7 @@ std::set<std::string> listing(const std::string& dir) {
 
 // The loss column of PREFIX_loss.csv (checking its header).
 std::vector<double> losses(const std::string& csv) {
-  std::istringstream in(read_text(csv));
+  std::istringstream in(file_text(csv));
   std::string line;
   std::getline(in, line);
   EXPECT_EQ(line, "iteration,level,views,loss,prior,lr,seconds");
@@ -59,14 +50,14 @@ std::vector<double> losses(const std::string& csv) {
 
 // The CSV without its last column (seconds differ from run to run).
 std::string without_seconds(const std::string& csv) {
-  std::istringstream in(read_text(csv));
+  std::istringstream in(file_text(csv));
   std::string out;
   for (std::string line; std::getline(in, line);) out += line.substr(0, line.rfind(',')) + "\n";
   return out;
 }
 
 bool is_png(const std::string& path) {
-  return read_text(path).rfind("\x89PNG\r\n\x1a\n", 0) == 0;
+  return file_text(path).rfind("\x89PNG\r\n\x1a\n", 0) == 0;
 }
 
 // A 16³ phantom under the emission–absorption TF, 8 views of 32² about z (the training scene),
@@ -141,7 +132,7 @@ TEST_F(CliReconstruct, DensityWritesEveryOutputAndReportsVolumeErrorAndHeldOutPs
   for (const std::string& o : expected) EXPECT_TRUE(fs::exists(o)) << o;
   for (const char* png : {"_loss.png", "_before.png", "_after.png", "_target.png"})
     EXPECT_TRUE(is_png(p + png)) << png;
-  EXPECT_TRUE(read_text(p + "_density.nrrd").rfind("NRRD", 0) == 0);
+  EXPECT_TRUE(file_text(p + "_density.nrrd").rfind("NRRD", 0) == 0);
   const NpyArray v = load_npy(p + "_density.npy");
   EXPECT_EQ(v.dtype, "float32");
   EXPECT_EQ(v.shape, (std::vector<std::size_t>{16, 16, 16}));
@@ -196,7 +187,7 @@ TEST_F(CliReconstruct, TfWritesItsValuesAndJsonThatParsesBack) {
   const NpyArray values = load_npy(p + "_tf.npy");
   EXPECT_EQ(values.dtype, "float32");
   ASSERT_EQ(values.shape, (std::vector<std::size_t>{3, 4}));
-  const TransferFunction tf = parse_tf(read_text(p + "_tf.json"), "PREFIX_tf.json");
+  const TransferFunction tf = parse_tf(file_text(p + "_tf.json"), "PREFIX_tf.json");
   ASSERT_EQ(tf.kind, TfKind::piecewise_linear);
   ASSERT_EQ(tf.points.size(), 3u);
   const TransferFunction truth = parse_tf(kPhantomTf);
@@ -228,11 +219,11 @@ int interrupted(const std::vector<std::string>& args, const std::string& err,
     std::_Exit(127);
   }
   const auto start = std::chrono::steady_clock::now();
-  while (!has(read_text(err), wait_for)) {
+  while (!has(file_text(err), wait_for)) {
     if (std::chrono::steady_clock::now() - start > std::chrono::seconds(60)) {
       ::kill(pid, SIGKILL);
       ::waitpid(pid, nullptr, 0);
-      ADD_FAILURE() << "no '" << wait_for << "' within 60 s: " << read_text(err);
+      ADD_FAILURE() << "no '" << wait_for << "' within 60 s: " << file_text(err);
       return -1;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -251,9 +242,9 @@ int checkpoint_iteration(const std::string& prefix, const std::string& err) {
   EXPECT_TRUE(fs::exists(prefix + "_checkpoint_density.npy"));
   std::ifstream in(prefix + "_checkpoint.json");
   const int k = json::parse(in).at("iteration").get<int>();
-  EXPECT_TRUE(has(read_text(err), "interrupted after iteration " + std::to_string(k) +
+  EXPECT_TRUE(has(file_text(err), "interrupted after iteration " + std::to_string(k) +
                                       " of 60; continue with --resume\n"))
-      << read_text(err);
+      << file_text(err);
   return k;
 }
 
@@ -300,7 +291,7 @@ TEST_F(CliReconstruct, InterruptedRunResumesBitForBit) {
   const json j = json::parse(b.out);
   EXPECT_EQ(j["resumed_from"], second);
   EXPECT_EQ(j["iterations"], 60);
-  EXPECT_EQ(read_text(prefix() + "A_density.npy"), read_text(p + "_density.npy"))
+  EXPECT_EQ(file_text(prefix() + "A_density.npy"), file_text(p + "_density.npy"))
       << "the resumed run's densities differ from the uninterrupted run's";
   EXPECT_EQ(without_seconds(prefix() + "A_loss.csv"), without_seconds(p + "_loss.csv"));
   for (const auto& e : fs::directory_iterator(dir_))

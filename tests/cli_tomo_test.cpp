@@ -108,10 +108,6 @@ class CliTomo : public ::testing::Test {
   Volume truth_;
 };
 
-bool has(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 TEST_F(CliTomo, ProjectAndBackprojectWriteTheirShapesAndAreTransposes) {
   const CliResult r = run_cli("project " + scene_path_ + " -o " + dir_ + "/P.npy --json");
   ASSERT_EQ(r.status, 0) << r.err;

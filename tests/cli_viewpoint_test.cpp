@@ -19,15 +19,6 @@ using nlohmann::json;
 namespace ivr::test {
 namespace {
 
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), {});
-}
-
-bool has(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
-
 // A 16³ phantom under the emission–absorption TF, seen by 4 cameras of 32² about z.
 class CliViewpoint : public ::testing::Test {
  protected:
@@ -61,11 +52,11 @@ TEST_F(CliViewpoint, WritesACameraWhoseEntropyIsAtLeastTheStart) {
   for (int k = 0; k < 5; ++k) EXPECT_EQ(j["history"][k][0], k);
   EXPECT_DOUBLE_EQ(j["history"][0][1].get<double>(), start);
   EXPECT_NEAR(j["history"][0][2].get<double>(), 15 + 90, 1e-9);  // view 1 of the orbit
-  EXPECT_EQ(json::parse(read_text(cam)), j["camera"]);
-  EXPECT_EQ(read_text(png).rfind("\x89PNG", 0), 0u);
+  EXPECT_EQ(json::parse(file_text(cam)), j["camera"]);
+  EXPECT_EQ(file_text(png).rfind("\x89PNG", 0), 0u);
 
   // The written camera loads as a scene's camera and its image has the reported entropy.
-  const Scene scene = parse_scene(scene_text("[" + read_text(cam) + "]"), dir_, "camera.json");
+  const Scene scene = parse_scene(scene_text("[" + file_text(cam) + "]"), dir_, "camera.json");
   ASSERT_EQ(scene.cameras.size(), 1u);
   EXPECT_EQ(scene.cameras[0].width, 32);
   EXPECT_EQ(scene.cameras[0].target, glm::dvec3(0.0));

@@ -14,6 +14,14 @@ std::string temp_dir(const std::string& name);
 // Writes text to a file (creating parent folders); returns the path.
 std::string write_file(const std::string& path, const std::string& text);
 
+// A file's whole content ("" when it cannot be read).
+std::string file_text(const std::string& path);
+
+// Whether `text` contains `part` (for messages and outputs).
+inline bool has(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
 // One shared device for the whole test process ($IVR_DEVICE or the default).
 Device& device();
 

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "bench_scene.hpp"
 #include "bench_support.hpp"
 #include "ivr/core.hpp"
 
@@ -21,43 +22,6 @@ using nlohmann::json;
 
 namespace {
 
-// The phantom's TF of the test suite (tests/reconstruct_support.hpp): every density visible.
-ivr::TransferFunction phantom_tf() {
-  ivr::TransferFunction tf;
-  tf.kind = ivr::TfKind::piecewise_linear;
-  tf.points = {{0, {0, 0, 0}, 0}, {1, {1, 0.7, 0.4}, 8}, {2, {0.5, 0.8, 1}, 16}};
-  return tf;
-}
-
-// Cameras on a circle about `axis` at distance 2.2, 40° field of view.
-std::vector<ivr::Camera> orbit(int views, glm::dvec3 axis, double start_deg, int size) {
-  axis = glm::normalize(axis);
-  const glm::dvec3 helper = std::abs(axis.x) > 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
-  const glm::dvec3 e1 = glm::normalize(helper - glm::dot(helper, axis) * axis);
-  const glm::dvec3 e2 = glm::cross(axis, e1);
-  std::vector<ivr::Camera> out;
-  for (int k = 0; k < views; ++k) {
-    const double a = (start_deg + 360.0 * k / views) * M_PI / 180;
-    ivr::Camera c;
-    c.eye = 2.2 * (std::cos(a) * e1 + std::sin(a) * e2);
-    c.up = axis;
-    c.fov_y = 40;
-    c.width = c.height = size;
-    out.push_back(c);
-  }
-  return out;
-}
-
-ivr::Scene phantom_scene(int n, std::vector<ivr::Camera> cameras) {
-  ivr::Scene s;
-  s.volume = ivr::phantom("shepp-logan", n, 1, 2);
-  ivr::set_default_box(s);
-  s.tf = phantom_tf();
-  s.background = glm::dvec3(0);
-  s.cameras = std::move(cameras);
-  return s;
-}
-
 double peak_rss_mib() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
@@ -66,11 +30,12 @@ double peak_rss_mib() {
 
 json run_size(ivr::Device& device, int n, int views, int batch, int image, int repeats,
               double target_db, int max_iterations, int eval_every) {
-  std::vector<ivr::Camera> train = orbit(views / 2, {0, 0, 1}, 0, image);
-  for (const ivr::Camera& c : orbit(views - views / 2, {1, 0, 0}, 11.25, image)) train.push_back(c);
-  const ivr::Scene truth = phantom_scene(n, train);
+  std::vector<ivr::Camera> train = ivr::bench::orbit(views / 2, {0, 0, 1}, 0, image);
+  for (const ivr::Camera& c : ivr::bench::orbit(views - views / 2, {1, 0, 0}, 11.25, image))
+    train.push_back(c);
+  const ivr::Scene truth = ivr::bench::phantom_scene(n, train);
   const ivr::Image targets = ivr::render(device, truth);
-  ivr::Scene held = phantom_scene(n, orbit(4, {0, 1, 0}, 10, image));
+  ivr::Scene held = ivr::bench::phantom_scene(n, ivr::bench::orbit(4, {0, 1, 0}, 10, image));
   const ivr::Image held_targets = ivr::render(device, held);
   json out = {{"n", n}, {"views", views}, {"batch", batch}, {"image", image}};
 

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "bench_scene.hpp"
 #include "bench_support.hpp"
 #include "ivr/core.hpp"
 
@@ -16,30 +17,6 @@ using ivr::bench::wall_seconds;
 using nlohmann::json;
 
 namespace {
-
-// n³ Shepp–Logan (cell averages of 4³ samples) in the unit box, `views` cameras over a half orbit
-// about z: parallel beam with an n×n detector as wide as the box, or cone beam from distance 2.
-ivr::Scene tomo_scene(int n, int views, bool cone, int supersample = 4) {
-  ivr::Scene s;
-  s.volume = ivr::phantom("shepp-logan", n, 1, supersample);
-  s.model = ivr::Model::absorption;
-  ivr::set_default_box(s);
-  for (int k = 0; k < views; ++k) {
-    const double a = M_PI * k / views;
-    ivr::Camera c;
-    c.eye = {2 * std::cos(a), 2 * std::sin(a), 0};
-    c.up = {0, 0, 1};
-    c.width = c.height = n;
-    if (cone) {
-      c.fov_y = 45;
-    } else {
-      c.projection = ivr::Projection::orthographic;
-      c.ortho_height = 1.0;
-    }
-    s.cameras.push_back(c);
-  }
-  return s;
-}
 
 std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
@@ -55,7 +32,7 @@ double dot(const std::vector<double>& a, const std::vector<double>& b) {
 }
 
 json throughput(ivr::Device& device, int n, int views, bool cone, int repeats) {
-  const ivr::Scene scene = tomo_scene(n, views, cone, 1);
+  const ivr::Scene scene = ivr::bench::tomo_scene(n, views, cone, 1);
   const ivr::Projector P(device, scene);
   const std::vector<double> x = uniform(P.voxel_count(), 1), y = uniform(P.ray_count(), 2);
   const std::vector<double> Nx = P.project(x), Nty = P.backproject(y);  // warm-up and check
@@ -99,7 +76,7 @@ double volume_error(const std::vector<float>& x, const ivr::Volume& truth) {
 
 json solve(ivr::Device& device, int n, int views, ivr::Solver solver, int iterations,
            double tolerance) {
-  const ivr::Scene scene = tomo_scene(n, views, false);
+  const ivr::Scene scene = ivr::bench::tomo_scene(n, views, false);
   const ivr::Projector P(device, scene);
   const std::vector<double> lines = P.project({scene.volume.data.begin(), scene.volume.data.end()});
   ivr::TomoOptions o;

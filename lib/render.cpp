@@ -99,6 +99,9 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
     stats->samples = std::accumulate(samples.begin(), samples.end(), std::uint64_t(0));
     stats->variant = variant.label();
     stats->skipped_empty = variant.skip_empty;
+    stats->device_bytes = dscene.bytes +
+                          pixels * (image.channels * sizeof(float) + sizeof(cl_uint)) +
+                          std::max<std::size_t>(grid.occupied.size(), 1);
   }
   return image;
 }

@@ -36,17 +36,18 @@ struct Image {
 };
 
 struct RenderStats {
-  double kernel_seconds = 0;   // device time of the render kernel (profiling events)
-  double build_seconds = 0;    // program lookup/compile time (0 when cached in-process)
-  std::uint64_t samples = 0;   // density samples taken over all rays
-  std::string variant;         // the compiled feature set, e.g. "model=ea tf=gaussian f32"
-  bool skipped_empty = false;  // empty-space skipping ran
-  double empty_fraction = 0;   // of the bricks, when the grid was built
-  double grid_seconds = 0;     // host time to build the occupancy grid
-  std::string scheme;          // the integrator
-  double step = 0;             // the step used (voxel units; `exact` has none to use)
-  double estimated_error = 0;  // integrator.tolerance: the chosen step's estimated error
-  double step_seconds = 0;     // integrator.tolerance: host time choosing the step
+  double kernel_seconds = 0;       // device time of the render kernel (profiling events)
+  double build_seconds = 0;        // program lookup/compile time (0 when cached in-process)
+  std::uint64_t samples = 0;       // density samples taken over all rays
+  std::string variant;             // the compiled feature set, e.g. "model=ea tf=gaussian f32"
+  bool skipped_empty = false;      // empty-space skipping ran
+  double empty_fraction = 0;       // of the bricks, when the grid was built
+  double grid_seconds = 0;         // host time to build the occupancy grid
+  std::string scheme;              // the integrator
+  double step = 0;                 // the step used (voxel units; `exact` has none to use)
+  double estimated_error = 0;      // integrator.tolerance: the chosen step's estimated error
+  double step_seconds = 0;         // integrator.tolerance: host time choosing the step
+  std::uint64_t device_bytes = 0;  // device memory of the render's buffers (scene, image, counts)
 };
 
 // Validates the scene and renders it; throws ivr::Error.

@@ -1,0 +1,132 @@
+"""run.py — runs one baseline task on one case for the ivr-bench runner and reports it as JSON.
+
+    python run.py --framework jax --task grad --case DIR --out RESULT.json [--budget S]
+
+Tasks: render (image), grad (loss and d loss / d voxel by reverse mode), tf_forward (loss and
+d loss / d TF parameters by forward mode). The first call (tracing, compiling, warming up) is timed
+on its own; then the call repeats until the budget is spent (at least --min-repeats times). Peak
+memory: the process's high-water mark is reset after the first call (/proc/self/clear_refs), so
+peak_increase_bytes is what the timed calls needed above the resident set they started from.
+The outputs go to DIR/<framework>_<task>_<name>.npy; an unavailable framework writes
+{"available": false, "note": ...} and exits 0, so the runner can skip it with that note.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import statistics
+import sys
+import time
+import traceback
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+FRAMEWORKS = ("jax", "drjit", "torch")
+TASKS = ("render", "grad", "tf_forward")
+
+
+def _status_kib(field: str) -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    return 0
+
+
+def _reset_peak() -> bool:
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--framework", required=True, choices=FRAMEWORKS)
+    p.add_argument("--task", required=True, choices=TASKS)
+    p.add_argument("--case", required=True, help="case directory written by ivr-bench")
+    p.add_argument("--out", required=True, help="result JSON file")
+    p.add_argument("--budget", type=float, default=2.0, help="seconds of timed calls")
+    p.add_argument("--min-repeats", type=int, default=3)
+    p.add_argument("--max-repeats", type=int, default=50)
+    p.add_argument("--threads", type=int, default=0, help="CPU threads (0: the framework's own)")
+    a = p.parse_args()
+
+    result = {"framework": a.framework, "task": a.task, "case": a.case}
+
+    def write(doc) -> None:
+        tmp = a.out + ".tmp"
+        with open(tmp, "w") as f:
+            json.dump(doc, f, indent=2)
+        os.replace(tmp, a.out)
+
+    try:
+        module = importlib.import_module(f"{a.framework}_march")
+        result["version"] = module.version(a.threads)
+    except ImportError as e:
+        result.update(available=False, note=f"{a.framework} is not installed ({e}); "
+                      "scripts/bench_setup.sh installs the baselines")
+        write(result)
+        return 0
+    result["available"] = True
+
+    from common import load_scene
+
+    try:
+        scene = load_scene(a.case)
+        rss0 = _status_kib("VmRSS")
+        start = time.perf_counter()
+        call = module.prepare(a.task, scene)
+        out = call()
+        result["first_call_s"] = time.perf_counter() - start
+        result["first_call_peak_increase_bytes"] = 1024 * (_status_kib("VmHWM") - rss0)
+        result["peak_reset"] = _reset_peak()
+        rss_before = _status_kib("VmRSS")
+        times = []
+        spent = time.perf_counter()
+        while len(times) < a.max_repeats and (
+            len(times) < a.min_repeats or time.perf_counter() - spent < a.budget
+        ):
+            t = time.perf_counter()
+            out = call()
+            times.append(time.perf_counter() - t)
+        peak = _status_kib("VmHWM")
+    except Exception as e:  # a baseline that fails is reported, not silently dropped
+        result.update(ok=False, error=f"{type(e).__name__}: {e}", traceback=traceback.format_exc())
+        write(result)
+        return 1
+
+    outputs = {}
+    for name, value in out.items():
+        arr = np.asarray(value)
+        if arr.ndim == 0:
+            result[name] = float(arr)
+            continue
+        path = os.path.join(a.case, f"{a.framework}_{a.task}_{name}.npy")
+        np.save(path, arr)
+        outputs[name] = os.path.basename(path)
+    result.update(
+        ok=True,
+        times_s=times,
+        median_s=statistics.median(times),
+        min_s=min(times),
+        max_s=max(times),
+        march_steps=int(scene.rays.n.sum()),  # an upper bound: early termination not counted
+        rss_before_bytes=1024 * rss_before,
+        peak_rss_bytes=1024 * peak,
+        peak_increase_bytes=1024 * max(0, peak - rss_before),
+        outputs=outputs,
+    )
+    write(result)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

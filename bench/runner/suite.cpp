@@ -1,0 +1,141 @@
+// suite.cpp — the suites' registry and the checks and records they share.
+#include "suite.hpp"
+
+#include <cmath>
+#include <iostream>
+
+namespace ivr::bench {
+
+const std::vector<Suite>& all_suites() {
+  static const std::vector<Suite> suites = {
+      {"compile", "kernel compile time, cold and from the program cache", compile_suite},
+      {"render", "forward render vs the native C++ marcher and the Python baselines", render_suite},
+      {"gradient", "density gradient (adjoint) vs native, JAX, Dr.Jit, PyTorch", gradient_suite},
+      {"crossover", "forward mode vs adjoint by parameter count (TF lanes)", crossover_suite},
+      {"integrators", "every integrator's speed against its error", integrators_suite},
+      {"tomo", "absorption projector and back-projector throughput", tomo_suite},
+      {"reconstruct", "reconstruction iterations per second", reconstruct_suite},
+      {"scaling", "time and memory as volume, image and step grow", scaling_suite},
+  };
+  return suites;
+}
+
+namespace {
+
+template <class T>
+Difference difference_of(const std::vector<T>& got, const std::vector<double>& ref) {
+  Difference d;
+  if (got.size() != ref.size() || got.empty()) {
+    d.max_abs = d.relative_l2 = INFINITY;
+    return d;
+  }
+  double num = 0, den = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    const double g = double(got[i]), r = ref[i];
+    if (!std::isfinite(g) || !std::isfinite(r)) {
+      d.max_abs = d.relative_l2 = INFINITY;
+      return d;
+    }
+    const double e = std::abs(g - r);
+    d.max_abs = std::max(d.max_abs, e);
+    d.ref_max = std::max(d.ref_max, std::abs(r));
+    num += e * e;
+    den += r * r;
+  }
+  d.relative_l2 = den > 0 ? std::sqrt(num / den) : (num > 0 ? INFINITY : 0);
+  return d;
+}
+
+}  // namespace
+
+Difference difference(const std::vector<float>& got, const std::vector<double>& ref) {
+  return difference_of(got, ref);
+}
+Difference difference(const std::vector<double>& got, const std::vector<double>& ref) {
+  return difference_of(got, ref);
+}
+
+Check check_max(const Difference& d, const std::string& against, double atol, double rtol) {
+  Check c;
+  c.against = against;
+  c.measure = "max_abs";
+  c.error = d.max_abs;
+  c.tolerance = atol + rtol * d.ref_max;
+  c.passed = d.max_abs <= c.tolerance;
+  return c;
+}
+
+Check check_l2(const Difference& d, const std::string& against, double tolerance) {
+  Check c;
+  c.against = against;
+  c.measure = "relative_l2";
+  c.error = d.relative_l2;
+  c.tolerance = tolerance;
+  c.passed = d.relative_l2 <= tolerance;
+  return c;
+}
+
+std::vector<double> widen(const std::vector<float>& v) {
+  return std::vector<double>(v.begin(), v.end());
+}
+
+void record_checked(Context& ctx, Record r, const Check& check) {
+  r.has_check = true;
+  r.check = check;
+  if (!check.passed) {
+    r.metrics = nlohmann::json::object();
+    r.note = "check failed: " + check.measure + " " + std::to_string(check.error) + " > " +
+             std::to_string(check.tolerance) + " against " + check.against + " (times not counted)";
+    std::cerr << "ivr-bench: " << r.suite << "/" << r.case_name << " " << r.implementation << ": "
+              << r.note << "\n";
+    if (r.implementation.rfind("ivr", 0) == 0 || r.implementation == "native")
+      ctx.failures.push_back(r.suite + "/" + r.case_name + " " + r.implementation);
+  }
+  ctx.results.add(std::move(r));
+}
+
+std::uint64_t operation_memory(const Context& ctx, const Measurement& m,
+                               std::uint64_t device_bytes) {
+  const bool host_device = ctx.device.info().type == "cpu";
+  return host_device ? std::max<std::uint64_t>(m.peak_increase(), device_bytes)
+                     : m.peak_increase() + device_bytes;
+}
+
+void run_python_baselines(Context& ctx, const std::string& suite, const std::string& case_name,
+                          const nlohmann::json& params, const std::string& case_dir,
+                          const std::string& task, const std::string& output,
+                          const std::function<Check(const BaselineRun&, Record&)>& compare) {
+  if (!ctx.host_baselines) return;
+  for (const std::string& fw : ctx.baselines.frameworks) {
+    Record r{kHostDevice, suite, case_name, fw, params};
+    if (!ctx.baselines.usable) {
+      r.note = "skipped: " + ctx.baselines.note;
+      ctx.results.add(std::move(r));
+      continue;
+    }
+    std::cerr << "ivr-bench: " << suite << "/" << case_name << " " << fw << " " << task << "...\n";
+    const BaselineRun run =
+        run_baseline(ctx.baselines, fw, task, case_dir, ctx.budget.seconds, output);
+    if (run.result.contains("version")) r.params["version"] = run.result["version"];
+    if (!run.ok) {
+      r.note = (run.available ? "failed: " : "skipped: ") + run.note;
+      std::cerr << "ivr-bench: " << fw << ": " << r.note << "\n";
+      ctx.results.add(std::move(r));
+      continue;
+    }
+    const nlohmann::json& j = run.result;
+    for (const char* k : {"median_s", "min_s", "max_s", "first_call_s"})
+      if (j.contains(k)) r.metrics[k] = j[k];
+    r.metrics["runs"] = j.value("times_s", nlohmann::json::array()).size();
+    r.metrics["samples_s"] = j.value("times_s", nlohmann::json::array());
+    r.metrics["peak_host_bytes"] = j.value("peak_rss_bytes", 0);
+    r.metrics["peak_host_increase_bytes"] = j.value("peak_increase_bytes", 0);
+    r.metrics["memory_bytes"] = j.value("peak_increase_bytes", 0);
+    r.params["peak_reset"] = j.value("peak_reset", false);
+    if (std::isfinite(run.loss)) r.metrics["loss"] = run.loss;
+    const Check check = compare(run, r);
+    record_checked(ctx, std::move(r), check);
+  }
+}
+
+}  // namespace ivr::bench

@@ -1,0 +1,190 @@
+// crossover.cpp — the crossover suite: forward mode (P tangent lanes through one march) against the
+// adjoint (one reverse pass, any number of parameters) for the TF and background parameters, by
+// P; the measured crossover beside the device's cost model's; and forward mode against JAX's
+// jacfwd, Dr.Jit's dr.forward and PyTorch's jvp on the 16 TF parameters. The adjoint is checked
+// against central differences of the float64 reference; the forward lanes against the adjoint.
+#include <cmath>
+#include <iostream>
+
+#include "../bench_scene.hpp"
+#include "../bench_support.hpp"
+#include "../runner/suite.hpp"
+#include "reference/reference.hpp"
+
+namespace ivr::bench {
+
+namespace {
+
+constexpr double kFdTolerance = 2e-3;  // relative, adjoint against central differences
+constexpr double kLaneRtol = 1e-3;     // forward lanes against the adjoint, of its largest entry
+
+double reference_loss(const Scene& scene, double step_world, const Image& target) {
+  const std::vector<double> img = reference::render_midpoint(scene, step_world, true);
+  double sum = 0;
+  for (std::size_t i = 0; i < img.size(); ++i)
+    sum += (img[i] - target.pixels[i]) * (img[i] - target.pixels[i]);
+  return sum / double(img.size());
+}
+
+// The adjoint's value for a tf or background parameter (rows × 4 then the background).
+double adjoint_value(const Gradient& g, const Parameter& p) {
+  if (p.group == ParameterGroup::background) return g.background[std::size_t(p.index)];
+  return g.tf[std::size_t(p.index) * 4 + std::size_t(p.column)];
+}
+
+}  // namespace
+
+void crossover_suite(Context& ctx) {
+  const int n = ctx.quick ? 32 : 64, image = ctx.quick ? 64 : 128;
+  const double step = 0.5;
+  const std::string case_base = "v" + std::to_string(n) + "_i" + std::to_string(image);
+  const Scene scene = bench_scene(n, image);
+  const Image target = perturbed_target(ctx.device, scene, step);
+  std::vector<Parameter> pool = parameters_of(scene, "tf");
+  for (const Parameter& p : parameters_of(scene, "background")) pool.push_back(p);
+  nlohmann::json params = {{"volume", n}, {"image", image}, {"step", step}, {"loss", "mse"}};
+
+  // The adjoint: every TF row and the background in one pass.
+  GradientOptions go;
+  go.step = step;
+  go.density = false;
+  go.tf = go.background = true;
+  Gradient adj;
+  const Measurement am = measure(ctx.budget, [&] {
+    adj = gradient(ctx.device, scene, target, go);
+    return adj.kernel_seconds;
+  });
+  {
+    // Central differences of the reference loss for two parameters, a colour and an extinction,
+    // against the adjoint, both without early termination: a ray whose transmittance crosses the
+    // threshold between the two evaluations jumps by ~ the threshold, which swamps the quotient.
+    Scene smooth = scene;
+    smooth.integrator.min_transmittance = 0;
+    const Gradient smooth_adj = gradient(ctx.device, smooth, target, go);
+    const double hw = reference::min_voxel_edge(scene) * step, eps = 1e-4;
+    double worst = 0;
+    for (const auto& [row, column] : {std::pair{2, 0}, std::pair{2, 3}}) {
+      Scene up = smooth, down = smooth;
+      TfPoint &pu = up.tf.points[std::size_t(row)], &pd = down.tf.points[std::size_t(row)];
+      const double scale = column == 3 ? pu.extinction : 1.0;
+      if (column == 3) {
+        pu.extinction += eps * scale;
+        pd.extinction -= eps * scale;
+      } else {
+        pu.color[column] += eps;
+        pd.color[column] -= eps;
+      }
+      const double fd =
+          (reference_loss(up, hw, target) - reference_loss(down, hw, target)) / (2 * eps * scale);
+      const double got = smooth_adj.tf[std::size_t(row) * 4 + std::size_t(column)];
+      worst = std::max(worst, std::abs(got - fd) / std::max(std::abs(fd), 1e-30));
+    }
+    Record r{ctx.device_key, "crossover", case_base + "_adjoint", "ivr-adjoint", params};
+    r.params["parameters"] = pool.size();
+    add_timing(r, am);
+    r.metrics["peak_device_bytes"] = adj.device_bytes;
+    r.metrics["memory_bytes"] = operation_memory(ctx, am, adj.device_bytes);
+    Check k{worst <= kFdTolerance,
+            "float64 reference, central differences (2 TF parameters, no early termination)",
+            "relative", worst, kFdTolerance};
+    record_checked(ctx, std::move(r), k);
+  }
+  double adjoint_ref_max = 0;
+  for (const Parameter& p : pool)
+    adjoint_ref_max = std::max(adjoint_ref_max, std::abs(adjoint_value(adj, p)));
+
+  // Forward mode by lane count.
+  std::vector<int> lanes =
+      ctx.quick ? std::vector<int>{1, 4, 16} : std::vector<int>{1, 2, 4, 8, 16, 32};
+  std::vector<std::pair<double, double>> curve;  // (lanes, median seconds)
+  std::vector<float> tf16;                       // the 16 TF lanes' gradient
+  for (int P : lanes) {
+    std::vector<Parameter> ps;
+    for (int i = 0; i < P; ++i) ps.push_back(pool[std::size_t(i) % pool.size()]);
+    TangentOptions to;
+    to.step = step;
+    Tangents t;
+    const Measurement m = measure(ctx.budget, [&] {
+      t = tangents(ctx.device, scene, ps, &target, to);
+      return t.kernel_seconds;
+    });
+    double worst = 0;
+    for (int i = 0; i < P; ++i)
+      worst = std::max(
+          worst, std::abs(t.gradient[std::size_t(i)] - adjoint_value(adj, ps[std::size_t(i)])));
+    Record r{ctx.device_key, "crossover", case_base + "_lanes_" + std::to_string(P), "ivr-forward",
+             params};
+    r.params["lanes"] = P;
+    add_timing(r, m);
+    r.metrics["ratio_to_adjoint"] = m.wall.median / am.wall.median;
+    r.metrics["peak_device_bytes"] = t.device_bytes;
+    r.metrics["memory_bytes"] = operation_memory(ctx, m, t.device_bytes);
+    Check k{worst <= kLaneRtol * adjoint_ref_max, "ivr adjoint (checked above)", "max_abs", worst,
+            kLaneRtol * adjoint_ref_max};
+    const bool passed = k.passed;
+    record_checked(ctx, std::move(r), k);
+    if (passed) curve.push_back({double(P), m.wall.median});
+  }
+
+  // The measured crossover: where forward mode's time (linear in P between measured points)
+  // reaches the adjoint's; the cost model's prediction beside it.
+  {
+    Record r{ctx.device_key, "crossover", case_base + "_summary", "ivr", params};
+    double crossover = INFINITY;
+    for (std::size_t i = 0; i < curve.size(); ++i) {
+      if (curve[i].second < am.wall.median) continue;
+      if (i == 0) {
+        crossover = curve[0].first;
+      } else {
+        const auto [p0, t0] = curve[i - 1];
+        const auto [p1, t1] = curve[i];
+        crossover = p0 + (am.wall.median - t0) * (p1 - p0) / (t1 - t0);
+      }
+      break;
+    }
+    r.metrics["crossover_lanes"] = std::isfinite(crossover) ? crossover : -1.0;
+    const CostModel model = load_cost_model(ctx.device.info());
+    double predicted = -1;
+    for (int P = 1; P <= 64; ++P)
+      if (forward_cost(model, std::size_t(P)) >= model.adjoint) {
+        predicted = P;
+        break;
+      }
+    r.metrics["model_crossover_lanes"] = predicted;
+    r.params["cost_model"] = model.source;
+    r.note = std::isfinite(crossover)
+                 ? ""
+                 : "forward mode stayed faster than the adjoint up to the largest P measured";
+    ctx.results.add(std::move(r));
+  }
+
+  // Forward mode on the 16 TF parameters against the Python baselines' forward mode.
+  std::vector<Parameter> tf_params = parameters_of(scene, "tf");
+  TangentOptions to;
+  to.step = step;
+  Tangents t;
+  const Measurement m = measure(ctx.budget, [&] {
+    t = tangents(ctx.device, scene, tf_params, &target, to);
+    return t.kernel_seconds;
+  });
+  std::vector<double> adjoint_tf(adj.tf.begin(), adj.tf.end());
+  const std::string name = case_base + "_tf" + std::to_string(tf_params.size());
+  params["lanes"] = tf_params.size();
+  {
+    Record r{ctx.device_key, "crossover", name, "ivr", params};
+    add_timing(r, m);
+    r.metrics["memory_bytes"] = operation_memory(ctx, m, t.device_bytes);
+    record_checked(ctx, std::move(r),
+                   check_max(difference(t.gradient, adjoint_tf), "ivr adjoint", 0, kLaneRtol));
+  }
+  if (!ctx.host_baselines) return;
+  const std::string dir = write_case(ctx.work_dir + "/crossover_" + name, scene, step, target);
+  run_python_baselines(ctx, "crossover", name, params, dir, "tf_forward", "tf_grad",
+                       [&](const BaselineRun& run, Record&) {
+                         return check_max(difference(run.output, adjoint_tf),
+                                          "ivr adjoint (checked against the reference)", 0,
+                                          kLaneRtol);
+                       });
+}
+
+}  // namespace ivr::bench

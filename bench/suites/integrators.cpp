@@ -1,0 +1,105 @@
+// integrators.cpp — the integrators suite: speed against error for every integrator (midpoint,
+// trapezoid, pre-integrated; exact for absorption) over a range of steps, on the Marschner–Lobb
+// volume and the shared real volumes, under a smooth TF, a narrow-band TF and the absorption
+// model. The error is against the float64 continuous integral (tests/reference); before timing,
+// midpoint is checked against the reference's same-step midpoint rule and pre-integration against
+// its same-step linear-segment definition, the others for a bounded error.
+#include <cmath>
+#include <iostream>
+#include <map>
+
+#include "../accuracy_suite.hpp"
+#include "../runner/suite.hpp"
+#include "reference/reference.hpp"
+
+namespace ivr::bench {
+
+namespace {
+
+constexpr double kAtol = 1e-4, kRtol = 1e-3;  // same-step checks (float32 against float64)
+constexpr double kSanity = 0.2;  // relative L2 against the continuous integral, where no same-step
+                                 // definition exists
+
+std::string step_text(double s) {
+  std::string t = std::to_string(s);
+  while (t.size() > 1 && t.back() == '0') t.pop_back();
+  return t;
+}
+
+}  // namespace
+
+void integrators_suite(Context& ctx) {
+  const int image = ctx.quick ? 32 : 64;
+  const std::vector<double> steps =
+      ctx.quick ? std::vector<double>{1, 0.5} : std::vector<double>{2, 1, 0.5, 0.25, 0.125};
+  std::vector<SuiteVolume> volumes;
+  for (SuiteVolume& v : suite_volumes(ctx.data_dir, true))
+    if (v.name == "marschner_lobb") volumes.push_back(std::move(v));
+  if (!ctx.quick)
+    for (SuiteVolume& v : suite_volumes(ctx.data_dir, false))
+      if (v.name == "neghip" || v.name == "tooth") volumes.push_back(std::move(v));
+  std::vector<SuiteLook> looks;
+  for (const SuiteLook& l : suite_looks())
+    if (!ctx.quick || l.name != "band") looks.push_back(l);
+
+  // The references depend on the scene only: once per run.
+  static std::map<std::string, std::vector<double>> continuous;
+  for (const SuiteVolume& volume : volumes)
+    for (const SuiteLook& look : looks) {
+      const Scene base = suite_scene(volume, look, image);
+      const std::string scene_name = volume.name + "_" + look.name;
+      if (!continuous.count(scene_name)) {
+        std::cerr << "ivr-bench: integrators/" << scene_name << ": continuous reference...\n";
+        continuous[scene_name] = reference::render_continuous(base);
+      }
+      const std::vector<double>& truth = continuous[scene_name];
+      const double h = reference::min_voxel_edge(base);
+      for (Scheme scheme :
+           {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact}) {
+        if (scheme == Scheme::exact && look.model != Model::absorption) continue;
+        for (double step : steps) {
+          if (scheme == Scheme::exact && step != steps.front()) continue;  // no step to vary
+          Scene scene = base;
+          scene.integrator.scheme = scheme;
+          const RenderOptions options{Precision::f32, step, EmptySpace::off};
+          RenderStats stats;
+          Image img;
+          const Measurement m = measure(ctx.budget, [&] {
+            img = render(ctx.device, scene, options, &stats);
+            return stats.kernel_seconds;
+          });
+          const std::string name = scene_name + "_" + scheme_name(scheme) +
+                                   (scheme == Scheme::exact ? "" : "_s" + step_text(step));
+          Record r{ctx.device_key,
+                   "integrators",
+                   name,
+                   "ivr",
+                   {{"volume", volume.name},
+                    {"look", look.name},
+                    {"scheme", scheme_name(scheme)},
+                    {"step", scheme == Scheme::exact ? 0.0 : step},
+                    {"image", image},
+                    {"views", scene.cameras.size()}}};
+          add_timing(r, m);
+          r.metrics["samples"] = stats.samples;
+          r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;
+          const Difference e = difference(img.pixels, truth);
+          r.metrics["error_relative_l2"] = e.relative_l2;
+          r.metrics["error_relative_max"] = e.ref_max > 0 ? e.max_abs / e.ref_max : e.max_abs;
+          Check k;
+          if (scheme == Scheme::midpoint)
+            k = check_max(difference(img.pixels, reference::render_midpoint(scene, step * h)),
+                          "reference f64 midpoint, same step", kAtol, kRtol);
+          else if (scheme == Scheme::preintegrated)
+            k = check_max(
+                difference(img.pixels, reference::render_linear_segments(scene, step * h)),
+                "reference f64 linear segments, same step", kAtol, kRtol);
+          else
+            k = check_l2(e, "reference f64 continuous integral", kSanity);
+          record_checked(ctx, std::move(r), k);
+        }
+      }
+    }
+}
+
+}  // namespace ivr::bench

@@ -1,0 +1,118 @@
+// render.cpp — the render suite: ivr's forward render against the native C++/OpenMP marcher and
+// the Python baselines on the benchmark scene, each checked against the independent float64
+// reference at the same step before its times count; the error against a fine-step reference is
+// reported beside every time.
+#include <iostream>
+#include <map>
+
+#include "../bench_scene.hpp"
+#include "../native_marcher.hpp"
+#include "../runner/suite.hpp"
+#include "reference/reference.hpp"
+
+namespace ivr::bench {
+
+namespace {
+
+struct RenderCase {
+  int volume, image;
+  double step;
+  std::string name() const {
+    return "v" + std::to_string(volume) + "_i" + std::to_string(image) + "_s" +
+           std::to_string(step).substr(0, 5);
+  }
+};
+
+// References are the same for every device: computed once per run.
+struct References {
+  std::vector<double> same_step, fine;
+};
+std::map<std::string, References>& reference_cache() {
+  static std::map<std::string, References> cache;
+  return cache;
+}
+
+constexpr double kFineStep = 1.0 / 16;  // voxels: the "continuous" image the error is against
+constexpr double kAtol = 1e-4, kRtol = 1e-3;
+
+}  // namespace
+
+void render_suite(Context& ctx) {
+  std::vector<RenderCase> cases = ctx.quick
+                                      ? std::vector<RenderCase>{{64, 128, 0.5}}
+                                      : std::vector<RenderCase>{{128, 256, 0.5}, {128, 256, 0.25}};
+  for (const RenderCase& c : cases) {
+    const Scene scene = bench_scene(c.volume, c.image);
+    const double h = reference::min_voxel_edge(scene);
+    const nlohmann::json params = {{"volume", c.volume},
+                                   {"image", c.image},
+                                   {"step", c.step},
+                                   {"scene", "calibration (Marschner–Lobb, 4-point TF)"}};
+    References& ref = reference_cache()[c.name()];
+    if (ref.same_step.empty()) {
+      std::cerr << "ivr-bench: render/" << c.name() << ": float64 references...\n";
+      ref.same_step = reference::render_midpoint(scene, c.step * h, true);
+      if (!ctx.quick) ref.fine = reference::render(scene, kFineStep * h, true);
+    }
+    auto with_error = [&](Record& r, const std::vector<float>& pixels) {
+      if (ref.fine.empty()) return;
+      const Difference e = difference(pixels, ref.fine);
+      r.metrics["error_max_vs_fine"] = e.max_abs;
+      r.metrics["error_relative_l2_vs_fine"] = e.relative_l2;
+      r.params["fine_step"] = kFineStep;
+    };
+    const std::string against = "reference f64, same step";
+
+    // ivr on this device.
+    {
+      const RenderOptions options{Precision::f32, c.step};
+      RenderStats stats;
+      Image image;
+      const Measurement m = measure(ctx.budget, [&] {
+        image = render(ctx.device, scene, options, &stats);
+        return stats.kernel_seconds;
+      });
+      Record r{ctx.device_key, "render", c.name(), "ivr", params};
+      add_timing(r, m);
+      r.metrics["samples"] = stats.samples;
+      r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;
+      r.metrics["peak_device_bytes"] = stats.device_bytes;
+      r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
+      with_error(r, image.pixels);
+      record_checked(ctx, std::move(r),
+                     check_max(difference(image.pixels, ref.same_step), against, kAtol, kRtol));
+    }
+    if (!ctx.host_baselines) continue;
+
+    // The native marcher (host).
+    {
+      std::vector<float> pixels;
+      std::size_t samples = 0;
+      const Measurement m = measure(ctx.budget, [&] {
+        samples = native_render(scene, c.step, pixels);
+        return -1.0;
+      });
+      Record r{kHostDevice, "render", c.name(), "native", params};
+      add_timing(r, m);
+      r.metrics["samples"] = samples;
+      r.metrics["samples_per_s"] = double(samples) / m.wall.median;
+      r.metrics["memory_bytes"] = m.peak_increase();
+      with_error(r, pixels);
+      record_checked(ctx, std::move(r),
+                     check_max(difference(pixels, ref.same_step), against, kAtol, kRtol));
+    }
+
+    // The Python baselines on the same case.
+    const Image target = render(ctx.device, scene, {Precision::f32, c.step});
+    const std::string dir = write_case(ctx.work_dir + "/render_" + c.name(), scene, c.step, target);
+    run_python_baselines(ctx, "render", c.name(), params, dir, "render", "image",
+                         [&](const BaselineRun& run, Record& r) {
+                           std::vector<float> pixels(run.output.begin(), run.output.end());
+                           with_error(r, pixels);
+                           return check_max(difference(run.output, ref.same_step), against, kAtol,
+                                            kRtol);
+                         });
+  }
+}
+
+}  // namespace ivr::bench

@@ -57,6 +57,33 @@ bool tf_may_absorb(const TransferFunction& tf, double lo, double hi) {
   return true;
 }
 
+bool tf_absorbs_throughout(const TransferFunction& tf, double lo, double hi) {
+  widen(lo, hi);
+  switch (tf.kind) {
+    case TfKind::identity:
+      return (tf.extinction_scale > 0 && lo > 0) || (tf.extinction_scale < 0 && hi < 0);
+    case TfKind::piecewise_linear: {
+      // Linear between the points and constant beyond them: σ > 0 on [lo, hi] when it is at both
+      // ends and at every point in between.
+      const auto sigma = [&](double d) {
+        const auto& p = tf.points;
+        if (d <= p.front().density) return p.front().extinction;
+        if (d >= p.back().density) return p.back().extinction;
+        std::size_t k = 0;
+        while (p[k + 1].density <= d) ++k;
+        const double w = (d - p[k].density) / (p[k + 1].density - p[k].density);
+        return p[k].extinction + w * (p[k + 1].extinction - p[k].extinction);
+      };
+      if (!(sigma(lo) > 0) || !(sigma(hi) > 0)) return false;
+      for (const TfPoint& q : tf.points)
+        if (q.density > lo && q.density < hi && !(q.extinction > 0)) return false;
+      return true;
+    }
+    default:
+      return false;  // not needed for a decision: unsure
+  }
+}
+
 bool tf_has_empty_range(const TransferFunction& tf) {
   switch (tf.kind) {
     case TfKind::identity:

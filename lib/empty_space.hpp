@@ -19,6 +19,9 @@ struct BrickGrid {
 
 // Whether σ(d) can be non-zero for some density d in [lo, hi] (conservative: true when unsure).
 bool tf_may_absorb(const TransferFunction& tf, double lo, double hi);
+// Whether σ > 0 at every density in [lo, hi] (conservative: false when unsure); then no brick of
+// a volume with densities in [lo, hi] can be empty.
+bool tf_absorbs_throughout(const TransferFunction& tf, double lo, double hi);
 // Whether σ is exactly 0 on some density interval: without one no brick can be empty.
 bool tf_has_empty_range(const TransferFunction& tf);
 

@@ -45,6 +45,32 @@ TEST(EmptySpace, TransferFunctionZeroRangesInClosedForm) {
   EXPECT_FALSE(tf_has_empty_range(gauss));
 }
 
+// σ > 0 throughout a range: the shortcut that spares the grid when no brick can be empty. The
+// calibration TF (σ = 0 at density 0 only, rising to 2 at 0.35, then 10, 30).
+TEST(EmptySpace, AbsorbsThroughoutIsExactForPiecewiseLinear) {
+  const TransferFunction tf = calibration_scene(4, 4).tf;
+  EXPECT_TRUE(tf_absorbs_throughout(tf, 0.01, 1.0));
+  EXPECT_TRUE(tf_absorbs_throughout(tf, 0.5, 5.0));     // constant 30 beyond the last point
+  EXPECT_FALSE(tf_absorbs_throughout(tf, 0.0, 1.0));    // σ(0) = 0
+  EXPECT_FALSE(tf_absorbs_throughout(tf, -1.0, 0.2));   // constant 0 below the first point
+  EXPECT_FALSE(tf_absorbs_throughout(tf, 1e-12, 0.5));  // within the rounding margin of 0
+  // A zero inside the range (a point with σ = 0 between positive ones) is found.
+  const TransferFunction plateau = ramp_with_plateau();
+  EXPECT_TRUE(tf_absorbs_throughout(plateau, 0.25, 2.0));
+  EXPECT_FALSE(tf_absorbs_throughout(plateau, 0.1, 2.0));  // σ = 0 up to 0.2
+  for (double lo : {0.0, 0.1, 0.3})
+    for (double hi : {0.35, 0.6, 2.0}) {
+      bool positive = true;  // sampled densely: the closed form's independent check
+      for (int i = 0; i <= 1000; ++i)
+        positive &= tf_may_absorb(plateau, lo + (hi - lo) * i / 1000, lo + (hi - lo) * i / 1000);
+      if (tf_absorbs_throughout(plateau, lo, hi)) EXPECT_TRUE(positive) << lo << " " << hi;
+    }
+  TransferFunction gauss;
+  gauss.kind = TfKind::gaussian;
+  gauss.gaussians = {{0.5, 0.1, {1, 1, 1}, 4.0}};
+  EXPECT_FALSE(tf_absorbs_throughout(gauss, 0.4, 0.6));  // unsure: the grid decides
+}
+
 // Every cell whose own corners can absorb lies in an occupied brick (checked cell by cell, from
 // the corners' range, independently of the grid's brick-wise construction).
 TEST(EmptySpace, GridCoversEveryCellThatCanAbsorb) {

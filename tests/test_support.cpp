@@ -114,9 +114,13 @@ std::string where(Precision p, int v, int y, int x, double extra) {
 }
 
 CliResult run_cli(const std::string& args, const std::string& env) {
+  return run_program(IVR_CLI_PATH, args, env);
+}
+
+CliResult run_program(const std::string& program, const std::string& args, const std::string& env) {
   const std::string dir = temp_dir("cli_capture");
   const std::string out = dir + "/stdout", err = dir + "/stderr";
-  const std::string cmd = env + " " + IVR_CLI_PATH + " " + args + " >" + out + " 2>" + err;
+  const std::string cmd = env + " " + program + " " + args + " >" + out + " 2>" + err;
   const int raw = std::system(cmd.c_str());
   CliResult r;
   r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;

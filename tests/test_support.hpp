@@ -68,5 +68,8 @@ struct CliResult {
   std::string out, err;
 };
 CliResult run_cli(const std::string& args, const std::string& env = "");
+// The same for another program of the build (ivr-bench).
+CliResult run_program(const std::string& program, const std::string& args,
+                      const std::string& env = "");
 
 }  // namespace ivr::test

@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
         {"min_speed_ratio_kernel", *std::min_element(kernel_ratios.begin(), kernel_ratios.end())}};
     ivr::bench::emit_json(result, out_path);
   } catch (const ivr::Error& e) {
-    std::cerr << "ivr_bench: error: " << e.what() << "\n";
+    std::cerr << "ivr_render_bench: error: " << e.what() << "\n";
     return 1;
   }
   return 0;

@@ -1,5 +1,5 @@
 // device_params.cpp — the launch-parameter database. Add an entry only with a measurement behind
-// it (bench/ivr_bench --device …), naming the device it was measured on.
+// it (build/bench/ivr-bench --device …), naming the device it was measured on.
 #include "device_params.hpp"
 
 #include <cstdio>

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 namespace ivr::bench {
@@ -36,17 +37,21 @@ struct Measurement {
   std::uint64_t host_before = 0;  // resident set when the timed runs started
   std::uint64_t host_peak = 0;    // high-water mark during the timed runs
   bool peak_reset = false;        // host_peak covers the timed runs only
+  bool timed = false;             // the result passed its check, and was timed
   std::uint64_t peak_increase() const {
     return host_peak > host_before ? host_peak - host_before : 0;
   }
 };
 
 // `run()` performs the operation once and returns its device seconds, or a negative number when it
-// has none. Warm-up runs first, then timed runs until the budget.
-template <class Run>
-Measurement measure(const Budget& budget, Run&& run) {
-  for (int i = 0; i < budget.warmup; ++i) run();
+// has none. Warm-up runs first; then `valid()` judges the warm-up's result (against a reference):
+// when it fails nothing is timed (`timed` is false); otherwise timed runs follow until the budget.
+template <class Run, class Valid>
+Measurement measure(const Budget& budget, Run&& run, Valid&& valid) {
+  for (int i = 0; i < std::max(budget.warmup, 1); ++i) run();
   Measurement m;
+  if (!valid()) return m;
+  m.timed = true;
   m.peak_reset = reset_peak_resident();
   m.host_before = resident_bytes();
   std::vector<double> wall, device;
@@ -65,6 +70,12 @@ Measurement measure(const Budget& budget, Run&& run) {
   m.wall = stats_of(std::move(wall));
   if (!device.empty()) m.device = stats_of(std::move(device));
   return m;
+}
+
+// For operations checked elsewhere (or not checkable): always timed.
+template <class Run>
+Measurement measure(const Budget& budget, Run&& run) {
+  return measure(budget, std::forward<Run>(run), [] { return true; });
 }
 
 }  // namespace ivr::bench

@@ -82,8 +82,13 @@ std::vector<double> widen(const std::vector<float>& v) {
 void record_checked(Context& ctx, Record r, const Check& check) {
   r.has_check = true;
   r.check = check;
-  if (!check.passed) {
-    r.metrics = nlohmann::json::object();
+  if (!check.passed) {  // keep the errors (to see why), drop every time and memory figure
+    nlohmann::json kept = nlohmann::json::object();
+    for (auto it = r.metrics.begin(); it != r.metrics.end(); ++it)
+      if (it.key().rfind("error", 0) == 0 || it.key().rfind("relative", 0) == 0 ||
+          it.key() == "loss")
+        kept[it.key()] = it.value();
+    r.metrics = kept;
     r.note = "check failed: " + check.measure + " " + std::to_string(check.error) + " > " +
              std::to_string(check.tolerance) + " against " + check.against + " (times not counted)";
     std::cerr << "ivr-bench: " << r.suite << "/" << r.case_name << " " << r.implementation << ": "
@@ -128,9 +133,9 @@ void run_python_baselines(Context& ctx, const std::string& suite, const std::str
       if (j.contains(k)) r.metrics[k] = j[k];
     r.metrics["runs"] = j.value("times_s", nlohmann::json::array()).size();
     r.metrics["samples_s"] = j.value("times_s", nlohmann::json::array());
-    r.metrics["peak_host_bytes"] = j.value("peak_rss_bytes", 0);
-    r.metrics["peak_host_increase_bytes"] = j.value("peak_increase_bytes", 0);
-    r.metrics["memory_bytes"] = j.value("peak_increase_bytes", 0);
+    r.metrics["peak_host_bytes"] = j.value("peak_rss_bytes", 0.0);
+    r.metrics["peak_host_increase_bytes"] = j.value("peak_increase_bytes", 0.0);
+    r.metrics["memory_bytes"] = j.value("peak_increase_bytes", 0.0);
     r.params["peak_reset"] = j.value("peak_reset", false);
     if (std::isfinite(run.loss)) r.metrics["loss"] = run.loss;
     const Check check = compare(run, r);

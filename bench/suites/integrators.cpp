@@ -16,9 +16,14 @@ namespace ivr::bench {
 
 namespace {
 
-constexpr double kAtol = 1e-4, kRtol = 1e-3;  // same-step checks (float32 against float64)
-constexpr double kSanity = 0.2;  // relative L2 against the continuous integral, where no same-step
-                                 // definition exists
+// Same-step checks, float32 against float64: relative L2 over the image. Not the largest pixel
+// error: a ray whose float32 length rounds to one sample more or fewer than in float64 samples
+// half a step elsewhere, which under a narrow-band TF changes that pixel by up to ~1e-2.
+constexpr double kSameStep = 1e-3;
+// Trapezoid has no same-step definition in the reference: its image must be the scene's (relative
+// L2 against the continuous integral below 1/2; a wrong image is off by order 1), and its error is
+// what the suite reports.
+constexpr double kSanity = 0.5;
 
 std::string step_text(double s) {
   std::string t = std::to_string(s);
@@ -64,10 +69,29 @@ void integrators_suite(Context& ctx) {
           const RenderOptions options{Precision::f32, step, EmptySpace::off};
           RenderStats stats;
           Image img;
-          const Measurement m = measure(ctx.budget, [&] {
-            img = render(ctx.device, scene, options, &stats);
-            return stats.kernel_seconds;
-          });
+          Check k;
+          const Measurement m = measure(
+              ctx.budget,
+              [&] {
+                img = render(ctx.device, scene, options, &stats);
+                return stats.kernel_seconds;
+              },
+              [&] {
+                if (scheme == Scheme::midpoint)
+                  k = check_l2(difference(img.pixels, reference::render_midpoint(scene, step * h)),
+                               "reference f64 midpoint, same step", kSameStep);
+                else if (scheme == Scheme::preintegrated)
+                  k = check_l2(
+                      difference(img.pixels, reference::render_linear_segments(scene, step * h)),
+                      "reference f64 linear segments, same step", kSameStep);
+                else if (scheme == Scheme::exact)
+                  k = check_l2(difference(img.pixels, truth), "reference f64 continuous integral",
+                               kSameStep);
+                else
+                  k = check_l2(difference(img.pixels, truth), "reference f64 continuous integral",
+                               kSanity);
+                return k.passed;
+              });
           const std::string name = scene_name + "_" + scheme_name(scheme) +
                                    (scheme == Scheme::exact ? "" : "_s" + step_text(step));
           Record r{ctx.device_key,
@@ -86,16 +110,6 @@ void integrators_suite(Context& ctx) {
           const Difference e = difference(img.pixels, truth);
           r.metrics["error_relative_l2"] = e.relative_l2;
           r.metrics["error_relative_max"] = e.ref_max > 0 ? e.max_abs / e.ref_max : e.max_abs;
-          Check k;
-          if (scheme == Scheme::midpoint)
-            k = check_max(difference(img.pixels, reference::render_midpoint(scene, step * h)),
-                          "reference f64 midpoint, same step", kAtol, kRtol);
-          else if (scheme == Scheme::preintegrated)
-            k = check_max(
-                difference(img.pixels, reference::render_linear_segments(scene, step * h)),
-                "reference f64 linear segments, same step", kAtol, kRtol);
-          else
-            k = check_l2(e, "reference f64 continuous integral", kSanity);
           record_checked(ctx, std::move(r), k);
         }
       }

@@ -33,10 +33,13 @@ void reconstruct_suite(Context& ctx) {
             : 0.0,
         0.9};
     std::uint64_t device_bytes = 0;
-    const Measurement m = measure(ctx.budget, [&] {
-      device_bytes = std::max(device_bytes, rec.step().device_bytes);
-      return -1.0;
-    });
+    const Measurement m = measure(
+        ctx.budget,
+        [&] {
+          device_bytes = std::max(device_bytes, rec.step().device_bytes);
+          return -1.0;
+        },
+        [&] { return check.passed; });
     Record r{ctx.device_key,
              "reconstruct",
              "v" + std::to_string(n) + "_i" + std::to_string(image),

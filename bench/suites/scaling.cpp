@@ -73,20 +73,25 @@ void scaling_suite(Context& ctx) {
         RenderStats stats;
         Image img;
         const RenderOptions o{Precision::f32, p.step};
-        const Measurement m = measure(ctx.budget, [&] {
-          img = render(ctx.device, scene, o, &stats);
-          return stats.kernel_seconds;
-        });
-        std::vector<float> native;
-        native_render(scene, p.step, native);
+        Check k;
+        const Measurement m = measure(
+            ctx.budget,
+            [&] {
+              img = render(ctx.device, scene, o, &stats);
+              return stats.kernel_seconds;
+            },
+            [&] {
+              std::vector<float> native;
+              native_render(scene, p.step, native);
+              k = check_max(difference(img.pixels, widen(native)), "native marcher", kAtol, kRtol);
+              return k.passed;
+            });
         Record r{ctx.device_key, "scaling", name + "_render", "ivr", params};
         add_timing(r, m);
         r.metrics["samples"] = stats.samples;
         r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;
         r.metrics["peak_device_bytes"] = stats.device_bytes;
         r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
-        const Check k =
-            check_max(difference(img.pixels, widen(native)), "native marcher", kAtol, kRtol);
         if (k.passed) render_time.push_back({x, m.wall.median});
         record_checked(ctx, std::move(r), k);
       }
@@ -95,21 +100,27 @@ void scaling_suite(Context& ctx) {
         GradientOptions o;
         o.step = p.step;
         Gradient g;
-        const Measurement m = measure(ctx.budget, [&] {
-          g = gradient(ctx.device, scene, target, o);
-          return g.kernel_seconds;
-        });
-        std::vector<float> native;
-        double loss = 0;
-        native_gradient(scene, p.step, target.pixels, native, loss);
+        Check k;
+        const Measurement m = measure(
+            ctx.budget,
+            [&] {
+              g = gradient(ctx.device, scene, target, o);
+              return g.kernel_seconds;
+            },
+            [&] {
+              std::vector<float> native;
+              double loss = 0;
+              native_gradient(scene, p.step, target.pixels, native, loss);
+              k = check_l2(difference(g.density, widen(native)), "native adjoint",
+                           kGradientAgreement);
+              return k.passed;
+            });
         Record r{ctx.device_key, "scaling", name + "_gradient", "ivr", params};
         add_timing(r, m);
         r.metrics["samples"] = g.samples;
         r.metrics["peak_device_bytes"] = g.device_bytes;
         const std::uint64_t memory = operation_memory(ctx, m, g.device_bytes);
         r.metrics["memory_bytes"] = memory;
-        const Check k =
-            check_l2(difference(g.density, widen(native)), "native adjoint", kGradientAgreement);
         if (k.passed) {
           gradient_time.push_back({x, m.wall.median});
           gradient_memory.push_back({x, double(g.device_bytes)});

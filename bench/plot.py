@@ -24,6 +24,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 COLOURS = {"ivr": "#1f77b4", "ivr-deterministic": "#6baed6", "native": "#2ca02c", "jax": "#d62728",
            "drjit": "#9467bd", "torch": "#ff7f0e"}
+SCHEMES = {"midpoint": "#1f77b4", "trapezoid": "#2ca02c", "preintegrated": "#ff7f0e",
+           "exact": "#d62728"}
 
 
 def timed(results, suite):
@@ -51,7 +53,7 @@ def speed_vs_error(doc, path) -> bool:
         for (device, scheme), pts in sorted(lines.items()):
             pts.sort()
             ax.plot([p[0] * 1e3 for p in pts], [max(p[1], 1e-12) for p in pts], "o-",
-                    label=f"{scheme}" + (f" ({device})" if len(doc["devices"]) > 1 else ""))
+                    color=SCHEMES.get(scheme), label=f"{scheme}" + (f" ({device})" if len(doc["devices"]) > 1 else ""))
             for t, e, s in pts:
                 if s:
                     ax.annotate(f"{s:g}", (t * 1e3, max(e, 1e-12)), fontsize=6, alpha=0.7)

@@ -22,11 +22,33 @@ namespace ivr {
 namespace {
 
 // The render program of a variant (compiled once per process, then from the caches).
-cl::Program render_program(Device::Impl& dev, const RenderVariant& variant, double* seconds) {
+// Rays per work-item of the packet kernel: 16 (128³ into 256² on PoCL, 2 Skylake-AVX512 cores:
+// 16 lanes ~40 ms, 8 lanes ~60 ms, one ray per work-item ~200 ms, measured beside a build);
+// $IVR_PACKET_LANES=8 takes 8.
+int packet_lanes() {
+  const char* env = std::getenv("IVR_PACKET_LANES");
+  return env && std::string(env) == "8" ? 8 : 16;
+}
+
+// Whether a render takes kernels/render_packet.cl: on CPU devices (PoCL runs a work-item's march
+// as scalar code; the packet kernel marches 8 rays in vector lanes) for the case it covers.
+// $IVR_PACKET=0 turns it off (tests compare both).
+bool use_packet(const Device::Impl& dev, const Scene& scene, const RenderVariant& v) {
+  if (const char* env = std::getenv("IVR_PACKET"); env && std::string(env) == "0") return false;
+  return dev.info.type == "cpu" && v.precision == Precision::f32 && v.scheme == Scheme::midpoint &&
+         v.model == Model::emission_absorption && v.tf == TfKind::piecewise_linear &&
+         !v.skip_empty && scene.tf.points.size() >= 1;
+}
+
+cl::Program render_program(Device::Impl& dev, const RenderVariant& variant, bool packet,
+                           double* seconds) {
   double s = 0;
+  const char* file = packet ? "render_packet.cl" : "render.cl";
+  const std::string lanes =
+      packet ? "#define IVR_LANES " + std::to_string(packet_lanes()) + "\n" : std::string();
   cl::Program p = dev.programs.get(
-      dev.context, dev.device, dev.info, variant.preamble() + assemble_kernel("render.cl"),
-      extra_build_options(), "render.cl [" + variant.label() + "]", &s);
+      dev.context, dev.device, dev.info, variant.preamble() + lanes + assemble_kernel(file),
+      extra_build_options(), std::string(file) + " [" + variant.label() + "]", &s);
   *seconds += s;
   return p;
 }
@@ -60,19 +82,26 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
     stats->grid_seconds = grid_seconds;
   }
   double build_seconds = 0;
-  const cl::Program program = render_program(dev, variant, &build_seconds);
+  const bool packet = use_packet(dev, scene, variant);
+  const cl::Program program = render_program(dev, variant, packet, &build_seconds);
   const cl::Buffer occupied = occupancy_buffer(dev, grid);
 
   cl::Event done;
   cl_call("running the render kernel on " + dev.info.name, [&] {
-    cl::Kernel k(program, "render");
+    cl::Kernel k(program, packet ? "render_packet" : "render");
     int a = dscene.set_args(k, scene, integrator);
     k.setArg(a++, occupied);
     k.setArg(a++, brick_counts(grid));
     k.setArg(a++, out_image);
     k.setArg(a++, out_samples);
     const LaunchParams launch = launch_params(dev.info, "render");
-    if (launch.local_x > 0) {  // global size rounded up; the kernel skips the padding
+    if (packet) {  // 8 pixels of a row per work-item
+      dev.queue.enqueueNDRangeKernel(
+          k, cl::NullRange,
+          cl::NDRange((image.width + packet_lanes() - 1) / packet_lanes(), image.height,
+                      image.views),
+          cl::NullRange, nullptr, &done);
+    } else if (launch.local_x > 0) {  // global size rounded up; the kernel skips the padding
       const int lx = launch.local_x, ly = launch.local_y;
       const int gx = (image.width + lx - 1) / lx * lx, gy = (image.height + ly - 1) / ly * ly;
       dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, image.views),
@@ -97,7 +126,7 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
     stats->kernel_seconds = event_seconds(done);
     stats->build_seconds = build_seconds;
     stats->samples = std::accumulate(samples.begin(), samples.end(), std::uint64_t(0));
-    stats->variant = variant.label();
+    stats->variant = variant.label() + (packet ? " packet" : "");
     stats->skipped_empty = variant.skip_empty;
     stats->device_bytes = dscene.bytes +
                           pixels * (image.channels * sizeof(float) + sizeof(cl_uint)) +

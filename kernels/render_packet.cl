@@ -1,5 +1,5 @@
-// render_packet.cl — the forward render for CPU devices: 8 (or 16) neighbouring pixels per work-item,
-// marched together in the lanes of float8 vectors (a lane stops taking samples when its ray ends
+// render_packet.cl — the forward render for CPU devices: 16 (or 8) neighbouring pixels of a row per
+// work-item, marched together in vector lanes (a lane stops taking samples when its ray ends
 // or terminates; the packet stops when all have). PoCL runs one work-item's loop as scalar code
 // and cannot vectorise across work-items whose loops differ in length, so on CPUs the lanes have
 // to be explicit. Emission–absorption, the midpoint rule, a piecewise-linear TF, float32, no

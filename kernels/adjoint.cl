@@ -17,6 +17,12 @@
 #include "adjoint_endpoints.cl"
 #include "adjoint_exact.cl"
 #include "adjoint_midpoint.cl"
+// IVR_PRIMAL_GIVEN: the primal march already ran (the CPU packet render, lib/adjoint.cpp): each
+// pixel's emitted colour and transmittance are in `image` and its samples in `samples`, read
+// before this item overwrites them with the pixel.
+#ifndef IVR_PRIMAL_GIVEN
+#define IVR_PRIMAL_GIVEN 0
+#endif
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT
 #define adjoint_march adjoint_march_midpoint
 #elif IVR_ENDPOINT_SAMPLES
@@ -54,12 +60,20 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     March m;
     const bool hit = march_begin(ray, box_min, box_max, inv_voxel, step, &m);
     Radiance r = radiance_begin();
+    const size_t pixel = ((size_t)view * height + y) * width + x;
+#if IVR_PRIMAL_GIVEN && IVR_EMISSION && IVR_SCHEME == IVR_SCHEME_MIDPOINT
+    r.cr = image[pixel * 4 + 0];
+    r.cg = image[pixel * 4 + 1];
+    r.cb = image[pixel * 4 + 2];
+    r.transmittance = image[pixel * 4 + 3];
+    r.samples = r.end = samples[pixel];  // the midpoint march: one sample per segment taken
+#else
     if (hit)
       primal_march(volume, dims, &m, tf, tf_count, tf_scalars, min_transmittance, occupied, bricks,
                    &r);
+#endif
 
     // The pixel, its loss terms and dL/dpixel.
-    const size_t pixel = ((size_t)view * height + y) * width + x;
     __global const real* tgt = target + pixel * IVR_CHANNELS;
     real loss = (real)0;
     AdjointRay ar;

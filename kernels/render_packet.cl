@@ -10,6 +10,12 @@
 #include "march.cl"
 #include "tf.cl"
 
+// IVR_PACKET_PRIMAL: the adjoint's primal march (lib/adjoint.cpp): each pixel's emitted colour C
+// and transmittance T into `image` (not C + T·background, 1 − T), for kernels/adjoint.cl to read.
+#ifndef IVR_PACKET_PRIMAL
+#define IVR_PACKET_PRIMAL 0
+#endif
+
 // Rays per work-item: 8 or 16 (the host's preamble may set it).
 #ifndef IVR_LANES
 #define IVR_LANES 8
@@ -42,6 +48,18 @@ inline lanes_t gather(__global const float* restrict v, lanes_int i) {
 #else
   return (lanes_t)(v[i.s0], v[i.s1], v[i.s2], v[i.s3], v[i.s4], v[i.s5], v[i.s6], v[i.s7]);
 #endif
+}
+
+// exp(-x) in every lane by the scalar exp that render.cl and the adjoint kernel call (a vector exp
+// may round differently in the last bit, and the adjoint's remaining radiance, C minus the prefix,
+// needs this march's C bit for bit). Only lanes at or above decay_and_fraction's series limit use
+// it: a packet where none is skips it.
+inline lanes_t decay_lanes(lanes_t x, lanes_int small) {
+  if (all(small)) return (lanes_t)1.0f;  // unused: every lane takes the series
+  float v[IVR_LANES];
+  vstore_lanes(x, 0, v);
+  for (int l = 0; l < IVR_LANES; ++l) v[l] = exp(-v[l]);
+  return vload_lanes(0, v);
 }
 
 inline lanes_t lerp_lanes(lanes_t a, lanes_t b, lanes_t t) {
@@ -139,18 +157,23 @@ __kernel void render_packet(__global const real* restrict volume, const int4 dim
     const lanes_int small = tau < 0.1f;
     const lanes_t series =
         1.0f - tau * (0.5f - tau * (1.0f / 6 - tau * (1.0f / 24 - tau * (1.0f / 120))));
-    const lanes_t decay_big = exp(-tau);
+    const lanes_t decay_big = decay_lanes(tau, small);
     const lanes_t fraction = select((decay_big - 1.0f) / -tau, series, small);
     const lanes_t weight = T * DT * fraction;
+    // The emitted colour as accumulate() receives it: each product its own statement, so that the
+    // compiler cannot fuse it with the compensation's subtraction (FP_CONTRACT fuses within an
+    // expression only) — the adjoint's prefix must equal this C bit for bit.
+    const lanes_t er = sigma * r, eg = sigma * g, eb = sigma * b;
+    const lanes_t xr = weight * er, xg = weight * eg, xb = weight * eb;
     lanes_t y, s;
-#define IVR_LANE_ACCUMULATE(sum, error, x) \
-  y = (x) - (error);                       \
-  s = (sum) + y;                           \
-  error = select(error, (s - (sum)) - y, live); \
+#define IVR_LANE_ACCUMULATE(sum, error, x)      \
+  y = x - error;                                \
+  s = sum + y;                                  \
+  error = select(error, (s - sum) - y, live);   \
   sum = select(sum, s, live)
-    IVR_LANE_ACCUMULATE(cr, kr, weight * (sigma * r));
-    IVR_LANE_ACCUMULATE(cg, kg, weight * (sigma * g));
-    IVR_LANE_ACCUMULATE(cb, kb, weight * (sigma * b));
+    IVR_LANE_ACCUMULATE(cr, kr, xr);
+    IVR_LANE_ACCUMULATE(cg, kg, xg);
+    IVR_LANE_ACCUMULATE(cb, kb, xb);
 #undef IVR_LANE_ACCUMULATE
     T = select(T, select(T * decay_big, fma(-T, tau * fraction, T), small), live);
     taken -= live;  // live is -1 where true
@@ -164,9 +187,15 @@ __kernel void render_packet(__global const real* restrict volume, const int4 dim
   float out_t[IVR_LANES], out_r[IVR_LANES], out_g[IVR_LANES], out_b[IVR_LANES];
   uint out_n[IVR_LANES];
   vstore_lanes(T, 0, out_t);
+#if IVR_PACKET_PRIMAL
+  vstore_lanes(cr, 0, out_r);
+  vstore_lanes(cg, 0, out_g);
+  vstore_lanes(cb, 0, out_b);
+#else
   vstore_lanes(cr + T * background.x, 0, out_r);
   vstore_lanes(cg + T * background.y, 0, out_g);
   vstore_lanes(cb + T * background.z, 0, out_b);
+#endif
   vstore_lanes(convert_lanes_uint(taken), 0, out_n);
   for (int l = 0; l < IVR_LANES && x0 + l < width; ++l) {
     const size_t pixel = ((size_t)view * height + y) * width + x0 + l;
@@ -175,6 +204,10 @@ __kernel void render_packet(__global const real* restrict volume, const int4 dim
     o[0] = out_r[l];
     o[1] = out_g[l];
     o[2] = out_b[l];
+#if IVR_PACKET_PRIMAL
+    o[3] = out_t[l];
+#else
     o[3] = 1.0f - out_t[l];
+#endif
   }
 }

@@ -13,15 +13,13 @@
 #include "empty_space.hpp"
 #include "ivr/tolerance.hpp"
 #include "kernel_sources.hpp"
+#include "render_packet.hpp"
 #include "runtime.hpp"
 #include "scene_checks.hpp"
 #include "variants.hpp"
 
 namespace ivr {
 
-namespace {
-
-// The render program of a variant (compiled once per process, then from the caches).
 // Rays per work-item of the packet kernel: 16 (128³ into 256² on PoCL, 2 Skylake-AVX512 cores:
 // 16 lanes ~40 ms, 8 lanes ~60 ms, one ray per work-item ~200 ms, measured beside a build);
 // $IVR_PACKET_LANES=8 takes 8.
@@ -40,15 +38,38 @@ bool use_packet(const Device::Impl& dev, const Scene& scene, const RenderVariant
          !v.skip_empty && scene.tf.points.size() >= 1;
 }
 
-cl::Program render_program(Device::Impl& dev, const RenderVariant& variant, bool packet,
+cl::Program packet_program(Device::Impl& dev, const RenderVariant& variant, bool primal,
                            double* seconds) {
   double s = 0;
-  const char* file = packet ? "render_packet.cl" : "render.cl";
-  const std::string lanes =
-      packet ? "#define IVR_LANES " + std::to_string(packet_lanes()) + "\n" : std::string();
+  const std::string defines = "#define IVR_LANES " + std::to_string(packet_lanes()) +
+                              "\n#define IVR_PACKET_PRIMAL " + (primal ? "1" : "0") + "\n";
   cl::Program p = dev.programs.get(
-      dev.context, dev.device, dev.info, variant.preamble() + lanes + assemble_kernel(file),
-      extra_build_options(), std::string(file) + " [" + variant.label() + "]", &s);
+      dev.context, dev.device, dev.info,
+      variant.preamble() + defines + assemble_kernel("render_packet.cl"), extra_build_options(),
+      "render_packet.cl [" + variant.label() + (primal ? " primal" : "") + "]", &s);
+  if (seconds) *seconds += s;
+  return p;
+}
+
+void enqueue_packet(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene,
+                    cl::Event* done) {
+  const Camera& c = scene.cameras.front();
+  dev.queue.enqueueNDRangeKernel(
+      kernel, cl::NullRange,
+      cl::NDRange((c.width + packet_lanes() - 1) / packet_lanes(), c.height, scene.cameras.size()),
+      cl::NullRange, nullptr, done);
+}
+
+namespace {
+
+// The render program of a variant (compiled once per process, then from the caches).
+cl::Program render_program(Device::Impl& dev, const RenderVariant& variant, bool packet,
+                           double* seconds) {
+  if (packet) return packet_program(dev, variant, false, seconds);
+  double s = 0;
+  cl::Program p = dev.programs.get(
+      dev.context, dev.device, dev.info, variant.preamble() + assemble_kernel("render.cl"),
+      extra_build_options(), "render.cl [" + variant.label() + "]", &s);
   *seconds += s;
   return p;
 }
@@ -95,12 +116,8 @@ Image render_as(Device::Impl& dev, const Scene& scene, const Integrator& integra
     k.setArg(a++, out_image);
     k.setArg(a++, out_samples);
     const LaunchParams launch = launch_params(dev.info, "render");
-    if (packet) {  // 8 pixels of a row per work-item
-      dev.queue.enqueueNDRangeKernel(
-          k, cl::NullRange,
-          cl::NDRange((image.width + packet_lanes() - 1) / packet_lanes(), image.height,
-                      image.views),
-          cl::NullRange, nullptr, &done);
+    if (packet) {  // packet_lanes() pixels of a row per work-item
+      enqueue_packet(dev, k, scene, &done);
     } else if (launch.local_x > 0) {  // global size rounded up; the kernel skips the padding
       const int lx = launch.local_x, ly = launch.local_y;
       const int gx = (image.width + lx - 1) / lx * lx, gy = (image.height + ly - 1) / ly * ly;

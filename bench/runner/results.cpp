@@ -107,8 +107,10 @@ json Results::ratios() const {
           {"case", ivr.case_name},
           {"baseline", b.implementation},
           {"speedup", b.metrics["median_s"].get<double>() / ivr.metrics["median_s"].get<double>()}};
+      // A memory of 0 (buffers reused from call to call) has no ratio.
       if (b.metrics.contains("memory_bytes") && ivr.metrics.contains("memory_bytes") &&
-          ivr.metrics["memory_bytes"].get<double>() > 0)
+          ivr.metrics["memory_bytes"].get<double>() > 0 &&
+          b.metrics["memory_bytes"].get<double>() > 0)
         r["memory_ratio"] =
             b.metrics["memory_bytes"].get<double>() / ivr.metrics["memory_bytes"].get<double>();
       out.push_back(r);
@@ -216,8 +218,7 @@ int compare_results(const json& baseline, const json& current, double threshold,
     out.unsetf(std::ios::fixed);
   }
   out << matched << " cases compared, " << regressions << " beyond " << 100 * threshold
-      << " % (ratios: current / baseline; device " << current.value("devices", json::array()).size()
-      << " device(s))\n";
+      << " % (ratios: current / baseline)\n";
   return regressions;
 }
 

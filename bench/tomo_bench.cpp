@@ -12,24 +12,13 @@
 #include "bench_support.hpp"
 #include "ivr/core.hpp"
 
+using ivr::bench::dot;
 using ivr::bench::median;
+using ivr::bench::uniform;
 using ivr::bench::wall_seconds;
 using nlohmann::json;
 
 namespace {
-
-std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<double> v(n);
-  for (double& x : v) x = double(rng() >> 11) * 0x1.0p-53;
-  return v;
-}
-
-double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  long double s = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
-  return double(s);
-}
 
 json throughput(ivr::Device& device, int n, int views, bool cone, int repeats) {
   const ivr::Scene scene = ivr::bench::tomo_scene(n, views, cone, 1);

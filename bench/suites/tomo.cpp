@@ -5,24 +5,12 @@
 #include <random>
 
 #include "../bench_scene.hpp"
+#include "../bench_support.hpp"
 #include "../runner/suite.hpp"
 
 namespace ivr::bench {
 
 namespace {
-
-std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<double> v(n);
-  for (double& x : v) x = double(rng() >> 11) * 0x1.0p-53;
-  return v;
-}
-
-double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  long double s = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
-  return double(s);
-}
 
 // Each ray's chord through the box (the exact line integral of σ = 1): the orthographic rays of
 // the tomography scene, clipped in double precision.

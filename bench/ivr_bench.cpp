@@ -53,19 +53,6 @@ std::string utc_now() {
   return text;
 }
 
-json device_json(const ivr::DeviceInfo& d) {
-  return {{"key", d.platform + " / " + d.name},
-          {"index", d.index},
-          {"platform", d.platform},
-          {"name", d.name},
-          {"vendor", d.vendor},
-          {"type", d.type},
-          {"version", d.version},
-          {"driver", d.driver},
-          {"compute_units", d.compute_units},
-          {"global_memory", d.global_memory}};
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -194,7 +181,12 @@ int main(int argc, char** argv) {
                       {"frameworks", baselines.frameworks},
                       {"native", !no_baselines}}}};
     json devs = json::array(), suite_names = json::array();
-    for (const ivr::DeviceInfo& d : devices) devs.push_back(device_json(d));
+    const json every = json::parse(ivr::devices_json())["devices"];  // as `ivr devices --json`
+    for (const ivr::DeviceInfo& d : devices) {
+      json entry = every.at(std::size_t(d.index));
+      entry["key"] = d.platform + " / " + d.name;  // the results' device field
+      devs.push_back(entry);
+    }
     for (const bench::Suite& s : suites) suite_names.push_back(s.name);
     results.meta["devices"] = devs;
     results.meta["suites"] = suite_names;

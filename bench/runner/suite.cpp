@@ -75,6 +75,11 @@ Check check_l2(const Difference& d, const std::string& against, double tolerance
   return c;
 }
 
+std::string scene_case(int volume, int image, double step) {
+  return "v" + std::to_string(volume) + "_i" + std::to_string(image) + "_s" +
+         std::to_string(step).substr(0, 5);
+}
+
 std::vector<double> widen(const std::vector<float>& v) {
   return std::vector<double>(v.begin(), v.end());
 }

@@ -49,6 +49,9 @@ Check check_l2(const Difference& d, const std::string& against, double tolerance
 
 std::vector<double> widen(const std::vector<float>& v);
 
+// The case name of a benchmark-scene case, e.g. "v128_i256_s0.500" (volume, image, step).
+std::string scene_case(int volume, int image, double step);
+
 // Records `r` with its check; a failed check drops the times (they do not count) and is listed in
 // ctx.failures for ivr's own implementations.
 void record_checked(Context& ctx, Record r, const Check& check);

@@ -55,10 +55,7 @@ double dot(const std::vector<float>& a, const std::vector<double>& b) {
 struct Case {
   int volume, image;
   double step;
-  std::string name() const {
-    return "v" + std::to_string(volume) + "_i" + std::to_string(image) + "_s" +
-           std::to_string(step).substr(0, 5);
-  }
+  std::string name() const { return scene_case(volume, image, step); }
 };
 
 }  // namespace

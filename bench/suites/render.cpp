@@ -17,10 +17,7 @@ namespace {
 struct RenderCase {
   int volume, image;
   double step;
-  std::string name() const {
-    return "v" + std::to_string(volume) + "_i" + std::to_string(image) + "_s" +
-           std::to_string(step).substr(0, 5);
-  }
+  std::string name() const { return scene_case(volume, image, step); }
 };
 
 // References are the same for every device: computed once per run.

@@ -62,8 +62,7 @@ void scaling_suite(Context& ctx) {
     std::vector<std::pair<double, double>> render_time, gradient_time, gradient_memory;
     for (const Point& p : s.points) {
       const Scene scene = bench_scene(p.volume, p.image);
-      const std::string name = s.name + "_v" + std::to_string(p.volume) + "_i" +
-                               std::to_string(p.image) + "_s" + std::to_string(p.step).substr(0, 5);
+      const std::string name = s.name + "_" + scene_case(p.volume, p.image, p.step);
       const nlohmann::json params = {
           {"grows", s.name}, {"volume", p.volume}, {"image", p.image}, {"step", p.step}};
       std::cerr << "ivr-bench: scaling/" << name << "\n";

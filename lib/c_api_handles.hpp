@@ -19,6 +19,7 @@
 struct ivr_context {
   std::atomic<int> references{1};
   ivr::Device device;
+  std::mutex error_mutex;  // sessions of one context may fail on several threads at once
   std::string last_error;
   explicit ivr_context(const std::string& selector) : device(selector) {}
 };
@@ -59,7 +60,7 @@ struct ivr_result {
 
 namespace ivr::capi {
 
-enum class Kind { context, scene, result, volume, tf, reconstruction };
+enum class Kind { context, scene, result, volume, tf, reconstruction, session, array, optimizer };
 
 // Live handles and their types: a released or foreign pointer is found out before use.
 inline std::mutex registry_mutex;
@@ -105,6 +106,12 @@ inline const char* kind_name(Kind k) {
       return "transfer_function";
     case Kind::reconstruction:
       return "reconstruction";
+    case Kind::session:
+      return "session";
+    case Kind::array:
+      return "array";
+    case Kind::optimizer:
+      return "density_optimizer";
   }
   return "handle";
 }
@@ -138,7 +145,10 @@ inline ivr_status fail(ivr_context* context, ivr_status status, const std::strin
                        int opencl = 0) {
   thread_error = message;
   thread_opencl_error = opencl;
-  if (context && is_live(context, Kind::context)) context->last_error = message;
+  if (context && is_live(context, Kind::context)) {
+    std::lock_guard<std::mutex> lock(context->error_mutex);
+    context->last_error = message;
+  }
   return status;
 }
 

@@ -1,5 +1,6 @@
-// device_scene.hpp — a scene packed for the kernels (volume, cameras, transfer function) and the
-// leading kernel arguments every marching kernel shares (kernels/render.cl, kernels/adjoint.cl).
+// device_scene.hpp — a scene packed for the kernels: cameras, camera parameters and transfer
+// function in the layouts of kernels/config.cl, geometry_tangent.cl and tf.cl (a session uploads
+// them, lib/session.cpp).
 #pragma once
 #include <cmath>
 #include <cstdlib>
@@ -12,12 +13,6 @@
 #include "runtime.hpp"
 
 namespace ivr {
-
-// $IVR_BUILD_OPTIONS: extra OpenCL compiler options for experiments (part of the cache key).
-inline std::string extra_build_options() {
-  const char* extra = std::getenv("IVR_BUILD_OPTIONS");
-  return extra ? extra : "";
-}
 
 template <class Real>
 struct ClVec;
@@ -122,74 +117,6 @@ std::vector<Real> pack_tf(const TransferFunction& tf, int* count, double scalars
       break;
   }
   return out;
-}
-
-// The scene on the device, in precision Real.
-template <class Real>
-struct DeviceScene {
-  cl::Buffer volume, cameras, tf;
-  int tf_count = 0;
-  double tf_scalars[2] = {0, 0};
-  std::uint64_t bytes = 0;  // device memory held by these buffers
-
-  // `resident`: a volume already on the device (Real, the scene's shape) used instead of
-  // uploading scene.volume.data, which is then not read (the reconstruction loops).
-  DeviceScene(Device::Impl& dev, const Scene& scene, const cl::Buffer* resident = nullptr) {
-    const std::size_t voxels = scene.volume.voxel_count();
-    if (resident) {
-      volume = *resident;
-    } else {
-      upload_volume(dev, scene, voxels);
-    }
-    const std::vector<Real> cams = pack_cameras<Real>(scene.cameras);
-    cameras = dev.buffer(CL_MEM_READ_ONLY, cams.size() * sizeof(Real), cams.data(), "the cameras");
-    const std::vector<Real> packed = pack_tf<Real>(scene.tf, &tf_count, tf_scalars);
-    tf = dev.buffer(CL_MEM_READ_ONLY, packed.size() * sizeof(Real), packed.data(),
-                    "the transfer function");
-    bytes = (voxels + cams.size() + packed.size()) * sizeof(Real);
-  }
-
-  void upload_volume(Device::Impl& dev, const Scene& scene, std::size_t voxels) {
-    std::vector<Real> converted;
-    const void* volume_host = scene.volume.data.data();
-    if constexpr (!std::is_same_v<Real, float>) {
-      if (voxels * sizeof(Real) > dev.info.max_allocation)
-        dev.buffer(CL_MEM_READ_ONLY, voxels * sizeof(Real), nullptr, "the volume");  // throws
-      converted.assign(scene.volume.data.begin(), scene.volume.data.end());
-      volume_host = converted.data();
-    }
-    volume = dev.buffer(CL_MEM_READ_ONLY, voxels * sizeof(Real), volume_host, "the volume");
-  }
-
-  // Sets the shared leading arguments (volume … min_transmittance); returns the next index.
-  int set_args(cl::Kernel& k, const Scene& scene, const Integrator& integrator) const {
-    const glm::dvec3 h = scene.voxel_size();
-    const double step = integrator.step * std::min(h.x, std::min(h.y, h.z));
-    const glm::dvec3 bg = scene.effective_background();
-    const Camera& cam0 = scene.cameras.front();
-    int a = 0;
-    k.setArg(a++, volume);
-    k.setArg(a++, cl_int4{{scene.volume.nx, scene.volume.ny, scene.volume.nz, 0}});
-    k.setArg(a++, vec4<Real>(scene.box_min.x, scene.box_min.y, scene.box_min.z));
-    k.setArg(a++, vec4<Real>(scene.box_max.x, scene.box_max.y, scene.box_max.z));
-    k.setArg(a++, vec4<Real>(1 / h.x, 1 / h.y, 1 / h.z));
-    k.setArg(a++, cameras);
-    k.setArg(a++, cl_int(cam0.width));
-    k.setArg(a++, cl_int(cam0.height));
-    k.setArg(a++, tf);
-    k.setArg(a++, cl_int(tf_count));
-    k.setArg(a++, vec4<Real>(tf_scalars[0], tf_scalars[1], 0));
-    k.setArg(a++, vec4<Real>(bg.x, bg.y, bg.z));
-    k.setArg(a++, Real(step));
-    k.setArg(a++, Real(integrator.min_transmittance));
-    return a;
-  }
-};
-
-// Device time of a finished kernel from its profiling event.
-inline double event_seconds(const cl::Event& e) {
-  return 1e-9 * double(e.getProfilingInfo<CL_PROFILING_COMMAND_END>() -
-                       e.getProfilingInfo<CL_PROFILING_COMMAND_START>());
 }
 
 }  // namespace ivr

@@ -1,5 +1,6 @@
-// differentiate.cpp — gradients by named group: the parameters each group stands for, the
-// planner's choice of mode, and the run in that mode (lib/tangents.cpp or lib/adjoint.cpp).
+// differentiate.cpp — gradients by named group on a session: the parameters each group stands
+// for, the planner's choice of mode, the run in that mode (lib/tangents.cpp or lib/adjoint.cpp)
+// and each group's array; and the one-shot differentiate().
 #include "ivr/differentiate.hpp"
 
 #include <algorithm>
@@ -9,7 +10,7 @@
 
 #include "ivr/error.hpp"
 #include "ivr/tangents.hpp"
-#include "ivr/tolerance.hpp"
+#include "session_impl.hpp"
 
 namespace ivr {
 
@@ -33,7 +34,7 @@ bool is_index_item(const std::string& s) {
 struct GroupPlan {
   std::string name;
   std::vector<Parameter> parameters;
-  std::vector<std::size_t> shape;
+  std::vector<std::int64_t> shape;
   bool adjoint = true;
 };
 
@@ -49,14 +50,14 @@ GroupPlan plan_group(const Scene& scene, const std::string& g) {
   p.name = voxels ? "voxels" : g;
   p.parameters = parameters_of(scene, g);
   if (g == "density")
-    p.shape = {std::size_t(scene.volume.nz), std::size_t(scene.volume.ny),
-               std::size_t(scene.volume.nx)};
+    p.shape = {scene.volume.nz, scene.volume.ny, scene.volume.nx};
   else if (g == "tf")
-    p.shape = tf_gradient_shape(scene.tf);
+    p.shape = {std::int64_t(tf_gradient_shape(scene.tf)[0]),
+               std::int64_t(tf_gradient_shape(scene.tf)[1])};
   else if (g == "camera")
-    p.shape = {scene.cameras.size(), 7};
+    p.shape = {std::int64_t(scene.cameras.size()), 7};
   else
-    p.shape = {p.parameters.size()};
+    p.shape = {std::int64_t(p.parameters.size())};
   p.adjoint = g != "tf_points";
   return p;
 }
@@ -89,82 +90,121 @@ std::vector<std::string> parse_groups(const std::string& list) {
   return groups;
 }
 
-Differentiation differentiate(Device& device, const Scene& scene, const Image& target,
-                              const std::vector<std::string>& groups,
-                              const DifferentiateOptions& o) {
+SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
+                                 const GradientRequest& request) {
+  if (request.mode != Mode::automatic && request.mode != Mode::forward &&
+      request.mode != Mode::adjoint)
+    throw bad_group("unknown mode " + std::to_string(int(request.mode)));
   std::vector<GroupPlan> plans;
   std::size_t forward_parameters = 0;
   bool adjoint_possible = true;
-  for (const std::string& g : groups) {
-    plans.push_back(plan_group(scene, g));
+  for (const std::string& g : request.wrt) {
+    plans.push_back(plan_group(s.scene, g));
     forward_parameters += plans.back().parameters.size();
     adjoint_possible = adjoint_possible && plans.back().adjoint;
   }
   if (plans.empty()) throw bad_group("no group asked for");
   // The step once for both the plan and the mode that runs (a tolerance is estimated here).
-  const double step =
-      integrator_for(device, scene, o.step, o.precision, EmptySpace::automatic).step;
-  Differentiation d;
-  d.step = step;
-  d.plan = plan_gradient(load_cost_model(device.info()), scene, forward_parameters, true,
-                         adjoint_possible, o.mode, step);
-  d.parameters = forward_parameters;
-
-  if (d.plan.mode == Mode::forward) {
-    std::vector<Parameter> all;
-    for (const GroupPlan& p : plans)
-      all.insert(all.end(), p.parameters.begin(), p.parameters.end());
-    TangentOptions to;
-    to.precision = o.precision;
-    to.step = step;
-    to.loss = o.loss;
-    const Tangents t = tangents(device, scene, all, &target, to);
-    d.loss = t.loss;
-    d.kernel_seconds = t.kernel_seconds;
-    d.device_bytes = t.device_bytes;
-    std::size_t at = 0;
-    for (const GroupPlan& p : plans) {
-      d.groups.push_back(
-          {p.name, p.shape,
-           std::vector<double>(t.gradient.begin() + std::ptrdiff_t(at),
-                               t.gradient.begin() + std::ptrdiff_t(at + p.parameters.size()))});
-      at += p.parameters.size();
+  const double step = s.integrator().step;
+  if (!s.cost) s.cost = load_cost_model(s.dev.info);
+  SessionGradient out;
+  out.plan = plan_gradient(*s.cost, s.scene, forward_parameters, true, adjoint_possible,
+                           request.mode, step);
+  OperationRecord& op = s.begin("gradient");
+  cl_call("splitting the gradient into its groups", [&] {
+    if (out.plan.mode == Mode::forward) {
+      std::vector<Parameter> all;
+      for (const GroupPlan& p : plans)
+        all.insert(all.end(), p.parameters.begin(), p.parameters.end());
+      const TangentResult t = enqueue_tangents(s, lanes_of(s.scene, all), &target, false,
+                                               request.loss, op);
+      out.loss = t.loss;
+      // Each group's slice of the one gradient vector, copied into an array of its own.
+      const std::size_t size = dtype_size(t.gradient.dtype());
+      std::size_t at = 0;
+      for (const GroupPlan& p : plans) {
+        DeviceArray g = s.output("group " + p.name, p.shape, t.gradient.dtype(), "a gradient");
+        if (!p.parameters.empty()) {
+          op.events.push_back(cl::Event());
+          s.dev.queue.enqueueCopyBuffer(buffer_of(t.gradient), buffer_of(g), at * size, 0,
+                                        p.parameters.size() * size, nullptr, &op.events.back());
+          mark_written(g, op.events.back());
+        }
+        at += p.parameters.size();
+        out.groups.emplace_back(p.name, g);
+      }
+      return;
     }
-    return d;
-  }
+    AdjointRequest r;
+    r.loss = request.loss;
+    r.deterministic = request.deterministic;
+    r.density = r.tf = r.background = r.camera = false;
+    for (const GroupPlan& p : plans) {
+      r.density = r.density || p.name == "density" || p.name == "voxels";
+      r.tf = r.tf || p.name == "tf" || p.name == "scales";
+      r.background = r.background || p.name == "background";
+      r.camera = r.camera || p.name == "camera";
+    }
+    const AdjointResult a = enqueue_adjoint(s, target, r, op);
+    out.loss = a.loss;
+    out.atomics = a.atomics;
+    for (const GroupPlan& p : plans) {
+      DeviceArray g;
+      if (p.name == "density") {
+        g = a.density;
+      } else if (p.name == "voxels") {  // the listed voxels, gathered on the device
+        std::vector<cl_long> index;
+        for (const Parameter& q : p.parameters) index.push_back(cl_long(q.index));
+        const cl::Buffer indices =
+            s.dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, index.size() * sizeof(cl_long),
+                         index.data(), "the voxel list");
+        g = s.output("group voxels", p.shape, a.density.dtype(), "the voxels' gradient");
+        op.events.push_back(
+            s.arrays.gather(buffer_of(a.density), indices, int(index.size()), buffer_of(g)));
+        mark_written(g, op.events.back());
+      } else if (p.name == "tf" || p.name == "scales") {
+        g = p.shape == a.tf.shape() ? a.tf : reshape(a.tf, p.shape);
+      } else if (p.name == "background") {
+        g = a.background;
+      } else if (p.name == "camera") {
+        g = a.camera;
+      } else {  // step: the render is flat in it
+        g = DeviceArray(s.device, p.shape, s.arrays.acc_dtype());
+      }
+      out.groups.emplace_back(p.name, g);
+    }
+  });
+  op.stats.mode = out.plan.mode;
+  return out;
+}
 
-  GradientOptions go;
-  go.precision = o.precision;
-  go.step = step;
-  go.loss = o.loss;
-  go.density = go.tf = go.background = false;
-  for (const GroupPlan& p : plans) {
-    go.density = go.density || p.name == "density" || p.name == "voxels";
-    go.tf = go.tf || p.name == "tf" || p.name == "scales";
-    go.background = go.background || p.name == "background";
-    go.camera = go.camera || p.name == "camera";
-  }
-  const Gradient g = gradient(device, scene, target, go);
-  d.loss = g.loss;
-  d.kernel_seconds = g.kernel_seconds;
-  d.device_bytes = g.device_bytes;
+Differentiation differentiate(Device& device, const Scene& scene, const Image& target,
+                              const std::vector<std::string>& groups,
+                              const DifferentiateOptions& o) {
+  // The groups first: a bad --wrt is reported before any device work.
+  for (const std::string& g : groups) plan_group(scene, g);
+  Session session = one_shot_session(device, scene, {o.precision, o.step});
+  session.set_target(target);
+  Session::Impl& s = session.impl();
+  GradientRequest request;
+  request.wrt = groups;
+  request.mode = o.mode;
+  request.loss = o.loss;
+  const SessionGradient g = session_gradient(s, s.target, request);
+  Differentiation d;
+  d.step = s.integrator().step;
+  d.plan = g.plan;
+  d.loss = g.loss.to_doubles()[0];
   d.atomics = g.atomics;
-  for (const GroupPlan& p : plans) {
-    GroupGradient out{p.name, p.shape, {}};
-    if (p.name == "density")
-      out.values.assign(g.density.begin(), g.density.end());
-    else if (p.name == "voxels")
-      for (const Parameter& q : p.parameters) out.values.push_back(g.density[std::size_t(q.index)]);
-    else if (p.name == "tf" || p.name == "scales")
-      out.values = g.tf;
-    else if (p.name == "background")
-      out.values = g.background;
-    else if (p.name == "camera")
-      out.values = g.camera;
-    else
-      out.values.assign(p.parameters.size(), 0.0);  // step: the render is flat in it
-    d.groups.push_back(std::move(out));
+  for (std::size_t i = 0; i < g.groups.size(); ++i) {
+    const GroupPlan p = plan_group(s.scene, groups[i]);
+    d.groups.push_back({p.name, std::vector<std::size_t>(p.shape.begin(), p.shape.end()),
+                        g.groups[i].second.to_doubles()});
+    d.parameters += p.parameters.size();
   }
+  const OperationStats st = session.last_stats();
+  d.kernel_seconds = st.kernel_seconds;
+  d.device_bytes = st.device_bytes;
   return d;
 }
 

@@ -132,8 +132,8 @@ void occupy_from_ranges(BrickGrid& g, const std::vector<float>& ranges,
   g.empty_fraction = double(empty) / double(count);
 }
 
-BrickGrid build_brick_grid(const Volume& v, const TransferFunction& tf, int size) {
-  BrickGrid g = brick_layout(v, size);
+std::vector<float> host_brick_ranges(const Volume& v, int size) {
+  const BrickGrid g = brick_layout(v, size);
   std::vector<float> ranges(2 * std::size_t(g.nx) * g.ny * g.nz);
   auto span = [&](int b, int n, int* first, int* last) {
     *first = std::max(b * size - 1, 0);
@@ -164,7 +164,12 @@ BrickGrid build_brick_grid(const Volume& v, const TransferFunction& tf, int size
     pool.emplace_back(layers, g.nz * t / threads, g.nz * (t + 1) / threads);
   layers(0, g.nz / threads);
   for (std::thread& th : pool) th.join();
-  occupy_from_ranges(g, ranges, tf);
+  return ranges;
+}
+
+BrickGrid build_brick_grid(const Volume& v, const TransferFunction& tf, int size) {
+  BrickGrid g = brick_layout(v, size);
+  occupy_from_ranges(g, host_brick_ranges(v, size), tf);
   return g;
 }
 

@@ -47,25 +47,17 @@ int auto_brick_size(const Volume& volume);
 // ends of the segment at 0) but not for the identity TF (σ' = its scale).
 bool gradient_may_skip(const TransferFunction& tf, bool grad_tf, bool grad_density_or_camera);
 
-// The grid for a launch, from the volume on the device (brick ranges by kernels/empty_space.cl's
-// brick_ranges there) or in the scene (on the host for CPU devices, or with $IVR_GRID=host).
-BrickGrid scene_grid(Device::Impl& dev, const cl::Buffer& volume, const Scene& scene, int size,
-                     Precision precision);
-
-struct RenderVariant;
-
-// Empty-space skipping for one launch: as `mode` asks — automatic: where the TF is 0 on some
-// density range and at least `min_fraction` of the bricks are empty — and only where `allowed`
-// (a gradient that skipping keeps exact, gradient_may_skip). Sets variant.skip_empty and
-// variant.brick_size (brick_size 0: auto_brick_size) and returns the grid (its occupied list
-// empty when not skipping); *seconds: time spent building it.
-BrickGrid plan_skipping(Device::Impl& dev, const cl::Buffer& volume, const Scene& scene,
-                        EmptySpace mode, int brick_size, double min_fraction, bool allowed,
-                        RenderVariant& variant, double* seconds = nullptr);
-
-// The occupancy buffer the marching kernels read (one unused byte when not skipping), and the
-// grid's brick counts for their `bricks` argument.
-cl::Buffer occupancy_buffer(Device::Impl& dev, const BrickGrid& grid);
-cl_int4 brick_counts(const BrickGrid& grid);
+// The per-brick [min, max] pairs of build_brick_grid, on the host (threaded) or by the
+// brick_ranges kernel of kernels/empty_space.cl over densities already on the device.
+std::vector<float> host_brick_ranges(const Volume& volume, int size);
+class KernelSet;
+std::vector<float> device_brick_ranges(Device::Impl& dev, KernelSet& kernels,
+                                       const cl::Buffer& volume, const Volume& dims, int size,
+                                       bool f64);
+// Where a session takes the ranges when it has the densities on the host too: on CPU devices
+// the host (the volume is in host memory anyway; bench/empty_space_bench.cpp, MNI152 on PoCL:
+// 17–21 ms threaded on the host against 52–62 ms by the kernel), elsewhere the device.
+// $IVR_GRID=host|device overrides (tests run both on any device).
+bool grid_on_device(const DeviceInfo& info);
 
 }  // namespace ivr

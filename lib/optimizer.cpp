@@ -4,9 +4,8 @@
 
 #include <cmath>
 
-#include "device_scene.hpp"
 #include "ivr/error.hpp"
-#include "kernel_sources.hpp"
+#include "launch.hpp"
 #include "real_args.hpp"
 #include "scene_checks.hpp"
 
@@ -111,25 +110,26 @@ Optimizer::Impl::Impl(Device::Impl& device, std::size_t n, const OptimizerOption
   if (f64 && !dev.info.fp64)
     throw Error(Status::unsupported,
                 "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
-  const std::string tag = f64 ? "f64" : "f32";
-  const cl::Program program = dev.programs.get(
-      dev.context, dev.device, dev.info,
-      "#define IVR_F64 " + std::string(f64 ? "1" : "0") + "\n" + assemble_kernel("optimize.cl"),
-      extra_build_options(), "optimize.cl [" + tag + "]");
+  KernelConfig config;
+  config.file = "optimize.cl";
+  config.entry = o.kind == OptimizerKind::adam ? "adam_step" : "sgd_step";
+  config.preamble = "#define IVR_F64 " + std::string(f64 ? "1" : "0") + "\n";
+  config.label = std::string("optimize.cl [") + (f64 ? "f64" : "f32") + "]";
+  const cl::Program program = program_for(dev, config);
   const std::vector<double> zeros(n, 0.0);
   first = upload_reals(dev, f64, zeros, "the optimizer's first moments");
   if (o.kind == OptimizerKind::adam)
     second = upload_reals(dev, f64, zeros, "the optimizer's second moments");
   cl_call("setting up the optimizer kernel", [&] {
-    kernel = cl::Kernel(program, o.kind == OptimizerKind::adam ? "adam_step" : "sgd_step");
+    kernel = cl::Kernel(program, config.entry.c_str());
   });
 }
 
-void Optimizer::Impl::step(const cl::Buffer& x, const cl::Buffer& g) {
+cl::Event Optimizer::Impl::step(const cl::Buffer& x, const cl::Buffer& g) {
   const OptimizerOptions& o = options;
   const double lr = learning_rate(o, iterations);
   ++iterations;
-  cl_call("running the optimizer step on " + dev.info.name, [&] {
+  return cl_call("running the optimizer step on " + dev.info.name, [&] {
     cl_uint a = 0;
     kernel.setArg(a++, cl_int(count));
     set_real(kernel, a++, f64, lr);
@@ -148,7 +148,7 @@ void Optimizer::Impl::step(const cl::Buffer& x, const cl::Buffer& g) {
     kernel.setArg(a++, g);
     kernel.setArg(a++, first);
     if (o.kind == OptimizerKind::adam) kernel.setArg(a++, second);
-    dev.queue.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(count), cl::NullRange);
+    return enqueue_1d(dev, kernel, count);
   });
 }
 

@@ -18,7 +18,7 @@ struct Optimizer::Impl {
   Impl(Device::Impl& device, std::size_t count, const OptimizerOptions& options,
        Precision precision);
   // x ← project(x − update(g)) with the next learning rate; enqueued, not waited for.
-  void step(const cl::Buffer& x, const cl::Buffer& g);
+  cl::Event step(const cl::Buffer& x, const cl::Buffer& g);
 };
 
 }  // namespace ivr

@@ -1,8 +1,7 @@
 // priors.cpp — runs kernels/priors.cl's density_prior and sums its partial values.
 #include "priors.hpp"
 
-#include "device_scene.hpp"
-#include "kernel_sources.hpp"
+#include "launch.hpp"
 #include "real_args.hpp"
 
 namespace ivr {
@@ -12,10 +11,12 @@ constexpr std::size_t kItems = 4096;  // work-items of the grid-stride loop (eac
 }
 
 DensityPrior::DensityPrior(Device::Impl& dev, bool f64) : dev_(dev), f64_(f64) {
-  const cl::Program program = dev.programs.get(
-      dev.context, dev.device, dev.info,
-      "#define IVR_F64 " + std::string(f64 ? "1" : "0") + "\n" + assemble_kernel("priors.cl"),
-      extra_build_options(), std::string("priors.cl [") + (f64 ? "f64" : "f32") + "]");
+  KernelConfig config;
+  config.file = "priors.cl";
+  config.entry = "density_prior";
+  config.preamble = "#define IVR_F64 " + std::string(f64 ? "1" : "0") + "\n";
+  config.label = std::string("priors.cl [") + (f64 ? "f64" : "f32") + "]";
+  const cl::Program program = program_for(dev, config);
   cl_call("setting up the density prior", [&] { kernel_ = cl::Kernel(program, "density_prior"); });
   partial_ =
       dev.buffer(CL_MEM_READ_WRITE, kItems * (f64 ? 8 : 4), nullptr, "the prior's partial sums");

@@ -140,4 +140,15 @@ cl::Program ProgramCache::get(const cl::Context& context, const cl::Device& devi
   return done(program, "compiled");
 }
 
+cl::Program ProgramCache::recall(const std::string& key) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = by_key_.find(key);
+  return it == by_key_.end() ? cl::Program() : it->second;
+}
+
+void ProgramCache::remember(const std::string& key, const cl::Program& program) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  by_key_[key] = program;
+}
+
 }  // namespace ivr

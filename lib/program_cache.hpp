@@ -30,9 +30,16 @@ class ProgramCache {
   // Where the last get() found its program: "memory", "disk" or "compiled".
   const std::string& last_origin() const { return last_origin_; }
 
+  // Programs by a caller's short key (lib/launch.cpp: file, preamble and options), so that a
+  // program built once is found again without assembling and hashing its source. recall gives
+  // an empty program for a key never remembered.
+  cl::Program recall(const std::string& key);
+  void remember(const std::string& key, const cl::Program& program);
+
  private:
   std::mutex mutex_;
   std::map<std::string, cl::Program> programs_;
+  std::map<std::string, cl::Program> by_key_;
   std::string last_origin_;
 };
 

@@ -1,85 +1,192 @@
-// project.cpp — the projector pair N / Nᵀ (kernels/project.cl): scene geometry packed for the
-// device, one work-item per ray, host-vector and device-buffer entry points.
+// project.cpp — the projector pair N / Nᵀ (kernels/project.cl) on a session's geometry: one
+// work-item per ray; the session's project / backproject on device arrays, and the Projector
+// (host vectors and the tomography solvers' device buffers) over a session of its own.
 #include <algorithm>
 #include <cmath>
 
-#include "device_params.hpp"
-#include "device_scene.hpp"
 #include "ivr/error.hpp"
-#include "kernel_sources.hpp"
 #include "projector.hpp"
 #include "real_args.hpp"
 #include "scene_checks.hpp"
+#include "session_impl.hpp"
 
 namespace ivr {
 
 namespace {
 
-// The grid, box and cameras must make sense; the model, TF, integrator and values do not matter.
-void check_geometry(const Scene& scene) {
-  validate_geometry(scene);
+[[noreturn]] void bad(const std::string& what) {
+  throw Error(Status::invalid_argument, what);
+}
+
+KernelConfig projector_config(const Session::Impl& s, const char* entry) {
+  const bool native_atomics = use_float_atomics(s.dev.info, s.f64);
+  KernelConfig c;
+  c.file = "project.cl";
+  c.entry = entry;
+  c.preamble = std::string("#define IVR_MODEL 0\n#define IVR_TF 0\n#define IVR_SCHEME 2\n") +
+               "#define IVR_F64 " + (s.f64 ? "1" : "0") + "\n" +
+               (native_atomics ? "#define IVR_FLOAT_ATOMICS 1\n" : "");
+  c.float_atomics = native_atomics;
+  c.label = std::string("project.cl [") + (s.f64 ? "f64" : "f32") +
+            (native_atomics ? " float_atomics" : "") + "]";
+  return c;
+}
+
+// The grid and cameras of the ray kernels (arguments 1 … 7 of project and backproject).
+void set_geometry(const Session::Impl& s, cl::Kernel& k) {
+  const Scene& scene = s.scene;
+  const glm::dvec3 h = scene.voxel_size();
+  k.setArg(1, cl_int4{{scene.volume.nx, scene.volume.ny, scene.volume.nz, 0}});
+  set_real4(k, 2, s.f64, scene.box_min.x, scene.box_min.y, scene.box_min.z);
+  set_real4(k, 3, s.f64, scene.box_max.x, scene.box_max.y, scene.box_max.z);
+  set_real4(k, 4, s.f64, 1 / h.x, 1 / h.y, 1 / h.z);
+  k.setArg(5, s.cameras);
+  k.setArg(6, cl_int(scene.cameras.front().width));
+  k.setArg(7, cl_int(scene.cameras.front().height));
+}
+
+void check_projector_size(const Scene& scene) {
   if (double(scene.volume.nx) * scene.volume.ny * scene.volume.nz > 2147483647.0)
-    throw Error(Status::invalid_argument, "projector: the volume holds more than 2^31 voxels");
+    bad("projector: the volume holds more than 2^31 voxels");
+  const Camera& c = scene.cameras.front();
+  if (double(scene.cameras.size()) * c.width * c.height > 2147483647.0)
+    bad("projector: the cameras have more than 2^31 rays");
+}
+
+// An array in the session's precision: `a` itself, or a converted copy in a scratch slot.
+cl::Buffer as_reals(Session::Impl& s, const DeviceArray& a, const char* slot,
+                    OperationRecord& op) {
+  if (a.dtype() == real_dtype(s.f64)) return buffer_of(a);
+  const cl::Buffer& out = s.scratch(slot, a.size() * s.real_size, slot);
+  op.events.push_back(s.arrays.convert(buffer_of(a), a.dtype(), out, real_dtype(s.f64), a.size()));
+  return out;
 }
 
 }  // namespace
 
-Projector::Impl::Impl(Device::Impl& device, const Scene& scene, Precision prec)
-    : dev(device), precision(prec), real_size(prec == Precision::f64 ? 8 : 4) {
-  check_geometry(scene);
-  if (precision == Precision::f64 && !dev.info.fp64)
-    throw Error(Status::unsupported,
-                "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
+cl::Event enqueue_project(Session::Impl& s, const cl::Buffer& volume, const cl::Buffer& lines) {
+  check_projector_size(s.scene);
+  return cl_call("running the projector on " + s.dev.info.name, [&] {
+    cl::Kernel& k = s.kernels.get(projector_config(s, "project"));
+    k.setArg(0, volume);
+    set_geometry(s, k);
+    k.setArg(8, lines);
+    const Camera& c = s.scene.cameras.front();
+    return enqueue(s.dev, k,
+                   pixel_launch(s.dev, k, "project", c.width, c.height,
+                                int(s.scene.cameras.size()), false));
+  });
+}
+
+cl::Event enqueue_backproject(Session::Impl& s, const cl::Buffer& lines, const cl::Buffer& volume,
+                              std::vector<cl::Event>& events) {
+  check_projector_size(s.scene);
+  return cl_call("running the back-projector on " + s.dev.info.name, [&] {
+    events.push_back(cl::Event());
+    s.dev.queue.enqueueFillBuffer(volume, cl_uchar(0), 0,
+                                  s.scene.volume.voxel_count() * s.real_size, nullptr,
+                                  &events.back());
+    cl::Kernel& k = s.kernels.get(projector_config(s, "backproject"));
+    k.setArg(0, lines);
+    set_geometry(s, k);
+    k.setArg(8, volume);
+    const Camera& c = s.scene.cameras.front();
+    events.push_back(enqueue(s.dev, k,
+                             pixel_launch(s.dev, k, "backproject", c.width, c.height,
+                                          int(s.scene.cameras.size()), false)));
+    return events.back();
+  });
+}
+
+DeviceArray Session::project() {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl& s = *impl_;
+  s.require_volume("project");
+  OperationRecord& op = s.begin("project");
+  const std::vector<std::int64_t> is = s.image_shape();
+  DeviceArray lines = s.output("lines", {is[0], is[1], is[2], 1}, real_dtype(s.f64), "the lines");
+  op.events.push_back(enqueue_project(s, buffer_of(s.volume), buffer_of(lines)));
+  mark_written(lines, op.events.back());
+  return lines;
+}
+
+DeviceArray Session::project(const DeviceArray& volume) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl& s = *impl_;
+  s.check_array(volume, "project: volume");
+  if (volume.shape() != s.volume_shape())
+    bad("project: the volume has shape " + shape_text(volume.shape()) + "; the grid is " +
+        shape_text(s.volume_shape()));
+  OperationRecord& op = s.begin("project");
+  const std::vector<std::int64_t> is = s.image_shape();
+  DeviceArray lines = s.output("lines", {is[0], is[1], is[2], 1}, real_dtype(s.f64), "the lines");
+  const cl::Buffer v = as_reals(s, volume, "projected volume", op);
+  op.events.push_back(enqueue_project(s, v, buffer_of(lines)));
+  mark_written(lines, op.events.back());
+  return lines;
+}
+
+DeviceArray Session::backproject(const DeviceArray& lines) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl& s = *impl_;
+  s.check_array(lines, "backproject: lines");
+  std::vector<std::int64_t> want = s.image_shape();
+  want[3] = 1;
+  if (lines.shape() != want)
+    bad("backproject: the lines have shape " + shape_text(lines.shape()) +
+        "; the cameras' rays are " + shape_text(want));
+  OperationRecord& op = s.begin("backproject");
+  DeviceArray out =
+      s.output("backprojection", s.volume_shape(), real_dtype(s.f64), "the back-projection");
+  const cl::Buffer p = as_reals(s, lines, "backprojected lines", op);
+  enqueue_backproject(s, p, buffer_of(out), op.events);
+  mark_written(out, op.events.back());
+  return out;
+}
+
+// --- the Projector: a session of the scene's geometry alone -------------------------------------
+
+namespace {
+// The grid, box and cameras; the model, TF, integrator and values do not matter to N.
+Scene geometry_of(const Scene& scene) {
+  Scene g;
+  g.volume.nx = scene.volume.nx;
+  g.volume.ny = scene.volume.ny;
+  g.volume.nz = scene.volume.nz;
+  g.volume.spacing = scene.volume.spacing;
+  g.box_min = scene.box_min;
+  g.box_max = scene.box_max;
+  g.model = Model::absorption;
+  g.cameras = scene.cameras;
+  return g;
+}
+
+std::unique_ptr<Session> geometry_session(Device& device, const Scene& scene, Precision precision) {
+  validate_geometry(scene);
+  check_projector_size(scene);
+  SessionOptions o;
+  o.precision = precision;
+  return std::make_unique<Session>(device, geometry_of(scene), o);
+}
+}  // namespace
+
+Projector::Impl::Impl(Device& device, const Scene& scene, Precision prec)
+    : session(geometry_session(device, scene, prec)),
+      s(session->impl()),
+      dev(device.impl()),
+      precision(prec),
+      real_size(prec == Precision::f64 ? 8 : 4) {
   nx = scene.volume.nx, ny = scene.volume.ny, nz = scene.volume.nz;
   views = int(scene.cameras.size());
   width = scene.cameras.front().width;
   height = scene.cameras.front().height;
   voxels = std::size_t(nx) * ny * nz;
   rays = std::size_t(views) * width * height;
-  if (double(rays) > 2147483647.0)
-    throw Error(Status::invalid_argument, "projector: the cameras have more than 2^31 rays");
-
-  const bool f64 = precision == Precision::f64;
-  if (f64) {
-    const std::vector<double> cams = pack_cameras<double>(scene.cameras);
-    cameras = dev.buffer(CL_MEM_READ_ONLY, cams.size() * 8, cams.data(), "the cameras");
-  } else {
-    const std::vector<float> cams = pack_cameras<float>(scene.cameras);
-    cameras = dev.buffer(CL_MEM_READ_ONLY, cams.size() * 4, cams.data(), "the cameras");
-  }
-  const bool native_atomics = use_float_atomics(dev.info, f64);
-  std::string preamble =
-      std::string("#define IVR_MODEL 0\n#define IVR_TF 0\n#define IVR_SCHEME 2\n") +
-      "#define IVR_F64 " + (f64 ? "1" : "0") + "\n";
-  std::string options = extra_build_options();
-  if (native_atomics) {
-    preamble += "#define IVR_FLOAT_ATOMICS 1\n";
-    options = "-cl-std=" + dev.info.atomics_std + " " + options;
-  }
-  const std::string tag =
-      std::string(f64 ? "f64" : "f32") + (native_atomics ? " float_atomics" : "");
-  const cl::Program program =
-      dev.programs.get(dev.context, dev.device, dev.info, preamble + assemble_kernel("project.cl"),
-                       options, "project.cl [" + tag + "]");
-  linalg_program = dev.programs.get(
-      dev.context, dev.device, dev.info,
-      std::string("#define IVR_F64 ") + (f64 ? "1" : "0") + "\n" + assemble_kernel("linalg.cl"),
-      extra_build_options(), std::string("linalg.cl [") + (f64 ? "f64" : "f32") + "]");
-
-  const glm::dvec3 h = scene.voxel_size();
-  cl_call("setting up the projector kernels", [&] {
-    project_kernel = cl::Kernel(program, "project");
-    backproject_kernel = cl::Kernel(program, "backproject");
-    for (cl::Kernel* k : {&project_kernel, &backproject_kernel}) {
-      k->setArg(1, cl_int4{{nx, ny, nz, 0}});
-      set_real4(*k, 2, f64, scene.box_min.x, scene.box_min.y, scene.box_min.z);
-      set_real4(*k, 3, f64, scene.box_max.x, scene.box_max.y, scene.box_max.z);
-      set_real4(*k, 4, f64, 1 / h.x, 1 / h.y, 1 / h.z);
-      k->setArg(5, cameras);
-      k->setArg(6, cl_int(width));
-      k->setArg(7, cl_int(height));
-    }
-  });
+  KernelConfig linalg;
+  linalg.file = "linalg.cl";
+  linalg.preamble = std::string("#define IVR_F64 ") + (s.f64 ? "1" : "0") + "\n";
+  linalg.label = std::string("linalg.cl [") + (s.f64 ? "f64" : "f32") + "]";
+  linalg_program = program_for(dev, linalg);
 }
 
 cl::Buffer Projector::Impl::vector(std::size_t n, const char* what) const {
@@ -94,48 +201,25 @@ std::vector<double> Projector::Impl::download(const cl::Buffer& buffer, std::siz
   return download_reals(dev, precision == Precision::f64, buffer, n);
 }
 
-void Projector::Impl::run_rays(cl::Kernel& kernel, const char* what) {
-  cl::Event done;
-  cl_call(std::string("running the ") + what + " on " + dev.info.name, [&] {
-    const LaunchParams launch = launch_params(dev.info, "project");
-    if (launch.local_x > 0) {  // global size rounded up; the kernels skip the padding
-      const int lx = launch.local_x, ly = launch.local_y;
-      dev.queue.enqueueNDRangeKernel(
-          kernel, cl::NullRange,
-          cl::NDRange((width + lx - 1) / lx * lx, (height + ly - 1) / ly * ly, views),
-          cl::NDRange(lx, ly, 1), nullptr, &done);
-    } else {
-      dev.queue.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(width, height, views),
-                                     cl::NullRange, nullptr, &done);
-    }
-    done.wait();
-  });
-  last_seconds = event_seconds(done);
-}
-
 void Projector::Impl::project(const cl::Buffer& volume, const cl::Buffer& lines) {
-  project_kernel.setArg(0, volume);
-  project_kernel.setArg(8, lines);
-  run_rays(project_kernel, "projector");
+  const cl::Event done = enqueue_project(s, volume, lines);
+  cl_call("waiting for the projector", [&] {
+    done.wait();
+    last_seconds = event_seconds(done);
+  });
 }
 
 void Projector::Impl::backproject(const cl::Buffer& lines, const cl::Buffer& volume) {
-  cl::Event done;
-  cl_call("running the back-projector on " + dev.info.name, [&] {
-    const double zero = 0;  // all-zero bits in either precision
-    dev.queue.enqueueFillBuffer(volume, cl_uchar(zero), 0, voxels * real_size);
-    backproject_kernel.setArg(0, lines);
-    backproject_kernel.setArg(8, volume);
-    dev.queue.enqueueNDRangeKernel(backproject_kernel, cl::NullRange,
-                                   cl::NDRange(width, height, views), cl::NullRange, nullptr,
-                                   &done);
+  std::vector<cl::Event> events;
+  const cl::Event done = enqueue_backproject(s, lines, volume, events);
+  cl_call("waiting for the back-projector", [&] {
     done.wait();
+    last_seconds = event_seconds(done);
   });
-  last_seconds = event_seconds(done);
 }
 
 Projector::Projector(Device& device, const Scene& scene, Precision precision)
-    : impl_(std::make_unique<Impl>(device.impl(), scene, precision)) {}
+    : impl_(std::make_unique<Impl>(device, scene, precision)) {}
 Projector::~Projector() = default;
 Projector::Projector(Projector&&) noexcept = default;
 Projector& Projector::operator=(Projector&&) noexcept = default;
@@ -164,9 +248,8 @@ double Projector::last_kernel_seconds() const {
 
 std::vector<double> Projector::project(const std::vector<double>& volume) const {
   if (volume.size() != impl_->voxels)
-    throw Error(Status::invalid_argument, "project: the volume has " +
-                                              std::to_string(volume.size()) + " values, the grid " +
-                                              std::to_string(impl_->voxels));
+    bad("project: the volume has " + std::to_string(volume.size()) + " values, the grid " +
+        std::to_string(impl_->voxels));
   const cl::Buffer v = impl_->upload(volume, "the volume");
   const cl::Buffer lines = impl_->vector(impl_->rays, "the line integrals");
   impl_->project(v, lines);
@@ -175,9 +258,8 @@ std::vector<double> Projector::project(const std::vector<double>& volume) const 
 
 std::vector<double> Projector::backproject(const std::vector<double>& lines) const {
   if (lines.size() != impl_->rays)
-    throw Error(Status::invalid_argument, "backproject: " + std::to_string(lines.size()) +
-                                              " values for " + std::to_string(impl_->rays) +
-                                              " rays (views × height × width)");
+    bad("backproject: " + std::to_string(lines.size()) + " values for " +
+        std::to_string(impl_->rays) + " rays (views × height × width)");
   const cl::Buffer p = impl_->upload(lines, "the projections");
   const cl::Buffer v = impl_->vector(impl_->voxels, "the back-projection");
   impl_->backproject(p, v);

@@ -1,38 +1,46 @@
 // projector.hpp — the projector pair on the device (kernels/project.cl) and the solvers' vector
 // operations (kernels/linalg.cl), on device buffers of the chosen precision.
 #pragma once
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "ivr/session.hpp"
 #include "ivr/tomo.hpp"
 #include "runtime.hpp"
 
 namespace ivr {
 
+// A session of the scene's geometry alone (grid, box, cameras: no densities) runs the kernels.
 struct Projector::Impl {
+  std::unique_ptr<Session> session;
+  Session::Impl& s;
   Device::Impl& dev;
   Precision precision;
   std::size_t real_size;  // 4 or 8 bytes
   int nx, ny, nz, views, width, height;
   std::size_t voxels, rays;
-  cl::Buffer cameras;
-  cl::Kernel project_kernel, backproject_kernel;
   cl::Program linalg_program;
   double last_seconds = 0;  // device time of the last projector kernel
 
-  Impl(Device::Impl& device, const Scene& scene, Precision precision);
+  Impl(Device& device, const Scene& scene, Precision precision);
 
   // A device vector of n reals (uninitialised), or of the given values.
   cl::Buffer vector(std::size_t n, const char* what) const;
   cl::Buffer upload(const std::vector<double>& values, const char* what) const;
   std::vector<double> download(const cl::Buffer& buffer, std::size_t n) const;
 
-  // lines = N volume; volume = Nᵀ lines (overwritten). Both wait for the kernel.
+  // lines = N volume; volume = Nᵀ lines (overwritten). Both wait for the kernel and set
+  // last_seconds.
   void project(const cl::Buffer& volume, const cl::Buffer& lines);
   void backproject(const cl::Buffer& lines, const cl::Buffer& volume);
-  // One work-item per ray (launch_params "project"), waited for; sets last_seconds.
-  void run_rays(cl::Kernel& kernel, const char* what);
 };
+
+// The session's projector kernels on buffers of its precision: lines = N volume; volume = Nᵀ
+// lines (zeroed first; both commands' events appended). Enqueued, not waited for.
+cl::Event enqueue_project(Session::Impl& s, const cl::Buffer& volume, const cl::Buffer& lines);
+cl::Event enqueue_backproject(Session::Impl& s, const cl::Buffer& lines, const cl::Buffer& volume,
+                              std::vector<cl::Event>& events);
 
 // The vector operations of kernels/linalg.cl on device vectors of one precision.
 class DeviceVectors {

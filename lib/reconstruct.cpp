@@ -6,14 +6,13 @@
 #include <cmath>
 #include <numeric>
 
-#include "adjoint_device.hpp"
 #include "ivr/differentiate.hpp"
 #include "ivr/error.hpp"
-#include "ivr/tolerance.hpp"
 #include "optimizer.hpp"
 #include "real_args.hpp"
 #include "reconstruct_impl.hpp"
 #include "scene_checks.hpp"
+#include "session_impl.hpp"
 
 namespace ivr {
 
@@ -44,20 +43,6 @@ std::vector<int> batch_views(std::uint64_t seed, int k, int views, int batch) {
   all.resize(std::size_t(batch));
   std::sort(all.begin(), all.end());
   return all;
-}
-
-Image select_views(const Image& all, const std::vector<int>& views) {
-  Image out;
-  out.views = int(views.size());
-  out.height = all.height;
-  out.width = all.width;
-  out.channels = all.channels;
-  const std::size_t per_view = std::size_t(all.height) * all.width * all.channels;
-  out.pixels.reserve(per_view * views.size());
-  for (int v : views)
-    out.pixels.insert(out.pixels.end(), all.pixels.begin() + std::ptrdiff_t(per_view * v),
-                      all.pixels.begin() + std::ptrdiff_t(per_view * (v + 1)));
-  return out;
 }
 
 // tf_smoothness · mean over consecutive rows of Σ_c (u_r,c − u_r−1,c)²; adds its gradient.
@@ -185,6 +170,14 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
       tf_opt = std::make_unique<Optimizer>(device, u.size(), to, o.precision);
     }
   }
+  if (!o.density) {  // the TF alone: the scene's volume resident for the whole run
+    SessionOptions so;
+    so.precision = o.precision;
+    so.step = o.step;
+    session = std::make_unique<Session>(device, scene, so);
+    all_targets = DeviceArray(device, session->image_shape(), f64 ? DType::f64 : DType::f32);
+    all_targets.upload(targets.pixels.data(), targets.pixels.size());
+  }
   if (o.density) {
     prior = std::make_unique<DensityPrior>(dev, f64);
     Volume start;
@@ -220,24 +213,44 @@ OptimizerOptions Reconstruction::Impl::density_optimizer_options(int l) const {
 }
 
 void Reconstruction::Impl::enter_level(int l, const std::vector<double>& density) {
+  Scene grid = scene;
+  grid.volume.nx = dims[std::size_t(l)][0];
+  grid.volume.ny = dims[std::size_t(l)][1];
+  grid.volume.nz = dims[std::size_t(l)][2];
+  grid.volume.data.clear();
+  SessionOptions so;
+  so.precision = o.precision;
+  so.step = o.step;
+  auto next = std::make_unique<Session>(device, grid, so);
+  next->set_volume(density.data(), grid.volume.nz, grid.volume.ny, grid.volume.nx);
+  next->integrator();  // a tolerance's step, chosen once per level
+  if (!all_targets.valid()) {
+    all_targets = DeviceArray(device, next->image_shape(), f64 ? DType::f64 : DType::f32);
+    all_targets.upload(targets.pixels.data(), targets.pixels.size());
+  }
   level = l;
-  Scene with_data = scene;
-  with_data.volume.nx = dims[std::size_t(l)][0];
-  with_data.volume.ny = dims[std::size_t(l)][1];
-  with_data.volume.nz = dims[std::size_t(l)][2];
-  with_data.volume.data.assign(density.begin(), density.end());
-  integrator = integrator_for(device, with_data, o.step, o.precision, EmptySpace::automatic);
-  validate_with(with_data, integrator);
-  level_scene = std::move(with_data);
-  level_scene.volume.data.clear();
-  level_scene.volume.data.shrink_to_fit();
-  x = upload_reals(dev, f64, density, "the densities being reconstructed");
+  level_scene = std::move(grid);
+  session = std::move(next);
   density_opt = std::make_unique<Optimizer>(device, density.size(), density_optimizer_options(l),
                                             o.precision);
 }
 
+DeviceArray Reconstruction::Impl::batch_targets(const std::vector<int>& views) {
+  if (int(views.size()) == int(scene.cameras.size())) return all_targets;
+  const std::vector<std::int64_t>& shape = all_targets.shape();
+  DeviceArray batch(device, {std::int64_t(views.size()), shape[1], shape[2], shape[3]},
+                    all_targets.dtype());
+  const std::size_t per_view = all_targets.bytes() / scene.cameras.size();
+  cl_call("gathering the batch's targets", [&] {
+    for (std::size_t i = 0; i < views.size(); ++i)
+      dev.queue.enqueueCopyBuffer(buffer_of(all_targets), buffer_of(batch),
+                                  std::size_t(views[i]) * per_view, i * per_view, per_view);
+  });
+  return batch;
+}
+
 std::vector<double> Reconstruction::Impl::density_host() const {
-  return download_reals(dev, f64, x, level_scene.volume.voxel_count());
+  return session->volume().to_doubles();
 }
 
 Volume Reconstruction::Impl::level_volume() const {
@@ -252,6 +265,7 @@ void Reconstruction::Impl::apply_tf() {
   for (std::size_t i = 0; i < u.size(); ++i) values[i] = u[i] * bounds.scale[i];
   set_tf_parameters(scene.tf, values);
   level_scene.tf = scene.tf;
+  if (session) session->set_tf(scene.tf);
 }
 
 const IterationRecord& Reconstruction::Impl::step() {
@@ -266,7 +280,6 @@ const IterationRecord& Reconstruction::Impl::step() {
     enter_level(l, std::vector<double>(fine.data.begin(), fine.data.end()));
   }
   const std::vector<int> views = batch_views(o.seed, k, int(scene.cameras.size()), o.batch);
-  const Image target = select_views(targets, views);
   std::vector<Camera> cameras;
   for (int v : views) cameras.push_back(scene.cameras[std::size_t(v)]);
   const std::size_t cols = o.tf ? tf_gradient_shape(scene.tf)[1] : 1;
@@ -277,51 +290,57 @@ const IterationRecord& Reconstruction::Impl::step() {
   r.views = int(views.size());
   r.lr = learning_rate(o.optimizer, o.density ? density_opt->iterations() : k);
   if (o.density) {
-    Scene batch = level_scene;
-    batch.cameras = cameras;
-    GradientOptions go;
-    go.precision = o.precision;
-    go.loss = o.loss;
-    go.density = true;
-    go.tf = o.tf;
-    go.deterministic = o.deterministic;
-    cl::Buffer g;
-    const Gradient gr =
-        gradient_on_device(dev, batch, integrator, target, go, x, &g, &fixed_exponent);
-    r.loss = gr.loss;
-    const std::uint64_t real_size = f64 ? 8 : 4, voxels = batch.volume.voxel_count();
-    r.device_bytes =
-        gr.device_bytes + voxels * real_size * (o.optimizer.kind == OptimizerKind::adam ? 2 : 1);
+    Session::Impl& s = session->impl();
+    s.upload_cameras(cameras);
+    AdjointRequest request;
+    request.density = true;
+    request.tf = o.tf;
+    request.loss = o.loss;
+    request.deterministic = o.deterministic;
+    s.fixed_exponent = fixed_exponent;
+    OperationRecord& op = s.begin("gradient");
+    const AdjointResult gr = enqueue_adjoint(s, batch_targets(views), request, op);
+    fixed_exponent = s.fixed_exponent;
+    r.loss = gr.loss.to_doubles()[0];
+    const std::uint64_t real_size = f64 ? 8 : 4, voxels = level_scene.volume.voxel_count();
+    r.device_bytes = op.stats.device_bytes +
+                     voxels * real_size * (o.optimizer.kind == OptimizerKind::adam ? 2 : 1);
     if (o.tv > 0 || o.smoothness > 0)
-      r.prior = prior->add_gradient(batch.volume.nx, batch.volume.ny, batch.volume.nz, o.tv,
-                                    o.smoothness, o.tv_epsilon, x, g);
+      r.prior = prior->add_gradient(level_scene.volume.nx, level_scene.volume.ny,
+                                    level_scene.volume.nz, o.tv, o.smoothness, o.tv_epsilon,
+                                    buffer_of(s.volume), buffer_of(gr.density));
     if (o.tf) {
+      const std::vector<double> tf_grad = gr.tf.to_doubles();
       std::vector<double> gu(u.size());
-      for (std::size_t i = 0; i < u.size(); ++i) gu[i] = gr.tf[i] * bounds.scale[i];
+      for (std::size_t i = 0; i < u.size(); ++i) gu[i] = tf_grad[i] * bounds.scale[i];
       r.prior += tf_prior(u, cols, o.tf_smoothness, gu);
       tf_opt->step(u, gu);
     }
-    density_opt->impl().step(x, g);
+    session->step(*density_opt, gr.density);
   } else {
-    Scene batch = scene;  // the fixed volume, with this batch's cameras
-    batch.cameras = cameras;
-    DifferentiateOptions d;
-    d.mode = o.mode;
-    d.precision = o.precision;
-    d.step = o.step;
-    d.loss = o.loss;
+    // The fixed volume, with this batch's cameras and targets; the TF set per evaluation.
+    Session::Impl& s = session->impl();
+    s.upload_cameras(cameras);
+    const DeviceArray batch_target = batch_targets(views);
+    GradientRequest request;
+    request.wrt = {"tf"};
+    request.mode = o.mode;
+    request.loss = o.loss;
     auto objective = [&](const std::vector<double>& at, std::vector<double>& grad) {
       std::vector<double> values(at.size());
       for (std::size_t i = 0; i < at.size(); ++i) values[i] = at[i] * bounds.scale[i];
-      set_tf_parameters(batch.tf, values);
-      const Differentiation diff = differentiate(device, batch, target, {"tf"}, d);
-      const std::vector<double>& gv = diff.groups.front().values;
+      TransferFunction tf = scene.tf;
+      set_tf_parameters(tf, values);
+      s.upload_tf(tf);
+      const SessionGradient diff = session_gradient(s, batch_target, request);
+      const std::vector<double> gv = diff.groups.front().second.to_doubles();
+      const double loss = diff.loss.to_doubles()[0];
       grad.assign(at.size(), 0.0);
       for (std::size_t i = 0; i < at.size(); ++i) grad[i] = gv[i] * bounds.scale[i];
       const double p = tf_prior(at, cols, o.tf_smoothness, grad);
-      r.loss = diff.loss;
+      r.loss = loss;
       r.prior = p;
-      return diff.loss + p;
+      return loss + p;
     };
     if (lbfgs) {
       // The loss reported is the accepted point's (the line search may evaluate several).
@@ -340,7 +359,7 @@ const IterationRecord& Reconstruction::Impl::step() {
       u[i] = std::clamp(u[i], bounds.lower[i] / bounds.scale[i], bounds.upper[i] / bounds.scale[i]);
     apply_tf();
   }
-  if (o.density) cl_call("finishing the iteration", [&] { dev.queue.finish(); });
+  if (o.density) session->finish();
   ++k;
   r.seconds = seconds_since(start);
   history.push_back(r);

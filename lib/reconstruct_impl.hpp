@@ -4,8 +4,8 @@
 #include <memory>
 #include <vector>
 
-#include "adjoint_device.hpp"
 #include "ivr/reconstruct.hpp"
+#include "ivr/session.hpp"
 #include "lbfgs.hpp"
 #include "priors.hpp"
 #include "reconstruct_params.hpp"
@@ -28,10 +28,11 @@ struct Reconstruction::Impl {
   int k = 0;                           // completed iterations
   std::vector<IterationRecord> history;
 
-  // Density (o.density): the level's grid on the device.
-  Scene level_scene;  // the level's grid; volume.data empty (the densities live in x)
-  Integrator integrator;
-  cl::Buffer x;
+  // Density (o.density): the level's grid, resident in a session (densities, cameras, TF); the
+  // targets on the device once, batches gathered there.
+  Scene level_scene;  // the level's grid; volume.data empty (the densities live in the session)
+  std::unique_ptr<Session> session;
+  DeviceArray all_targets;
   std::unique_ptr<Optimizer> density_opt;
   std::unique_ptr<DensityPrior> prior;
   int fixed_exponent;  // the deterministic gradient's scale, carried between iterations
@@ -51,6 +52,8 @@ struct Reconstruction::Impl {
   void apply_tf();  // u → scene.tf and level_scene.tf
   OptimizerOptions density_optimizer_options(int l) const;
   const IterationRecord& step();
+  // The targets of `views` on the device: all of them, or a batch gathered from them.
+  DeviceArray batch_targets(const std::vector<int>& views);
 };
 
 }  // namespace ivr

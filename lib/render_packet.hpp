@@ -2,6 +2,7 @@
 // also marches the adjoint kernel's primal (lib/adjoint.cpp).
 #pragma once
 #include "ivr/scene.hpp"
+#include "launch.hpp"
 #include "runtime.hpp"
 #include "variants.hpp"
 
@@ -9,13 +10,11 @@ namespace ivr {
 
 // Rays per work-item; whether a scene's variant takes the packet kernel (CPU device,
 // emission–absorption, midpoint, piecewise-linear TF, float32, no skipping; $IVR_PACKET=0:
-// never); its program (primal: each pixel's emitted C and transmittance T into the image buffer,
-// for the adjoint kernel, instead of the composited pixel); its launch.
+// never); its configuration (primal: each pixel's emitted C and transmittance T into the image
+// buffer, for the adjoint kernel, instead of the composited pixel); its launch.
 int packet_lanes();
 bool use_packet(const Device::Impl& dev, const Scene& scene, const RenderVariant& v);
-cl::Program packet_program(Device::Impl& dev, const RenderVariant& variant, bool primal,
-                           double* seconds = nullptr);
-void enqueue_packet(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene,
-                    cl::Event* done);
+KernelConfig packet_config(const RenderVariant& variant, bool primal);
+PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene);
 
 }  // namespace ivr

@@ -177,27 +177,33 @@ void validate_geometry(const Scene& s) {
 }
 
 void validate_with(const Scene& s, const Integrator& it) {
-  validate_geometry(s);
+  validate_description(s, it);
   const Volume& v = s.volume;
   if (v.data.size() != v.voxel_count())
     fail("volume", "holds " + std::to_string(v.data.size()) + " values but dims need " +
                        std::to_string(v.voxel_count()));
-  // Branch-free scan in blocks (it vectorises: every render validates), then locate the culprit.
+  // Branch-free scan in blocks (it vectorises), then locate the culprit.
   constexpr std::size_t kBlock = 4096;
   for (std::size_t start = 0; start < v.data.size(); start += kBlock) {
     const std::size_t end = std::min(v.data.size(), start + kBlock);
     bool bad = false;
     for (std::size_t i = start; i < end; ++i) bad |= !(v.data[i] >= 0.0f && v.data[i] <= FLT_MAX);
     if (!bad) continue;
-    for (std::size_t i = start; i < end; ++i) {
-      const float d = v.data[i];
-      if (d >= 0.0f && d <= FLT_MAX) continue;
-      const std::size_t x = i % v.nx, y = (i / v.nx) % v.ny, z = i / (std::size_t(v.nx) * v.ny);
-      fail("volume", "density at (x, y, z) = (" + std::to_string(x) + ", " + std::to_string(y) +
-                         ", " + std::to_string(z) + ") is " + number_text(d) +
-                         "; densities must be finite and >= 0");
-    }
+    for (std::size_t i = start; i < end; ++i)
+      if (!(v.data[i] >= 0.0f && v.data[i] <= FLT_MAX)) throw bad_density(v, i, v.data[i]);
   }
+}
+
+Error bad_density(const Volume& v, std::size_t i, double value) {
+  const std::size_t x = i % v.nx, y = (i / v.nx) % v.ny, z = i / (std::size_t(v.nx) * v.ny);
+  return Error(Status::invalid_argument,
+               "volume: density at (x, y, z) = (" + std::to_string(x) + ", " + std::to_string(y) +
+                   ", " + std::to_string(z) + ") is " + number_text(value) +
+                   "; densities must be finite and >= 0");
+}
+
+void validate_description(const Scene& s, const Integrator& it) {
+  validate_geometry(s);
   validate_tf(s.tf);
   if (s.background && !finite(*s.background)) fail("background", "must be finite");
   validate_scheme(s, it.scheme);

@@ -252,6 +252,38 @@ void read_orbit(const Reader& r, const json& j, const std::string& where,
   }
 }
 
+// A "cameras" array: cameras and orbits, in order.
+std::vector<Camera> read_cameras(const Reader& r, const json& j) {
+  std::vector<Camera> out;
+  const json& cams = r.array(j, "cameras");
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    const std::string p = "cameras[" + std::to_string(i) + "]";
+    if (cams[i].is_object() && cams[i].contains("orbit"))
+      read_orbit(r, cams[i], p, out);
+    else
+      out.push_back(read_camera(r, cams[i], p));
+  }
+  return out;
+}
+
+Integrator read_integrator(const Reader& r, const json& it, const std::string& where) {
+  Integrator out;
+  r.only_keys(it, "integrator", {"scheme", "step", "min_transmittance", "tolerance"});
+  if (it.contains("scheme")) {
+    const std::string name = r.string(it["scheme"], "integrator.scheme");
+    try {
+      out.scheme = parse_scheme(name);
+    } catch (const Error& e) {
+      throw Error(e.status(), where + ": " + e.what());
+    }
+  }
+  if (it.contains("tolerance")) out.tolerance = r.number(it["tolerance"], "integrator.tolerance");
+  if (it.contains("step")) out.step = r.number(it["step"], "integrator.step");
+  if (it.contains("min_transmittance"))
+    out.min_transmittance = r.number(it["min_transmittance"], "integrator.min_transmittance");
+  return out;
+}
+
 json parse_json(const std::string& text, const std::string& where) {
   try {
     return json::parse(text);
@@ -281,6 +313,16 @@ TransferFunction parse_tf(const std::string& text, const std::string& where) {
     throw Error(e.status(), where + ": " + e.what());
   }
   return tf;
+}
+
+std::vector<Camera> parse_cameras(const std::string& text, const std::string& where) {
+  const Reader r(where);
+  return read_cameras(r, parse_json(text, where));
+}
+
+Integrator parse_integrator(const std::string& text, const std::string& where) {
+  const Reader r(where);
+  return read_integrator(r, parse_json(text, where), where);
 }
 
 Scene parse_scene(const std::string& text, const std::string& base_dir, const std::string& where) {
@@ -325,32 +367,8 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
       s.background = r.vec3(b, "background");
   }
   if (!j.contains("cameras")) r.fail("cameras", "a scene needs at least one camera");
-  const json& cams = r.array(j["cameras"], "cameras");
-  for (std::size_t i = 0; i < cams.size(); ++i) {
-    const std::string p = "cameras[" + std::to_string(i) + "]";
-    if (cams[i].is_object() && cams[i].contains("orbit"))
-      read_orbit(r, cams[i], p, s.cameras);
-    else
-      s.cameras.push_back(read_camera(r, cams[i], p));
-  }
-  if (j.contains("integrator")) {
-    const json& it = j["integrator"];
-    r.only_keys(it, "integrator", {"scheme", "step", "min_transmittance", "tolerance"});
-    if (it.contains("scheme")) {
-      const std::string name = r.string(it["scheme"], "integrator.scheme");
-      try {
-        s.integrator.scheme = parse_scheme(name);
-      } catch (const Error& e) {
-        throw Error(e.status(), where + ": " + e.what());
-      }
-    }
-    if (it.contains("tolerance"))
-      s.integrator.tolerance = r.number(it["tolerance"], "integrator.tolerance");
-    if (it.contains("step")) s.integrator.step = r.number(it["step"], "integrator.step");
-    if (it.contains("min_transmittance"))
-      s.integrator.min_transmittance =
-          r.number(it["min_transmittance"], "integrator.min_transmittance");
-  }
+  s.cameras = read_cameras(r, j["cameras"]);
+  if (j.contains("integrator")) s.integrator = read_integrator(r, j["integrator"], where);
   try {
     validate(s);
   } catch (const Error& e) {

@@ -1,6 +1,7 @@
 // tangents.cpp — forward-mode differentiation: parameters by group, passes of up to 32 tangent
-// lanes of kernels/tangents.cl, the Jacobian assembled and the loss gradient summed on the host
-// from the work-groups' partial sums.
+// lanes of kernels/tangents.cl on the session's device copies, the Jacobian's columns and the
+// loss gradient (the work-groups' partial sums reduced) assembled on the device; and the
+// one-shot tangents().
 #include "ivr/tangents.hpp"
 
 #include <algorithm>
@@ -8,14 +9,10 @@
 #include <sstream>
 #include <string>
 
-#include "device_params.hpp"
-#include "device_scene.hpp"
-#include "empty_space.hpp"
 #include "ivr/error.hpp"
-#include "ivr/tolerance.hpp"
-#include "kernel_sources.hpp"
+#include "real_args.hpp"
 #include "scene_checks.hpp"
-#include "variants.hpp"
+#include "session_impl.hpp"
 
 namespace ivr {
 
@@ -111,142 +108,137 @@ int lanes_for(std::size_t count) {
   return lanes;
 }
 
-template <class Real>
-void run_passes(Device::Impl& dev, const Scene& scene, const Integrator& integrator,
-                const std::vector<cl_int4>& all_lanes, const Image* target, const TangentOptions& o,
-                Tangents& out) {
+}  // namespace
+
+std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& parameters) {
+  std::vector<cl_int4> lanes;
+  lanes.reserve(parameters.size());
+  for (std::size_t i = 0; i < parameters.size(); ++i)
+    lanes.push_back(lane_of(scene, parameters[i], i));
+  return lanes;
+}
+
+TangentResult enqueue_tangents(Session::Impl& s, const std::vector<cl_int4>& all_lanes,
+                               const DeviceArray* target, bool jacobian, Loss loss_kind,
+                               OperationRecord& op) {
+  Device::Impl& dev = s.dev;
+  const Scene& scene = s.scene;
+  const Integrator& integrator = s.integrator();
   const Camera& cam0 = scene.cameras.front();
   const int views = int(scene.cameras.size()), channels = scene.channels();
-  const std::size_t pixels = std::size_t(views) * cam0.height * cam0.width;
-  const std::size_t params = all_lanes.size();
+  const std::size_t pixels = s.pixels(), params = all_lanes.size(), real = s.real_size;
   const bool loss = target != nullptr;
 
-  const DeviceScene<Real> dscene(dev, scene);
-  const std::vector<Real> cams = pack_camera_params<Real>(scene.cameras);
-  cl::Buffer camera_params = dev.buffer(CL_MEM_READ_ONLY, cams.size() * sizeof(Real),
-                                        const_cast<Real*>(cams.data()), "the camera parameters");
-  std::vector<Real> target_real;
-  if (loss)
-    target_real.assign(target->pixels.begin(), target->pixels.end());
-  else
-    target_real.assign(1, Real(0));
-  cl::Buffer target_buf = dev.buffer(CL_MEM_READ_ONLY, target_real.size() * sizeof(Real),
-                                     target_real.data(), "the target");
-  cl::Buffer image_buf =
-      dev.buffer(CL_MEM_WRITE_ONLY, pixels * channels * sizeof(float), nullptr, "the image");
-
-  // Work-groups of 8x8 (the database's size where it has one), within the kernel's limit.
-  RenderVariant variant = RenderVariant::of(
-      scene, integrator, std::is_same_v<Real, double> ? Precision::f64 : Precision::f32);
+  RenderVariant variant = s.variant_of(integrator);
   // Empty-space skipping where every pass stays exact (as the adjoint decides, gradient_may_skip).
   bool any_tf = false, any_position = false;
   for (const cl_int4& l : all_lanes) {
     any_tf |= l.s[0] == lane_tf;
     any_position |= l.s[0] == lane_camera || l.s[0] == lane_voxel;
   }
-  const BrickGrid grid = plan_skipping(dev, dscene.volume, scene, o.empty_space, o.brick_size,
-                                       RenderOptions().min_empty_fraction,
-                                       gradient_may_skip(scene.tf, any_tf, any_position), variant);
-  const cl::Buffer occupied = occupancy_buffer(dev, grid);
-  out.skipped_empty = variant.skip_empty;
-  const LaunchParams launch = launch_params(dev.info, "tangents");
-
-  out.image = Image{views, cam0.height, cam0.width, channels, {}};
-  if (o.jacobian) out.jacobian.assign(pixels * channels * params, 0.0f);
-  if (loss) out.gradient.assign(params, 0.0);
+  const cl::Buffer& occupied = s.plan_skipping(
+      gradient_may_skip(scene.tf, any_tf, any_position), variant, op.stats);
   const int pass_lanes = lanes_for(std::min<std::size_t>(params, kMaxLanes));
-  out.lanes = pass_lanes;
+
+  TangentResult out;
+  out.image = s.output("tangent image", s.image_shape(), DType::f32, "the image");
+  if (jacobian) {
+    std::vector<std::int64_t> shape = s.image_shape();
+    shape.push_back(std::int64_t(params));
+    out.jacobian = s.output("jacobian", shape, DType::f32, "the Jacobian");
+  }
+  const DType acc = s.arrays.acc_dtype();
+  if (loss) {
+    out.loss = s.output("loss", {1}, acc, "the loss");
+    out.gradient = s.output("forward gradient", {std::int64_t(params)}, acc, "the gradient");
+  }
+  const std::size_t row = std::size_t(pass_lanes) + 1;
+  const std::size_t jacobian_size = jacobian ? pixels * channels * std::size_t(pass_lanes) : 1;
+  const cl::Buffer& jacobian_pass =
+      s.scratch("jacobian pass", jacobian_size * sizeof(float), "the Jacobian");
+  const cl::Buffer& sums = s.scratch("tangent sums", row * 8, "the loss gradient's sums");
+  const cl::Buffer& target_buf =
+      loss ? buffer_of(*target) : s.scratch("no target", real, "the target");
+
+  op.stats.variant = variant.label() + " lanes=" + std::to_string(pass_lanes);
+  op.stats.skipped_empty = variant.skip_empty;
+  op.stats.step = integrator.step;
+  op.stats.mode = Mode::forward;
+  op.stats.lanes = pass_lanes;
   for (std::size_t first = 0; first < params || (params == 0 && first == 0); first += kMaxLanes) {
     const std::size_t count = std::min<std::size_t>(kMaxLanes, params - first);
     std::vector<cl_int4> lanes(std::size_t(pass_lanes), cl_int4{{lane_none, 0, 0, 0}});
-    bool any_tf = false, any_camera = false, any_voxel = false;
+    bool pass_tf = false, pass_camera = false, pass_voxel = false;
     for (std::size_t k = 0; k < count; ++k) {
       lanes[k] = all_lanes[first + k];
-      any_tf |= lanes[k].s[0] == lane_tf;
-      any_camera |= lanes[k].s[0] == lane_camera;
-      any_voxel |= lanes[k].s[0] == lane_voxel;
+      pass_tf |= lanes[k].s[0] == lane_tf;
+      pass_camera |= lanes[k].s[0] == lane_camera;
+      pass_voxel |= lanes[k].s[0] == lane_voxel;
     }
     const auto flag = [](bool b) { return b ? "1\n" : "0\n"; };
-    const std::string preamble =
-        variant.preamble() + "#define IVR_LANES " + std::to_string(pass_lanes) +
-        "\n#define IVR_TANGENT_TF " + flag(any_tf) + "#define IVR_TANGENT_CAMERA " +
-        flag(any_camera) + "#define IVR_TANGENT_VOXEL " + flag(any_voxel) +
-        "#define IVR_JACOBIAN " + flag(o.jacobian) + "#define IVR_LOSS_GRADIENT " + flag(loss) +
-        "#define IVR_LOSS_L1 " + flag(o.loss == Loss::l1);
-    const cl::Program program = dev.programs.get(
-        dev.context, dev.device, dev.info, preamble + assemble_kernel("tangents.cl"),
-        extra_build_options(),
-        "tangents.cl [" + variant.label() + " lanes=" + std::to_string(pass_lanes) + "]");
-    cl::Kernel k(program, "tangents");
-    const std::size_t max_group = k.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(dev.device);
-    int lx = launch.local_x, ly = launch.local_y;
-    if (lx <= 0 || std::size_t(lx) * std::size_t(ly) > max_group)
-      lx = ly = max_group >= 64 ? 8 : max_group >= 16 ? 4 : 1;
-    const int gx = (cam0.width + lx - 1) / lx * lx, gy = (cam0.height + ly - 1) / ly * ly;
-    const std::size_t groups = std::size_t(gx / lx) * std::size_t(gy / ly) * std::size_t(views);
-    const std::size_t row = std::size_t(pass_lanes) + 1;
-
-    cl::Buffer lanes_buf = dev.buffer(CL_MEM_READ_ONLY, lanes.size() * sizeof(cl_int4),
-                                      lanes.data(), "the tangent lanes");
-    const std::size_t jacobian_size = o.jacobian ? pixels * channels * std::size_t(pass_lanes) : 1;
-    cl::Buffer jacobian_buf =
-        dev.buffer(CL_MEM_WRITE_ONLY, jacobian_size * sizeof(float), nullptr, "the Jacobian");
-    cl::Buffer partial_buf =
-        dev.buffer(CL_MEM_WRITE_ONLY, groups * row * sizeof(Real), nullptr, "the partial sums");
-    out.device_bytes =
-        dscene.bytes + (cams.size() + target_real.size() + groups * row) * sizeof(Real) +
-        (pixels * channels + jacobian_size) * sizeof(float) + lanes.size() * sizeof(cl_int4);
-
-    std::vector<float> jac(o.jacobian ? jacobian_size : 0);
-    std::vector<Real> partial(loss ? groups * row : 0);
+    KernelConfig config;
+    config.file = "tangents.cl";
+    config.entry = "tangents";
+    config.preamble = variant.preamble() + "#define IVR_LANES " + std::to_string(pass_lanes) +
+                      "\n#define IVR_TANGENT_TF " + flag(pass_tf) + "#define IVR_TANGENT_CAMERA " +
+                      flag(pass_camera) + "#define IVR_TANGENT_VOXEL " + flag(pass_voxel) +
+                      "#define IVR_JACOBIAN " + flag(jacobian) + "#define IVR_LOSS_GRADIENT " +
+                      flag(loss) + "#define IVR_LOSS_L1 " + flag(loss_kind == Loss::l1);
+    config.label =
+        "tangents.cl [" + variant.label() + " lanes=" + std::to_string(pass_lanes) + "]";
     cl_call("running the tangent kernel on " + dev.info.name, [&] {
-      int a = dscene.set_args(k, scene, integrator);
+      double build = 0;
+      cl::Kernel& k = s.kernels.get(config, &build);
+      op.stats.build_seconds += build;
+      const PixelLaunch launch =
+          pixel_launch(dev, k, "tangents", cam0.width, cam0.height, views, true);
+      const std::size_t groups = launch.groups_per_view * std::size_t(views);
+      const cl::Buffer& partial =
+          s.scratch("tangent partials", groups * row * real, "the partial sums");
+      const cl::Buffer lanes_buf =
+          dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, lanes.size() * sizeof(cl_int4),
+                     lanes.data(), "the tangent lanes");
+      op.stats.device_bytes =
+          s.scene_bytes() + (loss ? target->bytes() : real) + groups * row * real +
+          (pixels * channels + jacobian_size) * sizeof(float) + lanes.size() * sizeof(cl_int4);
+      int a = s.set_scene_args(k, integrator);
       k.setArg(a++, lanes_buf);
-      k.setArg(a++, camera_params);
+      k.setArg(a++, s.camera_params);
       k.setArg(a++, target_buf);
-      k.setArg(a++, Real(1.0 / double(pixels * channels)));
-      k.setArg(a++, image_buf);
-      k.setArg(a++, jacobian_buf);
-      k.setArg(a++, partial_buf);
-      k.setArg(a++, cl::Local(std::size_t(lx) * ly * row * sizeof(Real)));
+      set_real(k, a++, s.f64, 1.0 / double(pixels * channels));
+      k.setArg(a++, buffer_of(out.image));
+      k.setArg(a++, jacobian_pass);
+      k.setArg(a++, partial);
+      k.setArg(a++, cl::Local(std::size_t(launch.group_x) * launch.group_y * row * real));
       k.setArg(a++, occupied);
-      k.setArg(a++, brick_counts(grid));
-      cl::Event done;
-      dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(gx, gy, views),
-                                     cl::NDRange(lx, ly, 1), nullptr, &done);
-      done.wait();
-      out.kernel_seconds += event_seconds(done);
-      if (o.jacobian)
-        dev.queue.enqueueReadBuffer(jacobian_buf, CL_TRUE, 0, jac.size() * sizeof(float),
-                                    jac.data());
-      if (loss)
-        dev.queue.enqueueReadBuffer(partial_buf, CL_TRUE, 0, partial.size() * sizeof(Real),
-                                    partial.data());
-      if (first == 0) {
-        out.image.pixels.resize(pixels * channels);
-        dev.queue.enqueueReadBuffer(image_buf, CL_TRUE, 0, out.image.pixels.size() * sizeof(float),
-                                    out.image.pixels.data());
+      k.setArg(a++, s.brick_counts());
+      op.events.push_back(enqueue(dev, k, launch));
+      if (jacobian && count > 0)
+        op.events.push_back(s.arrays.copy_columns(pixels * channels, jacobian_pass, pass_lanes, 0,
+                                                  buffer_of(out.jacobian), int(params),
+                                                  int(first), int(count)));
+      if (loss) {
+        op.events.push_back(s.arrays.sum_rows(partial, int(groups), int(row), 1, sums));
+        const std::size_t size = dtype_size(acc);
+        if (first == 0) {
+          op.events.push_back(cl::Event());
+          dev.queue.enqueueCopyBuffer(sums, buffer_of(out.loss), 0, 0, size, nullptr,
+                                      &op.events.back());
+        }
+        if (count > 0) {
+          op.events.push_back(cl::Event());
+          dev.queue.enqueueCopyBuffer(sums, buffer_of(out.gradient), size, first * size,
+                                      count * size, nullptr, &op.events.back());
+        }
       }
     });
-    ++out.passes;
-    if (o.jacobian)
-      for (std::size_t e = 0; e < pixels * channels; ++e)
-        for (std::size_t q = 0; q < count; ++q)
-          out.jacobian[e * params + first + q] = jac[e * pass_lanes + q];
-    if (loss) {
-      double total = 0;
-      for (std::size_t g = 0; g < groups; ++g) {
-        total += double(partial[g * row]);
-        for (std::size_t q = 0; q < count; ++q)
-          out.gradient[first + q] += double(partial[g * row + 1 + q]);
-      }
-      out.loss = total;
-    }
+    ++op.stats.passes;
     if (params == 0) break;
   }
+  for (DeviceArray* a : {&out.image, &out.jacobian, &out.loss, &out.gradient})
+    if (a->valid()) mark_written(*a, op.events.back());
+  return out;
 }
-
-}  // namespace
 
 std::vector<Parameter> parameters_of(const Scene& scene, const std::string& group) {
   std::vector<Parameter> out;
@@ -293,25 +285,29 @@ std::vector<Parameter> parameters_of(const Scene& scene, const std::string& grou
 
 Tangents tangents(Device& device, const Scene& scene, const std::vector<Parameter>& parameters,
                   const Image* target, const TangentOptions& options) {
-  const Integrator integrator =
-      integrator_for(device, scene, options.step, options.precision, options.empty_space);
-  validate_with(scene, integrator);
-  if (target) check_target(scene, *target);
-  std::vector<cl_int4> lanes;
-  lanes.reserve(parameters.size());
-  for (std::size_t i = 0; i < parameters.size(); ++i)
-    lanes.push_back(lane_of(scene, parameters[i], i));
-  Device::Impl& dev = device.impl();
+  Session session = one_shot_session(
+      device, scene, {options.precision, options.step, options.empty_space, 0.05,
+                      options.brick_size});
+  Session::Impl& s = session.impl();
+  if (target) session.set_target(*target);
+  const std::vector<cl_int4> lanes = lanes_of(s.scene, parameters);
+  const TangentResult r = enqueue_tangents(s, lanes, target ? &s.target : nullptr,
+                                           options.jacobian, options.loss, s.begin("tangents"));
   Tangents out;
-  out.step = integrator.step;
-  if (options.precision == Precision::f64) {
-    if (!dev.info.fp64)
-      throw Error(Status::unsupported,
-                  "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
-    run_passes<double>(dev, scene, integrator, lanes, target, options, out);
-  } else {
-    run_passes<float>(dev, scene, integrator, lanes, target, options, out);
+  const std::vector<std::int64_t> shape = r.image.shape();
+  out.image = Image{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]), r.image.to_floats()};
+  if (options.jacobian) out.jacobian = r.jacobian.to_floats();
+  if (target) {
+    out.loss = r.loss.to_doubles()[0];
+    out.gradient = r.gradient.to_doubles();
   }
+  const OperationStats st = session.last_stats();
+  out.kernel_seconds = st.kernel_seconds;
+  out.passes = st.passes;
+  out.lanes = st.lanes;
+  out.device_bytes = st.device_bytes;
+  out.skipped_empty = st.skipped_empty;
+  out.step = st.step;
   return out;
 }
 

@@ -11,6 +11,7 @@
 #include "ivr/tangents.hpp"
 #include "lbfgs.hpp"
 #include "scene_checks.hpp"
+#include "session_impl.hpp"
 
 namespace ivr {
 
@@ -79,7 +80,6 @@ double image_entropy(const Image& image, std::vector<double>* gradient, double b
 
 Viewpoint select_viewpoint(Device& device, const Scene& scene, const ViewpointOptions& options,
                            const std::function<bool(const ViewpointStep&)>& progress) {
-  validate(scene);
   if (options.view < 0 || options.view >= int(scene.cameras.size()))
     fail("view " + std::to_string(options.view) + " does not exist (the scene has " +
          std::to_string(scene.cameras.size()) + " cameras)");
@@ -108,20 +108,28 @@ Viewpoint select_viewpoint(Device& device, const Scene& scene, const ViewpointOp
   const std::vector<Parameter> eye = {{ParameterGroup::camera, 0, 0},
                                       {ParameterGroup::camera, 0, 1},
                                       {ParameterGroup::camera, 0, 2}};
-  TangentOptions to;
-  to.precision = options.precision;
-  to.step = options.step;
-  to.jacobian = true;
+  // The volume stays on the device; each evaluation moves the camera and marches 3 eye lanes.
+  SessionOptions so;
+  so.precision = options.precision;
+  so.step = options.step;
+  Session session = one_shot_session(device, one, so);
+  Session::Impl& s = session.impl();
+  const std::vector<cl_int4> lanes = lanes_of(one, eye);
   const double background = one.effective_background().x;
   // −H and its gradient with respect to (azimuth, elevation).
   auto objective = [&](const std::vector<double>& at, std::vector<double>& grad) {
     one.cameras[0].eye = f.eye(at[0], at[1]);
-    const Tangents t = tangents(device, one, eye, nullptr, to);
+    s.upload_cameras(one.cameras);
+    const TangentResult t = enqueue_tangents(s, lanes, nullptr, true, Loss::mse, s.begin("tangents"));
+    const std::vector<std::int64_t> shape = t.image.shape();
+    const Image image{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]),
+                      t.image.to_floats()};
+    const std::vector<float> jacobian = t.jacobian.to_floats();
     std::vector<double> dpix;
-    const double h = image_entropy(t.image, &dpix, background);
+    const double h = image_entropy(image, &dpix, background);
     glm::dvec3 deye(0.0);
     for (std::size_t i = 0; i < dpix.size(); ++i)
-      for (int c = 0; c < 3; ++c) deye[c] += dpix[i] * double(t.jacobian[i * 3 + std::size_t(c)]);
+      for (int c = 0; c < 3; ++c) deye[c] += dpix[i] * double(jacobian[i * 3 + std::size_t(c)]);
     const double az = at[0], el = at[1];
     const glm::dvec3 daz = f.radius * std::cos(el) * (-std::sin(az) * f.e1 + std::cos(az) * f.e2);
     const glm::dvec3 del = f.radius * (-std::sin(el) * (std::cos(az) * f.e1 + std::sin(az) * f.e2) +

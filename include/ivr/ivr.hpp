@@ -455,3 +455,4 @@ inline double image_loss(const std::vector<float>& image, const std::vector<floa
 
 // Reconstruction, viewpoint selection, entropy and PSNR: kept in their own header for size.
 #include "ivr/ivr_reconstruct.hpp"
+#include "ivr/ivr_session.hpp"

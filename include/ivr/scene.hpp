@@ -124,6 +124,12 @@ IVR_API Scene parse_scene(const std::string& json_text, const std::string& base_
 IVR_API Volume parse_volume(const std::string& json_text, const std::string& base_dir,
                             const std::string& where = "volume");
 IVR_API TransferFunction parse_tf(const std::string& json_text, const std::string& where = "tf");
+// A "cameras" array (cameras and orbits) and an "integrator" object on their own (sessions'
+// setters from bindings); checked as far as they go alone (a session checks them with its scene).
+IVR_API std::vector<Camera> parse_cameras(const std::string& json_text,
+                                          const std::string& where = "cameras");
+IVR_API Integrator parse_integrator(const std::string& json_text,
+                                    const std::string& where = "integrator");
 
 // A TF or a camera as the scene file's JSON object (parse_tf / a "cameras" entry read them back
 // exactly): what reconstructions and `ivr viewpoint` write.

@@ -1,0 +1,133 @@
+// array_ops.cl — the device arrays' own operations (lib/device_array.cpp, lib/session.cpp): the
+// volume check run when a session's densities are set, reductions to the loss and the per-view
+// sums, conversions between float32 and float64, and the gathers and column copies that leave
+// a result's parts in arrays of their own — so that nothing has to come back to the host.
+#include "config.cl"
+
+// IVR_ACC_F64: sums accumulate in double (devices with cl_khr_fp64), else in float — over a
+// tree of fixed shape either way, so the same inputs give the same bits on every run.
+#ifndef IVR_ACC_F64
+#define IVR_ACC_F64 IVR_F64
+#endif
+#if IVR_ACC_F64
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+typedef double acc;
+#else
+typedef float acc;
+#endif
+
+// Work-group size of the reductions below (the host launches exactly this many items a group).
+#ifndef IVR_REDUCE_SIZE
+#define IVR_REDUCE_SIZE 256
+#endif
+
+// Tree sum of scratch[0 .. IVR_REDUCE_SIZE) into scratch[0]; every item of the group calls it.
+inline void group_sum(__local acc* scratch, const int lid) {
+  for (int span = IVR_REDUCE_SIZE / 2; span > 0; span /= 2) {
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < span) scratch[lid] += scratch[lid + span];
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+}
+
+// The check of a session's densities or target (one pass, grid-stride): per work-group the
+// smallest and largest value and the first index holding one that is not finite — or negative,
+// unless allow_negative (n where there is none). The host reduces the groups' entries.
+__kernel void volume_check(const ulong n, __global const real* restrict v, const int allow_negative,
+                           __global real* restrict group_min, __global real* restrict group_max,
+                           __global ulong* restrict group_bad) {
+  __local real lo[IVR_REDUCE_SIZE], hi[IVR_REDUCE_SIZE];
+  __local ulong bad[IVR_REDUCE_SIZE];
+  const int lid = get_local_id(0);
+  const ulong stride = get_global_size(0);
+  real a = (real)INFINITY, b = -(real)INFINITY;
+  ulong first = n;
+  for (ulong i = get_global_id(0); i < n; i += stride) {
+    const real d = v[i];
+    // !(d >= 0) catches NaN and negatives; isinf the rest. min/max skip NaN (fmin/fmax).
+    if ((!(d >= (real)0 || (allow_negative && d < (real)0)) || isinf(d)) && i < first) first = i;
+    a = fmin(a, d);
+    b = fmax(b, d);
+  }
+  lo[lid] = a, hi[lid] = b, bad[lid] = first;
+  for (int span = IVR_REDUCE_SIZE / 2; span > 0; span /= 2) {
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < span) {
+      lo[lid] = fmin(lo[lid], lo[lid + span]);
+      hi[lid] = fmax(hi[lid], hi[lid + span]);
+      bad[lid] = min(bad[lid], bad[lid + span]);
+    }
+  }
+  if (lid == 0) {
+    const int g = get_group_id(0);
+    group_min[g] = lo[0], group_max[g] = hi[0], group_bad[g] = bad[0];
+  }
+}
+
+// Sums of rows, one work-group per block: out[b·cols + c] = Σ_{r < rows} in[(b·rows + r)·cols + c]
+// — the adjoint's per-pixel terms (loss, background) into one row, the per-group camera partial
+// sums into one row per view, the forward mode's per-group partial sums into one row.
+__kernel void sum_rows(__global const real* restrict in, const int rows, const int cols,
+                       __global acc* restrict out) {
+  __local acc scratch[IVR_REDUCE_SIZE];
+  const int lid = get_local_id(0), block = get_group_id(0);
+  __global const real* first = in + (size_t)block * rows * cols;
+  for (int c = 0; c < cols; ++c) {
+    acc s = (acc)0;
+    for (int r = lid; r < rows; r += IVR_REDUCE_SIZE) s += (acc)first[(size_t)r * cols + c];
+    scratch[lid] = s;
+    group_sum(scratch, lid);
+    if (lid == 0) out[(size_t)block * cols + c] = scratch[0];
+  }
+}
+
+// The loss of an image against a target (DESIGN.md's mse, or l1), per work-group partial sums of
+// the elements' terms × norm (1 / elements), grid-stride; sum_rows adds the groups' partials.
+__kernel void loss_partial(const ulong n, __global const float* restrict image,
+                           __global const real* restrict target, const real norm, const int l1,
+                           __global real* restrict partial) {
+  __local acc scratch[IVR_REDUCE_SIZE];
+  const int lid = get_local_id(0);
+  acc s = (acc)0;
+  for (ulong i = get_global_id(0); i < n; i += get_global_size(0)) {
+    const acc d = (acc)image[i] - (acc)target[i];
+    s += l1 ? fabs(d) : d * d;
+  }
+  scratch[lid] = s;
+  group_sum(scratch, lid);
+  if (lid == 0) partial[get_group_id(0)] = (real)(scratch[0] * (acc)norm);
+}
+
+// dst[i] = src[index[i]]: the listed voxels of a density gradient (group "voxels:LIST").
+__kernel void gather(const int n, __global const real* restrict src,
+                     __global const long* restrict index, __global real* restrict dst) {
+  const int i = get_global_id(0);
+  if (i < n) dst[i] = src[index[i]];
+}
+
+// Columns [src_first, src_first + count) of a rows × src_cols float matrix into columns
+// [dst_first, …) of a rows × dst_cols one: a forward-mode pass's Jacobian lanes into the whole
+// Jacobian.
+__kernel void copy_columns(const ulong rows, __global const float* restrict src, const int src_cols,
+                           const int src_first, __global float* restrict dst, const int dst_cols,
+                           const int dst_first, const int count) {
+  const ulong r = get_global_id(0);
+  if (r >= rows) return;
+  for (int c = 0; c < count; ++c)
+    dst[r * dst_cols + dst_first + c] = src[r * src_cols + src_first + c];
+}
+
+#if IVR_ACC_F64
+// Conversions between the two real types (only built where the device has float64).
+__kernel void float_to_double(const ulong n, __global const float* restrict src,
+                              __global double* restrict dst) {
+  const ulong i = get_global_id(0);
+  if (i < n) dst[i] = (double)src[i];
+}
+
+__kernel void double_to_float(const ulong n, __global const double* restrict src,
+                              __global float* restrict dst) {
+  const ulong i = get_global_id(0);
+  if (i < n) dst[i] = (float)src[i];
+}
+#endif

@@ -1,0 +1,78 @@
+// launch.hpp — the one launch layer of every operation: a kernel configuration (file, entry point,
+// generated #define preamble, build flags) → its program from the cache → a kernel object kept by
+// its owner → launches shaped by the device's tuned parameters (lib/device_params.cpp).
+#pragma once
+#include <CL/opencl.hpp>
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "runtime.hpp"
+
+namespace ivr {
+
+// $IVR_BUILD_OPTIONS: extra OpenCL compiler options for experiments (part of the cache key).
+std::string extra_build_options();
+
+struct KernelConfig {
+  std::string file;            // kernels/<file>, e.g. "render.cl"
+  std::string entry;           // the __kernel's name, e.g. "render"
+  std::string preamble;        // "#define IVR_MODEL 1\n…": the variant
+  std::string label;           // names the program in build errors, e.g. "render.cl [… f32]"
+  bool float_atomics = false;  // built as the OpenCL C version that has cl_ext_float_atomics
+
+  std::string options(const DeviceInfo& info) const;  // -cl-std=… and $IVR_BUILD_OPTIONS
+  std::string key() const;                            // what identifies the program
+  KernelConfig with_entry(const std::string& other) const {  // another kernel of the program
+    KernelConfig c = *this;
+    c.entry = other;
+    return c;
+  }
+};
+
+// The program of a configuration: remembered per process by its key (so a warm call neither
+// assembles nor hashes the source), else through the program cache (memory, disk, compiler).
+// *seconds (optional) receives the time spent.
+cl::Program program_for(Device::Impl& dev, const KernelConfig& config, double* seconds = nullptr);
+
+// The kernels one owner (a session, a projector) has made, by configuration: each is created once
+// and then only has its arguments set. Not shared between threads (setArg is not thread-safe on
+// one kernel object); a session serialises its operations.
+class KernelSet {
+ public:
+  explicit KernelSet(Device::Impl& dev) : dev_(&dev) {}
+  cl::Kernel& get(const KernelConfig& config, double* build_seconds = nullptr);
+
+ private:
+  Device::Impl* dev_;
+  std::unordered_map<std::string, cl::Kernel> kernels_;
+};
+
+// One work-item per pixel of every view. The work-group size comes from the parameter database
+// under `tuning`; kernels with barriers or local memory (`needs_group`) always get one (the
+// database's, else 8x8, within the kernel's limit); others leave it to the driver where the
+// database has none. The global size is rounded up to whole groups; kernels skip the padding.
+struct PixelLaunch {
+  cl::NDRange global, local;
+  int group_x = 0, group_y = 0;         // 0 with a driver-chosen size
+  std::size_t groups_per_view = 0;      // whole work-groups per view (with an explicit size)
+};
+PixelLaunch pixel_launch(Device::Impl& dev, const cl::Kernel& kernel, const std::string& tuning,
+                         int width, int height, int views, bool needs_group);
+
+// Enqueues and returns the kernel's event (profiling is on for the device's queue).
+cl::Event enqueue(Device::Impl& dev, const cl::Kernel& kernel, const PixelLaunch& launch);
+// One work-item per element: n rounded up to `group` (0: the driver's choice, n as is).
+cl::Event enqueue_1d(Device::Impl& dev, const cl::Kernel& kernel, std::size_t n,
+                     std::size_t group = 0);
+// `groups` work-groups of `group` items (the reductions of kernels/array_ops.cl).
+cl::Event enqueue_groups(Device::Impl& dev, const cl::Kernel& kernel, std::size_t groups,
+                         std::size_t group);
+
+// Device time of a finished command from its profiling event.
+double event_seconds(const cl::Event& e);
+// Their sum; waits for each.
+double events_seconds(const std::vector<cl::Event>& events);
+
+}  // namespace ivr

@@ -32,9 +32,6 @@ ivr_context* context_of(const ivr_session* s) {
 ivr_context* context_of(const ivr_array* a) {
   return a && is_live(a, Kind::array) ? a->context : nullptr;
 }
-ivr_context* context_of(const ivr_density_optimizer* o) {
-  return o && is_live(o, Kind::optimizer) ? o->context : nullptr;
-}
 
 ivr::Session& session_of(ivr_session* s) {
   return *checked(s, Kind::session, "session")->session;

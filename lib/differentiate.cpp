@@ -29,13 +29,18 @@ bool is_index_item(const std::string& s) {
                                    : digits(s.substr(0, dash)) && digits(s.substr(dash + 1));
 }
 
-// What one group needs: its forward-mode parameters, its output shape, and whether the adjoint
-// computes it.
+// What one group needs: its forward-mode parameters (listed only for the groups whose count is
+// small or given: "density" stands for every voxel, which only forward mode would list), its
+// output shape, and whether the adjoint computes it.
 struct GroupPlan {
-  std::string name;
-  std::vector<Parameter> parameters;
+  std::string name, asked;
+  std::vector<Parameter> parameters;  // empty for "density"
+  std::size_t count = 0;
   std::vector<std::int64_t> shape;
   bool adjoint = true;
+  std::vector<Parameter> forward_parameters(const Scene& scene) const {
+    return asked == "density" ? parameters_of(scene, asked) : parameters;
+  }
 };
 
 GroupPlan plan_group(const Scene& scene, const std::string& g) {
@@ -48,7 +53,9 @@ GroupPlan plan_group(const Scene& scene, const std::string& g) {
                     "voxels:LIST)");
   GroupPlan p;
   p.name = voxels ? "voxels" : g;
-  p.parameters = parameters_of(scene, g);
+  p.asked = g;
+  if (g != "density") p.parameters = parameters_of(scene, g);
+  p.count = g == "density" ? scene.volume.voxel_count() : p.parameters.size();
   if (g == "density")
     p.shape = {scene.volume.nz, scene.volume.ny, scene.volume.nx};
   else if (g == "tf")
@@ -100,7 +107,7 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
   bool adjoint_possible = true;
   for (const std::string& g : request.wrt) {
     plans.push_back(plan_group(s.scene, g));
-    forward_parameters += plans.back().parameters.size();
+    forward_parameters += plans.back().count;
     adjoint_possible = adjoint_possible && plans.back().adjoint;
   }
   if (plans.empty()) throw bad_group("no group asked for");
@@ -114,8 +121,10 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
   cl_call("splitting the gradient into its groups", [&] {
     if (out.plan.mode == Mode::forward) {
       std::vector<Parameter> all;
-      for (const GroupPlan& p : plans)
-        all.insert(all.end(), p.parameters.begin(), p.parameters.end());
+      for (const GroupPlan& p : plans) {
+        const std::vector<Parameter> listed = p.forward_parameters(s.scene);
+        all.insert(all.end(), listed.begin(), listed.end());
+      }
       const TangentResult t = enqueue_tangents(s, lanes_of(s.scene, all), &target, false,
                                                request.loss, op);
       out.loss = t.loss;
@@ -124,13 +133,13 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
       std::size_t at = 0;
       for (const GroupPlan& p : plans) {
         DeviceArray g = s.output("group " + p.name, p.shape, t.gradient.dtype(), "a gradient");
-        if (!p.parameters.empty()) {
+        if (p.count > 0) {
           op.events.push_back(cl::Event());
           s.dev.queue.enqueueCopyBuffer(buffer_of(t.gradient), buffer_of(g), at * size, 0,
-                                        p.parameters.size() * size, nullptr, &op.events.back());
+                                        p.count * size, nullptr, &op.events.back());
           mark_written(g, op.events.back());
         }
-        at += p.parameters.size();
+        at += p.count;
         out.groups.emplace_back(p.name, g);
       }
       return;
@@ -200,7 +209,7 @@ Differentiation differentiate(Device& device, const Scene& scene, const Image& t
     const GroupPlan p = plan_group(s.scene, groups[i]);
     d.groups.push_back({p.name, std::vector<std::size_t>(p.shape.begin(), p.shape.end()),
                         g.groups[i].second.to_doubles()});
-    d.parameters += p.parameters.size();
+    d.parameters += p.count;
   }
   const OperationStats st = session.last_stats();
   d.kernel_seconds = st.kernel_seconds;

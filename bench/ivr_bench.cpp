@@ -192,6 +192,7 @@ int main(int argc, char** argv) {
     results.meta["suites"] = suite_names;
 
     std::vector<std::string> failures;
+    bool cpu_baselines_done = false, gpu_baselines_done = false;
     for (std::size_t k = 0; k < devices.size(); ++k) {
       const ivr::DeviceInfo& info = devices[k];
       ivr::Device device(std::to_string(info.index));
@@ -207,6 +208,12 @@ int main(int argc, char** argv) {
                          work_dir,
                          data_dir,
                          {}};
+      // The Python baselines once per kind of device: on the CPU beside the first CPU device
+      // (or the first device of any kind but GPU), on the GPU beside the first GPU device.
+      const bool gpu = info.type == "gpu";
+      ctx.baseline_device = gpu ? "gpu" : "cpu";
+      ctx.python_baselines = !no_baselines && !(gpu ? gpu_baselines_done : cpu_baselines_done);
+      (gpu ? gpu_baselines_done : cpu_baselines_done) = true;
       for (const bench::Suite& s : suites) {
         const auto start = std::chrono::steady_clock::now();
         try {

@@ -66,26 +66,30 @@ __kernel void volume_check(const ulong n, __global const real* restrict v, const
 
 // Sums of rows, one work-group per block: out[b·cols + c] = Σ_{r < rows} in[(b·rows + r)·cols + c]
 // — the adjoint's per-pixel terms (loss, background) into one row, the per-group camera partial
-// sums into one row per view, the forward mode's per-group partial sums into one row.
-__kernel void sum_rows(__global const real* restrict in, const int rows, const int cols,
-                       __global acc* restrict out) {
-  __local acc scratch[IVR_REDUCE_SIZE];
-  const int lid = get_local_id(0), block = get_group_id(0);
-  __global const real* first = in + (size_t)block * rows * cols;
-  for (int c = 0; c < cols; ++c) {
-    acc s = (acc)0;
-    for (int r = lid; r < rows; r += IVR_REDUCE_SIZE) s += (acc)first[(size_t)r * cols + c];
-    scratch[lid] = s;
-    group_sum(scratch, lid);
-    if (lid == 0) out[(size_t)block * cols + c] = scratch[0];
+// sums into one row per view, the forward mode's per-group partial sums into one row (sum_rows:
+// reals in), the loss's per-group partials (sum_acc_rows: sums in).
+#define IVR_SUM_ROWS(name, type)                                                          \
+  __kernel void name(__global const type* restrict in, const int rows, const int cols,  \
+                     __global acc* restrict out) {                                        \
+    __local acc scratch[IVR_REDUCE_SIZE];                                                 \
+    const int lid = get_local_id(0), block = get_group_id(0);                             \
+    __global const type* first = in + (size_t)block * rows * cols;                       \
+    for (int c = 0; c < cols; ++c) {                                                      \
+      acc s = (acc)0;                                                                     \
+      for (int r = lid; r < rows; r += IVR_REDUCE_SIZE) s += (acc)first[(size_t)r * cols + c]; \
+      scratch[lid] = s;                                                                   \
+      group_sum(scratch, lid);                                                            \
+      if (lid == 0) out[(size_t)block * cols + c] = scratch[0];                           \
+    }                                                                                     \
   }
-}
+IVR_SUM_ROWS(sum_rows, real)
+IVR_SUM_ROWS(sum_acc_rows, acc)
 
 // The loss of an image against a target (DESIGN.md's mse, or l1), per work-group partial sums of
 // the elements' terms × norm (1 / elements), grid-stride; sum_rows adds the groups' partials.
 __kernel void loss_partial(const ulong n, __global const float* restrict image,
-                           __global const real* restrict target, const real norm, const int l1,
-                           __global real* restrict partial) {
+                           __global const real* restrict target, const acc norm, const int l1,
+                           __global acc* restrict partial) {
   __local acc scratch[IVR_REDUCE_SIZE];
   const int lid = get_local_id(0);
   acc s = (acc)0;
@@ -95,7 +99,7 @@ __kernel void loss_partial(const ulong n, __global const float* restrict image,
   }
   scratch[lid] = s;
   group_sum(scratch, lid);
-  if (lid == 0) partial[get_group_id(0)] = (real)(scratch[0] * (acc)norm);
+  if (lid == 0) partial[get_group_id(0)] = scratch[0] * norm;
 }
 
 // dst[i] = src[index[i]]: the listed voxels of a density gradient (group "voxels:LIST").

@@ -221,29 +221,33 @@ std::uint64_t ArrayKernels::check_values(const cl::Buffer& values, std::uint64_t
                                          bool allow_negative, double* lo, double* hi,
                                          std::vector<cl::Event>& events) {
   const std::size_t groups = pass_groups(dev_.info, n), real = f64_ ? 8 : 4;
-  const cl::Buffer& partial = scratch(groups * 8);  // first bad indices
+  // The groups' minima, maxima and first bad indices, one after another in the scratch buffer
+  // (offsets of sub-buffers would need the device's alignment: three buffers of one scratch).
+  if (check_groups_ < groups) {
+    check_min_ = dev_.buffer(CL_MEM_READ_WRITE, groups * real, nullptr, "the check's minima");
+    check_max_ = dev_.buffer(CL_MEM_READ_WRITE, groups * real, nullptr, "the check's maxima");
+    check_bad_ = dev_.buffer(CL_MEM_READ_WRITE, groups * 8, nullptr, "the check's indices");
+    check_groups_ = groups;
+  }
   return cl_call("checking values on " + dev_.info.name, [&] {
     cl::Kernel& k = kernel("volume_check");
-    // Three sub-ranges of one scratch buffer would need aligned offsets: separate buffers.
-    cl::Buffer mins = dev_.buffer(CL_MEM_READ_WRITE, groups * real, nullptr, "the volume check"),
-               maxs = dev_.buffer(CL_MEM_READ_WRITE, groups * real, nullptr, "the volume check");
     k.setArg(0, cl_ulong(n));
     k.setArg(1, values);
     k.setArg(2, cl_int(allow_negative ? 1 : 0));
-    k.setArg(3, mins);
-    k.setArg(4, maxs);
-    k.setArg(5, partial);
+    k.setArg(3, check_min_);
+    k.setArg(4, check_max_);
+    k.setArg(5, check_bad_);
     events.push_back(enqueue_groups(dev_, k, groups, kReduceSize));
     std::vector<cl_ulong> first(groups);
     std::vector<double> a(groups), b(groups);
-    dev_.queue.enqueueReadBuffer(partial, CL_FALSE, 0, groups * 8, first.data());
+    dev_.queue.enqueueReadBuffer(check_bad_, CL_FALSE, 0, groups * 8, first.data());
     if (f64_) {
-      dev_.queue.enqueueReadBuffer(mins, CL_FALSE, 0, groups * 8, a.data());
-      dev_.queue.enqueueReadBuffer(maxs, CL_TRUE, 0, groups * 8, b.data());
+      dev_.queue.enqueueReadBuffer(check_min_, CL_FALSE, 0, groups * 8, a.data());
+      dev_.queue.enqueueReadBuffer(check_max_, CL_TRUE, 0, groups * 8, b.data());
     } else {
       std::vector<float> fa(groups), fb(groups);
-      dev_.queue.enqueueReadBuffer(mins, CL_FALSE, 0, groups * 4, fa.data());
-      dev_.queue.enqueueReadBuffer(maxs, CL_TRUE, 0, groups * 4, fb.data());
+      dev_.queue.enqueueReadBuffer(check_min_, CL_FALSE, 0, groups * 4, fa.data());
+      dev_.queue.enqueueReadBuffer(check_max_, CL_TRUE, 0, groups * 4, fb.data());
       std::copy(fa.begin(), fa.end(), a.begin());
       std::copy(fb.begin(), fb.end(), b.begin());
     }
@@ -266,19 +270,24 @@ cl::Event ArrayKernels::sum_rows(const cl::Buffer& in, int rows, int cols, int b
 cl::Event ArrayKernels::loss(const cl::Buffer& image, const cl::Buffer& target, std::uint64_t n,
                              bool l1, const cl::Buffer& out, std::vector<cl::Event>& events) {
   const std::size_t groups = pass_groups(dev_.info, n);
-  const cl::Buffer& partial = scratch(groups * (f64_ ? 8 : 4));
+  const cl::Buffer& partial = scratch(groups * (acc_f64_ ? 8 : 4));
   cl::Kernel& k = kernel("loss_partial");
   k.setArg(0, cl_ulong(n));
   k.setArg(1, image);
   k.setArg(2, target);
-  if (f64_)
+  if (acc_f64_)
     k.setArg(3, cl_double(1.0 / double(n)));
   else
     k.setArg(3, cl_float(1.0 / double(n)));
   k.setArg(4, cl_int(l1 ? 1 : 0));
   k.setArg(5, partial);
   events.push_back(enqueue_groups(dev_, k, groups, kReduceSize));
-  events.push_back(sum_rows(partial, int(groups), 1, 1, out));
+  cl::Kernel& sum = kernel("sum_acc_rows");
+  sum.setArg(0, partial);
+  sum.setArg(1, cl_int(groups));
+  sum.setArg(2, cl_int(1));
+  sum.setArg(3, out);
+  events.push_back(enqueue_groups(dev_, sum, 1, kReduceSize));
   return events.back();
 }
 

@@ -72,6 +72,8 @@ class ArrayKernels {
   cl::Kernel& kernel(const char* entry);
   cl::Buffer scratch_;  // the reductions' partial sums
   std::size_t scratch_bytes_ = 0;
+  cl::Buffer check_min_, check_max_, check_bad_;  // check_values' per-group results
+  std::size_t check_groups_ = 0;
   const cl::Buffer& scratch(std::size_t bytes);
 };
 

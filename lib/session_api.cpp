@@ -230,6 +230,21 @@ DeviceArray Session::jacobian(const std::vector<std::string>& wrt) {
   return enqueue_tangents(s, lanes_of(s.scene, params), nullptr, true, Loss::mse, op).jacobian;
 }
 
+SessionGradient Session::forward(const std::vector<Parameter>& parameters, Loss kind) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl& s = *impl_;
+  s.require_volume("forward");
+  if (!s.target.valid()) bad("forward: the session has no target (set_target first)");
+  const std::vector<cl_int4> lanes = lanes_of(s.scene, parameters);
+  OperationRecord& op = s.begin("forward");
+  const TangentResult t = enqueue_tangents(s, lanes, &s.target, false, kind, op);
+  SessionGradient g;
+  g.loss = t.loss;
+  g.groups.emplace_back("parameters", t.gradient);
+  g.plan.mode = Mode::forward;
+  return g;
+}
+
 DeviceArray Session::loss(const DeviceArray& image, const DeviceArray& target, Loss kind) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   Impl& s = *impl_;
@@ -305,6 +320,13 @@ OperationStats Session::last_stats() {
     op.resolved = true;
   }
   return op.stats;
+}
+
+double Session::last_kernel_seconds() {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  OperationRecord& op = impl_->last;
+  if (op.resolved) return op.stats.kernel_seconds;
+  return cl_call("timing the last operation", [&] { return events_seconds(op.events); });
 }
 
 void Session::finish() {

@@ -95,7 +95,7 @@ std::string write_case(const std::string& dir, const Scene& scene, double step_v
 
 BaselineRun run_baseline(const BaselineEnv& env, const std::string& framework,
                          const std::string& task, const std::string& case_dir, double budget,
-                         const std::string& output) {
+                         const std::string& output, const std::string& device) {
   BaselineRun run;
   const std::string out = case_dir + "/" + framework + "_" + task + ".json";
   const std::string log = case_dir + "/" + framework + "_" + task + ".log";
@@ -107,7 +107,8 @@ BaselineRun run_baseline(const BaselineEnv& env, const std::string& framework,
                                    "--case",      case_dir,
                                    "--out",       out,
                                    "--budget",    std::to_string(budget),
-                                   "--threads",   std::to_string(env.threads)};
+                                   "--threads",   std::to_string(env.threads),
+                                   "--device",    device};
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

@@ -40,8 +40,9 @@ struct BaselineRun {
 
 // Runs `framework`'s `task` ("render", "grad", "tf_forward") on the case and reads back its output
 // array `output` ("image", "grad", "tf_grad").
+// `device`: "cpu" or "gpu" (run.py's --device: the data on the GPU before the timed calls).
 BaselineRun run_baseline(const BaselineEnv& env, const std::string& framework,
                          const std::string& task, const std::string& case_dir, double budget,
-                         const std::string& output);
+                         const std::string& output, const std::string& device = "cpu");
 
 }  // namespace ivr::bench

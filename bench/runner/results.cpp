@@ -82,6 +82,8 @@ void add_timing(Record& r, const Measurement& m) {
     r.metrics["device_median_s"] = m.device->median;
     r.metrics["device_min_s"] = m.device->min;
     r.metrics["device_max_s"] = m.device->max;
+    // What the call costs beyond its kernels: 1 is kernel speed.
+    if (m.device->median > 0) r.metrics["end_to_end_over_kernel"] = m.wall.median / m.device->median;
   }
   r.metrics["peak_host_bytes"] = m.host_peak;
   r.metrics["peak_host_increase_bytes"] = m.peak_increase();
@@ -96,16 +98,21 @@ Record& Results::add(Record r) {
 json Results::ratios() const {
   json out = json::array();
   for (const Record& ivr : records) {
-    if (ivr.implementation != "ivr" || !ivr.metrics.contains("median_s")) continue;
+    // Every baseline against ivr one-shot and ivr resident (its data already on the device).
+    if ((ivr.implementation != "ivr" && ivr.implementation != "ivr-resident") ||
+        !ivr.metrics.contains("median_s"))
+      continue;
     for (const Record& b : records) {
-      if (b.device != kHostDevice || b.suite != ivr.suite || b.case_name != ivr.case_name ||
-          !b.metrics.contains("median_s"))
+      if ((b.device != kHostDevice && b.device != kGpuBaselineDevice) || b.suite != ivr.suite ||
+          b.case_name != ivr.case_name || !b.metrics.contains("median_s"))
         continue;
       json r = {
           {"device", ivr.device},
           {"suite", ivr.suite},
           {"case", ivr.case_name},
+          {"ivr", ivr.implementation},
           {"baseline", b.implementation},
+          {"baseline_device", b.device},
           {"speedup", b.metrics["median_s"].get<double>() / ivr.metrics["median_s"].get<double>()}};
       // A memory of 0 (buffers reused from call to call) has no ratio.
       if (b.metrics.contains("memory_bytes") && ivr.metrics.contains("memory_bytes") &&

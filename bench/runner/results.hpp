@@ -12,6 +12,7 @@ namespace ivr::bench {
 
 constexpr const char* kResultsSchema = "ivr-bench/1";
 constexpr const char* kHostDevice = "host";  // the device key of the CPU baselines
+constexpr const char* kGpuBaselineDevice = "cuda";  // the Python baselines' GPU runs
 
 // The comparison made before an implementation's times count.
 struct Check {

@@ -115,17 +115,18 @@ void run_python_baselines(Context& ctx, const std::string& suite, const std::str
                           const nlohmann::json& params, const std::string& case_dir,
                           const std::string& task, const std::string& output,
                           const std::function<Check(const BaselineRun&, Record&)>& compare) {
-  if (!ctx.host_baselines) return;
+  if (!ctx.python_baselines) return;
   for (const std::string& fw : ctx.baselines.frameworks) {
-    Record r{kHostDevice, suite, case_name, fw, params};
+    Record r{ctx.baseline_device == "gpu" ? kGpuBaselineDevice : kHostDevice, suite, case_name,
+             fw, params};
     if (!ctx.baselines.usable) {
       r.note = "skipped: " + ctx.baselines.note;
       ctx.results.add(std::move(r));
       continue;
     }
     std::cerr << "ivr-bench: " << suite << "/" << case_name << " " << fw << " " << task << "...\n";
-    const BaselineRun run =
-        run_baseline(ctx.baselines, fw, task, case_dir, ctx.budget.seconds, output);
+    const BaselineRun run = run_baseline(ctx.baselines, fw, task, case_dir, ctx.budget.seconds,
+                                         output, ctx.baseline_device);
     if (run.result.contains("version")) r.params["version"] = run.result["version"];
     if (!run.ok) {
       r.note = (run.available ? "failed: " : "skipped: ") + run.note;

@@ -19,12 +19,16 @@ struct Context {
   std::string device_key;  // "platform / device name"
   Budget budget;
   bool quick = false;
-  bool host_baselines = true;  // run the CPU baselines (once per run: on the first device)
+  bool host_baselines = true;  // run the native CPU baselines (once per run: the first device)
   Results& results;
   const BaselineEnv& baselines;
   std::string work_dir;               // scratch for the baselines' case directories
   std::string data_dir;               // ../shared/data (real volumes)
   std::vector<std::string> failures;  // checks that failed: the run's exit status says so
+  // Run the Python baselines, on the CPU ("cpu": once per run, beside the first device that is
+  // not a GPU) or on a GPU ("gpu": JAX, PyTorch and Dr.Jit on CUDA, beside the first GPU).
+  bool python_baselines = true;
+  std::string baseline_device = "cpu";
 };
 
 struct Suite {

@@ -9,6 +9,7 @@
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
 #include "../native_marcher.hpp"
+#include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
 #include "reference/reference.hpp"
 
@@ -125,7 +126,43 @@ void gradient_suite(Context& ctx) {
     if (!deterministic && m.timed) ivr_gradient = g.density;
     record_checked(ctx, std::move(r), check);
   }
-  if (!ctx.host_baselines) return;
+  // Resident: the scene and the target already on the device in a session, the loss and the
+  // gradient left there. Checked the same way, on a session of the smooth scene.
+  for (const bool deterministic : {false, true}) {
+    SessionOptions so;
+    so.step = c.step;
+    GradientRequest request;
+    request.mode = Mode::adjoint;
+    request.deterministic = deterministic;
+    Session checked_session(ctx.device, smooth, so);
+    checked_session.set_target(target);
+    const Check check =
+        directional_check(checked_session.gradient(request)["density"].to_floats());
+    Session session(ctx.device, scene, so);
+    session.set_target(target);
+    SessionGradient g;
+    const Measurement m = measure_resident(
+        ctx.budget, session,
+        [&] {
+          g = session.gradient(request);
+          g["density"].wait();
+          g.loss.wait();
+        },
+        [&] { return check.passed; });
+    const OperationStats stats = session.last_stats();
+    Record r{ctx.device_key, "gradient", c.name(),
+             deterministic ? "ivr-resident-deterministic" : "ivr-resident", params};
+    add_timing(r, m);
+    r.params["deterministic"] = stats.deterministic;
+    r.params["atomics"] = g.atomics;
+    r.metrics["loss"] = g.loss.to_doubles()[0];
+    r.metrics["samples"] = stats.samples;
+    r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;
+    r.metrics["peak_device_bytes"] = stats.device_bytes;
+    r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
+    record_checked(ctx, std::move(r), check);
+  }
+  if (!ctx.host_baselines && !ctx.python_baselines) return;
   const std::vector<double> ivr_wide = widen(ivr_gradient);
   auto agreement = [&](const std::vector<float>& g, Record& r) {
     const Difference d = difference(g, ivr_wide);
@@ -134,7 +171,7 @@ void gradient_suite(Context& ctx) {
   };
   if (ivr_gradient.empty()) return;
 
-  {  // The native hand-written adjoint.
+  if (ctx.host_baselines) {  // The native hand-written adjoint.
     std::vector<float> g;
     double loss = 0;
     std::size_t samples = 0;

@@ -7,6 +7,7 @@
 
 #include "../bench_scene.hpp"
 #include "../native_marcher.hpp"
+#include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
 #include "reference/reference.hpp"
 
@@ -89,10 +90,38 @@ void render_suite(Context& ctx) {
       with_error(r, image.pixels);
       record_checked(ctx, std::move(r), check);
     }
-    if (!ctx.host_baselines) continue;
+
+    // ivr resident: the scene already on the device in a session, the image left there.
+    {
+      SessionOptions so;
+      so.step = c.step;
+      Session session(ctx.device, scene, so);
+      DeviceArray image;
+      Check check;
+      const Measurement m = measure_resident(
+          ctx.budget, session,
+          [&] {
+            image = session.render();
+            image.wait();
+          },
+          [&] {
+            check = check_max(difference(image.to_floats(), ref.same_step), against, kAtol, kRtol);
+            return check.passed;
+          });
+      const OperationStats stats = session.last_stats();
+      Record r{ctx.device_key, "render", c.name(), "ivr-resident", params};
+      add_timing(r, m);
+      r.metrics["samples"] = stats.samples;
+      r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;
+      r.metrics["peak_device_bytes"] = stats.device_bytes;
+      r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
+      if (m.timed) with_error(r, image.to_floats());
+      record_checked(ctx, std::move(r), check);
+    }
+    if (!ctx.host_baselines && !ctx.python_baselines) continue;
 
     // The native marcher (host).
-    {
+    if (ctx.host_baselines) {
       std::vector<float> pixels;
       std::size_t samples = 0;
       Check check;

@@ -9,6 +9,7 @@
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
 #include "../native_marcher.hpp"
+#include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
 
 namespace ivr::bench {
@@ -33,6 +34,96 @@ double slope(const std::vector<std::pair<double, double>>& xy) {
     sxy += std::log(x) * std::log(y);
   }
   return n < 2 ? NAN : (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+// The same render and gradient resident (the scene and target on the device in a session),
+// held to the one-shot results (checked against the native marcher) first.
+void resident_cases(Context& ctx, const Scene& scene, double step, const std::string& name,
+                    const nlohmann::json& params, const Image& image, const Image& target,
+                    const std::vector<float>& density) {
+  SessionOptions so;
+  so.step = step;
+  Session session(ctx.device, scene, so);
+  {
+    DeviceArray out;
+    Check k;
+    const Measurement m = measure_resident(
+        ctx.budget, session,
+        [&] {
+          out = session.render();
+          out.wait();
+        },
+        [&] {
+          k = check_max(difference(out.to_floats(), widen(image.pixels)),
+                        "ivr one-shot (checked against the native marcher)", kAtol, kRtol);
+          return k.passed;
+        });
+    const OperationStats stats = session.last_stats();
+    Record r{ctx.device_key, "scaling", name + "_render", "ivr-resident", params};
+    add_timing(r, m);
+    r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;
+    r.metrics["peak_device_bytes"] = stats.device_bytes;
+    r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
+    record_checked(ctx, std::move(r), k);
+  }
+  session.set_target(target);
+  GradientRequest request;
+  request.mode = Mode::adjoint;
+  SessionGradient g;
+  Check k;
+  const Measurement m = measure_resident(
+      ctx.budget, session,
+      [&] {
+        g = session.gradient(request);
+        g["density"].wait();
+      },
+      [&] {
+        k = check_l2(difference(g["density"].to_floats(), widen(density)),
+                     "ivr one-shot (checked against the native adjoint)", kGradientAgreement);
+        return k.passed;
+      });
+  const OperationStats stats = session.last_stats();
+  Record r{ctx.device_key, "scaling", name + "_gradient", "ivr-resident", params};
+  add_timing(r, m);
+  r.metrics["peak_device_bytes"] = stats.device_bytes;
+  r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
+  record_checked(ctx, std::move(r), k);
+}
+
+// Setting a new volume in a session (its upload and the device pass that checks it) against the
+// raw upload of the same bytes into a device array.
+void set_volume_case(Context& ctx, const Scene& scene, const std::string& name,
+                     const nlohmann::json& params) {
+  Session session(ctx.device, scene);
+  const Volume& v = scene.volume;
+  DeviceArray raw(ctx.device, {v.nz, v.ny, v.nx}, DType::f32);
+  Measurement upload_m, set_m;
+  Check k;
+  upload_m = measure(ctx.budget, [&] {
+    raw.upload(v.data.data(), v.data.size());
+    raw.wait();
+    return -1.0;
+  });
+  set_m = measure(
+      ctx.budget,
+      [&] {
+        session.set_volume(v);
+        return -1.0;
+      },
+      [&] {
+        k = check_max(difference(session.volume().to_floats(), widen(v.data)),
+                      "the host densities", 0, 0);
+        return k.passed;
+      });
+  Record up{ctx.device_key, "scaling", name + "_upload", "raw-upload", params};
+  add_timing(up, upload_m);
+  up.metrics["bytes"] = v.data.size() * sizeof(float);
+  up.metrics["bytes_per_s"] = double(v.data.size() * sizeof(float)) / upload_m.wall.median;
+  ctx.results.add(std::move(up));
+  Record r{ctx.device_key, "scaling", name + "_set_volume", "ivr-resident", params};
+  add_timing(r, set_m);
+  r.metrics["over_raw_upload"] = set_m.wall.median / upload_m.wall.median;
+  record_checked(ctx, std::move(r), k);
 }
 
 }  // namespace
@@ -68,9 +159,10 @@ void scaling_suite(Context& ctx) {
       std::cerr << "ivr-bench: scaling/" << name << "\n";
       const double x = s.name == "volume" ? p.volume : s.name == "image" ? p.image : 1.0 / p.step;
 
+      Image img;  // the one-shot results, checked against the native marcher, hold the resident
+      Gradient g;
       {  // render
         RenderStats stats;
-        Image img;
         const RenderOptions o{Precision::f32, p.step};
         Check k;
         const Measurement m = measure(
@@ -94,11 +186,10 @@ void scaling_suite(Context& ctx) {
         if (k.passed) render_time.push_back({x, m.wall.median});
         record_checked(ctx, std::move(r), k);
       }
+      const Image target = perturbed_target(ctx.device, scene, p.step);
       {  // density gradient
-        const Image target = perturbed_target(ctx.device, scene, p.step);
         GradientOptions o;
         o.step = p.step;
-        Gradient g;
         Check k;
         const Measurement m = measure(
             ctx.budget,
@@ -126,6 +217,8 @@ void scaling_suite(Context& ctx) {
         }
         record_checked(ctx, std::move(r), k);
       }
+      resident_cases(ctx, scene, p.step, name, params, img, target, g.density);
+      if (s.name == "volume") set_volume_case(ctx, scene, name, params);
     }
     const std::string per = s.name == "step" ? "inverse_step" : s.name + "_edge";
     summary.metrics["render_time_vs_" + per] = slope(render_time);

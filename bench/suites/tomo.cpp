@@ -6,6 +6,7 @@
 
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
+#include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
 
 namespace ivr::bench {
@@ -84,6 +85,41 @@ void tomo_suite(Context& ctx) {
         r.metrics["ray_cells_per_s"] = double(P.ray_count()) * n / m.wall.median;
         r.metrics["memory_bytes"] = operation_memory(ctx, m, 0);
         record_checked(ctx, std::move(r), check);
+      }
+      // Resident: the volume and the lines already on the device, the result left there; held
+      // to the same dot-product test on device arrays first.
+      Scene geometry = scene;
+      geometry.volume.data.clear();
+      Session session(ctx.device, geometry);
+      DeviceArray xd(ctx.device, session.volume_shape(), DType::f32);
+      std::vector<std::int64_t> ray_shape = session.image_shape();
+      ray_shape[3] = 1;
+      DeviceArray yd(ctx.device, ray_shape, DType::f32);
+      xd.upload(x.data(), x.size());
+      yd.upload(y.data(), y.size());
+      const double resident_lhs = dot(session.project(xd).to_doubles(), y),
+                   resident_rhs = dot(x, session.backproject(yd).to_doubles());
+      const double resident_mismatch = std::abs(resident_lhs - resident_rhs) /
+                                       std::max(std::abs(resident_lhs), std::abs(resident_rhs));
+      const Check resident_check{resident_mismatch <= 1e-5 && check.passed,
+                                 "⟨N x, y⟩ = ⟨x, Nᵀ y⟩ on device arrays", "relative",
+                                 resident_mismatch, 1e-5};
+      for (bool transpose : {false, true}) {
+        DeviceArray out;
+        const Measurement m = measure_resident(
+            ctx.budget, session,
+            [&] {
+              out = transpose ? session.backproject(yd) : session.project(xd);
+              out.wait();
+            },
+            [&] { return resident_check.passed; });
+        Record r{ctx.device_key, "tomo", base + (transpose ? "_backproject" : "_project"),
+                 "ivr-resident", params};
+        add_timing(r, m);
+        r.metrics["rays_per_s"] = double(P.ray_count()) / m.wall.median;
+        r.metrics["ray_cells_per_s"] = double(P.ray_count()) * n / m.wall.median;
+        r.metrics["memory_bytes"] = operation_memory(ctx, m, 0);
+        record_checked(ctx, std::move(r), resident_check);
       }
     }
 }

@@ -12,6 +12,7 @@
 #include "ivr/reconstruct.hpp"
 #include "ivr/render.hpp"
 #include "ivr/scene.hpp"
+#include "ivr/session.hpp"
 #include "ivr/tangents.hpp"
 #include "ivr/tolerance.hpp"
 #include "ivr/tomo.hpp"

@@ -18,6 +18,7 @@
 #include "ivr/planner.hpp"
 #include "ivr/render.hpp"
 #include "ivr/scene.hpp"
+#include "ivr/tangents.hpp"
 
 namespace ivr {
 
@@ -89,7 +90,7 @@ struct GradientRequest {
 // scales, step, voxels (n)). Scatter sums (density, adjoint TF) have the session's precision;
 // reduced values (the loss, background, camera, forward-mode gradients) are float64 where the
 // device has it.
-struct SessionGradient {
+struct IVR_API SessionGradient {
   DeviceArray loss;
   std::vector<std::pair<std::string, DeviceArray>> groups;
   Plan plan;            // the mode that ran, and both modes' predicted seconds
@@ -171,6 +172,9 @@ class IVR_API Session {
   SessionGradient gradient(const DeviceArray& target, const GradientRequest& request = {});
   // d pixel / d parameter in forward mode: float32 (views, H, W, C, P), P in `wrt` order.
   DeviceArray jacobian(const std::vector<std::string>& wrt);
+  // Forward mode on any list of parameters (ivr/tangents.hpp; repeats allowed) against the
+  // target: the loss and one group, "parameters", of their derivatives in order.
+  SessionGradient forward(const std::vector<Parameter>& parameters, Loss loss = Loss::mse);
   // Line integrals N v of the densities (or of `volume`, (nz, ny, nx)) along every pixel ray,
   // evaluated exactly whatever the integrator: (views, H, W, 1) in the session's precision.
   DeviceArray project();
@@ -184,8 +188,10 @@ class IVR_API Session {
   // [0, ∞) (densities stay >= 0); `gradient` is the density gradient's shape.
   void step(Optimizer& optimizer, const DeviceArray& gradient);
 
-  // Waits for the last operation; its statistics.
+  // Waits for the last operation; its statistics (the samples are read back and summed).
   OperationStats last_stats();
+  // Waits for the last operation; the device time of its kernels alone (nothing read back).
+  double last_kernel_seconds();
   // Waits for every command enqueued so far.
   void finish();
 

@@ -187,12 +187,12 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     if (!fixed) {
       run_pass(0);
     } else {
-      // The scale comes from the largest contribution, which an order-independent atomic max
-      // records: the previous call's where the session keeps it, else a first pass's. A pass
-      // whose contributions outgrew the cap runs again at the scale it measured, so every
-      // decision is a function of the inputs alone.
-      bool known = s.fixed_exponent != kUnknownExponent;
-      int exponent = known ? s.fixed_exponent : 0;
+      // The scale is the one the largest contribution calls for (an order-independent atomic
+      // max records it), so the bits are a function of the inputs alone. The previous call's
+      // scale, which the session keeps, is tried first: while the gradient's size changes slowly
+      // it is already the right one and one pass does; a pass at another scale (or none known
+      // yet, or one whose contributions outgrew the cap) runs again at the scale it measured.
+      int exponent = s.fixed_exponent != kUnknownExponent ? s.fixed_exponent : 0;
       for (int pass = 0;; ++pass) {
         run_pass(exponent);
         cl_long header[kFixedHeader];
@@ -201,9 +201,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
         std::memcpy(&largest, &header[3], sizeof largest);
         const int ideal = largest > 0 ? fixed_exponent_for(largest, cap_exponent) : exponent;
         s.fixed_exponent = ideal;
-        if ((header[2] > 0 || !known) && largest > 0 && pass == 0) {
+        if ((header[2] > 0 || ideal != exponent) && largest > 0 && pass == 0) {
           exponent = ideal;
-          known = true;
           continue;
         }
         if (header[2] > 0)

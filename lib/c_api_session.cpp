@@ -2,6 +2,7 @@
 // ivr::Session, ivr::DeviceArray and ivr::Optimizer, each holding its context.
 #include "c_api_handles.hpp"
 #include "ivr/session.hpp"
+#include "session_impl.hpp"
 
 using namespace ivr::capi;
 
@@ -16,6 +17,7 @@ struct ivr_array {
   std::atomic<int> references{1};
   ivr_context* context;
   ivr::DeviceArray array;
+  std::string name;  // a gradient's group ("density", "voxels", …); "" otherwise
 };
 
 struct ivr_density_optimizer {
@@ -50,6 +52,37 @@ ivr_array* new_array(ivr_context* c, ivr::DeviceArray a) {
   auto h = std::make_unique<ivr_array>();
   h->array = std::move(a);
   return publish(std::move(h), c, Kind::array);
+}
+
+// New densities for a session made through this API: where the scene's JSON gave no box the box
+// follows the grid (as ivr_scene_set_volume's does), taken together with the densities under one
+// lock, so that no other thread sees the new grid in the old box.
+template <class Upload>
+void set_volume_boxed(ivr_session* s, const ivr::Volume& dims, Upload&& upload) {
+  ivr::Session::Impl& impl = s->session->impl();
+  std::lock_guard<std::mutex> lock(impl.mutex);
+  glm::dvec3 box[2] = {impl.scene.box_min, impl.scene.box_max};
+  if (!s->explicit_box) {
+    ivr::Scene boxed = impl.scene;
+    boxed.volume.nx = dims.nx, boxed.volume.ny = dims.ny, boxed.volume.nz = dims.nz;
+    ivr::set_default_box(boxed);
+    box[0] = boxed.box_min, box[1] = boxed.box_max;
+  }
+  upload(impl, box);
+}
+
+// The grid of a densities' shape (nz, ny, nx), in the core's words where it is bad.
+ivr::Volume dims_of(const int64_t shape[3]) {
+  const std::string text = ivr::shape_text({shape[0], shape[1], shape[2]});
+  for (int i = 0; i < 3; ++i)
+    if (shape[i] < 1 || shape[i] > (int64_t(1) << 20))
+      throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                   "set_volume: shape " + text + " (each dimension 1 .. 2^20)"};
+  if (double(shape[0]) * double(shape[1]) * double(shape[2]) > 2147483647.0)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT, "set_volume: more than 2^31 voxels"};
+  ivr::Volume v;
+  v.nz = int(shape[0]), v.ny = int(shape[1]), v.nx = int(shape[2]);
+  return v;
 }
 
 ivr::DType dtype_of(ivr_dtype d, const char* what) {
@@ -114,6 +147,13 @@ ivr_status ivr_array_info(const ivr_array* a, int* rank, int64_t shape[8], ivr_d
     if (shape)
       for (size_t i = 0; i < 8; ++i) shape[i] = i < s.size() ? s[i] : 1;
     if (dtype) *dtype = a->array.dtype() == ivr::DType::f64 ? IVR_FLOAT64 : IVR_FLOAT32;
+  });
+}
+
+ivr_status ivr_array_name(const ivr_array* a, const char** name) {
+  return guarded(context_of(a), "ivr_array_name", [&] {
+    checked(a, Kind::array, "array");
+    *not_null(name, "name") = a->name.c_str();
   });
 }
 
@@ -207,35 +247,38 @@ ivr_status ivr_session_release(ivr_session* s) {
 ivr_status ivr_session_set_volume(ivr_session* s, const void* data, ivr_dtype dtype,
                                   const int64_t shape[3]) {
   return guarded(context_of(s), "ivr_session_set_volume", [&] {
-    ivr::Session& session = session_of(s);
+    checked(s, Kind::session, "session");
     not_null(data, "data");
-    not_null(shape, "shape");
-    if (dtype == IVR_FLOAT32) {
-      session.set_volume(static_cast<const float*>(data), shape[0], shape[1], shape[2]);
-    } else if (dtype == IVR_FLOAT64) {
-      session.set_volume(static_cast<const double*>(data), shape[0], shape[1], shape[2]);
+    const ivr::Volume dims = dims_of(not_null(shape, "shape"));
+    if (dtype == IVR_FLOAT32 || dtype == IVR_FLOAT64) {
+      set_volume_boxed(s, dims, [&](ivr::Session::Impl& impl, const glm::dvec3* box) {
+        if (dtype == IVR_FLOAT32)
+          impl.upload_volume(static_cast<const float*>(data), nullptr, dims, box);
+        else
+          impl.upload_volume(nullptr, static_cast<const double*>(data), dims, box);
+      });
     } else {  // integers: mapped to [0, 1] as a scene's volume would be
-      ivr::Volume v = volume_from_memory(data, dtype, shape);
-      v.spacing = session.scene().volume.spacing;
-      session.set_volume(v);
-    }
-    if (!s->explicit_box) {  // the default box follows the grid, as for scenes
-      ivr::Scene boxed = session.scene();
-      ivr::set_default_box(boxed);
-      session.set_box(boxed.box_min, boxed.box_max);
+      const ivr::Volume v = volume_from_memory(data, dtype, shape);
+      set_volume_boxed(s, dims, [&](ivr::Session::Impl& impl, const glm::dvec3* box) {
+        impl.upload_volume(v.data.data(), nullptr, dims, box);
+      });
     }
   });
 }
 
 ivr_status ivr_session_set_volume_array(ivr_session* s, const ivr_array* a) {
   return guarded(context_of(s), "ivr_session_set_volume_array", [&] {
-    ivr::Session& session = session_of(s);
-    session.set_volume(*array_of(s, a, "densities"));
-    if (!s->explicit_box) {
-      ivr::Scene boxed = session.scene();
-      ivr::set_default_box(boxed);
-      session.set_box(boxed.box_min, boxed.box_max);
-    }
+    checked(s, Kind::session, "session");
+    const ivr::DeviceArray& densities = *array_of(s, a, "densities");
+    const std::vector<int64_t>& shape = densities.shape();
+    if (shape.size() != 3)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "set_volume: the array has shape " +
+                                                   ivr::shape_text(shape) +
+                                                   "; densities are (nz, ny, nx)"};
+    set_volume_boxed(s, dims_of(shape.data()),
+                     [&](ivr::Session::Impl& impl, const glm::dvec3* box) {
+                       impl.copy_volume(densities, box);
+                     });
   });
 }
 
@@ -327,7 +370,8 @@ ivr_status ivr_session_volume_shape(const ivr_session* s, int64_t shape[3]) {
   return guarded(context_of(s), "ivr_session_volume_shape", [&] {
     checked(s, Kind::session, "session");
     not_null(shape, "shape");
-    const std::vector<int64_t> v = s->session->volume_shape();
+    const std::vector<int64_t> v = s->session->has_volume() ? s->session->volume_shape()
+                                                            : std::vector<int64_t>{0, 0, 0};
     std::copy(v.begin(), v.end(), shape);
   });
 }
@@ -374,6 +418,7 @@ ivr_status ivr_session_gradient(ivr_session* s, const ivr_array* target, const c
       made.push_back(std::make_unique<ivr_array>());
       made.back()->array = group.second;
     }
+    for (size_t i = 0; i < made.size(); ++i) made[i]->name = g.groups[i].first;
     *loss_value = new_array(s->context, g.loss);
     for (size_t i = 0; i < made.size(); ++i)
       groups[i] = publish(std::move(made[i]), s->context, Kind::array);
@@ -429,6 +474,9 @@ ivr_status ivr_density_optimizer_create(ivr_session* s, ivr_optimizer kind, doub
       throw CError{IVR_ERROR_INVALID_ARGUMENT,
                    "kind " + std::to_string(int(kind)) +
                        " (densities take IVR_OPTIMIZER_ADAM or IVR_OPTIMIZER_SGD)"};
+    if (!session.has_volume())
+      throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                   "the session has no densities yet (ivr_session_set_volume first)"};
     ivr::OptimizerOptions o;
     o.kind = kind == IVR_OPTIMIZER_SGD ? ivr::OptimizerKind::sgd : ivr::OptimizerKind::adam;
     o.lr = lr;

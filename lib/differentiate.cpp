@@ -111,6 +111,11 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
     adjoint_possible = adjoint_possible && plans.back().adjoint;
   }
   if (plans.empty()) throw bad_group("no group asked for");
+  if (request.mode == Mode::adjoint)
+    for (const GroupPlan& p : plans)
+      if (!p.adjoint)
+        throw Error(Status::invalid_argument,
+                    "mode adjoint cannot compute group '" + p.name + "' (forward mode only)");
   // The step once for both the plan and the mode that runs (a tolerance is estimated here).
   const double step = s.integrator().step;
   if (!s.cost) s.cost = load_cost_model(s.dev.info);

@@ -86,20 +86,40 @@ void Session::Impl::check_array(const DeviceArray& a, const char* what) const {
                 std::string(what) + ": the device array belongs to another device or context");
 }
 
-void Session::Impl::upload_volume(const float* data, const double* data64, const Volume& dims) {
-  Scene next = scene;
-  next.volume.nx = dims.nx, next.volume.ny = dims.ny, next.volume.nz = dims.nz;
-  validate_description(next, declared_integrator());
+void Session::Impl::upload_volume(const float* data, const double* data64, const Volume& dims,
+                                  const glm::dvec3* box) {
   const std::size_t n = dims.voxel_count();
   DeviceArray fresh = output("volume", {dims.nz, dims.ny, dims.nx}, real_dtype(f64), "the volume");
   if (data)
     fresh.upload(data, n);
   else
     fresh.upload(data64, n);
-  adopt_volume(fresh, dims);
+  adopt_volume(fresh, dims, box);
 }
 
-void Session::Impl::adopt_volume(DeviceArray fresh, const Volume& dims) {
+void Session::Impl::copy_volume(const DeviceArray& densities, const glm::dvec3* box) {
+  check_array(densities, "set_volume");
+  const std::vector<std::int64_t>& shape = densities.shape();
+  if (shape.size() != 3)
+    bad("set_volume: the array has shape " + shape_text(shape) + "; densities are (nz, ny, nx)");
+  for (std::int64_t d : shape)
+    if (d < 1 || d > (std::int64_t(1) << 20))
+      bad("set_volume: shape " + shape_text(shape) + " (each dimension 1 .. 2^20)");
+  Volume dims;
+  dims.nz = int(shape[0]), dims.ny = int(shape[1]), dims.nx = int(shape[2]);
+  DeviceArray fresh = output("volume", shape, real_dtype(f64), "the volume");
+  cl_call("copying the densities on " + dev.info.name, [&] {
+    mark_written(fresh, arrays.convert(buffer_of(densities), densities.dtype(), buffer_of(fresh),
+                                       real_dtype(f64), dims.voxel_count()));
+  });
+  adopt_volume(fresh, dims, box);
+}
+
+void Session::Impl::adopt_volume(DeviceArray fresh, const Volume& dims, const glm::dvec3* box) {
+  Scene next = scene;
+  next.volume.nx = dims.nx, next.volume.ny = dims.ny, next.volume.nz = dims.nz;
+  if (box) next.box_min = box[0], next.box_max = box[1];
+  validate_description(next, declared_integrator());
   double lo = 0, hi = 0;
   std::vector<cl::Event> events;
   const std::uint64_t n = dims.voxel_count();
@@ -121,6 +141,7 @@ void Session::Impl::adopt_volume(DeviceArray fresh, const Volume& dims) {
     scene.volume.nx = dims.nx, scene.volume.ny = dims.ny, scene.volume.nz = dims.nz;
     fixed_exponent = kUnknownExponent;
   }
+  if (box) scene.box_min = box[0], scene.box_max = box[1];
   volume = std::move(fresh);
   has_volume = true;
   volume_min = lo;

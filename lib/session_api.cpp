@@ -64,21 +64,7 @@ void Session::set_volume(const double* densities, std::int64_t nz, std::int64_t 
 
 void Session::set_volume(const DeviceArray& densities) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  Impl& s = *impl_;
-  s.check_array(densities, "set_volume");
-  const std::vector<std::int64_t>& shape = densities.shape();
-  if (shape.size() != 3)
-    bad("set_volume: the array has shape " + shape_text(shape) + "; densities are (nz, ny, nx)");
-  const Volume dims = dims_of(shape[0], shape[1], shape[2], "set_volume");
-  Scene next = s.scene;
-  next.volume.nx = dims.nx, next.volume.ny = dims.ny, next.volume.nz = dims.nz;
-  validate_description(next, s.declared_integrator());
-  DeviceArray fresh = s.output("volume", shape, real_dtype(s.f64), "the volume");
-  cl_call("copying the densities on " + s.dev.info.name, [&] {
-    mark_written(fresh, s.arrays.convert(buffer_of(densities), densities.dtype(), buffer_of(fresh),
-                                         real_dtype(s.f64), dims.voxel_count()));
-  });
-  s.adopt_volume(fresh, dims);
+  impl_->copy_volume(densities);
 }
 
 void Session::set_tf(const TransferFunction& tf) {
@@ -207,6 +193,12 @@ SessionGradient Session::gradient(const DeviceArray& target, const GradientReque
   std::lock_guard<std::mutex> lock(impl_->mutex);
   impl_->check_target(target);
   impl_->require_volume("gradient");
+  // A target given per call is checked per call (a device pass: set_target checks it once).
+  double lo = 0, hi = 0;
+  std::vector<cl::Event> events;
+  const std::uint64_t first =
+      impl_->arrays.check_values(buffer_of(target), target.size(), true, &lo, &hi, events);
+  if (first < target.size()) bad("target element " + std::to_string(first) + " is not finite");
   DeviceArray t = target;
   if (target.dtype() != real_dtype(impl_->f64)) {  // the kernels read reals
     t = impl_->output("target", target.shape(), real_dtype(impl_->f64), "the target");
@@ -287,13 +279,18 @@ void Session::step(Optimizer& optimizer, const DeviceArray& gradient) {
   if (!(o.options.lower >= 0))
     bad("step: the optimizer's lower bound must be >= 0 (densities stay >= 0), got " +
         number_text(o.options.lower));
-  if (gradient.shape() != s.volume.shape() || gradient.dtype() != real_dtype(s.f64))
-    bad("step: the gradient has shape " + shape_text(gradient.shape()) + " " +
-        dtype_name(gradient.dtype()) + "; the densities " + shape_text(s.volume.shape()) + " " +
-        dtype_name(real_dtype(s.f64)));
+  if (gradient.shape() != s.volume.shape())
+    bad("step: the gradient has shape " + shape_text(gradient.shape()) + "; the densities " +
+        shape_text(s.volume.shape()));
   OperationRecord& op = s.begin("step");
   cl_call("the optimiser step on " + s.dev.info.name, [&] {
-    op.events.push_back(o.step(buffer_of(s.volume), buffer_of(gradient)));
+    cl::Buffer g = buffer_of(gradient);
+    if (gradient.dtype() != real_dtype(s.f64)) {  // forward mode's float64 sums, for one
+      g = s.scratch("step gradient", gradient.size() * s.real_size, "the gradient");
+      op.events.push_back(s.arrays.convert(buffer_of(gradient), gradient.dtype(), g,
+                                           real_dtype(s.f64), gradient.size()));
+    }
+    op.events.push_back(o.step(buffer_of(s.volume), g));
     mark_written(s.volume, op.events.back());
   });
   // The values moved within the optimiser's bounds: the grid and a tolerance's step are stale.

@@ -79,8 +79,12 @@ struct Session::Impl {
   Impl(Device& device, const Scene& scene, const SessionOptions& options, bool host_data);
 
   // --- state ---
-  void upload_volume(const float* data, const double* data64, const Volume& dims);
-  void adopt_volume(DeviceArray densities, const Volume& dims);  // checks, then takes it
+  // New densities (and, where `box` is given, a new box [box[0], box[1]] with them): checked on
+  // the host and the device, then taken; nothing changes when either check fails.
+  void upload_volume(const float* data, const double* data64, const Volume& dims,
+                     const glm::dvec3* box = nullptr);
+  void copy_volume(const DeviceArray& densities, const glm::dvec3* box = nullptr);
+  void adopt_volume(DeviceArray densities, const Volume& dims, const glm::dvec3* box);
   void upload_cameras(const std::vector<Camera>& cameras);
   void upload_tf(const TransferFunction& tf);
   void check_target(const DeviceArray& target) const;

@@ -217,7 +217,8 @@ TEST_F(CliGrad, UnknownGroupsAndBadVoxelLists) {
   EXPECT_TRUE(has(expect_failure("--wrt scales"), "identity"));
   // A group only forward mode computes, asked of the adjoint.
   EXPECT_TRUE(
-      has(expect_failure("--wrt tf_points --mode adjoint"), "--mode adjoint cannot compute"));
+      has(expect_failure("--wrt tf_points --mode adjoint"),
+          "mode adjoint cannot compute group 'tf_points'"));
   EXPECT_TRUE(has(expect_failure("--wrt density --mode sideways"), "unknown mode 'sideways'"));
 }
 

@@ -4,7 +4,8 @@ The ivr-bench runner writes a case directory with scene.json (format "ivr-bench-
 volume.npy (float32, (nz, ny, nx)) and target.npy (float32, (views, H, W, 4)); every baseline
 computes the same emission–absorption march of it (see README.md, "The march"). Rays are set up
 here once in numpy float32 (outside the timed region, for every framework alike): what is timed is
-the march and its derivatives.
+the march and its derivatives. A call's outputs stay where the framework computed them (on the GPU
+with --device gpu); to_numpy() brings them to the host after the timed region.
 """
 from __future__ import annotations
 
@@ -16,6 +17,42 @@ from dataclasses import dataclass
 import numpy as np
 
 SCENE_FORMAT = "ivr-bench-scene/1"
+DEVICES = ("cpu", "gpu")
+
+
+class DeviceUnavailable(Exception):
+    """Raised by a baseline's version()/prepare() when the framework is installed but cannot use the
+    device asked for (e.g. no CUDA build, no GPU); run.py reports it as "available": false."""
+
+
+class Deferred:
+    """An output the timed call leaves where the framework computed it (e.g. on the GPU), to be
+    turned into numpy by to_numpy() after the clock stops: `fetch()` returns the host value (a
+    numpy array, a Python scalar or a framework array). For outputs that need more than a plain
+    conversion (Dr.Jit's image is four channel arrays stacked and reshaped on the host)."""
+
+    __slots__ = ("fetch",)
+
+    def __init__(self, fetch):
+        self.fetch = fetch
+
+
+def to_numpy(value) -> np.ndarray:
+    """A baseline's output as a numpy array (0-d for scalars), copied to the host if it is on a
+    device: numpy arrays and Python scalars as they are, Deferred outputs fetched, torch tensors by
+    .detach().cpu().numpy(), JAX and Dr.Jit arrays (CPU or GPU) by np.asarray. No framework is
+    imported here: the type is told by its module."""
+    if isinstance(value, Deferred):
+        value = value.fetch()
+    root = type(value).__module__.split(".")[0]
+    if root == "torch":  # np.asarray refuses CUDA tensors and tensors that require grad
+        value = value.detach().cpu().numpy()
+    return np.asarray(value)  # jax.Array and drjit arrays implement __array__ (device -> host)
+
+
+def outputs_to_numpy(outputs: dict) -> dict:
+    """to_numpy() of every entry of a call()'s result dict."""
+    return {name: to_numpy(value) for name, value in outputs.items()}
 
 
 @dataclass

@@ -1,6 +1,15 @@
-"""drjit_march.py — the ivr-bench emission–absorption march in Dr.Jit (LLVM backend), for run.py.
+"""drjit_march.py — the ivr-bench emission–absorption march in Dr.Jit (LLVM or CUDA backend), for run.py.
 
-How it is written (as a Dr.Jit user would, drjit.llvm.ad types):
+How it is written (as a Dr.Jit user would; drjit.llvm.ad types on the CPU, drjit.cuda.ad on the
+GPU):
+
+* Devices: the array types (Float, UInt32, Array3f) are module globals that _use_backend() binds
+  to drjit.llvm.ad ("cpu", the default at import) or drjit.cuda.ad ("gpu"); version() and
+  prepare() choose. The code is the same for both. _Case puts the scene on the device (and waits
+  for the copies) before the timed calls; every call ends with dr.eval of its outputs and
+  dr.sync_thread() (both backends run kernels asynchronously: LLVM on its thread pool, CUDA on
+  its stream) and returns them as device arrays (common.Deferred where the host needs to stack or
+  reshape them): run.py copies them to the host after the clock stops.
 
 * The volume is one flat differentiable Float; trilinear interpolation is 8 ``dr.gather``s.
 * The ray loop is a symbolic ``dr.while_loop``: Dr.Jit compiles the whole march into one fused
@@ -39,14 +48,23 @@ How it is written (as a Dr.Jit user would, drjit.llvm.ad types):
   memory, so it gains nothing here.
 * LLVM: float dr.minimum/dr.maximum (and so dr.clip) emit llvm.minimum/llvm.maximum, which the
   x86 backend of LLVM 15 (Debian 12's libLLVM-15, which Dr.Jit 1.5 accepts) cannot compile: the
-  process aborts ("Cannot select: fminimum"). The clamps below are therefore selects.
+  process aborts ("Cannot select: fminimum"). The clamps below are therefore selects. On CUDA
+  they are kept as they are: a select of a compare is what a clamp compiles to there anyway
+  (setp + selp instead of min/max), and the result is the same for every non-NaN input, so both
+  backends compute the same march.
+* CUDA: SCATTER_MODE Expand is LLVM-only; Dr.Jit's CUDA backend treats it as ReduceMode.Auto
+  (warp-local pre-reduction or plain atomics). dr.exp is ex2.approx there (a few ulp), so GPU
+  results differ from the CPU's in the last bits.
 """
 from __future__ import annotations
 
 import numpy as np
 
 import drjit as dr  # an ImportError here is what run.py reports as "not installed"
-from drjit.llvm.ad import Array3f, Float, UInt32
+from common import Deferred, DeviceUnavailable
+from drjit.llvm.ad import Array3f, Float, UInt32  # rebound by _use_backend("gpu")
+
+BACKEND = dr.JitBackend.LLVM  # the backend the array types above belong to
 
 # "replay": hand-written path-replay adjoint (Mitsuba's PRB pattern, default);
 # "loop": Dr.Jit's built-in reverse mode of the symbolic loop (max_iterations hint).
@@ -60,15 +78,73 @@ REVERSE = "replay"
 SCATTER_MODE = dr.ReduceMode.Expand
 
 
-def version(threads: int) -> str:
+def _use_backend(device: str) -> None:
+    """Binds Float/UInt32/Array3f to drjit.llvm.ad ("cpu") or drjit.cuda.ad ("gpu")."""
+    global Array3f, Float, UInt32, BACKEND
+    if device == "gpu":
+        if not dr.has_backend(dr.JitBackend.CUDA):
+            raise DeviceUnavailable(f"drjit {dr.__version__}'s CUDA backend is unavailable "
+                                    "(no libcuda/driver found, or no CUDA device)")
+        try:
+            import drjit.cuda.ad as types
+        except ImportError as e:
+            raise DeviceUnavailable(f"drjit.cuda.ad cannot be imported ({e})") from e
+        BACKEND = dr.JitBackend.CUDA
+    else:
+        import drjit.llvm.ad as types
+
+        BACKEND = dr.JitBackend.LLVM
+    Array3f, Float, UInt32 = types.Array3f, types.Float, types.UInt32
+
+
+def version(threads: int, device: str = "cpu") -> str:
+    """Checks Dr.Jit's backend for `device` ("cpu": LLVM with `threads` threads, 0: its own
+    choice; "gpu": CUDA, `threads` unused) and selects it; ImportError when the CPU backend is
+    unusable, DeviceUnavailable when the CUDA one is."""
+    if not hasattr(dr, "while_loop"):
+        raise ImportError(f"drjit {dr.__version__} is too old (dr.while_loop needs >= 1.0)")
+    if device == "gpu":
+        _use_backend(device)
+        return f"drjit {dr.__version__} (CUDA backend, {device_name(device)})"
     if not dr.has_backend(dr.JitBackend.LLVM):
         # No libLLVM found at run time: the LLVM backend, the only CPU backend, is unusable.
         raise ImportError("drjit's LLVM backend is unavailable (libLLVM not found)")
-    if not hasattr(dr, "while_loop"):
-        raise ImportError(f"drjit {dr.__version__} is too old (dr.while_loop needs >= 1.0)")
+    _use_backend(device)
     if threads > 0:
         dr.set_thread_count(threads)
     return f"drjit {dr.__version__} (LLVM backend, {dr.thread_count()} threads)"
+
+
+def _cuda_device_name() -> str:
+    """The name of CUDA device 0 (the one Dr.Jit uses unless told otherwise), from the driver API;
+    Dr.Jit itself exposes only the compute capability."""
+    import ctypes
+
+    cuda = ctypes.CDLL("libcuda.so.1")
+    dev = ctypes.c_int()
+    name = ctypes.create_string_buffer(256)
+    if cuda.cuInit(0) or cuda.cuDeviceGet(ctypes.byref(dev), 0) or \
+            cuda.cuDeviceGetName(name, len(name), dev):
+        raise OSError("cuDeviceGetName failed")
+    return name.value.decode(errors="replace")
+
+
+def device_name(device: str = "cpu") -> str:
+    """The backend and what it runs on: "CUDA: NVIDIA H100 ... (sm_90)", "LLVM 15.0.6"."""
+    if device == "gpu":
+        cc = dr.detail.cuda_compute_capability()
+        try:
+            name = _cuda_device_name()
+        except (OSError, AttributeError):
+            name = "CUDA device 0"
+        return f"CUDA: {name} (sm_{cc})"
+    return "LLVM " + ".".join(str(v) for v in dr.detail.llvm_version())
+
+
+def device_memory(reset: bool = False):
+    """Dr.Jit's allocator high-water mark on the backend in use (its cache included). Dr.Jit cannot
+    reset it nor tell the bytes in use, so it covers the whole process (setup and first call)."""
+    return {"in_use": None, "peak": int(dr.detail.malloc_watermark(BACKEND)), "scope": "process"}
 
 
 class _Case:
@@ -93,6 +169,7 @@ class _Case:
         self.min_t = float(scene.min_transmittance)
         self.max_samples = max(1, scene.max_samples)
         dr.eval(self.u0, self.du, self.t0, self.dt, self.n, self.volume, self.target)
+        dr.sync_thread()  # the copies to the device are done before the first call
 
     # -- the march ------------------------------------------------------------------------------
 
@@ -180,19 +257,35 @@ class _Case:
     def tf_constants(self):
         return [[Float(float(v)) for v in row] for row in self.tf_values]
 
-    def image(self, px) -> np.ndarray:
-        img = np.stack([np.asarray(p, dtype=np.float32) for p in px], axis=-1)
-        return img.reshape(self.views, self.H, self.W, 4)
+    # -- outputs: computed on the device in the call, copied to the host after it ---------------
 
-    def grad_array(self, vol) -> np.ndarray:
-        return np.asarray(dr.grad(vol), dtype=np.float32).reshape(self.nz, self.ny, self.nx)
+    @staticmethod
+    def finish(*values) -> None:
+        """The end of every call: evaluate the outputs and wait until the device is done."""
+        dr.eval(*values)
+        dr.sync_thread()
+
+    def image(self, px) -> Deferred:
+        def fetch():
+            img = np.stack([np.asarray(p, dtype=np.float32) for p in px], axis=-1)
+            return img.reshape(self.views, self.H, self.W, 4)
+
+        return Deferred(fetch)
+
+    def grad_array(self, grad) -> Deferred:
+        shape = (self.nz, self.ny, self.nx)
+        return Deferred(lambda: np.asarray(grad, dtype=np.float32).reshape(shape))
+
+    @staticmethod
+    def scalar(value) -> Deferred:
+        return Deferred(lambda: float(value[0]))
 
     # -- tasks ----------------------------------------------------------------------------------
 
     def render(self):
         T, C = self.march(self.volume, self.tf_constants())
         px = self.pixels(T, C)
-        dr.eval(px)
+        self.finish(px)
         return {"image": self.image(px)}
 
     def grad_loop(self):
@@ -202,7 +295,9 @@ class _Case:
         T, C = self.march(vol, self.tf_constants(), max_iterations=self.max_samples)
         loss = self.loss(self.pixels(T, C))
         dr.backward(loss)
-        return {"loss": float(loss[0]), "grad": self.grad_array(vol)}
+        grad = dr.grad(vol)
+        self.finish(loss, grad)
+        return {"loss": self.scalar(loss), "grad": self.grad_array(grad)}
 
     def grad_replay(self):
         """Path-replay adjoint: a primal march without AD, then a replay that backpropagates
@@ -248,7 +343,9 @@ class _Case:
             label="ivr_march_adjoint",
             mode="symbolic",
         )
-        return {"loss": float(loss[0]), "grad": self.grad_array(vol)}
+        grad = dr.grad(vol)  # evaluating it runs the replay kernel (its scatter-adds)
+        self.finish(loss, grad)
+        return {"loss": self.scalar(loss), "grad": self.grad_array(grad)}
 
     def tf_forward(self):
         points = len(self.tf_values)
@@ -259,7 +356,7 @@ class _Case:
         T, C = self.march(self.volume, tf)
         loss = self.loss(self.pixels(T, C))
         dr.eval(loss)
-        grads = np.zeros(len(flat), np.float64)
+        grads = []  # one width-1 device array per parameter, read on the host after the call
         for k in range(len(flat)):
             # A distinct opaque seed per parameter: the kernel then has the same inputs in the
             # same places for every k (a shared "zero" variable would change its structure).
@@ -267,13 +364,21 @@ class _Case:
                 dr.set_grad(p, dr.opaque(Float, 1.0 if j == k else 0.0))
             dr.clear_grad(loss)  # the output's tangent is not cleared by the traversal
             # Keep the traced graph (edges) for the next parameter; clear propagated values.
-            g = dr.forward_to(loss, flags=dr.ADFlag.ClearVertices)
-            grads[k] = float(g[0])
+            grads.append(dr.forward_to(loss, flags=dr.ADFlag.ClearVertices))
         dr.disable_grad(flat)
-        return {"loss": float(loss[0]), "tf_grad": grads.reshape(points, 4).astype(np.float32)}
+        self.finish(loss, grads)
+
+        def fetch():
+            values = np.array([float(g[0]) for g in grads], np.float64)
+            return values.reshape(points, 4).astype(np.float32)
+
+        return {"loss": self.scalar(loss), "tf_grad": Deferred(fetch)}
 
 
-def prepare(task: str, scene):
+def prepare(task: str, scene, device: str = "cpu"):
+    """Returns call() for `task` on `scene`, on Dr.Jit's backend for `device`; the scene is on the
+    device before the call is timed."""
+    _use_backend(device)
     case = _Case(scene)
     if task == "render":
         return case.render

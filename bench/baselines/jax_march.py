@@ -5,6 +5,12 @@ lax.scan over the sample index up to the scene's largest sample count, rays mask
 count and past early termination. Derivatives are what a JAX user writes: jax.value_and_grad of the
 loss for the voxels (reverse mode; the scan keeps its residuals for every step, which is part of
 what is measured) and jax.jacfwd (a vmap of jvp over the 4·points unit tangents) for the TF.
+
+Devices: "cpu" (JAX_PLATFORMS=cpu, the thread count by CPU affinity) or "gpu" (the first of
+jax.devices("gpu"): needs a CUDA jaxlib). prepare() commits every input to the device with
+jax.device_put before the timed calls, so the jitted functions run there; every call ends with
+jax.block_until_ready on its outputs (JAX dispatches asynchronously, on the CPU too) and returns
+them as device arrays: run.py copies them to the host after the clock stops.
 """
 from __future__ import annotations
 
@@ -12,14 +18,25 @@ import os
 
 import numpy as np
 
+from common import DeviceUnavailable
+
 jax = None  # imported by version(), after the thread count is set
 jnp = None
 
 
-def version(threads: int) -> str:
-    """Import JAX with `threads` CPU threads (0: its own choice); ImportError when it is missing."""
+def version(threads: int, device: str = "cpu") -> str:
+    """Import JAX for `device` ("cpu": with `threads` CPU threads, 0: its own choice; "gpu": its
+    CUDA backend, `threads` unused); ImportError when JAX is missing, DeviceUnavailable when it has
+    no GPU."""
     global jax, jnp
-    if threads > 0:
+    if device == "gpu":
+        # Platforms named explicitly: a CUDA jaxlib that fails to start then says why, instead of
+        # JAX quietly falling back to the CPU. Memory grows on demand (JAX would otherwise take 75%
+        # of the GPU at start-up, next to whatever the ivr-bench process holds).
+        if os.environ.get("JAX_PLATFORMS", "cpu") == "cpu":
+            os.environ["JAX_PLATFORMS"] = "cuda,cpu"
+        os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+    elif threads > 0:
         # XLA's CPU thread pool is sized from the CPUs this process may run on, and no JAX setting
         # caps it, so the process is pinned to `threads` of them (before the backend starts).
         cpus = sorted(os.sched_getaffinity(0))
@@ -29,15 +46,50 @@ def version(threads: int) -> str:
             flags = os.environ.get("XLA_FLAGS", "")
             os.environ["XLA_FLAGS"] = (flags + " --xla_cpu_multi_thread_eigen=false"
                                        " intra_op_parallelism_threads=1").strip()
-    os.environ.setdefault("JAX_PLATFORMS", "cpu")
+    if device != "gpu":
+        os.environ.setdefault("JAX_PLATFORMS", "cpu")
     import jax as _jax
     import jax.numpy as _jnp
     import jaxlib
 
     jax, jnp = _jax, _jnp
     jax.config.update("jax_enable_x64", False)  # float32 everywhere, as ivr
-    return (f"jax {jax.__version__}, jaxlib {jaxlib.__version__}, {jax.default_backend()}, "
-            f"{len(os.sched_getaffinity(0))} cpus")
+    where = f"{len(os.sched_getaffinity(0))} cpus"
+    if device == "gpu":
+        dev = _device("gpu")
+        where = f"{dev.platform} device {dev.id}: {dev.device_kind}"
+    return f"jax {jax.__version__}, jaxlib {jaxlib.__version__}, {jax.default_backend()}, {where}"
+
+
+def _device(device: str):
+    """The jax.Device that `device` ("cpu" or "gpu") means: the first of its kind."""
+    if device != "gpu":
+        return jax.devices("cpu")[0]
+    try:
+        return jax.devices("gpu")[0]
+    # RuntimeError: "Unknown backend: 'gpu' requested, but no platforms ..." (a CPU-only jaxlib),
+    # "Unable to initialize backend 'cuda': ..." (a CUDA plugin without a usable driver/GPU); other
+    # errors come from platforms JAX does not know (JAX_PLATFORMS=cuda with a CPU-only jaxlib).
+    except Exception as e:  # noqa: BLE001 - whatever keeps JAX off the GPU, say why
+        platforms = os.environ.get("JAX_PLATFORMS", "")
+        raise DeviceUnavailable(f"jax {jax.__version__} has no CUDA device (a CPU-only jaxlib, "
+                                f"or no usable GPU/driver; JAX_PLATFORMS={platforms!r}): "
+                                f"{type(e).__name__}: {e}") from e
+
+
+def device_name(device: str = "cpu") -> str:
+    """JAX's name for the device: its device_kind ("cpu", "NVIDIA H100 80GB HBM3", ...)."""
+    return _device(device).device_kind
+
+
+def device_memory(reset: bool = False):
+    """The GPU's memory figures from JAX's allocator: bytes in use and the high-water mark. JAX
+    cannot reset the high-water mark, so it covers the whole process (first call included)."""
+    stats = _device("gpu").memory_stats() or {}
+    if "peak_bytes_in_use" not in stats:
+        return None
+    return {"in_use": stats.get("bytes_in_use"), "peak": stats["peak_bytes_in_use"],
+            "scope": "process"}
 
 
 def _lerp(a, b, t):
@@ -91,10 +143,15 @@ def _march(volume, tf_values, tf_density, u0, du, t0, dt, n, background, *, min_
     return jnp.concatenate([C + T[:, None] * background, (1 - T)[:, None]], axis=1)
 
 
-def prepare(task: str, scene):
-    """Returns call() for `task` on `scene`; inputs are on the device before it is timed."""
+def prepare(task: str, scene, device: str = "cpu"):
+    """Returns call() for `task` on `scene`: the inputs are committed to `device` before it is
+    timed; call() returns the outputs as device arrays, computed (block_until_ready)."""
     r = scene.rays
-    put = jax.device_put
+    dev = _device(device)
+
+    def put(a):
+        return jax.device_put(a, dev)
+
     rays = tuple(put(a) for a in (r.u0, r.du, r.t0, r.dt, r.n))
     volume = put(scene.volume)
     tf_density = put(scene.tf[:, 0].copy())
@@ -118,14 +175,14 @@ def prepare(task: str, scene):
         fn = jax.jit(image)
 
         def call():
-            return {"image": np.asarray(fn(volume, tf_values, rays, background))}
+            return {"image": jax.block_until_ready(fn(volume, tf_values, rays, background))}
 
     elif task == "grad":
         fn = jax.jit(jax.value_and_grad(loss, argnums=0))
 
         def call():
-            value, g = fn(volume, tf_values, rays, background, target)
-            return {"loss": float(value), "grad": np.asarray(g)}
+            value, g = jax.block_until_ready(fn(volume, tf_values, rays, background, target))
+            return {"loss": value, "grad": g}
 
     elif task == "tf_forward":
         # jacfwd of a scalar over the (points, 4) parameters: one jvp per unit tangent, vmapped.
@@ -136,8 +193,8 @@ def prepare(task: str, scene):
         fn = jax.jit(jax.jacfwd(loss_aux, argnums=0, has_aux=True))
 
         def call():
-            g, value = fn(tf_values, volume, rays, background, target)
-            return {"loss": float(value), "tf_grad": np.asarray(g)}
+            g, value = jax.block_until_ready(fn(tf_values, volume, rays, background, target))
+            return {"loss": value, "tf_grad": g}
 
     else:
         raise ValueError(f"unknown task {task!r}")

@@ -1,14 +1,20 @@
 """run.py — runs one baseline task on one case for the ivr-bench runner and reports it as JSON.
 
     python run.py --framework jax --task grad --case DIR --out RESULT.json [--budget S]
+                  [--device cpu|gpu]
 
 Tasks: render (image), grad (loss and d loss / d voxel by reverse mode), tf_forward (loss and
 d loss / d TF parameters by forward mode). The first call (tracing, compiling, warming up) is timed
 on its own; then the call repeats until the budget is spent (at least --min-repeats times). Peak
 memory: the process's high-water mark is reset after the first call (/proc/self/clear_refs), so
 peak_increase_bytes is what the timed calls needed above the resident set they started from.
-The outputs go to DIR/<framework>_<task>_<name>.npy; an unavailable framework writes
-{"available": false, "note": ...} and exits 0, so the runner can skip it with that note.
+--device gpu runs the framework on its CUDA device: prepare() puts the scene there, every call
+ends synchronised with the device and leaves its outputs there; they are copied to the host
+(common.to_numpy) after the timed calls. The framework's own device-memory figures are recorded
+as device_* fields (the RSS fields are host memory).
+The outputs go to DIR/<framework>_<task>_<name>.npy; an unavailable framework (not installed, or
+--device gpu without a usable GPU) writes {"available": false, "note": ...} and exits 0, so the
+runner can skip it with that note.
 """
 from __future__ import annotations
 
@@ -25,6 +31,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
+
+from common import DEVICES, DeviceUnavailable, load_scene, outputs_to_numpy  # noqa: E402
 
 FRAMEWORKS = ("jax", "drjit", "torch")
 TASKS = ("render", "grad", "tf_forward")
@@ -60,6 +68,31 @@ def _reset_peak() -> bool:
         return False
 
 
+def _device_memory(module, reset: bool = False):
+    """The framework's own device-memory figures (module.device_memory), or None; never raises:
+    a figure that cannot be read leaves the timing intact."""
+    hook = getattr(module, "device_memory", None)
+    if hook is None:
+        return None
+    try:
+        return hook(reset=reset)
+    except Exception as e:  # noqa: BLE001 - memory statistics are optional
+        return {"error": f"{type(e).__name__}: {e}"}
+
+
+def _device_fields(before: dict, after: dict) -> dict:
+    """device_* result fields from two device_memory() readings (after the first call, with the
+    peak reset where the framework can; after the timed calls)."""
+    if "error" in after:
+        return {"device_memory_error": after["error"]}
+    fields = {"device_peak_bytes": after.get("peak"), "device_peak_scope": after.get("scope")}
+    if before.get("in_use") is not None:
+        fields["device_bytes_before"] = before["in_use"]
+        if after.get("scope") == "timed calls" and after.get("peak") is not None:
+            fields["device_peak_increase_bytes"] = max(0, after["peak"] - before["in_use"])
+    return fields
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--framework", required=True, choices=FRAMEWORKS)
@@ -69,10 +102,13 @@ def main() -> int:
     p.add_argument("--budget", type=float, default=2.0, help="seconds of timed calls")
     p.add_argument("--min-repeats", type=int, default=3)
     p.add_argument("--max-repeats", type=int, default=50)
-    p.add_argument("--threads", type=int, default=0, help="CPU threads (0: the framework's own)")
+    p.add_argument("--threads", type=int, default=0,
+                   help="CPU threads (0: the framework's own); --device cpu only")
+    p.add_argument("--device", choices=DEVICES, default="cpu",
+                   help="where the framework computes: cpu, or gpu (its CUDA device)")
     a = p.parse_args()
 
-    result = {"framework": a.framework, "task": a.task, "case": a.case}
+    result = {"framework": a.framework, "task": a.task, "case": a.case, "device": a.device}
 
     def write(doc) -> None:
         tmp = a.out + ".tmp"
@@ -80,9 +116,17 @@ def main() -> int:
             json.dump(doc, f, indent=2)
         os.replace(tmp, a.out)
 
+    def no_gpu(e) -> int:
+        result.update(available=False, note=f"{a.framework} has no GPU here: {e}")
+        write(result)
+        return 0
+
     try:
         module = importlib.import_module(f"{a.framework}_march")
-        result["version"] = module.version(a.threads)
+        result["version"] = module.version(a.threads, a.device)
+        result["device_name"] = module.device_name(a.device)
+    except DeviceUnavailable as e:
+        return no_gpu(e)
     except ImportError as e:
         result.update(available=False, note=f"{a.framework} is not installed ({e}); "
                       "scripts/bench_setup.sh installs the baselines")
@@ -90,18 +134,20 @@ def main() -> int:
         return 0
     result["available"] = True
 
-    from common import load_scene
-
+    gpu = a.device == "gpu"
     try:
         scene = load_scene(a.case)
         rss0 = _status_kib("VmRSS")
         start = time.perf_counter()
-        call = module.prepare(a.task, scene)
+        # prepare() puts the scene on the device; every call() returns only once the device has
+        # finished, with its outputs left on the device (converted after the timed calls).
+        call = module.prepare(a.task, scene, a.device)
         out = call()
         result["first_call_s"] = time.perf_counter() - start
         result["first_call_peak_increase_bytes"] = 1024 * (_status_kib("VmHWM") - rss0)
         _trim_heap()
         result["peak_reset"] = _reset_peak()
+        device_before = _device_memory(module, reset=True) if gpu else None
         rss_before = _status_kib("VmRSS")
         times = []
         spent = time.perf_counter()
@@ -112,14 +158,19 @@ def main() -> int:
             out = call()
             times.append(time.perf_counter() - t)
         peak = _status_kib("VmHWM")
+        device_after = _device_memory(module) if gpu else None
+        out = outputs_to_numpy(out)  # device -> host, after the clock stopped
+    except DeviceUnavailable as e:  # a framework that finds out only in prepare()
+        return no_gpu(e)
     except Exception as e:  # a baseline that fails is reported, not silently dropped
         result.update(ok=False, error=f"{type(e).__name__}: {e}", traceback=traceback.format_exc())
         write(result)
         return 1
 
+    if device_after is not None:
+        result.update(_device_fields(device_before or {}, device_after))
     outputs = {}
-    for name, value in out.items():
-        arr = np.asarray(value)
+    for name, arr in out.items():
         if arr.ndim == 0:
             result[name] = float(arr)
             continue

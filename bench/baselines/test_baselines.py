@@ -9,6 +9,7 @@ and common.py's rays are checked against a one-pixel computation written out her
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import json
 import math
 import os
@@ -106,14 +107,14 @@ def test_scene_exercises_the_march(scene, expected):
 
 @pytest.mark.parametrize("framework", FRAMEWORKS)
 def test_render(framework, scene, expected):
-    out = _module(framework).prepare("render", scene)()
+    out = common.outputs_to_numpy(_module(framework).prepare("render", scene)())
     assert out["image"].dtype == np.float32
     _close(out["image"], expected["image"], 1e-5, 1e-4, f"{framework} render")
 
 
 @pytest.mark.parametrize("framework", FRAMEWORKS)
 def test_grad(framework, scene, expected):
-    out = _module(framework).prepare("grad", scene)()
+    out = common.outputs_to_numpy(_module(framework).prepare("grad", scene)())
     assert out["grad"].dtype == np.float32 and out["grad"].shape == scene.volume.shape
     assert math.isclose(float(out["loss"]), expected["loss"], rel_tol=1e-5)
     g = expected["grad"]
@@ -125,7 +126,7 @@ def test_grad(framework, scene, expected):
 def test_tf_forward(framework, scene, expected):
     module = _module(framework)
     try:
-        out = module.prepare("tf_forward", scene)()
+        out = common.outputs_to_numpy(module.prepare("tf_forward", scene)())
     except NotImplementedError as e:
         pytest.skip(f"{framework}: {e}")
     assert out["tf_grad"].shape == (len(TF), 4)
@@ -202,3 +203,175 @@ def test_run_unavailable_framework(tmp_path):
     assert p.returncode == 0, p.stdout + p.stderr
     doc = json.loads(out.read_text())
     assert doc["available"] is False and "not installed" in doc["note"], doc
+
+
+# -- devices (--device cpu|gpu) ----------------------------------------------------------------
+
+def _run_case(tmp_path, name, framework, task, *extra):
+    """run.py on a fresh copy of the termination case; returns (result JSON, case directory)."""
+    case = make_case(tmp_path / name, min_transmittance=0.3)
+    out = tmp_path / f"{name}.json"
+    p = _run(["--framework", framework, "--task", task, "--case", case, "--out", str(out),
+              "--budget", "0", "--min-repeats", "1", "--threads", "1", *extra])
+    assert p.returncode == 0, p.stdout + p.stderr
+    return json.loads(out.read_text()), case
+
+
+def _outputs(doc, case):
+    return {name: np.load(os.path.join(case, file)) for name, file in doc["outputs"].items()}
+
+
+@pytest.mark.parametrize("task", ["render", "grad"])
+@pytest.mark.parametrize("framework", FRAMEWORKS)
+def test_run_device_cpu_is_the_default(framework, task, tmp_path):
+    """--device cpu is what run.py did before the option existed: same outputs as no --device."""
+    pytest.importorskip(framework)
+    default, case_d = _run_case(tmp_path, "default", framework, task)
+    cpu, case_c = _run_case(tmp_path, "cpu", framework, task, "--device", "cpu")
+    for doc in (default, cpu):
+        assert doc["available"] and doc["ok"], doc
+        assert doc["device"] == "cpu" and doc["device_name"], doc
+        assert not any(k.startswith("device_peak") for k in doc), doc  # GPU-only fields
+    out_d, out_c = _outputs(default, case_d), _outputs(cpu, case_c)
+    assert out_d.keys() == out_c.keys() and out_d
+    for name in out_d:
+        assert out_d[name].dtype == out_c[name].dtype == np.float32
+        if task == "render":  # no reductions: bit for bit
+            np.testing.assert_array_equal(out_c[name], out_d[name])
+        else:  # multithreaded scatter-adds may sum in another order
+            np.testing.assert_allclose(out_c[name], out_d[name], rtol=1e-5,
+                                       atol=1e-6 * np.abs(out_d[name]).max())
+    if task == "grad":
+        assert math.isclose(cpu["loss"], default["loss"], rel_tol=1e-6)
+
+
+@pytest.mark.parametrize("framework", FRAMEWORKS)
+def test_run_device_gpu(framework, tmp_path):
+    """--device gpu: without a usable GPU (this project's machines), every framework reports
+    "available": false with a note and exit 0; with one, every task runs on it and matches the
+    reference like the CPU tests do."""
+    doc, case = _run_case(tmp_path, "render", framework, "render", "--device", "gpu")
+    assert doc["device"] == "gpu", doc
+    if not doc["available"]:
+        assert doc["note"].startswith(f"{framework} has no GPU here: ") or (
+            "not installed" in doc["note"]), doc
+        assert "ok" not in doc and "outputs" not in doc, doc
+        return
+    # A GPU machine: the outputs were computed there; compare them with the reference.
+    assert doc["ok"], doc
+    assert doc["device_name"], doc
+    assert "device_peak_bytes" in doc or "device_memory_error" in doc, doc
+    scene = common.load_scene(case)
+    _close(_outputs(doc, case)["image"], reference.render(scene), 1e-5, 1e-4,
+           f"{framework} gpu render")
+    doc, case = _run_case(tmp_path, "grad", framework, "grad", "--device", "gpu")
+    assert doc["ok"], doc
+    assert math.isclose(doc["loss"], reference.loss(scene), rel_tol=1e-5)
+    g = reference.grad_volume_fd(scene)
+    _close(_outputs(doc, case)["grad"], g, 2e-5 * np.abs(g).max(), 1e-3, f"{framework} gpu grad")
+    doc, case = _run_case(tmp_path, "tf_forward", framework, "tf_forward", "--device", "gpu")
+    if doc.get("ok"):
+        g = reference.grad_tf_fd(scene)
+        _close(_outputs(doc, case)["tf_grad"], g, 2e-5 * np.abs(g).max(), 1e-3,
+               f"{framework} gpu tf_forward")
+    else:
+        assert "NotImplementedError" in doc.get("error", ""), doc
+
+
+def test_to_numpy_plain_values():
+    a = np.arange(6, dtype=np.float32).reshape(2, 3)
+    assert common.to_numpy(a) is a
+    s = common.to_numpy(0.25)
+    assert s.ndim == 0 and float(s) == 0.25
+    d = common.to_numpy(common.Deferred(lambda: a * 2))
+    np.testing.assert_array_equal(d, a * 2)
+
+
+def test_to_numpy_framework_arrays():
+    """Each installed framework's arrays (and a torch tensor that requires grad, which np.asarray
+    refuses) come back as numpy with their values, dtype and shape."""
+    want = np.array([[0.5, -1.0, 2.0], [3.0, 4.5, 1e-3]], np.float32)
+    arrays = {}
+    if importlib.util.find_spec("jax"):
+        _module("jax")
+        import jax.numpy as jnp
+        arrays["jax"] = jnp.asarray(want)
+        arrays["jax scalar"] = jnp.float32(0.5)
+    if importlib.util.find_spec("torch"):
+        import torch
+        arrays["torch"] = torch.from_numpy(want.copy()).requires_grad_(True) * 1.0
+        arrays["torch scalar"] = torch.tensor(0.5)
+    if importlib.util.find_spec("drjit"):
+        import drjit_march
+        flat = drjit_march.Float(want.ravel())
+        arrays["drjit"] = common.Deferred(lambda: np.asarray(flat).reshape(2, 3))
+        arrays["drjit raw"] = drjit_march.Float(want.ravel())
+    if not arrays:
+        pytest.skip("no framework installed")
+    for name, value in arrays.items():
+        got = common.to_numpy(value)
+        assert isinstance(got, np.ndarray), name
+        if "scalar" in name:
+            assert got.ndim == 0 and float(got) == 0.5, name
+        elif name == "drjit raw":
+            np.testing.assert_array_equal(got, want.ravel())
+        else:
+            assert got.dtype == np.float32, name
+            np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("framework", FRAMEWORKS)
+def test_call_leaves_conversion_to_run(framework, scene):
+    """call() returns the framework's own (device) arrays, computed; outputs_to_numpy turns them
+    into numpy: float32 arrays and 0-d scalars."""
+    call = _module(framework).prepare("grad", scene, "cpu")
+    raw = call()
+    assert set(raw) == {"loss", "grad"}
+    assert not isinstance(raw["grad"], np.ndarray)  # converted by run.py after the timed calls
+    out = common.outputs_to_numpy(raw)
+    assert out["grad"].dtype == np.float32 and out["grad"].shape == scene.volume.shape
+    assert out["loss"].ndim == 0
+    assert math.isclose(float(out["loss"]), reference.loss(scene), rel_tol=1e-5)
+
+
+def test_torch_gpu_path_keeps_every_tensor_on_the_device(scene, monkeypatch):
+    """The GPU path with torch's "meta" device standing in for CUDA: a tensor made on the CPU
+    anywhere in the march (a torch.zeros without device=) would fail with a device mismatch."""
+    torch = pytest.importorskip("torch")
+    module = _module("torch")
+    monkeypatch.setattr(module, "_torch_device", lambda device: torch.device("meta"))
+    for task in ("render", "grad", "tf_forward"):
+        out = module.prepare(task, scene, "gpu")()
+        assert all(v.device.type == "meta" for v in out.values()), (task, out)
+
+
+def test_jax_gpu_path_places_everything_on_the_chosen_device(tmp_path):
+    """The GPU path with a second host CPU device standing in for the GPU (XLA's
+    --xla_force_host_platform_device_count, in a subprocess: it must be set before JAX starts):
+    every output is committed to that device, with the device-0 values."""
+    pytest.importorskip("jax")
+    case = make_case(tmp_path / "case", min_transmittance=0.3)
+    script = f"""
+import sys
+sys.path.insert(0, {HERE!r})
+import numpy as np
+import common, jax_march
+jax_march.version(0)
+import jax
+second = jax.devices("cpu")[1]
+cpu_device = jax_march._device
+jax_march._device = lambda device: second if device == "gpu" else cpu_device(device)
+scene = common.load_scene({case!r})
+for task in ("render", "grad", "tf_forward"):
+    out = jax_march.prepare(task, scene, "gpu")()
+    ref = common.outputs_to_numpy(jax_march.prepare(task, scene, "cpu")())
+    for name, value in out.items():
+        assert value.devices() == {{second}} and value.committed, (task, name, value.devices())
+        assert np.array_equal(common.to_numpy(value), ref[name]), (task, name)
+print("ok")
+"""
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
+               JAX_PLATFORMS="cpu")
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
+                       timeout=600)
+    assert p.returncode == 0 and p.stdout.strip().endswith("ok"), p.stdout + p.stderr

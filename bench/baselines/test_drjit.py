@@ -19,8 +19,9 @@ pytest.importorskip("drjit")
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+import drjit as dr  # noqa: E402
 import drjit_march  # noqa: E402
-from common import load_scene  # noqa: E402
+from common import load_scene, outputs_to_numpy  # noqa: E402
 
 TF = [
     [0.15, 0.9, 0.2, 0.1, 1.5],
@@ -161,7 +162,7 @@ def test_early_termination_is_exercised(scene):
 
 
 def test_render(scene):
-    out = drjit_march.prepare("render", scene)()
+    out = outputs_to_numpy(drjit_march.prepare("render", scene)())
     assert out["image"].shape == (scene.views, scene.height, scene.width, 4)
     assert out["image"].dtype == np.float32
     ref = np_render(scene)
@@ -170,7 +171,8 @@ def test_render(scene):
     np.testing.assert_array_equal(out["image"][miss][:, :3], np.broadcast_to(scene.background, (miss.sum(), 3)))
     assert (out["image"][miss][:, 3] == 0).all()
     # A second call (cached kernel) gives the same image.
-    np.testing.assert_array_equal(drjit_march.prepare("render", scene)()["image"], out["image"])
+    again = outputs_to_numpy(drjit_march.prepare("render", scene)())
+    np.testing.assert_array_equal(again["image"], out["image"])
 
 
 @pytest.fixture(scope="module")
@@ -183,7 +185,7 @@ def fd_volume_grad(scene):
 def test_grad(scene, fd_volume_grad, reverse, monkeypatch):
     monkeypatch.setattr(drjit_march, "REVERSE", reverse)
     call = drjit_march.prepare("grad", scene)
-    out = call()
+    out = outputs_to_numpy(call())
     assert out["grad"].shape == scene.volume.shape and out["grad"].dtype == np.float32
     assert abs(out["loss"] - np_loss(scene)) <= 1e-6 + 1e-5 * np_loss(scene)
     g, ref = out["grad"], fd_volume_grad
@@ -191,12 +193,12 @@ def test_grad(scene, fd_volume_grad, reverse, monkeypatch):
     assert scale > 0
     np.testing.assert_allclose(g, ref, atol=2e-5 * scale, rtol=1e-3)
     # Repeated calls do not accumulate gradients.
-    np.testing.assert_allclose(call()["grad"], g, atol=1e-7 * scale, rtol=1e-5)
+    np.testing.assert_allclose(outputs_to_numpy(call())["grad"], g, atol=1e-7 * scale, rtol=1e-5)
 
 
 def test_tf_forward(scene):
     call = drjit_march.prepare("tf_forward", scene)
-    out = call()
+    out = outputs_to_numpy(call())
     assert out["tf_grad"].shape == (len(scene.tf), 4)
     assert abs(out["loss"] - np_loss(scene)) <= 1e-6 + 1e-5 * np_loss(scene)
     tf0 = scene.tf.astype(np.float64)
@@ -209,7 +211,8 @@ def test_tf_forward(scene):
     ref = central(f, tf0[:, 1:5].copy(), 1e-6)
     scale = np.abs(ref).max()
     np.testing.assert_allclose(out["tf_grad"], ref, atol=2e-5 * scale, rtol=1e-3)
-    np.testing.assert_allclose(call()["tf_grad"], out["tf_grad"], atol=1e-7 * scale, rtol=1e-5)
+    np.testing.assert_allclose(outputs_to_numpy(call())["tf_grad"], out["tf_grad"],
+                               atol=1e-7 * scale, rtol=1e-5)
 
 
 def test_run_end_to_end(scene, tmp_path):
@@ -226,3 +229,40 @@ def test_run_end_to_end(scene, tmp_path):
     assert abs(doc["loss"] - np_loss(scene)) <= 1e-6 + 1e-5 * np_loss(scene)
     grad = np.load(os.path.join(case, doc["outputs"]["grad"]))
     assert grad.shape == scene.volume.shape
+
+
+@pytest.mark.parametrize("task", ["render", "grad", "tf_forward"])
+def test_call_finishes_the_device_work(scene, task):
+    """Every kernel of a task runs inside call() (dr.eval + dr.sync_thread at its end): turning its
+    outputs into numpy afterwards, as run.py does after the timed calls, only copies (Memcpy;
+    none at all on the LLVM backend for arrays numpy can view)."""
+    call = drjit_march.prepare(task, scene)
+    call()  # compile
+    history = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        dr.kernel_history()
+        out = call()
+        during = dr.kernel_history()
+        outputs_to_numpy(out)
+        after = dr.kernel_history()
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, history)
+    assert any(k["type"] == dr.KernelType.JIT for k in during)
+    assert all(k["type"] == dr.KernelType.Memcpy for k in after), after
+
+
+def test_gpu_backend_unavailable_here_or_cuda():
+    """version(threads, "gpu") selects drjit.cuda.ad, or says why it cannot (DeviceUnavailable);
+    either way the CPU types are back after version(threads, "cpu")."""
+    from common import DeviceUnavailable
+
+    try:
+        text = drjit_march.version(0, "gpu")
+        assert "CUDA" in text and drjit_march.Float.__module__ == "drjit.cuda.ad"
+    except DeviceUnavailable as e:
+        assert "CUDA" in str(e)
+    finally:
+        drjit_march.version(2, "cpu")
+    assert drjit_march.Float.__module__ == "drjit.llvm.ad"
+    assert drjit_march.BACKEND == dr.JitBackend.LLVM

@@ -6,23 +6,74 @@ once, gathers by indexing, rays masked past their own count and past early termi
 gradient is reverse mode (torch.autograd.grad: the graph keeps every step's tensors, which is part
 of what is measured); the TF gradient is forward mode, torch.func.jacfwd (vmap of jvp over the
 4·points unit tangents).
+
+Devices: "cpu", or "gpu" = torch.device("cuda") (the current CUDA device). prepare() makes every
+tensor on the device before the timed calls; every call ends with torch.cuda.synchronize() (CUDA
+kernels run asynchronously) and returns its outputs as device tensors: run.py copies them to the
+host after the clock stops.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from common import DeviceUnavailable
+
 torch = None  # imported by version()
 
 
-def version(threads: int) -> str:
-    """Import PyTorch and use `threads` CPU threads (0: its own choice); ImportError when missing."""
+def _torch_device(device: str):
+    if device != "gpu":
+        return torch.device("cpu")
+    if not torch.cuda.is_available():
+        build = (f"a CUDA {torch.version.cuda} build: no usable GPU or driver"
+                 if torch.version.cuda else "a CPU-only build")
+        raise DeviceUnavailable(f"torch.cuda.is_available() is false (torch {torch.__version__}, "
+                                f"{build})")
+    try:
+        return torch.device("cuda", torch.cuda.current_device())  # initialises CUDA
+    except RuntimeError as e:  # e.g. a driver too old for this build
+        raise DeviceUnavailable(f"torch cannot start CUDA: {e}") from e
+
+
+def version(threads: int, device: str = "cpu") -> str:
+    """Import PyTorch for `device` ("cpu": `threads` CPU threads, 0: its own choice; "gpu": CUDA,
+    `threads` unused); ImportError when it is missing, DeviceUnavailable when it has no GPU."""
     global torch
     import torch as _torch
 
     torch = _torch
+    if device == "gpu":
+        dev = _torch_device(device)
+        name = torch.cuda.get_device_name(dev)
+        return f"torch {torch.__version__}, cuda {torch.version.cuda}, {name}"
     if threads > 0:
         torch.set_num_threads(threads)
     return f"torch {torch.__version__}, cpu, {torch.get_num_threads()} threads"
+
+
+def device_name(device: str = "cpu") -> str:
+    """torch.cuda.get_device_name() on the GPU, "cpu" on the CPU."""
+    dev = _torch_device(device)
+    return torch.cuda.get_device_name(dev) if dev.type == "cuda" else "cpu"
+
+
+def device_memory(reset: bool = False):
+    """The CUDA caching allocator's figures: bytes allocated and their high-water mark since the
+    last reset (reset=True starts a new one, so the peak covers the timed calls)."""
+    if not torch.cuda.is_available():
+        return None
+    torch.cuda.synchronize()
+    stats = {"in_use": torch.cuda.memory_allocated(), "peak": torch.cuda.max_memory_allocated(),
+             "scope": "timed calls"}
+    if reset:
+        torch.cuda.reset_peak_memory_stats()
+    return stats
+
+
+def _sync(device) -> None:
+    """Waits for the device's queued kernels (CUDA runs them asynchronously; the CPU does not)."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
 
 
 def _lerp(a, b, t):
@@ -33,12 +84,13 @@ def _march(volume, tf_values, tf_density, rays, background, min_t, max_n):
     """RGBA (R, 4) of every ray. volume (nz, ny, nx); tf_values (points, 4) [r, g, b, extinction]."""
     u0, du, t0, dt, n = rays
     nz, ny, nx = volume.shape
+    dev = volume.device
     flat = volume.reshape(-1)
-    upper = torch.tensor([nx - 1, ny - 1, nz - 1], dtype=torch.float32)
+    upper = torch.tensor([nx - 1, ny - 1, nz - 1], dtype=torch.float32, device=dev)
     points = tf_density.shape[0]
     R = t0.shape[0]
-    C = torch.zeros(R, 3)
-    T = torch.ones(R)
+    C = torch.zeros(R, 3, device=dev)
+    T = torch.ones(R, device=dev)
     for i in range(max_n):
         t = t0 + (i + 0.5) * dt
         u = torch.minimum(torch.clamp(u0 + t[:, None] * du, min=0), upper)
@@ -72,15 +124,22 @@ def _march(volume, tf_values, tf_density, rays, background, min_t, max_n):
     return torch.cat([C + T[:, None] * background, (1 - T)[:, None]], dim=1)
 
 
-def prepare(task: str, scene):
-    """Returns call() for `task` on `scene`; the tensors are made before it is timed."""
+def prepare(task: str, scene, device: str = "cpu"):
+    """Returns call() for `task` on `scene`: the tensors are made on `device` before it is timed;
+    call() returns the outputs as device tensors, computed (synchronised)."""
+    dev = _torch_device(device)
+
+    def tensor(a):
+        return torch.from_numpy(np.ascontiguousarray(a).copy()).to(dev)
+
     r = scene.rays
-    rays = tuple(torch.from_numpy(np.ascontiguousarray(a)) for a in (r.u0, r.du, r.t0, r.dt, r.n))
-    volume = torch.from_numpy(scene.volume.copy())
-    tf_density = torch.from_numpy(scene.tf[:, 0].copy())
-    tf_values = torch.from_numpy(scene.tf_parameters)
-    background = torch.from_numpy(scene.background.copy())
-    target = torch.from_numpy(scene.target.copy())
+    rays = tuple(tensor(a) for a in (r.u0, r.du, r.t0, r.dt, r.n))
+    volume = tensor(scene.volume)
+    tf_density = tensor(scene.tf[:, 0])
+    tf_values = tensor(scene.tf_parameters)
+    background = tensor(scene.background)
+    target = tensor(scene.target)
+    _sync(dev)  # the uploads are done before the first call
     shape = scene.target.shape
     min_t, max_n = float(scene.min_transmittance), scene.max_samples
     if scene.loss != "mse":
@@ -96,14 +155,17 @@ def prepare(task: str, scene):
     if task == "render":
         def call():
             with torch.no_grad():
-                return {"image": image(volume, tf_values).numpy()}
+                img = image(volume, tf_values)
+            _sync(dev)
+            return {"image": img}
 
     elif task == "grad":
         def call():
             vol = volume.detach().requires_grad_(True)
             value = loss(vol, tf_values)
             (g,) = torch.autograd.grad(value, vol)
-            return {"loss": float(value.detach()), "grad": g.numpy()}
+            _sync(dev)
+            return {"loss": value.detach(), "grad": g}
 
     elif task == "tf_forward":
         try:
@@ -122,7 +184,8 @@ def prepare(task: str, scene):
                 g, value = fn(tf_values)
             except RuntimeError as e:  # an op without a forward-mode or vmap rule
                 raise NotImplementedError(f"torch.func.jacfwd failed on the march: {e}") from e
-            return {"loss": float(value), "tf_grad": g.detach().numpy()}
+            _sync(dev)
+            return {"loss": value.detach(), "tf_grad": g.detach()}
 
     else:
         raise ValueError(f"unknown task {task!r}")

@@ -142,6 +142,16 @@ void run_python_baselines(Context& ctx, const std::string& suite, const std::str
     r.metrics["peak_host_bytes"] = j.value("peak_rss_bytes", 0.0);
     r.metrics["peak_host_increase_bytes"] = j.value("peak_increase_bytes", 0.0);
     r.metrics["memory_bytes"] = j.value("peak_increase_bytes", 0.0);
+    if (ctx.baseline_device == "gpu") {  // the GPU's memory, as the framework reports it
+      r.params["device_name"] = j.value("device_name", "");
+      for (const char* k : {"device_peak_increase_bytes", "device_peak_bytes"})
+        if (j.contains(k) && j[k].is_number()) {
+          r.metrics[k] = j[k];
+          r.metrics["memory_bytes"] = j[k];
+          r.params["memory"] = k;
+          break;
+        }
+    }
     r.params["peak_reset"] = j.value("peak_reset", false);
     if (std::isfinite(run.loss)) r.metrics["loss"] = run.loss;
     const Check check = compare(run, r);

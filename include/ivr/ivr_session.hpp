@@ -52,6 +52,12 @@ class DeviceArray : public detail::Handle<ivr_array, ivr_array_retain, ivr_array
   }
   // The first value (a loss).
   double item() const { return download_f64().values.at(0); }
+  // The group of a gradient's array ("density", "tf", …), else "".
+  std::string name() const {
+    const char* n = nullptr;
+    detail::check(ivr_array_name(get(), &n));
+    return n;
+  }
   void wait() const { detail::check(ivr_array_wait(get())); }
 };
 
@@ -171,21 +177,12 @@ class Session : public detail::Handle<ivr_session, ivr_session_retain, ivr_sessi
                                        ivr_mode(mode), ivr_loss(loss), deterministic ? 1 : 0,
                                        &value, groups.data(), groups.size(), &count, &ran));
     SessionGradient g{DeviceArray(value), {}, Mode(ran)};
-    // Group names in `wrt` order ("voxels:LIST" is "voxels").
-    size_t start = 0;
-    std::vector<std::string> names;
-    while (start <= wrt.size()) {
-      const size_t comma = wrt.find(',', start);
-      std::string item = wrt.substr(start, comma == std::string::npos ? std::string::npos
-                                                                      : comma - start);
-      if (item.rfind("voxels:", 0) == 0) item = "voxels";
-      const bool index = !item.empty() && item.find_first_not_of("0123456789-") == std::string::npos;
-      if (!index && !item.empty()) names.push_back(item);
-      if (comma == std::string::npos) break;
-      start = comma + 1;
+    for (size_t i = 0; i < count; ++i) {
+      DeviceArray a(groups[i]);
+      const char* name = nullptr;
+      detail::check(ivr_array_name(a.get(), &name));
+      g.groups.emplace_back(name, std::move(a));
     }
-    for (size_t i = 0; i < count; ++i)
-      g.groups.emplace_back(i < names.size() ? names[i] : std::to_string(i), DeviceArray(groups[i]));
     return g;
   }
   DeviceArray jacobian(const std::string& wrt) {

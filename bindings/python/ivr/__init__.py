@@ -10,6 +10,15 @@
     out = ctx.reconstruct(scene, images, wrt=("density",))  # out["volume"], out["history"]
     best = ctx.viewpoint(scene, view=0)                # best["camera"], best["entropy_best"]
 
+    # A session keeps the scene on the device; results are DeviceArrays, read back when asked.
+    with ivr.Session(ctx, scene, volume) as s:
+        s.set_target(target)
+        opt = ivr.DensityOptimizer(s, "adam", lr=0.02)
+        for _ in range(50):
+            l, g = s.gradient(wrt=("density",))         # DeviceArrays; float(l) reads the loss
+            s.step(opt, g["density"])                  # densities updated in place (>= 0)
+        v = s.volume.numpy()                           # (Z, Y, X); s.render().numpy() images
+
 `scene` is a dict with the JSON fields of DESIGN.md (or JSON text); `volume`, a (Z, Y, X) array
 of float32/float64/uint8/uint16, replaces the scene's own volume (which may then be left out).
 Errors raise ivr.Error with the C status name and the library's message.
@@ -25,7 +34,7 @@ from . import _capi
 
 __all__ = ["Error", "Context", "devices", "version", "loss", "project", "backproject", "tomo",
            "lines_from_intensities", "phantom", "reconstruct", "viewpoint", "image_entropy",
-           "psnr"]
+           "psnr", "Session", "DeviceArray", "DensityOptimizer"]
 
 _lib = None
 _lib_lock = threading.Lock()
@@ -507,3 +516,8 @@ class Context:
                 r, i, values.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), values.size))
             arrays[name.value.decode()] = values
         return loss.value, arrays, _MODE_NAMES.get(mode.value, "?")
+
+
+# Device-resident sessions (bindings/python/ivr/_session.py): imported last, as they build on the
+# names above.
+from ._session import DensityOptimizer, DeviceArray, Session  # noqa: E402

@@ -98,6 +98,21 @@ VIEWPOINT_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(ViewpointStep
                                       ctypes.c_void_p)
 
 
+class SessionOptions(ctypes.Structure):
+    """ivr_session_options"""
+    _fields_ = [("precision", ctypes.c_int), ("step", ctypes.c_double),
+                ("empty_space", ctypes.c_int), ("min_empty_fraction", ctypes.c_double),
+                ("brick_size", ctypes.c_int)]
+
+
+class OperationStats(ctypes.Structure):
+    """ivr_operation_stats"""
+    _fields_ = [("kernel_seconds", ctypes.c_double), ("build_seconds", ctypes.c_double),
+                ("samples", ctypes.c_uint64), ("device_bytes", ctypes.c_uint64),
+                ("step", ctypes.c_double), ("skipped_empty", ctypes.c_int),
+                ("empty_fraction", ctypes.c_double)]
+
+
 def _candidates():
     env = os.environ.get("IVR_LIBRARY")
     if env:
@@ -209,6 +224,50 @@ def _declare(lib):
         "ivr_image_entropy": (S, [fp, c_int64_p, ctypes.c_double,
                                   ctypes.POINTER(ctypes.c_double)]),
         "ivr_psnr": (S, [fp, fp, ctypes.c_size_t, ctypes.POINTER(ctypes.c_double)]),
+        "ivr_tf_from_json": (S, [HANDLE, ctypes.c_char_p, pp]),
+        "ivr_tf_retain": (S, [HANDLE]),
+        "ivr_tf_release": (S, [HANDLE]),
+        # device-resident sessions and device arrays (c_api_session.cpp)
+        "ivr_array_create": (S, [HANDLE, ctypes.c_int, c_int64_p, ctypes.c_int, pp]),
+        "ivr_array_retain": (S, [HANDLE]),
+        "ivr_array_release": (S, [HANDLE]),
+        "ivr_array_name": (S, [HANDLE, ctypes.POINTER(ctypes.c_char_p)]),
+        "ivr_array_info": (S, [HANDLE, ctypes.POINTER(ctypes.c_int), c_int64_p,
+                               ctypes.POINTER(ctypes.c_int)]),
+        "ivr_array_upload": (S, [HANDLE, ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t]),
+        "ivr_array_download": (S, [HANDLE, ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t]),
+        "ivr_array_wait": (S, [HANDLE]),
+        "ivr_session_options_init": (S, [ctypes.POINTER(SessionOptions)]),
+        "ivr_session_create": (S, [HANDLE, HANDLE, ctypes.POINTER(SessionOptions), pp]),
+        "ivr_session_retain": (S, [HANDLE]),
+        "ivr_session_release": (S, [HANDLE]),
+        "ivr_session_set_volume": (S, [HANDLE, ctypes.c_void_p, ctypes.c_int, c_int64_p]),
+        "ivr_session_set_volume_array": (S, [HANDLE, HANDLE]),
+        "ivr_session_set_tf": (S, [HANDLE, HANDLE]),
+        "ivr_session_set_cameras_json": (S, [HANDLE, ctypes.c_char_p]),
+        "ivr_session_set_cameras": (S, [HANDLE, ctypes.POINTER(Camera), ctypes.c_size_t]),
+        "ivr_session_set_integrator_json": (S, [HANDLE, ctypes.c_char_p]),
+        "ivr_session_set_background": (S, [HANDLE, ctypes.POINTER(ctypes.c_double)]),
+        "ivr_session_set_target": (S, [HANDLE, fp, ctypes.c_size_t]),
+        "ivr_session_set_target_array": (S, [HANDLE, HANDLE]),
+        "ivr_session_image_shape": (S, [HANDLE, c_int64_p]),
+        "ivr_session_volume_shape": (S, [HANDLE, c_int64_p]),
+        "ivr_session_volume": (S, [HANDLE, pp]),
+        "ivr_session_render": (S, [HANDLE, pp]),
+        "ivr_session_gradient": (S, [HANDLE, HANDLE, ctypes.c_char_p, ctypes.c_int, ctypes.c_int,
+                                     ctypes.c_int, pp, pp, ctypes.c_size_t,
+                                     ctypes.POINTER(ctypes.c_size_t),
+                                     ctypes.POINTER(ctypes.c_int)]),
+        "ivr_session_jacobian": (S, [HANDLE, ctypes.c_char_p, pp]),
+        "ivr_session_project": (S, [HANDLE, HANDLE, pp]),
+        "ivr_session_backproject": (S, [HANDLE, HANDLE, pp]),
+        "ivr_session_loss": (S, [HANDLE, HANDLE, HANDLE, ctypes.c_int, pp]),
+        "ivr_density_optimizer_create": (S, [HANDLE, ctypes.c_int, ctypes.c_double, pp]),
+        "ivr_density_optimizer_retain": (S, [HANDLE]),
+        "ivr_density_optimizer_release": (S, [HANDLE]),
+        "ivr_session_step": (S, [HANDLE, HANDLE, HANDLE]),
+        "ivr_session_last_stats": (S, [HANDLE, ctypes.POINTER(OperationStats)]),
+        "ivr_session_finish": (S, [HANDLE]),
     }
     for name, (restype, argtypes) in sigs.items():
         f = getattr(lib, name)

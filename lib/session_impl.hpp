@@ -99,8 +99,10 @@ struct Session::Impl {
   RenderVariant variant_of(const Integrator& integrator) const;
   // volume … min_transmittance, the leading arguments of every marching kernel; the next index.
   int set_scene_args(cl::Kernel& k, const Integrator& integrator) const;
-  // Empty-space skipping for one launch, where `allowed` (see plan_skipping in
-  // lib/empty_space.hpp): sets variant.skip_empty / brick_size; the occupancy buffer to pass.
+  // Empty-space skipping for one launch, where `allowed` (a gradient that skipping keeps exact:
+  // gradient_may_skip in lib/empty_space.hpp) and the session's options ask for it — automatic:
+  // where the TF is 0 on some density range and enough bricks are empty. The grid is rebuilt
+  // only when stale; sets variant.skip_empty / brick_size; the occupancy buffer to pass.
   const cl::Buffer& plan_skipping(bool allowed, RenderVariant& variant, OperationStats& stats);
   cl_int4 brick_counts() const;
   // A result array from the slot's pool: one that nobody else holds any more, else a new one.

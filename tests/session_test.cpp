@@ -9,6 +9,7 @@
 
 #include "empty_space_support.hpp"
 #include "ivr/core.hpp"
+#include "session_impl.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -123,6 +124,35 @@ TEST(Session, GridIsRebuiltOnlyWhenTheVolumeOrTheTfChanged) {
   const OperationStats after_volume = session.last_stats();
   EXPECT_GT(after_volume.grid_seconds, 0.0);
   EXPECT_LT(after_volume.empty_fraction, after_tf.empty_fraction);
+}
+
+// Both layouts of the check's pass (contiguous chunks per work-item on CPU devices, grid-stride
+// on GPUs) on a volume whose size is no multiple of the vectors' 16.
+TEST(Session, VolumeCheckFindsTheFirstBadVoxelInBothLayouts) {
+  Scene s = small_scene();
+  s.volume.nx = 23;
+  s.volume.data.assign(s.volume.voxel_count(), 0.25f);
+  for (const char* layout : {"chunks", "strided"}) {
+    const ScopedEnv env("IVR_CHECK_LAYOUT", layout);
+    Session session(device(), s);
+    for (const std::size_t voxel : {std::size_t(0), std::size_t(5000), s.volume.data.size() - 1}) {
+      Volume v = s.volume;
+      v.data[voxel] = -INFINITY;
+      if (voxel + 7 < v.data.size()) v.data[voxel + 7] = NAN;  // a later one is not named
+      const std::size_t x = voxel % 23, y = voxel / 23 % 24, z = voxel / (23 * 24);
+      const std::string want = "(x, y, z) = (" + std::to_string(x) + ", " + std::to_string(y) +
+                               ", " + std::to_string(z) + ")";
+      const std::string message = error_of([&] { session.set_volume(v); });
+      EXPECT_TRUE(has(message, want)) << layout << ": " << message;
+    }
+    Volume fine = s.volume;
+    fine.data[77] = 3.5f;  // the range the check reports decides the skipping shortcut
+    session.set_volume(fine);
+    EXPECT_EQ(session.impl().volume_max, 3.5) << layout;
+    EXPECT_EQ(session.impl().volume_min, 0.25) << layout;
+  }
+  const ScopedEnv bad("IVR_CHECK_LAYOUT", "diagonal");
+  EXPECT_TRUE(has(error_of([&] { Session(device(), s); }), "IVR_CHECK_LAYOUT must be"));
 }
 
 TEST(Session, VolumeIsCheckedOnTheDeviceAndABadOneChangesNothing) {

@@ -22,7 +22,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-COLOURS = {"ivr": "#1f77b4", "ivr-deterministic": "#6baed6", "native": "#2ca02c", "jax": "#d62728",
+COLOURS = {"ivr": "#1f77b4", "ivr-deterministic": "#6baed6", "ivr-resident": "#17becf",
+           "ivr-resident-deterministic": "#9edae5", "native": "#2ca02c", "jax": "#d62728",
            "drjit": "#9467bd", "torch": "#ff7f0e"}
 SCHEMES = {"midpoint": "#1f77b4", "trapezoid": "#2ca02c", "preintegrated": "#ff7f0e",
            "exact": "#d62728"}
@@ -161,22 +162,26 @@ def scaling(doc, path) -> bool:
                                  ("volume edge (voxels)", "image edge (pixels)", "1 / step (voxels⁻¹)")):
         per = "inverse_step" if grows == "step" else grows + "_edge"
         for device in sorted({r["device"] for r in rows}):
-            for op, marker in (("render", "o-"), ("gradient", "s-")):
+            for (op, marker), impl in ((o, i) for o in (("render", "o"), ("gradient", "s"))
+                                       for i in ("ivr", "ivr-resident")):
                 pts = sorted(((1 / r["params"]["step"]) if grows == "step" else r["params"][grows],
                               r["metrics"]["median_s"]) for r in rows
                              if r["device"] == device and r["params"]["grows"] == grows
-                             and r["case"].endswith("_" + op))
+                             and r["case"].endswith("_" + op) and r["implementation"] == impl)
                 if not pts:
                     continue
-                k = exps.get(device, {}).get(f"{op}_time_vs_{per}")
-                label = f"{op}" + (f", k = {k:.2f}" if k is not None and not math.isnan(k) else "")
+                resident = impl == "ivr-resident"
+                marker += ":" if resident else "-"
+                k = None if resident else exps.get(device, {}).get(f"{op}_time_vs_{per}")
+                label = f"{op}" + (" resident" if resident else "") + (
+                    f", k = {k:.2f}" if k is not None and not math.isnan(k) else "")
                 if len(exps) > 1:
                     label += f" ({short(device)})"
                 ax.plot([p for p, _ in pts], [t for _, t in pts], marker, label=label)
             if grows == "volume":
                 mem = sorted((r["params"]["volume"], r["metrics"].get("peak_device_bytes", 0) / 2**20)
                              for r in rows if r["device"] == device and r["params"]["grows"] == "volume"
-                             and r["case"].endswith("_gradient"))
+                             and r["case"].endswith("_gradient") and r["implementation"] == "ivr")
                 if mem:
                     ax2 = ax.twinx()
                     ax2.plot([p for p, _ in mem], [m for _, m in mem], "k:", alpha=0.6,

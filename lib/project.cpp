@@ -149,15 +149,11 @@ DeviceArray Session::backproject(const DeviceArray& lines) {
 namespace {
 // The grid, box and cameras; the model, TF, integrator and values do not matter to N.
 Scene geometry_of(const Scene& scene) {
-  Scene g;
-  g.volume.nx = scene.volume.nx;
-  g.volume.ny = scene.volume.ny;
-  g.volume.nz = scene.volume.nz;
-  g.volume.spacing = scene.volume.spacing;
-  g.box_min = scene.box_min;
-  g.box_max = scene.box_max;
+  Scene g = description_of(scene);
   g.model = Model::absorption;
-  g.cameras = scene.cameras;
+  g.tf = TransferFunction();
+  g.background.reset();
+  g.integrator = Integrator();
   return g;
 }
 

@@ -17,7 +17,8 @@ namespace {
   throw Error(Status::invalid_argument, what);
 }
 
-// The scene without its densities (they go to the device; a copy would double host memory).
+}  // namespace
+
 Scene description_of(const Scene& scene) {
   Scene d;
   d.volume.nx = scene.volume.nx;
@@ -33,6 +34,8 @@ Scene description_of(const Scene& scene) {
   d.integrator = scene.integrator;
   return d;
 }
+
+namespace {
 
 void check_options(const SessionOptions& o) {
   if (!(o.step >= 0) || !std::isfinite(o.step))

@@ -147,6 +147,9 @@ std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& 
 SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
                                  const GradientRequest& request);
 
+// The scene without its densities (they go to the device; a copy would double host memory).
+Scene description_of(const Scene& scene);
+
 // A session over `scene` for one call of a one-shot function (render(), gradient(), …): the
 // scene outlives it, so its host densities may serve the host-side grid. Throws like
 // validate_with where the scene's volume lacks its data.

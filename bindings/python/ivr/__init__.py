@@ -63,6 +63,34 @@ def _check(status):
         raise Error(lib.ivr_status_string(status).decode(), lib.ivr_last_error().decode())
 
 
+class _Owned:
+    """Holds one C handle (self._handle) and releases it with the C function named by
+    `_release` on close(), at garbage collection or on leaving a with-block; `_what` names it
+    in the error a closed one raises."""
+    _release = ""
+    _what = "handle"
+
+    def close(self):
+        """Releases the handle now (also done when the object is garbage-collected)."""
+        if getattr(self, "_handle", None):
+            getattr(self._lib, self._release)(self._handle)
+            self._handle = None
+
+    def __del__(self):
+        self.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _live(self):
+        if not getattr(self, "_handle", None):
+            raise Error("IVR_ERROR_INVALID_HANDLE", f"the {self._what} is closed")
+        return self._handle
+
+
 def version():
     """The library's version as (major, minor, patch)."""
     v = _library().ivr_version()
@@ -178,9 +206,10 @@ def _choice(table, value, what):
     return table[value]
 
 
-class Context:
+class Context(_Owned):
     """A device and its compiled kernels. Use one context per thread; contexts on different
     threads run concurrently."""
+    _release, _what = "ivr_context_release", "context"
 
     def __init__(self, device=None, precision="f32"):
         self._lib = _library()
@@ -191,32 +220,12 @@ class Context:
                                             ctypes.byref(handle)))
         self._handle = handle
 
-    def close(self):
-        """Releases the context now (also done when it is garbage-collected)."""
-        if getattr(self, "_handle", None):
-            self._lib.ivr_context_release(self._handle)
-            self._handle = None
-
-    def __del__(self):
-        self.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
     @property
     def device(self):
         """The device's name."""
         name = ctypes.c_char_p()
         _check(self._lib.ivr_context_device_name(self._live(), ctypes.byref(name)))
         return name.value.decode()
-
-    def _live(self):
-        if not getattr(self, "_handle", None):
-            raise Error("IVR_ERROR_INVALID_HANDLE", "the context is closed")
-        return self._handle
 
     def load_volume(self, source, base_dir=None):
         """A volume as float32 (Z, Y, X) densities, read as a scene would: `source` is a path

@@ -5,8 +5,8 @@ import json
 
 import numpy as np
 
-from . import (Context, Error, _capi, _check, _choice, _library, _DTYPES, _FLOAT_P, _LOSSES,
-               _MODE_NAMES, _MODES, _PRECISIONS)
+from . import (Context, Error, _Owned, _capi, _check, _choice, _library, _DTYPES, _FLOAT_P,
+               _LOSSES, _MODE_NAMES, _MODES, _PRECISIONS)
 
 _ARRAY_DTYPES = {np.dtype(np.float32): 0, np.dtype(np.float64): 1}  # ivr_dtype of device arrays
 _ARRAY_NUMPY = {0: np.dtype(np.float32), 1: np.dtype(np.float64)}
@@ -37,14 +37,18 @@ def _host_floats(values, what):
     return np.ascontiguousarray(values, dtype=np.float64)
 
 
-class DeviceArray:
+class DeviceArray(_Owned):
     """An array in device memory (ivr_array): shape, dtype (float32 or float64) and a buffer
     that keeps its context alive. Operation results stay valid (their values unchanged) while
     the DeviceArray lives; np.asarray(a) or a.numpy() downloads it.
 
         a = ivr.DeviceArray(ctx, (16, 16, 16))               # zeros, float32
         b = ivr.DeviceArray.from_numpy(ctx, volume)          # a copy of a host array
+
+    close() releases it at once; views of the same buffer (Session.volume) and results held
+    elsewhere are not affected.
     """
+    _release, _what = "ivr_array_release", "device array"
 
     def __init__(self, context, shape, dtype="float32"):
         self._lib = _library()
@@ -89,27 +93,6 @@ class DeviceArray:
             raise
         self._shape = tuple(shape[:rank.value])
         self._dtype = _ARRAY_NUMPY[dtype.value]
-
-    def close(self):
-        """Releases the array now (also done when it is garbage-collected); views of the same
-        buffer (Session.volume) and results held elsewhere are not affected."""
-        if getattr(self, "_handle", None):
-            self._lib.ivr_array_release(self._handle)
-            self._handle = None
-
-    def __del__(self):
-        self.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def _live(self):
-        if not getattr(self, "_handle", None):
-            raise Error("IVR_ERROR_INVALID_HANDLE", "the device array is closed")
-        return self._handle
 
     @property
     def shape(self):
@@ -176,7 +159,7 @@ class DeviceArray:
         return f"ivr.DeviceArray(shape={self._shape}, dtype={self._dtype.name}{state})"
 
 
-class Session:
+class Session(_Owned):
     """One scene resident on a context's device (ivr_session): densities, transfer function,
     cameras, target and the empty-space grid stay there between calls; each setter uploads only
     its part, and operations return DeviceArrays that are read back only when asked.
@@ -197,6 +180,7 @@ class Session:
     that call (float32; float64 kept in float64). A setter or operation that fails raises
     ivr.Error and leaves the session as it was. Calls from several threads are serialised;
     sessions of one context may run on different threads at once."""
+    _release, _what = "ivr_session_release", "session"
 
     def __init__(self, context, scene, volume=None, precision=None, step=0.0, empty_space="auto",
                  min_empty_fraction=0.05, brick_size=0, base_dir=None):
@@ -229,26 +213,10 @@ class Session:
     def close(self):
         """Releases the session now (also done when it is garbage-collected); arrays it returned
         stay valid."""
-        if getattr(self, "_handle", None):
-            self._lib.ivr_session_release(self._handle)
-            self._handle = None
+        super().close()
         if getattr(self, "_ctx", None):
             self._lib.ivr_context_release(self._ctx)
             self._ctx = None
-
-    def __del__(self):
-        self.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def _live(self):
-        if not getattr(self, "_handle", None):
-            raise Error("IVR_ERROR_INVALID_HANDLE", "the session is closed")
-        return self._handle
 
     def __repr__(self):
         if not getattr(self, "_handle", None):
@@ -493,9 +461,10 @@ class Session:
         _check(self._lib.ivr_session_finish(self._live()))
 
 
-class DensityOptimizer:
+class DensityOptimizer(_Owned):
     """Adam or SGD (with momentum) state for a session's densities (ivr_density_optimizer),
     sized and typed for the session as it is now; Session.step applies it (densities >= 0)."""
+    _release, _what = "ivr_density_optimizer_release", "density optimizer"
 
     def __init__(self, session, kind="adam", lr=0.01):
         self._lib = _library()
@@ -505,26 +474,6 @@ class DensityOptimizer:
         _check(self._lib.ivr_density_optimizer_create(
             session._live(), _choice(_OPTIMIZERS, kind, "kind"), self.lr, ctypes.byref(handle)))
         self._handle = handle
-
-    def close(self):
-        """Releases the optimiser's state now (also done when it is garbage-collected)."""
-        if getattr(self, "_handle", None):
-            self._lib.ivr_density_optimizer_release(self._handle)
-            self._handle = None
-
-    def __del__(self):
-        self.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def _live(self):
-        if not getattr(self, "_handle", None):
-            raise Error("IVR_ERROR_INVALID_HANDLE", "the density optimizer is closed")
-        return self._handle
 
     def __repr__(self):
         return f"ivr.DensityOptimizer(kind={self.kind!r}, lr={self.lr})"

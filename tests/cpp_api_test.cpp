@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "adjoint_support.hpp"
+#include "api_test_support.hpp"
 #include "ivr/ivr.hpp"
 
 namespace ivr::test {
@@ -40,17 +41,6 @@ Scene core_scene(const std::vector<float>& volume) {
   return s;
 }
 
-// The status and a message naming the call, thrown from every kind of failure.
-template <typename F>
-void expect_throw(F&& f, ivr_status status, const std::string& words) {
-  try {
-    f();
-    ADD_FAILURE() << "no exception; wanted " << ivr_status_string(status);
-  } catch (const api::Exception& e) {
-    EXPECT_EQ(e.status(), status) << e.what();
-    EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
-  }
-}
 
 TEST(CppApi, RenderGradientAndJacobianEqualTheCore) {
   const std::vector<float> volume = test_volume();

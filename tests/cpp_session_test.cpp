@@ -1,22 +1,11 @@
 // cpp_session_test.cpp — ivr/ivr_session.hpp, the header-only C++ RAII layer over C API sessions.
 #include <gtest/gtest.h>
 
+#include "api_test_support.hpp"
 #include "c_api_session_support.hpp"
 
 namespace ivr::test {
 namespace {
-
-// The status and a message naming the call.
-template <typename F>
-void expect_throw(F&& f, ivr_status status, const std::string& words) {
-  try {
-    f();
-    ADD_FAILURE() << "no exception; wanted " << ivr_status_string(status);
-  } catch (const api::Exception& e) {
-    EXPECT_EQ(e.status(), status) << e.what();
-    EXPECT_TRUE(has(e.what(), words)) << "wanted '" << words << "' in: " << e.what();
-  }
-}
 
 TEST(CppSession, RenderGradientAndStepEqualTheOneShotCalls) {
   const std::vector<float> volume = test_volume(16, 18, 20, 1);

@@ -63,6 +63,18 @@ def _check(status):
         raise Error(lib.ivr_status_string(status).decode(), lib.ivr_last_error().decode())
 
 
+def _volume_array(volume):
+    """`volume` as contiguous (Z, Y, X) host memory of a dtype the library takes."""
+    v = np.asarray(volume)
+    if v.ndim != 3:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"volume must have shape (Z, Y, X), got {v.shape}")
+    if v.dtype not in _DTYPES:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"volume dtype must be float32, float64, uint8 or uint16, got {v.dtype}")
+    return np.ascontiguousarray(v)
+
+
 class _Owned:
     """Holds one C handle (self._handle) and releases it with the C function named by
     `_release` on close(), at garbage collection or on leaving a with-block; `_what` names it
@@ -255,14 +267,7 @@ class Context(_Owned):
                                              ctypes.byref(handle)))
         try:
             if volume is not None:
-                v = np.ascontiguousarray(volume)
-                if v.ndim != 3:
-                    raise Error("IVR_ERROR_INVALID_ARGUMENT",
-                                f"volume must have shape (Z, Y, X), got {v.shape}")
-                if v.dtype not in _DTYPES:
-                    raise Error("IVR_ERROR_INVALID_ARGUMENT",
-                                f"volume dtype must be float32, float64, uint8 or uint16, "
-                                f"got {v.dtype}")
+                v = _volume_array(volume)
                 shape = (ctypes.c_int64 * 3)(*v.shape)
                 _check(self._lib.ivr_scene_set_volume(handle, v.ctypes.data_as(ctypes.c_void_p),
                                                       _DTYPES[v.dtype], shape))

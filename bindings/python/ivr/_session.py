@@ -5,8 +5,8 @@ import json
 
 import numpy as np
 
-from . import (Context, Error, _Owned, _capi, _check, _choice, _library, _DTYPES, _FLOAT_P,
-               _LOSSES, _MODE_NAMES, _MODES, _PRECISIONS)
+from . import (Context, Error, _Owned, _capi, _check, _choice, _library, _volume_array, _DTYPES,
+               _FLOAT_P, _LOSSES, _MODE_NAMES, _MODES, _PRECISIONS)
 
 _ARRAY_DTYPES = {np.dtype(np.float32): 0, np.dtype(np.float64): 1}  # ivr_dtype of device arrays
 _ARRAY_NUMPY = {0: np.dtype(np.float32), 1: np.dtype(np.float64)}
@@ -196,7 +196,7 @@ class Session(_Owned):
         options.brick_size = int(brick_size)
         on_device = isinstance(volume, DeviceArray)
         if volume is not None and not on_device:
-            self._check_volume(volume)
+            _volume_array(volume)
         s = context._scene(scene, None if on_device else volume, base_dir)
         try:
             handle = _capi.HANDLE()
@@ -257,17 +257,6 @@ class Session(_Owned):
 
     # --- setters ---------------------------------------------------------------------------------
 
-    @staticmethod
-    def _check_volume(volume):
-        v = np.asarray(volume)
-        if v.ndim != 3:
-            raise Error("IVR_ERROR_INVALID_ARGUMENT",
-                        f"volume must have shape (Z, Y, X), got {v.shape}")
-        if v.dtype not in _DTYPES:
-            raise Error("IVR_ERROR_INVALID_ARGUMENT",
-                        f"volume dtype must be float32, float64, uint8 or uint16, got {v.dtype}")
-        return np.ascontiguousarray(v)
-
     def set_volume(self, volume):
         """New densities: a (Z, Y, X) numpy array (float32/float64 as they are, uint8/uint16
         mapped to [0, 1]) or a DeviceArray of that shape, checked on the device (finite, >= 0;
@@ -276,7 +265,7 @@ class Session(_Owned):
         if isinstance(volume, DeviceArray):
             _check(self._lib.ivr_session_set_volume_array(h, volume._live()))
             return
-        v = self._check_volume(volume)
+        v = _volume_array(volume)
         shape = (ctypes.c_int64 * 3)(*v.shape)
         _check(self._lib.ivr_session_set_volume(h, v.ctypes.data_as(ctypes.c_void_p),
                                                 _DTYPES[v.dtype], shape))

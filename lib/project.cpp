@@ -53,13 +53,13 @@ void check_projector_size(const Scene& scene) {
     bad("projector: the cameras have more than 2^31 rays");
 }
 
-// An array in the session's precision: `a` itself, or a converted copy in a scratch slot.
-cl::Buffer as_reals(Session::Impl& s, const DeviceArray& a, const char* slot,
-                    OperationRecord& op) {
-  if (a.dtype() == real_dtype(s.f64)) return buffer_of(a);
-  const cl::Buffer& out = s.scratch(slot, a.size() * s.real_size, slot);
-  op.events.push_back(s.arrays.convert(buffer_of(a), a.dtype(), out, real_dtype(s.f64), a.size()));
-  return out;
+// Lines N v of `volume` (reals) into a new result array.
+DeviceArray project_into_lines(Session::Impl& s, const cl::Buffer& volume, OperationRecord& op) {
+  const std::vector<std::int64_t> is = s.image_shape();
+  DeviceArray lines = s.output("lines", {is[0], is[1], is[2], 1}, real_dtype(s.f64), "the lines");
+  op.events.push_back(enqueue_project(s, volume, buffer_of(lines)));
+  mark_written(lines, op.events.back());
+  return lines;
 }
 
 }  // namespace
@@ -102,12 +102,7 @@ DeviceArray Session::project() {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   Impl& s = *impl_;
   s.require_volume("project");
-  OperationRecord& op = s.begin("project");
-  const std::vector<std::int64_t> is = s.image_shape();
-  DeviceArray lines = s.output("lines", {is[0], is[1], is[2], 1}, real_dtype(s.f64), "the lines");
-  op.events.push_back(enqueue_project(s, buffer_of(s.volume), buffer_of(lines)));
-  mark_written(lines, op.events.back());
-  return lines;
+  return project_into_lines(s, buffer_of(s.volume), s.begin("project"));
 }
 
 DeviceArray Session::project(const DeviceArray& volume) {
@@ -118,12 +113,8 @@ DeviceArray Session::project(const DeviceArray& volume) {
     bad("project: the volume has shape " + shape_text(volume.shape()) + "; the grid is " +
         shape_text(s.volume_shape()));
   OperationRecord& op = s.begin("project");
-  const std::vector<std::int64_t> is = s.image_shape();
-  DeviceArray lines = s.output("lines", {is[0], is[1], is[2], 1}, real_dtype(s.f64), "the lines");
-  const cl::Buffer v = as_reals(s, volume, "projected volume", op);
-  op.events.push_back(enqueue_project(s, v, buffer_of(lines)));
-  mark_written(lines, op.events.back());
-  return lines;
+  return project_into_lines(s, s.buffer_as(volume, real_dtype(s.f64), "the projected volume", op),
+                            op);
 }
 
 DeviceArray Session::backproject(const DeviceArray& lines) {
@@ -138,7 +129,7 @@ DeviceArray Session::backproject(const DeviceArray& lines) {
   OperationRecord& op = s.begin("backproject");
   DeviceArray out =
       s.output("backprojection", s.volume_shape(), real_dtype(s.f64), "the back-projection");
-  const cl::Buffer p = as_reals(s, lines, "backprojected lines", op);
+  const cl::Buffer p = s.buffer_as(lines, real_dtype(s.f64), "the back-projected lines", op);
   enqueue_backproject(s, p, buffer_of(out), op.events);
   mark_written(out, op.events.back());
   return out;

@@ -347,6 +347,14 @@ const cl::Buffer& Session::Impl::scratch(const std::string& slot, std::size_t by
   return entry.first;
 }
 
+cl::Buffer Session::Impl::buffer_as(const DeviceArray& a, DType dtype, const char* slot,
+                                   OperationRecord& op) {
+  if (a.dtype() == dtype) return buffer_of(a);
+  const cl::Buffer& out = scratch(slot, a.size() * dtype_size(dtype), slot);
+  op.events.push_back(arrays.convert(buffer_of(a), a.dtype(), out, dtype, a.size()));
+  return out;
+}
+
 OperationRecord& Session::Impl::begin(const std::string& operation) {
   last = OperationRecord{};
   last.stats.operation = operation;

@@ -247,17 +247,9 @@ DeviceArray Session::loss(const DeviceArray& image, const DeviceArray& target, L
         " differ in size (or are empty)");
   OperationRecord& op = s.begin("loss");
   return cl_call("computing the loss on " + s.dev.info.name, [&] {
-    cl::Buffer img = buffer_of(image), tgt = buffer_of(target);
-    if (image.dtype() != DType::f32) {  // the kernel reads float32 images
-      img = s.scratch("loss image", image.size() * 4, "the loss's image");
-      op.events.push_back(s.arrays.convert(buffer_of(image), image.dtype(), img, DType::f32,
-                                           image.size()));
-    }
-    if (target.dtype() != real_dtype(s.f64)) {
-      tgt = s.scratch("loss target", target.size() * s.real_size, "the loss's target");
-      op.events.push_back(s.arrays.convert(buffer_of(target), target.dtype(), tgt,
-                                           real_dtype(s.f64), target.size()));
-    }
+    // The kernel reads float32 images and targets of the session's precision.
+    const cl::Buffer img = s.buffer_as(image, DType::f32, "the loss's image", op);
+    const cl::Buffer tgt = s.buffer_as(target, real_dtype(s.f64), "the loss's target", op);
     DeviceArray out = s.output("loss", {1}, s.arrays.acc_dtype(), "the loss");
     mark_written(out, s.arrays.loss(img, tgt, image.size(), kind == Loss::l1, buffer_of(out),
                                     op.events));
@@ -284,12 +276,8 @@ void Session::step(Optimizer& optimizer, const DeviceArray& gradient) {
         shape_text(s.volume.shape()));
   OperationRecord& op = s.begin("step");
   cl_call("the optimiser step on " + s.dev.info.name, [&] {
-    cl::Buffer g = buffer_of(gradient);
-    if (gradient.dtype() != real_dtype(s.f64)) {  // forward mode's float64 sums, for one
-      g = s.scratch("step gradient", gradient.size() * s.real_size, "the gradient");
-      op.events.push_back(s.arrays.convert(buffer_of(gradient), gradient.dtype(), g,
-                                           real_dtype(s.f64), gradient.size()));
-    }
+    // Forward mode's float64 sums, for one, step a float32 session's densities converted.
+    const cl::Buffer g = s.buffer_as(gradient, real_dtype(s.f64), "the step's gradient", op);
     op.events.push_back(o.step(buffer_of(s.volume), g));
     mark_written(s.volume, op.events.back());
   });

@@ -108,6 +108,9 @@ struct Session::Impl {
   // A result array from the slot's pool: one that nobody else holds any more, else a new one.
   DeviceArray output(const std::string& slot, const std::vector<std::int64_t>& shape, DType dtype,
                      const char* what);
+  // `a`'s buffer where it holds `dtype` already, else a copy converted into scratch slot `slot`
+  // (the conversion's event joins `op`): what a kernel reading one type takes.
+  cl::Buffer buffer_as(const DeviceArray& a, DType dtype, const char* slot, OperationRecord& op);
   // A buffer only operations of this session use (never handed out), at least `bytes` long.
   const cl::Buffer& scratch(const std::string& slot, std::size_t bytes, const char* what);
   OperationRecord& begin(const std::string& operation);

@@ -81,7 +81,8 @@ int main(int argc, char** argv) {
   app.add_option("--threshold", threshold, "Regression threshold for --compare (0.1 = 10 %)")
       ->check(CLI::Range(0.0, 100.0));
   app.add_option("--baselines", frameworks_text,
-                 "Comma-separated Python baselines: jax, drjit, torch (empty: none)");
+                 "Comma-separated Python baselines: jax, drjit, torch, astra (the tomo suite's "
+                 "projectors, GPU only; not in the default set) (empty: none)");
   app.add_flag("--no-baselines", no_baselines, "Neither the native nor the Python baselines");
   app.add_option("--python", python,
                  "Interpreter of the baselines (default: $IVR_BENCH_PYTHON, else .venv-bench)");
@@ -115,9 +116,9 @@ int main(int argc, char** argv) {
     if (suites.empty()) suites = bench::all_suites();
     std::vector<std::string> frameworks = split(frameworks_text);
     for (const std::string& f : frameworks)
-      if (f != "jax" && f != "drjit" && f != "torch")
-        throw ivr::Error(ivr::Status::invalid_argument,
-                         "--baselines: unknown baseline '" + f + "' (known: jax, drjit, torch)");
+      if (f != "jax" && f != "drjit" && f != "torch" && f != "astra")
+        throw ivr::Error(ivr::Status::invalid_argument, "--baselines: unknown baseline '" + f +
+                                                            "' (known: jax, drjit, torch, astra)");
     json compare_base;
     if (!compare_path.empty()) compare_base = bench::read_results(compare_path);  // fail early
     if (budget.max_runs < budget.min_runs)

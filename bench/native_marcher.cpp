@@ -3,6 +3,8 @@
 // compositing and adjoint march as the kernels).
 #include "native_marcher.hpp"
 
+#include "reference/sample_count.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -63,6 +65,8 @@ struct Prepared {
   int nx, ny, nz, W, H;
   float step, min_t;
   V3 bmin, bmax, inv_h, bg;
+  glm::dvec3 box_min, box_max;
+  std::vector<reference::PackedCamera> packed;  // for ivr's sample count (README.md, Integrators)
 };
 
 Prepared prepare(const Scene& scene, double step_voxels) {
@@ -82,8 +86,10 @@ Prepared prepare(const Scene& scene, double step_voxels) {
   p.min_t = float(scene.integrator.min_transmittance);
   p.bmin = v3(scene.box_min), p.bmax = v3(scene.box_max), p.inv_h = v3(1.0 / h);
   p.bg = v3(scene.effective_background());
+  p.box_min = scene.box_min, p.box_max = scene.box_max;
   p.W = scene.cameras[0].width, p.H = scene.cameras[0].height;
   for (const Camera& c : scene.cameras) {
+    p.packed.push_back(reference::packed_camera(c));
     const glm::dvec3 fwd = glm::normalize(c.target - c.eye),
                      right = glm::normalize(glm::cross(fwd, c.up));
     const glm::dvec3 up = glm::cross(right, fwd);
@@ -129,9 +135,12 @@ inline bool ray_at(const Prepared& p, int view, int x, int y, Ray& ray) {
   slab(origin.x, dir.x, p.bmin.x, p.bmax.x, t0, t1);
   slab(origin.y, dir.y, p.bmin.y, p.bmax.y, t0, t1);
   slab(origin.z, dir.z, p.bmin.z, p.bmax.z, t0, t1);
-  if (!(t0 < t1)) return false;
+  // Whether the ray meets the box and its segment count: ivr's definition (README.md, Integrators).
+  ray.n = reference::sample_count(p.packed[std::size_t(view)], x, y, p.W, p.H, p.box_min,
+                                  p.box_max, p.step);
+  if (ray.n == 0) return false;
+  if (!(t0 < t1)) t1 = t0;
   const float length = t1 - t0;
-  ray.n = std::max(1u, unsigned(std::ceil(length / p.step)));
   ray.dt = length / float(ray.n);
   ray.t0 = t0;
   ray.u0 = mul(origin - p.bmin, p.inv_h) + V3{-0.5f, -0.5f, -0.5f};

@@ -18,5 +18,6 @@ Runner add_backproject_command(CLI::App& app);
 Runner add_tomo_command(CLI::App& app);
 Runner add_reconstruct_command(CLI::App& app);  // reconstruct_command.cpp
 Runner add_viewpoint_command(CLI::App& app);
+Runner add_tune_command(CLI::App& app);
 
 }  // namespace ivr::cli

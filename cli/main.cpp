@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   const ivr::cli::Runner tomo = ivr::cli::add_tomo_command(app);
   const ivr::cli::Runner reconstruct = ivr::cli::add_reconstruct_command(app);
   const ivr::cli::Runner viewpoint = ivr::cli::add_viewpoint_command(app);
+  const ivr::cli::Runner tune = ivr::cli::add_tune_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -44,6 +45,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("tomo")) return tomo();  // 130 after SIGINT, 143 after SIGTERM
     if (app.got_subcommand("reconstruct")) return reconstruct();  // 130 / 143 likewise
     if (app.got_subcommand("viewpoint")) return viewpoint();
+    if (app.got_subcommand("tune")) return tune();
   } catch (const ivr::Error& e) {
     std::cerr << "ivr: error: " << e.what() << "\n";
     return 1;

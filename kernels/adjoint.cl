@@ -2,7 +2,8 @@
 // and its loss gradient (kernels/primal.cl), a second front-to-back march of the scene's
 // integrator (adjoint_<scheme>.cl) recovers each sample's remaining radiance as C minus the prefix
 // (no division by 1 − α, no per-sample storage) and scatters dL/d density to the voxels (through
-// the cell cache, once per voxel a ray touches), dL/d TF into the work-group's local accumulator
+// the cell cache, once per voxel a ray touches, and the work-group's table where the host turns
+// it on: kernels/scatter_cache.cl), dL/d TF into the work-group's local accumulator
 // (added to global memory once per group) and dL/d camera into per-group partial sums.
 #include "adjoint_ray.cl"
 #include "atomics.cl"
@@ -11,6 +12,7 @@
 #include "loss.cl"
 #include "march.cl"
 #include "primal.cl"
+#include "scatter_cache.cl"
 #include "tf_grad.cl"
 // Every scheme's march (the files' own include lines are resolved once, wherever they first
 // appear, so none is included under a condition); the scheme's is called.
@@ -47,6 +49,9 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
   const bool active = x < width && y < height;  // padding items still meet the barriers
   const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
   const int lsize = get_local_size(0) * get_local_size(1);
+  // The density gradient's adds, through the group's table where the host turned it on
+  // (kernels/scatter_cache.cl: its barriers are met by every item, padding included).
+  IVR_SCATTER_SINK(density, grad_volume);
 #if IVR_GRAD_TF
   for (int i = lid; i < tf_acc_size; i += lsize) tf_acc[i] = (real)0;
   barrier(CLK_LOCAL_MEM_FENCE);
@@ -58,7 +63,8 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
   if (active) {
     const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
     March m;
-    const bool hit = march_begin(ray, box_min, box_max, inv_voxel, step, &m);
+    const bool hit = march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min,
+                                 box_max, inv_voxel, step, &m);
     Radiance r = radiance_begin();
     const size_t pixel = ((size_t)view * height + y) * width + x;
 #if IVR_PRIMAL_GIVEN && IVR_EMISSION && IVR_SCHEME == IVR_SCHEME_MIDPOINT
@@ -116,7 +122,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
       CameraSums cs;
       camera_sums_init(&cs, m.t1);
       adjoint_march(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar, occupied,
-                    bricks, grad_volume, &tf_cache, tf_acc, &cs);
+                    bricks, density, &tf_cache, tf_acc, &cs);
 #if IVR_GRAD_TF
       tf_cache_flush(&tf_cache, tf_acc);
 #endif
@@ -142,6 +148,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
   }
 #endif
 
+  scatter_flush(density);
 #if IVR_GRAD_TF
   barrier(CLK_LOCAL_MEM_FENCE);
   for (int i = lid; i < tf_acc_size; i += lsize)

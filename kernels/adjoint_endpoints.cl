@@ -50,7 +50,7 @@ inline AdjointSample adjoint_sample(__global const real* volume, int4 dims, cons
 // gradient into the work-group's accumulator.
 inline void finish_sample(AdjointSample* a, CellCache* cell, __global const real* volume, int4 dims,
                           real4 inv_voxel, real3 dir, __global const real* tf, int tf_count,
-                          real4 tf_scalars, int* cursor, __global real* grad_volume,
+                          real4 tf_scalars, int* cursor, const ScatterSink grad_volume,
                           TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs, real* along,
                           real* indexed) {
   real fx, fy, fz;
@@ -75,7 +75,7 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
                                     real4 inv_voxel, __global const real* tf, int tf_count,
                                     real4 tf_scalars, const AdjointRay* ar,
                                     __global const uchar* occupied, int4 bricks,
-                                    __global real* grad_volume, TfGradCache* tf_cache,
+                                    const ScatterSink grad_volume, TfGradCache* tf_cache,
                                     __local real* tf_acc, CameraSums* cs) {
   real transmittance = (real)1;
   real pr = 0, pg = 0, pb = 0;  // emission prefix, summed exactly as the primal march summed C

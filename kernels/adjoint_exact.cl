@@ -15,7 +15,7 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
                                 real4 inv_voxel, __global const real* tf, int tf_count,
                                 real4 tf_scalars, const AdjointRay* ar,
                                 __global const uchar* occupied, int4 bricks,
-                                __global real* grad_volume, TfGradCache* tf_cache,
+                                const ScatterSink grad_volume, TfGradCache* tf_cache,
                                 __local real* tf_acc, CameraSums* cs) {
   const real gtau = -ar->intensity * ar->gi;  // dL/dτ, the same for every piece
   CellCache cell;

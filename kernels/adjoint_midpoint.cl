@@ -11,7 +11,7 @@ inline void adjoint_march_midpoint(__global const real* volume, int4 dims, const
                                    real4 inv_voxel, __global const real* tf, int tf_count,
                                    real4 tf_scalars, const AdjointRay* ar,
                                    __global const uchar* occupied, int4 bricks,
-                                   __global real* grad_volume, TfGradCache* tf_cache,
+                                   const ScatterSink grad_volume, TfGradCache* tf_cache,
                                    __local real* tf_acc, CameraSums* cs) {
   real transmittance = (real)1;
   real pr = 0, pg = 0, pb = 0;  // emission prefix, summed exactly as the primal march summed C

@@ -6,6 +6,7 @@
 #define IVR_ADJOINT_SCATTER_CL
 #include "atomics.cl"
 #include "config.cl"
+#include "scatter_cache.cl"
 
 #ifndef IVR_GRAD_DENSITY
 #define IVR_GRAD_DENSITY 1
@@ -18,24 +19,37 @@
 #pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
 // The deterministic density gradient (lib/adjoint.cpp): integer adds do not depend on their
 // order, so each contribution is scaled by 2^S, rounded to a long and added with atom_add. `grad`
-// then points at longs: [0] S, [1] the cap on a scaled contribution (the host keeps every sum
-// below 2^62 with it), [2] contributions over the cap (the host runs again with a smaller S),
-// [3] the largest |contribution| seen, as float bits (order-independent atomic_max: the host's
-// next S), and voxel i at [IVR_FIXED_HEADER + i].
-#define IVR_FIXED_HEADER 4
-inline void fixed_add(__global real* grad, const int index, const real value) {
-  volatile __global long* fx = (volatile __global long*)grad;
-  volatile __global uint* largest = (volatile __global uint*)(fx + 3);
-  const uint bits = as_uint((float)fabs(value));
+// then points at longs: [0] S (the host's, from an a-priori bound on one ray's Σ |contribution|:
+// lib/adjoint_bound.hpp), [1] the cap on one ray's scaled Σ |contribution| (2^62 / rays: no
+// voxel's sum leaves the long range, whatever the bound said), [2] rays (or single
+// contributions) over the cap: the bound failed, the host runs again at a smaller S, [3] the
+// largest |contribution| and [4] the largest ray's Σ |contribution|, as float bits
+// (order-independent atomic_max: the bits S left, and the scale of a second pass), and voxel i at
+// [IVR_FIXED_HEADER + i].
+#define IVR_FIXED_HEADER 5
+inline void fixed_max(volatile __global long* slot, const real value) {
+  volatile __global uint* largest = (volatile __global uint*)slot;
+  const uint bits = as_uint((float)value);
   if (bits > *largest) atomic_max(largest, bits);  // the plain read only filters
+}
+// `flushed` sums the ray's |contributions| (cell_flush checks it at the ray's end).
+inline void fixed_add(__global real* grad, real* flushed, const int index, const real value) {
+  volatile __global long* fx = (volatile __global long*)grad;
+  fixed_max(fx + 3, fabs(value));
+  *flushed += fabs(value);
   const real scaled = ldexp(value, (int)fx[0]);
-  if (!(fabs(scaled) <= (real)fx[1])) {
+  if (!(fabs(scaled) <= (real)fx[1])) {  // over the ray's own cap already (or not finite)
     atom_inc(fx + 2);
     return;
   }
   atom_add(fx + IVR_FIXED_HEADER + index, convert_long_rte(scaled));
 }
-#define IVR_ADD_DENSITY_GRAD(index, value) fixed_add(grad, index, value)
+inline void fixed_ray_end(__global real* grad, const real flushed) {
+  volatile __global long* fx = (volatile __global long*)grad;
+  fixed_max(fx + 4, flushed);
+  if (!(ldexp(flushed, (int)fx[0]) <= (real)fx[1])) atom_inc(fx + 2);
+}
+#define IVR_ADD_DENSITY_GRAD(c, index, value) fixed_add(grad.out, &(c)->flushed, index, value)
 
 // The fixed-point sums back to reals: out[i] = fx[header + i]·2^−S.
 __kernel void fixed_to_real(const int n, __global const long* restrict fx,
@@ -44,7 +58,8 @@ __kernel void fixed_to_real(const int n, __global const long* restrict fx,
   if (i < n) out[i] = ldexp((real)fx[IVR_FIXED_HEADER + i], -(int)fx[0]);
 }
 #else
-#define IVR_ADD_DENSITY_GRAD(index, value) atomic_add_global(grad + (index), value)
+// Through the work-group's table where the host turned it on (kernels/scatter_cache.cl).
+#define IVR_ADD_DENSITY_GRAD(c, index, value) scatter_add(grad, index, value)
 #endif
 
 // Corner k (bit 0: +x, bit 1: +y, bit 2: +z) is voxel base + IVR_CORNER(c, k); the offsets are 0
@@ -53,6 +68,9 @@ typedef struct {
   real v[8];
 #if IVR_GRAD_DENSITY
   real g[8];
+#endif
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+  real flushed;  // Σ |contribution| the ray has added so far
 #endif
   int base, ox, oy, oz, ix, iy, iz;  // base < 0: no cell yet
 } CellCache;
@@ -63,7 +81,7 @@ typedef struct {
 #if IVR_GRAD_DENSITY
 #define IVR_FLUSH(c, k)                                                                          \
   do {                                                                                           \
-    if ((c)->g[k] != (real)0) IVR_ADD_DENSITY_GRAD((c)->base + IVR_CORNER(c, k), (c)->g[k]);    \
+    if ((c)->g[k] != (real)0) IVR_ADD_DENSITY_GRAD(c, (c)->base + IVR_CORNER(c, k), (c)->g[k]); \
     (c)->g[k] = (real)0;                                                                         \
   } while (0)
 #define IVR_MOVE_GRAD(c, to, from) \
@@ -126,6 +144,9 @@ inline void cell_init(CellCache* c) {
 #if IVR_GRAD_DENSITY
   for (int k = 0; k < 8; ++k) c->g[k] = (real)0;
 #endif
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+  c->flushed = (real)0;
+#endif
 }
 
 // Makes (x, y, z) the current cell. Into a neighbouring cell (across a face, an edge or a corner)
@@ -133,7 +154,7 @@ inline void cell_init(CellCache* c) {
 // predictable. Longer jumps and the first cell take the general path.
 __attribute__((always_inline)) inline void cell_enter(CellCache* c, int x, int y, int z,
                                                       __global const real* volume, int4 dims,
-                                                      __global real* grad) {
+                                                      const ScatterSink grad) {
   if (c->base >= 0 && x == c->ix && y == c->iy && z == c->iz) return;
   if (c->base < 0 || abs(x - c->ix) > 1 || abs(y - c->iy) > 1 || abs(z - c->iz) > 1) {
     if (c->base >= 0) IVR_EACH_CORNER(IVR_FLUSH, c);
@@ -188,9 +209,13 @@ __attribute__((always_inline)) inline void cell_add(CellCache* c, real gd, real 
 #endif
 }
 
-// Adds what the current cell's corners still hold to global memory (the end of the ray).
-inline void cell_flush(CellCache* c, __global real* grad) {
+// Adds what the current cell's corners still hold to global memory (the end of the ray); in fixed
+// point, checks the ray's Σ |contribution| against the cap.
+inline void cell_flush(CellCache* c, const ScatterSink grad) {
   if (c->base >= 0) IVR_EACH_CORNER(IVR_FLUSH, c);
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+  fixed_ray_end(grad.out, c->flushed);
+#endif
 }
 
 #endif

@@ -3,27 +3,45 @@
 #ifndef IVR_GEOMETRY_CL
 #define IVR_GEOMETRY_CL
 #include "config.cl"
+#include "rounded.cl"
 
 typedef struct {
   real3 origin;
   real3 dir;  // unit length
 } Ray;
 
-// Ray through the centre of pixel (x, y), row 0 at the top.
+// Division and square root of the per-ray geometry, correctly rounded in both precisions (float64's
+// are by the OpenCL specification, float32's through rounded.cl), so that no device's division
+// moves a ray.
+#if IVR_F64
+#define geometry_divide(a, b) ((a) / (b))
+#define geometry_sqrt(a) sqrt(a)
+#else
+#define geometry_divide(a, b) rounded_divide(a, b)
+#define geometry_sqrt(a) rounded_sqrt(a)
+#endif
+
+// Ray through the centre of pixel (x, y), row 0 at the top. The screen coordinates are the exact
+// fractions (2x + 1 − W)/W and (H − 2y − 1)/H rounded once, and every sum of products is an
+// explicit fma, so that no compiler's contraction changes the ray either (sample_count.cl builds
+// the float32 ray the same way).
 inline Ray camera_ray(__global const real* cam, int x, int y, int width, int height) {
-  const real sx = (real)2 * ((real)x + (real)0.5) / (real)width - (real)1;
-  const real sy = (real)1 - (real)2 * ((real)y + (real)0.5) / (real)height;
-  const real3 eye = (real3)(cam[0], cam[1], cam[2]);
-  const real3 fwd = (real3)(cam[3], cam[4], cam[5]);
-  const real3 right = (real3)(cam[6], cam[7], cam[8]);
-  const real3 up = (real3)(cam[9], cam[10], cam[11]);
+  const real sx = geometry_divide((real)(2 * x + 1 - width), (real)width);
+  const real sy = geometry_divide((real)(height - 2 * y - 1), (real)height);
   Ray r;
   if (cam[12] != (real)0) {  // orthographic
-    r.origin = eye + sx * right + sy * up;
-    r.dir = fwd;
+    r.origin = (real3)(fma(sy, cam[9], fma(sx, cam[6], cam[0])),
+                       fma(sy, cam[10], fma(sx, cam[7], cam[1])),
+                       fma(sy, cam[11], fma(sx, cam[8], cam[2])));
+    r.dir = (real3)(cam[3], cam[4], cam[5]);
   } else {
-    r.origin = eye;
-    r.dir = normalize(fwd + sx * right + sy * up);
+    const real dx = fma(sy, cam[9], fma(sx, cam[6], cam[3]));
+    const real dy = fma(sy, cam[10], fma(sx, cam[7], cam[4]));
+    const real dz = fma(sy, cam[11], fma(sx, cam[8], cam[5]));
+    const real dz2 = dz * dz;
+    const real norm = geometry_sqrt(fma(dx, dx, fma(dy, dy, dz2)));
+    r.origin = (real3)(cam[0], cam[1], cam[2]);
+    r.dir = (real3)(geometry_divide(dx, norm), geometry_divide(dy, norm), geometry_divide(dz, norm));
   }
   return r;
 }
@@ -32,8 +50,7 @@ inline Ray camera_ray(__global const real* cam, int x, int y, int width, int hei
 // its origin lies within the (closed) slab and empties it otherwise.
 inline void clip_slab(real o, real d, real lo, real hi, real* t0, real* t1) {
   if (d != (real)0) {
-    const real inv = (real)1 / d;
-    const real ta = (lo - o) * inv, tb = (hi - o) * inv;
+    const real ta = geometry_divide(lo - o, d), tb = geometry_divide(hi - o, d);
     *t0 = fmax(*t0, fmin(ta, tb));
     *t1 = fmin(*t1, fmax(ta, tb));
   } else if (o < lo || o > hi) {

@@ -57,8 +57,9 @@ inline int clip_axis(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
   for (int a = 0; a < 3; ++a) {
     const real o = component(ray.origin, a), d = component(ray.dir, a);
     if (d == (real)0) continue;
-    const real inv = (real)1 / d;
-    const real ta = (component(bmin, a) - o) * inv, tb = (component(bmax, a) - o) * inv;
+    // As clip_slab() computes them, bit for bit.
+    const real ta = geometry_divide(component(bmin, a) - o, d),
+               tb = geometry_divide(component(bmax, a) - o, d);
     if ((entry ? fmin(ta, tb) : fmax(ta, tb)) == t) return a;
   }
   return -1;

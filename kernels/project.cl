@@ -7,6 +7,7 @@
 #include "exact.cl"
 #include "geometry.cl"
 #include "march.cl"
+#include "scatter_cache.cl"
 
 // The voxel index of each of the piece's 8 cell corners (bit 0: +x, bit 1: +y, bit 2: +z; the
 // upper neighbour is the voxel itself on a clamped upper edge: the voxels piece_corners() reads).
@@ -58,7 +59,8 @@ inline bool projector_ray(__global const real* cameras, int x, int y, int view, 
                           March* m, Pieces* p) {
   const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
   // The step only sizes the fixed-step schemes' segments; the pieces ignore it.
-  if (!march_begin(ray, box_min, box_max, inv_voxel, (real)INFINITY, m)) return false;
+  if (!march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min,
+                   box_max, inv_voxel, (real)INFINITY, m)) return false;
   // t from the box entry rather than the eye: piece lengths are differences of t, whose rounding
   // scales with |t| (the eye may be far away; float32 entries of N would lose digits).
   m->u0x += m->t0 * m->dux, m->u0y += m->t0 * m->duy, m->u0z += m->t0 * m->duz;
@@ -97,16 +99,12 @@ __kernel void project(__global const real* restrict volume, const int4 dims, con
   line[((size_t)view * height + y) * width + x] = sum;
 }
 
-// Nᵀ: one work-item per ray; adds line[ray] × (each corner's weight) to the voxels (atomically:
-// rays share voxels). `volume` must be zeroed first. Consecutive pieces share the corners on the
-// plane between their cells: a corner's weight is held while the ray stays at it and added once
-// when the ray leaves it, halving the atomic adds.
-__kernel void backproject(__global const real* restrict line, const int4 dims, const real4 box_min,
-                          const real4 box_max, const real4 inv_voxel,
-                          __global const real* restrict cameras, const int width, const int height,
-                          __global real* volume) {
-  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
-  if (x >= width || y >= height) return;
+// Nᵀ of one ray: line[ray] × (each corner's weight) into the voxels. Consecutive pieces share the
+// corners on the plane between their cells: a corner's weight is held while the ray stays at it
+// and added once when the ray leaves it, halving the adds.
+inline void backproject_ray(__global const real* line, int4 dims, real4 box_min, real4 box_max,
+                            real4 inv_voxel, __global const real* cameras, int width, int height,
+                            int x, int y, int view, const ScatterSink volume) {
   const real value = line[((size_t)view * height + y) * width + x];
   March m;
   Pieces p;
@@ -135,7 +133,7 @@ __kernel void backproject(__global const real* restrict line, const int4 dims, c
         if (a >= 0 && a <= 1 && b >= 0 && b <= 1 && e >= 0 && e <= 1 && held_index[j] == index[k])
           wk[k] += held[j];
         else if (held[j] != (real)0)
-          atomic_add_global(volume + held_index[j], value * held[j]);
+          scatter_add(volume, held_index[j], value * held[j]);
       }
     }
     for (int k = 0; k < 8; ++k) held_index[k] = index[k], held[k] = wk[k];
@@ -144,5 +142,21 @@ __kernel void backproject(__global const real* restrict line, const int4 dims, c
   }
   if (holding)
     for (int k = 0; k < 8; ++k)
-      if (held[k] != (real)0) atomic_add_global(volume + held_index[k], value * held[k]);
+      if (held[k] != (real)0) scatter_add(volume, held_index[k], value * held[k]);
+}
+
+// Nᵀ: one work-item per ray, adding atomically (rays share voxels); `volume` must be zeroed
+// first. With the host's IVR_SCATTER_CACHE the group's rays (a tile of one view) sum their adds
+// in local memory first (kernels/scatter_cache.cl), and every item, padding and rays that miss
+// the box included, meets the table's barriers.
+__kernel void backproject(__global const real* restrict line, const int4 dims, const real4 box_min,
+                          const real4 box_max, const real4 inv_voxel,
+                          __global const real* restrict cameras, const int width, const int height,
+                          __global real* volume) {
+  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  IVR_SCATTER_SINK(sink, volume);
+  if (x < width && y < height)
+    backproject_ray(line, dims, box_min, box_max, inv_voxel, cameras, width, height, x, y, view,
+                    sink);
+  scatter_flush(sink);
 }

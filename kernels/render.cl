@@ -19,7 +19,8 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
   const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
   Radiance r = radiance_begin();
   March m;
-  if (march_begin(ray, box_min, box_max, inv_voxel, step, &m))
+  if (march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min, box_max,
+                  inv_voxel, step, &m))
     primal_march(volume, dims, &m, tf, tf_count, tf_scalars, min_transmittance, occupied, bricks,
                  &r);
 

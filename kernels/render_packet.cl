@@ -96,7 +96,8 @@ __kernel void render_packet(__global const real* restrict volume, const int4 dim
     March m;
     if (x0 + l < width &&
         march_begin(camera_ray(cameras + view * IVR_CAMERA_STRIDE, x0 + l, y, width, height),
-                    box_min, box_max, inv_voxel, step, &m)) {
+                    cameras + view * IVR_CAMERA_STRIDE, x0 + l, y, width, height, box_min,
+                    box_max, inv_voxel, step, &m)) {
       u0x[l] = m.u0x, u0y[l] = m.u0y, u0z[l] = m.u0z;
       dux[l] = m.dux, duy[l] = m.duy, duz[l] = m.duz;
       t0[l] = m.t0, dt[l] = m.dt, n[l] = (int)m.n;

@@ -49,7 +49,8 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
   if (active) {
     const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
     March m;
-    const bool hit = march_begin(ray, box_min, box_max, inv_voxel, step, &m);
+    const bool hit = march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min,
+                                 box_max, inv_voxel, step, &m);
     TangentRay tr;
     tangent_ray_begin(&tr, lanes, camera_params, view, x, y, width, height, ray,
                       hit ? &m : (const March*)0, box_min, box_max);

@@ -1,12 +1,15 @@
 // adjoint.cpp — the gradient operation in reverse mode: one launch of kernels/adjoint.cl (primal
 // march, loss, and the constant-memory adjoint march) on the session's device copies, then the
 // per-pixel terms and per-group camera sums reduced on the device; and the one-shot gradient().
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
+#include "adjoint_bound.hpp"
 #include "ivr/gradient.hpp"
 #include "real_args.hpp"
 #include "render_packet.hpp"
+#include "scatter_cache.hpp"
 #include "scene_checks.hpp"
 #include "session_impl.hpp"
 
@@ -28,23 +31,48 @@ std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf) {
 
 namespace {
 
-constexpr std::size_t kFixedHeader = 4;  // IVR_FIXED_HEADER (kernels/adjoint_scatter.cl)
+constexpr std::size_t kFixedHeader = 5;  // IVR_FIXED_HEADER (kernels/adjoint_scatter.cl)
 
 bool has_int64_atomics(Device::Impl& dev) {
   return dev.device.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_khr_int64_base_atomics") !=
          std::string::npos;
 }
 
-// The scale 2^S that puts the largest contribution |c| just under cap/2 (so that no sum of up to
-// 8 contributions per ray and voxel passes 2^62); frexp keeps it a function of |c|'s bits alone.
-int fixed_exponent_for(float largest, int cap_exponent) {
-  int e = 0;
-  std::frexp(double(largest), &e);  // largest < 2^e
-  return cap_exponent - 1 - e;
+// The largest |element| of `n` reals on the device (one reduction pass; waits).
+double largest_magnitude(Session::Impl& s, const cl::Buffer& values, std::uint64_t n) {
+  double lo = 0, hi = 0;
+  std::vector<cl::Event> events;
+  s.arrays.check_values(values, n, true, &lo, &hi, events);
+  return std::max(std::abs(lo), std::abs(hi));
+}
+
+// The a-priori bound on one ray's density-gradient contributions (lib/adjoint_bound.hpp) for
+// this scene, these densities and this target: every input it reads is a function of the
+// operation's inputs alone — the densities' exact range (measured again after an optimiser step,
+// which only knows its bounds) and the target's largest element (cached with the session's target,
+// measured for any other) — so the scale, and with it every bit of the result, is too.
+double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss) {
+  if (!s.volume_range_exact) {
+    double lo = 0, hi = 0;
+    std::vector<cl::Event> events;
+    s.arrays.check_values(buffer_of(s.volume), s.volume.size(), true, &lo, &hi, events);
+    s.volume_min = lo;
+    s.volume_max = hi;
+    s.volume_range_exact = true;
+  }
+  const bool session_target = target.impl() == s.target.impl() && s.target_abs_max >= 0;
+  const double target_max = session_target
+                                ? s.target_abs_max
+                                : largest_magnitude(s, buffer_of(target), target.size());
+  const double bound =
+      ray_gradient_bound(s.scene, tf_extremes(s.scene.tf, s.volume_min, s.volume_max),
+                         target_max, loss, s.pixels() * std::size_t(s.scene.channels()));
+  return std::ldexp(bound, fixed_bound_shift());
 }
 
 KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std::size_t tf_rows,
-                            bool fixed, bool primal_given, bool native_atomics) {
+                            bool fixed, bool primal_given, AtomicAdd atomics,
+                            bool scatter_cache) {
   KernelConfig c;
   c.file = "adjoint.cl";
   c.entry = "adjoint";
@@ -55,12 +83,9 @@ KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std
                "\n#define IVR_LOSS_L1 " + (r.loss == Loss::l1 ? "1" : "0") +
                "\n#define IVR_DETERMINISTIC " + (fixed ? "1" : "0") + "\n";
   if (primal_given) c.preamble += "#define IVR_PRIMAL_GIVEN 1\n";
-  if (native_atomics) c.preamble += "#define IVR_FLOAT_ATOMICS 1\n";
-  c.float_atomics = native_atomics;
   c.label = "adjoint.cl [" + v.label() + (r.tf ? " grad_tf" : "") + (r.camera ? " grad_camera" : "") +
-            (native_atomics ? " float_atomics" : "") + (fixed ? " deterministic" : "") +
-            (primal_given ? " primal_given" : "") + "]";
-  return c;
+            (fixed ? " deterministic" : "") + (primal_given ? " primal_given" : "") + "]";
+  return with_scatter_cache(c.with_atomics(atomics), scatter_cache);
 }
 
 }  // namespace
@@ -79,8 +104,18 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   // Deterministic: the density gradient summed in fixed point, where the device has 64-bit
   // integer atomics (else the float atomics, and the stats say it was not).
   const bool fixed = r.density && r.deterministic && has_int64_atomics(dev);
-  const bool native_atomics = use_float_atomics(dev.info, s.f64);
+  const AtomicAdd atomics = atomic_add_for(dev.info, s.f64);
+  // The density gradient's adds summed per work-group in local memory first where that pays
+  // (lib/scatter_cache.hpp; the fixed-point adds bypass it), beside the TF accumulator and the
+  // camera's per-item scratch.
+  const std::size_t other_local =
+      (std::max<std::size_t>(tf_size, 1) +
+       (r.camera ? expected_group_items(dev.info, "adjoint") * 7 : 1)) * real;
+  const bool scatter_cache = r.density && !fixed && scatter_cache_for(dev, real, other_local);
   RenderVariant variant = s.variant_of(integrator);
+  // The fixed-point scale's bound, before the march (it may measure the densities' range again,
+  // which the skipping plan below then shares).
+  const double fixed_bound = fixed ? fixed_ray_bound(s, target, r.loss) : 0;
   // Empty-space skipping where the gradient stays exact (lib/empty_space.hpp).
   const cl::Buffer& occupied =
       s.plan_skipping(gradient_may_skip(scene.tf, r.tf, r.density || r.camera), variant, op.stats);
@@ -90,7 +125,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   const bool primal_given = use_packet(dev, scene, variant);
 
   AdjointResult out;
-  out.atomics = native_atomics ? "cl_ext_float_atomics" : "compare-and-swap";
+  out.atomics = atomic_add_name(atomics);
   out.image = s.output("gradient image", s.image_shape(), DType::f32, "the image");
   const cl::Buffer& terms = s.scratch("terms", pixels * 4 * real, "the per-pixel terms");
   const cl::Buffer& samples = s.scratch("samples", pixels * sizeof(cl_uint), "the sample counts");
@@ -112,7 +147,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   const DType acc = s.arrays.acc_dtype();
   const cl::Buffer& sums = s.scratch("adjoint sums", 4 * 8, "the loss and background sums");
 
-  op.stats.variant = variant.label() + (primal_given ? " packet primal" : "");
+  op.stats.variant = variant.label() + (primal_given ? " packet primal" : "") +
+                     (scatter_cache ? " scatter_cache" : "");
   op.stats.skipped_empty = variant.skip_empty;
   op.stats.step = integrator.step;
   op.stats.deterministic = fixed;
@@ -124,7 +160,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   cl_call("running the adjoint kernel on " + dev.info.name, [&] {
     double build = 0;
     cl::Kernel& k = s.kernels.get(
-        adjoint_config(variant, r, tf_shape[0], fixed, primal_given, native_atomics), &build);
+        adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache),
+        &build);
     op.stats.build_seconds += build;
     cl::Kernel* primal = nullptr;
     if (primal_given) {
@@ -161,15 +198,15 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
                       (r.camera ? std::size_t(launch.group_x) * launch.group_y * 7 : 1) * real));
     k.setArg(a++, occupied);
     k.setArg(a++, s.brick_counts());
-    // Fixed point: no scaled contribution above 2^62 / (8 · rays) (at most 8 per ray reach a
-    // voxel), so no sum leaves the long range.
-    const int cap_exponent = 62 - int(std::ceil(std::log2(8.0 * double(pixels))));
+    // Fixed point: no ray's scaled Σ |contribution| above 2^62 / rays, so no voxel's sum leaves
+    // the long range.
+    const int cap_exponent = fixed_cap_exponent(pixels);
     auto run_pass = [&](int exponent) {
       if (fixed) {
         op.events.push_back(cl::Event());
         dev.queue.enqueueFillBuffer(grad_volume, cl_long(0), 0, grad_bytes, nullptr,
                                     &op.events.back());
-        const cl_long header[kFixedHeader] = {exponent, cl_long(1) << cap_exponent, 0, 0};
+        const cl_long header[kFixedHeader] = {exponent, cl_long(1) << cap_exponent, 0, 0, 0};
         dev.queue.enqueueWriteBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
       } else if (r.density) {
         op.events.push_back(cl::Event());
@@ -187,32 +224,38 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     if (!fixed) {
       run_pass(0);
     } else {
-      // The scale is the one the largest contribution calls for (an order-independent atomic
-      // max records it), so the bits are a function of the inputs alone. The previous call's
-      // scale, which the session keeps, is tried first: while the gradient's size changes slowly
-      // it is already the right one and one pass does; a pass at another scale (or none known
-      // yet, or one whose contributions outgrew the cap) runs again at the scale it measured.
-      int exponent = s.fixed_exponent != kUnknownExponent ? s.fixed_exponent : 0;
-      for (int pass = 0;; ++pass) {
+      // One pass at the scale the a-priori bound sets (lib/adjoint_bound.hpp). The pass counts
+      // rays over the cap and records the largest contribution and ray sum (all
+      // order-independent); where the bound was violated or far too loose, one more pass runs at
+      // the scale the largest ray calls for. Each step is a function of the inputs alone, so the
+      // bits are too, whatever the session did before.
+      int exponent = fixed_exponent_from_bound(fixed_bound, cap_exponent), passes = 0;
+      float largest = 0, largest_ray = 0;
+      for (;;) {
         run_pass(exponent);
+        ++passes;
         cl_long header[kFixedHeader];
         dev.queue.enqueueReadBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
-        float largest = 0;
         std::memcpy(&largest, &header[3], sizeof largest);
-        const int ideal = largest > 0 ? fixed_exponent_for(largest, cap_exponent) : exponent;
-        s.fixed_exponent = ideal;
-        if ((header[2] > 0 || ideal != exponent) && largest > 0 && pass == 0) {
-          exponent = ideal;
-          continue;
-        }
-        if (header[2] > 0)
+        std::memcpy(&largest_ray, &header[4], sizeof largest_ray);
+        if (!std::isfinite(largest) || !std::isfinite(largest_ray))
+          throw Error(Status::opencl,
+                      "the fixed-point density gradient met a contribution that is not finite");
+        const int next =
+            fixed_exponent_after(exponent, header[2], largest, largest_ray, cap_exponent);
+        if (next == exponent) break;
+        if (passes == 2)  // the measured scale holds every ray: not reached
           throw Error(Status::opencl, "the fixed-point density gradient overflowed at scale 2^" +
                                           std::to_string(exponent));
-        break;
+        exponent = next;
       }
       op.stats.fixed_exponent = exponent;
+      op.stats.fixed_passes = passes;
+      op.stats.fixed_bound = fixed_bound;
+      op.stats.fixed_largest = largest;
+      op.stats.fixed_largest_ray = largest_ray;
       cl::Kernel& convert = s.kernels.get(
-          adjoint_config(variant, r, tf_shape[0], fixed, primal_given, native_atomics)
+          adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache)
               .with_entry("fixed_to_real"));
       convert.setArg(0, cl_int(voxels));
       convert.setArg(1, grad_volume);
@@ -294,6 +337,7 @@ Gradient gradient(Device& device, const Scene& scene, const Image& target,
   g.step = st.step;
   g.deterministic = st.deterministic;
   g.fixed_exponent = st.fixed_exponent;
+  g.fixed_passes = st.fixed_passes;
   return g;
 }
 

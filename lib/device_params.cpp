@@ -1,9 +1,10 @@
-// device_params.cpp — the launch-parameter database. Add an entry only with a measurement behind
-// it (build/bench/ivr-bench --device …), naming the device it was measured on.
+// device_params.cpp — the launch-parameter database (rows in lib/device_params_db.inc, written by
+// `ivr tune --emit-entries`) and its lookup.
 #include "device_params.hpp"
 
 #include <cstdio>
 #include <cstdlib>
+#include <tuple>
 
 #include "ivr/error.hpp"
 
@@ -11,27 +12,53 @@ namespace ivr {
 
 namespace {
 
-struct Entry {
-  const char* kernel;  // "" matches every kernel
-  const char* vendor;  // substring of CL_DEVICE_VENDOR; "" matches every vendor
-  const char* device;  // substring of CL_DEVICE_NAME; "" matches every device of the vendor
-  int local_x, local_y;
-};
-
-// Most specific entries first. PoCL's CPU device: measured on a 2-core EPYC (skylake-avx512
-// target), the driver's own work-group choice was as fast as any fixed 2-D size tried
-// (1x1 … 64x1, 8x8, 16x16), so the default leaves the choice to the driver. Re-measured after the
-// scalar render kernel (PoCL 3.1, 2 threads, 128³/256³ × 256²/512²): 8x8, 16x16, 32x4, 64x4, 64x1
-// and 256x1 all within ~5% of the driver's choice (256x16 at 256²), the noise level there.
-constexpr Entry kDatabase[] = {
-    {"", "", "", 0, 0},  // default
-};
-
 bool contains(const std::string& text, const char* part) {
   return text.find(part) != std::string::npos;
 }
 
+std::string field(const char* s) {
+  return *s ? s : "*";
+}
+
 }  // namespace
+
+const std::vector<DatabaseRow>& launch_database() {
+  static const std::vector<DatabaseRow> rows = {
+#include "device_params_db.inc"
+  };
+  return rows;
+}
+
+LaunchParams lookup_launch_params(const std::vector<DatabaseRow>& table, const DeviceInfo& device,
+                                  const std::string& kernel) {
+  // Specificity as a tuple compared lexicographically, so the order of the rows in the file does
+  // not matter: a row appended by the tuner wins over the vendor or default rows above it.
+  using Rank = std::tuple<bool, bool, bool, std::size_t, std::size_t>;
+  const DatabaseRow* best = nullptr;
+  Rank best_rank{};
+  for (const DatabaseRow& row : table) {
+    if ((*row.kernel && kernel != row.kernel) || !contains(device.vendor, row.vendor) ||
+        !contains(device.name, row.device))
+      continue;
+    const Rank rank{*row.device != 0, *row.vendor != 0, *row.kernel != 0,
+                    std::string(row.device).size(), std::string(row.vendor).size()};
+    if (!best || rank > best_rank) {
+      best = &row;
+      best_rank = rank;
+    }
+  }
+  LaunchParams p;
+  if (!best) {
+    p.source = "none";
+    return p;
+  }
+  p.local_x = best->local_x;
+  p.local_y = best->local_y;
+  p.source = !*best->kernel && !*best->vendor && !*best->device
+                 ? "default"
+                 : field(best->kernel) + "/" + field(best->vendor) + "/" + field(best->device);
+  return p;
+}
 
 LaunchParams launch_params(const DeviceInfo& device, const std::string& kernel) {
   LaunchParams p;
@@ -45,16 +72,7 @@ LaunchParams launch_params(const DeviceInfo& device, const std::string& kernel) 
     p.source = "env";
     return p;
   }
-  for (const Entry& e : kDatabase) {
-    if ((*e.kernel && kernel != e.kernel) || !contains(device.vendor, e.vendor) ||
-        !contains(device.name, e.device))
-      continue;
-    p.local_x = e.local_x;
-    p.local_y = e.local_y;
-    p.source = *e.vendor ? std::string(e.vendor) + ":" + e.device : "default";
-    return p;
-  }
-  return p;
+  return lookup_launch_params(launch_database(), device, kernel);
 }
 
 }  // namespace ivr

@@ -19,6 +19,7 @@ std::string devices_json() {
                     {"version", d.version},
                     {"driver", d.driver},
                     {"fp64", d.fp64},
+                    {"correctly_rounded_divide_sqrt", d.correctly_rounded_divide_sqrt},
                     {"float_atomic_add", d.float_atomic_add},
                     {"double_atomic_add", d.double_atomic_add},
                     {"global_memory", d.global_memory},

@@ -6,6 +6,7 @@
 #include <cstdlib>
 
 #include "device_params.hpp"
+#include "ivr/error.hpp"
 #include "kernel_sources.hpp"
 
 namespace ivr {
@@ -16,13 +17,25 @@ std::string extra_build_options() {
 }
 
 std::string KernelConfig::options(const DeviceInfo& info) const {
+  const CountArithmetic count = count_arithmetic(info);
+  std::string options = "-DIVR_COUNT_ARITHMETIC=" + std::to_string(int(count));
+  if (count == CountArithmetic::option) options += " -cl-fp32-correctly-rounded-divide-sqrt";
+  if (atomics == AtomicAdd::ext_float_atomics) options += " -cl-std=" + info.atomics_std;
   const std::string extra = extra_build_options();
-  if (!float_atomics) return extra;
-  return "-cl-std=" + info.atomics_std + (extra.empty() ? "" : " " + extra);
+  return extra.empty() ? options : options + " " + extra;
 }
 
 std::string KernelConfig::key() const {
-  return file + '\n' + preamble + (float_atomics ? "\nfloat_atomics" : "");
+  return file + '\n' + preamble;  // with_atomics() put the atomics into the preamble
+}
+
+KernelConfig& KernelConfig::with_atomics(AtomicAdd kind) {
+  atomics = kind;
+  if (kind == AtomicAdd::ext_float_atomics) preamble += "#define IVR_FLOAT_ATOMICS 1\n";
+  if (kind == AtomicAdd::ptx) preamble += "#define IVR_PTX_ATOMICS 1\n";
+  if (!label.empty() && label.back() == ']')
+    label.insert(label.size() - 1, std::string(" atomics=") + atomic_add_name(kind));
+  return *this;
 }
 
 cl::Program program_for(Device::Impl& dev, const KernelConfig& config, double* seconds) {
@@ -51,17 +64,42 @@ cl::Kernel& KernelSet::get(const KernelConfig& config, double* build_seconds) {
   return kernels_.emplace(key, std::move(kernel)).first->second;
 }
 
+namespace {
+thread_local TuningProbe* current_probe = nullptr;
+}  // namespace
+
+ScopedTuningProbe::ScopedTuningProbe(TuningProbe& probe) : outer_(current_probe) {
+  current_probe = &probe;
+}
+ScopedTuningProbe::~ScopedTuningProbe() {
+  current_probe = outer_;
+}
+TuningProbe* tuning_probe() {
+  return current_probe;
+}
+
 PixelLaunch pixel_launch(Device::Impl& dev, const cl::Kernel& kernel, const std::string& tuning,
                          int width, int height, int views, bool needs_group) {
-  const LaunchParams params = launch_params(dev.info, tuning);
+  TuningProbe* probe = current_probe;
+  const bool tuned = probe && probe->kernel == tuning;
+  const LaunchParams params = tuned ? LaunchParams{probe->local_x, probe->local_y, "tuner"}
+                                    : launch_params(dev.info, tuning);
   int lx = params.local_x, ly = params.local_y;
   PixelLaunch l;
-  if (needs_group) {
-    const std::size_t max_group =
-        cl_call("querying " + tuning + "'s work-group limit",
-                [&] { return kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(dev.device); });
-    if (lx <= 0 || std::size_t(lx) * std::size_t(ly) > max_group)
-      lx = ly = max_group >= 64 ? 8 : max_group >= 16 ? 4 : 1;
+  l.tuning = tuning;
+  l.needs_group = needs_group;
+  if (needs_group || probe)
+    l.kernel_max_group = cl_call("querying " + tuning + "'s work-group limit", [&] {
+      return kernel.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(dev.device);
+    });
+  const std::size_t max_group = l.kernel_max_group;
+  if (needs_group && (lx <= 0 || std::size_t(lx) * std::size_t(ly) > max_group)) {
+    // The tuner asks for shapes within the limit; one beyond it here would not be what it times.
+    if (tuned && lx > 0)
+      throw Error(Status::invalid_argument, "tuning " + tuning + ": " + std::to_string(lx) + "x" +
+                                                std::to_string(ly) + " exceeds the kernel's " +
+                                                std::to_string(max_group) + " work-items");
+    lx = ly = max_group >= 64 ? 8 : max_group >= 16 ? 4 : 1;
   }
   if (lx <= 0) {  // the driver's choice
     l.global = cl::NDRange(std::size_t(width), std::size_t(height), std::size_t(views));
@@ -81,6 +119,7 @@ cl::Event enqueue(Device::Impl& dev, const cl::Kernel& kernel, const PixelLaunch
   cl::Event done;
   dev.queue.enqueueNDRangeKernel(kernel, cl::NullRange, launch.global, launch.local, nullptr,
                                  &done);
+  if (TuningProbe* probe = current_probe) probe->launches.push_back({launch, done});
   return done;
 }
 

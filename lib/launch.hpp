@@ -20,10 +20,14 @@ struct KernelConfig {
   std::string entry;           // the __kernel's name, e.g. "render"
   std::string preamble;        // "#define IVR_MODEL 1\n…": the variant
   std::string label;           // names the program in build errors, e.g. "render.cl [… f32]"
-  bool float_atomics = false;  // built as the OpenCL C version that has cl_ext_float_atomics
+  AtomicAdd atomics = AtomicAdd::compare_and_swap;  // set through with_atomics()
 
-  std::string options(const DeviceInfo& info) const;  // -cl-std=… and $IVR_BUILD_OPTIONS
+  // -DIVR_COUNT_ARITHMETIC=… (and its build flag), -cl-std=… and $IVR_BUILD_OPTIONS
+  std::string options(const DeviceInfo& info) const;
   std::string key() const;                            // what identifies the program
+  // The global atomic add of kernels/atomics.cl: its #define, the OpenCL C version
+  // cl_ext_float_atomics needs, and its name in the label.
+  KernelConfig& with_atomics(AtomicAdd kind);
   KernelConfig with_entry(const std::string& other) const {  // another kernel of the program
     KernelConfig c = *this;
     c.entry = other;
@@ -55,11 +59,42 @@ class KernelSet {
 // database has none. The global size is rounded up to whole groups; kernels skip the padding.
 struct PixelLaunch {
   cl::NDRange global, local;
-  int group_x = 0, group_y = 0;         // 0 with a driver-chosen size
-  std::size_t groups_per_view = 0;      // whole work-groups per view (with an explicit size)
+  int group_x = 0, group_y = 0;      // 0 with a driver-chosen size
+  std::size_t groups_per_view = 0;   // whole work-groups per view (with an explicit size)
+  std::string tuning;                // the database's name for the kernel
+  bool needs_group = false;          // barriers or local memory: always an explicit group
+  std::size_t kernel_max_group = 0;  // CL_KERNEL_WORK_GROUP_SIZE, where it was asked for
 };
 PixelLaunch pixel_launch(Device::Impl& dev, const cl::Kernel& kernel, const std::string& tuning,
                          int width, int height, int views, bool needs_group);
+
+// The tuner's hook (lib/tune.cpp), the one way its shapes reach the launches: while a probe is
+// installed on a thread, pixel launches there under the probe's tuning name take its shape instead
+// of the database's (0x0: the driver's choice, or the fallback of kernels that need a group),
+// renders can be kept off the CPU packet kernel, and every pixel launch is recorded with its
+// shape and event. Nothing in the environment changes, so other threads launch as before.
+struct TuningProbe {
+  std::string kernel;  // the tuning name to shape; "" shapes none and only records
+  int local_x = 0, local_y = 0;
+  bool packet = true;  // false: renders take the one-ray-per-work-item kernel on CPU devices too
+  struct Launch {
+    PixelLaunch shape;  // its tuning name, group (0x0: the driver's choice) and kernel limit
+    cl::Event event;
+  };
+  std::vector<Launch> launches;
+};
+// Installs `probe` on this thread for the scope's life (nesting restores the outer one).
+class ScopedTuningProbe {
+ public:
+  explicit ScopedTuningProbe(TuningProbe& probe);
+  ~ScopedTuningProbe();
+  ScopedTuningProbe(const ScopedTuningProbe&) = delete;
+  ScopedTuningProbe& operator=(const ScopedTuningProbe&) = delete;
+
+ private:
+  TuningProbe* outer_;
+};
+TuningProbe* tuning_probe();  // this thread's, or null
 
 // Enqueues and returns the kernel's event (profiling is on for the device's queue).
 cl::Event enqueue(Device::Impl& dev, const cl::Kernel& kernel, const PixelLaunch& launch);

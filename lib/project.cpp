@@ -7,6 +7,7 @@
 #include "ivr/error.hpp"
 #include "projector.hpp"
 #include "real_args.hpp"
+#include "scatter_cache.hpp"
 #include "scene_checks.hpp"
 #include "session_impl.hpp"
 
@@ -18,18 +19,22 @@ namespace {
   throw Error(Status::invalid_argument, what);
 }
 
-KernelConfig projector_config(const Session::Impl& s, const char* entry) {
-  const bool native_atomics = use_float_atomics(s.dev.info, s.f64);
+// Whether the back-projector sums each work-group's adds in local memory first
+// (lib/scatter_cache.hpp); the table is its only local memory.
+bool backproject_cache(Session::Impl& s) {
+  return scatter_cache_for(s.dev, s.real_size, 0);
+}
+
+// N and Nᵀ share one program: the scatter cache's define changes Nᵀ alone.
+KernelConfig projector_config(Session::Impl& s, const char* entry) {
   KernelConfig c;
   c.file = "project.cl";
   c.entry = entry;
   c.preamble = std::string("#define IVR_MODEL 0\n#define IVR_TF 0\n#define IVR_SCHEME 2\n") +
-               "#define IVR_F64 " + (s.f64 ? "1" : "0") + "\n" +
-               (native_atomics ? "#define IVR_FLOAT_ATOMICS 1\n" : "");
-  c.float_atomics = native_atomics;
-  c.label = std::string("project.cl [") + (s.f64 ? "f64" : "f32") +
-            (native_atomics ? " float_atomics" : "") + "]";
-  return c;
+               "#define IVR_F64 " + (s.f64 ? "1" : "0") + "\n";
+  c.label = std::string("project.cl [") + (s.f64 ? "f64" : "f32") + "]";
+  return with_scatter_cache(c.with_atomics(atomic_add_for(s.dev.info, s.f64)),
+                            backproject_cache(s));
 }
 
 // The grid and cameras of the ray kernels (arguments 1 … 7 of project and backproject).
@@ -86,14 +91,16 @@ cl::Event enqueue_backproject(Session::Impl& s, const cl::Buffer& lines, const c
     s.dev.queue.enqueueFillBuffer(volume, cl_uchar(0), 0,
                                   s.scene.volume.voxel_count() * s.real_size, nullptr,
                                   &events.back());
+    const bool cache = backproject_cache(s);
     cl::Kernel& k = s.kernels.get(projector_config(s, "backproject"));
     k.setArg(0, lines);
     set_geometry(s, k);
     k.setArg(8, volume);
     const Camera& c = s.scene.cameras.front();
+    // The table is a work-group's: the groups are tiles of one view, with padding items.
     events.push_back(enqueue(s.dev, k,
                              pixel_launch(s.dev, k, "backproject", c.width, c.height,
-                                          int(s.scene.cameras.size()), false)));
+                                          int(s.scene.cameras.size()), cache)));
     return events.back();
   });
 }

@@ -100,7 +100,7 @@ void validate_reconstruct(const ReconstructOptions& o) {
 }
 
 Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const ReconstructOptions& opt)
-    : device(d), dev(d.impl()), scene(s), targets(t), o(opt), fixed_exponent(kUnknownExponent) {
+    : device(d), dev(d.impl()), scene(s), targets(t), o(opt) {
   validate_reconstruct(o);
   validate(scene);
   check_target(scene, targets);
@@ -297,10 +297,8 @@ const IterationRecord& Reconstruction::Impl::step() {
     request.tf = o.tf;
     request.loss = o.loss;
     request.deterministic = o.deterministic;
-    s.fixed_exponent = fixed_exponent;
     OperationRecord& op = s.begin("gradient");
     const AdjointResult gr = enqueue_adjoint(s, batch_targets(views), request, op);
-    fixed_exponent = s.fixed_exponent;
     r.loss = gr.loss.to_doubles()[0];
     const std::uint64_t real_size = f64 ? 8 : 4, voxels = level_scene.volume.voxel_count();
     r.device_bytes = op.stats.device_bytes +

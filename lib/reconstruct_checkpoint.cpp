@@ -117,8 +117,7 @@ void Reconstruction::save_checkpoint(const std::string& prefix) const {
     j["density"] = {{"values", base_name(names[0])},
                     {"first", base_name(names[1])},
                     {"second", s.second.empty() ? json(nullptr) : json(base_name(names[2]))},
-                    {"iterations", s.iterations},
-                    {"fixed_exponent", p.fixed_exponent}};
+                    {"iterations", s.iterations}};
   }
   if (p.o.tf) {
     json tf = {{"u", p.u}};
@@ -194,7 +193,8 @@ void Reconstruction::resume(const std::string& prefix) {
       if (!d.at("second").is_null())
         s.second = read_array(dir + "/" + d.at("second").get<std::string>(), n);
       p.density_opt->restore(s);
-      p.fixed_exponent = d.at("fixed_exponent").get<int>();
+      // (Checkpoints of earlier versions also hold "fixed_exponent", the deterministic
+      // gradient's carried scale; the scale is now a function of each gradient's inputs.)
     }
     if (p.o.tf) {
       const json& tf = j.at("tf");

@@ -35,7 +35,6 @@ struct Reconstruction::Impl {
   DeviceArray all_targets;
   std::unique_ptr<Optimizer> density_opt;
   std::unique_ptr<DensityPrior> prior;
-  int fixed_exponent;  // the deterministic gradient's scale, carried between iterations
 
   // TF (o.tf): normalised parameters u = value / bounds.scale.
   std::vector<double> u;

@@ -21,9 +21,11 @@ int packet_lanes() {
 
 // Whether a render takes kernels/render_packet.cl: on CPU devices (PoCL runs a work-item's march
 // as scalar code; the packet kernel marches 16 rays in vector lanes) for the case it covers.
-// $IVR_PACKET=0 turns it off (tests compare both).
+// $IVR_PACKET=0 turns it off (tests compare both), and so does the tuner while it times the
+// one-ray-per-work-item kernel.
 bool use_packet(const Device::Impl& dev, const Scene& scene, const RenderVariant& v) {
   if (const char* env = std::getenv("IVR_PACKET"); env && std::string(env) == "0") return false;
+  if (const TuningProbe* probe = tuning_probe(); probe && !probe->packet) return false;  // ivr tune
   return dev.info.type == "cpu" && v.precision == Precision::f32 && v.scheme == Scheme::midpoint &&
          v.model == Model::emission_absorption && v.tf == TfKind::piecewise_linear &&
          !v.skip_empty && scene.tf.points.size() >= 1;

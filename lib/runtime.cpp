@@ -132,6 +132,19 @@ void query_float_atomics(const cl::Device& dev, DeviceInfo& info) {
   info.double_atomic_add = info.fp64 && has_add(kDoubleFpAtomicCaps);
 }
 
+// NVIDIA's compute capability, where its OpenCL reports it (cl_nv_device_attribute_query; the
+// values are that extension's CL_DEVICE_COMPUTE_CAPABILITY_MAJOR_NV and _MINOR_NV).
+int nv_compute_capability(const cl::Device& dev) {
+  if (dev.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_nv_device_attribute_query") ==
+      std::string::npos)
+    return 0;
+  cl_uint major = 0, minor = 0;
+  if (clGetDeviceInfo(dev(), 0x4000, sizeof major, &major, nullptr) != CL_SUCCESS ||
+      clGetDeviceInfo(dev(), 0x4001, sizeof minor, &minor, nullptr) != CL_SUCCESS)
+    return 0;
+  return int(major * 10 + minor);
+}
+
 struct Found {
   DeviceInfo info;
   cl::Platform platform;
@@ -176,10 +189,13 @@ std::vector<Found> discover() {
                   : (type & CL_DEVICE_TYPE_ACCELERATOR) ? "accelerator"
                                                         : "other";
       info.fp64 = dev.getInfo<CL_DEVICE_DOUBLE_FP_CONFIG>() != 0;
+      info.correctly_rounded_divide_sqrt =
+          (dev.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>() & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) != 0;
       info.global_memory = dev.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
       info.max_allocation = dev.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
       info.compute_units = int(dev.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
       query_float_atomics(dev, info);
+      info.nv_compute_capability = nv_compute_capability(dev);
       found.push_back({info, platforms[p], dev});
     }
   }
@@ -273,10 +289,85 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
   });
 }
 
-bool use_float_atomics(const DeviceInfo& info, bool f64) {
-  if (const char* env = std::getenv("IVR_FLOAT_ATOMICS"); env && std::string(env) == "0")
-    return false;
-  return f64 ? info.double_atomic_add : info.float_atomic_add;
+namespace {
+
+bool offers(const DeviceInfo& info, bool f64, AtomicAdd kind) {
+  switch (kind) {
+    case AtomicAdd::ext_float_atomics:
+      return f64 ? info.double_atomic_add : info.float_atomic_add;
+    case AtomicAdd::ptx:
+      return info.nv_compute_capability >= (f64 ? 60 : 20);
+    case AtomicAdd::compare_and_swap:
+      break;
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* atomic_add_name(AtomicAdd kind) {
+  switch (kind) {
+    case AtomicAdd::ext_float_atomics:
+      return "cl_ext_float_atomics";
+    case AtomicAdd::ptx:
+      return "ptx";
+    case AtomicAdd::compare_and_swap:
+      break;
+  }
+  return "compare-and-swap";
+}
+
+AtomicAdd atomic_add_for(const DeviceInfo& info, bool f64) {
+  const char* env = std::getenv("IVR_ATOMICS");
+  std::string forced = env ? env : "";
+  if (forced.empty()) {  // the older switch: IVR_FLOAT_ATOMICS=0 asks for the loop
+    const char* old = std::getenv("IVR_FLOAT_ATOMICS");
+    if (old && std::string(old) == "0") forced = "cas";
+  }
+  if (forced.empty() || forced == "auto") {
+    for (AtomicAdd kind : {AtomicAdd::ext_float_atomics, AtomicAdd::ptx})
+      if (offers(info, f64, kind)) return kind;
+    return AtomicAdd::compare_and_swap;
+  }
+  AtomicAdd kind;
+  if (forced == "ext")
+    kind = AtomicAdd::ext_float_atomics;
+  else if (forced == "ptx")
+    kind = AtomicAdd::ptx;
+  else if (forced == "cas")
+    kind = AtomicAdd::compare_and_swap;
+  else
+    throw Error(Status::invalid_argument,
+                "IVR_ATOMICS must be auto, ext, ptx or cas, got '" + forced + "'");
+  if (!offers(info, f64, kind))
+    throw Error(Status::invalid_argument,
+                "IVR_ATOMICS=" + forced + ": " + info.name + " has no " +
+                    (kind == AtomicAdd::ptx
+                         ? std::string("inline-PTX ") + (f64 ? "float64" : "float32") +
+                               " atomic add (NVIDIA's OpenCL, compute capability " +
+                               (f64 ? "6.0" : "2.0") + " or later)"
+                         : std::string("cl_ext_float_atomics ") + (f64 ? "float64" : "float32") +
+                               " atomic add"));
+  return kind;
+}
+
+CountArithmetic count_arithmetic(const DeviceInfo& info) {
+  const char* env = std::getenv("IVR_COUNT_ARITHMETIC");
+  const std::string forced = env ? env : "";
+  if (forced.empty() || forced == "auto") {
+    if (info.fp64) return CountArithmetic::fp64;
+    if (info.correctly_rounded_divide_sqrt) return CountArithmetic::option;
+    return CountArithmetic::residual;
+  }
+  if (forced == "fp64" && info.fp64) return CountArithmetic::fp64;
+  if (forced == "option" && info.correctly_rounded_divide_sqrt) return CountArithmetic::option;
+  if (forced == "residual") return CountArithmetic::residual;
+  if (forced == "fp64" || forced == "option")
+    throw Error(Status::invalid_argument,
+                "IVR_COUNT_ARITHMETIC=" + forced + ": " + info.name + " has no " +
+                    (forced == "fp64" ? "float64" : "correctly rounded float32 division"));
+  throw Error(Status::invalid_argument, "IVR_COUNT_ARITHMETIC must be auto, fp64, option or "
+                                        "residual, got '" + forced + "'");
 }
 
 }  // namespace ivr

@@ -26,9 +26,23 @@ auto cl_call(const std::string& doing, F&& f) -> decltype(f()) {
   }
 }
 
-// The device's own float atomic add (cl_ext_float_atomics) where it has one for this precision,
-// unless $IVR_FLOAT_ATOMICS=0 asks for the compare-and-swap loop (for comparisons).
-bool use_float_atomics(const DeviceInfo& info, bool f64);
+// How the scatter kernels (the adjoint's, the back-projector's) add reals to global memory
+// (kernels/atomics.cl): the device's own float atomic add where it reports cl_ext_float_atomics
+// for this precision, else inline PTX on NVIDIA's OpenCL (which has native adds but does not
+// report them), else a compare-and-swap loop. $IVR_ATOMICS=auto|ext|ptx|cas forces one the device
+// offers (a clear error otherwise); the older $IVR_FLOAT_ATOMICS=0 means cas.
+enum class AtomicAdd { compare_and_swap, ext_float_atomics, ptx };
+AtomicAdd atomic_add_for(const DeviceInfo& info, bool f64);
+// "compare-and-swap", "cl_ext_float_atomics" or "ptx": the gradient's `atomics` and labels.
+const char* atomic_add_name(AtomicAdd kind);
+
+// How kernels/sample_count.cl gets its correctly rounded float32 division and square root on this
+// device (the IVR_COUNT_ARITHMETIC values there): through float64 where the device has it, else
+// the device's own built with -cl-fp32-correctly-rounded-divide-sqrt where it offers that, else
+// corrected by fma residuals. $IVR_COUNT_ARITHMETIC=auto|fp64|option|residual forces one the
+// device offers (residual runs everywhere), for tests.
+enum class CountArithmetic { fp64 = 0, option = 1, residual = 2 };
+CountArithmetic count_arithmetic(const DeviceInfo& info);
 
 struct Device::Impl {
   DeviceInfo info;

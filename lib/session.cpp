@@ -58,7 +58,6 @@ Session::Impl::Impl(Device& d, const Scene& s, const SessionOptions& o, bool hos
       f64(o.precision == Precision::f64),
       real_size(o.precision == Precision::f64 ? 8 : 4),
       scene(description_of(s)),
-      fixed_exponent(kUnknownExponent),
       kernels(d.impl()),
       arrays(d.impl(), kernels, o.precision == Precision::f64) {
   check_options(o);
@@ -140,15 +139,13 @@ void Session::Impl::adopt_volume(DeviceArray fresh, const Volume& dims, const gl
     });
     throw bad_density(dims, std::size_t(first), value);
   }
-  if (scene.volume.nx != dims.nx || scene.volume.ny != dims.ny || scene.volume.nz != dims.nz) {
-    scene.volume.nx = dims.nx, scene.volume.ny = dims.ny, scene.volume.nz = dims.nz;
-    fixed_exponent = kUnknownExponent;
-  }
+  scene.volume.nx = dims.nx, scene.volume.ny = dims.ny, scene.volume.nz = dims.nz;
   if (box) scene.box_min = box[0], scene.box_max = box[1];
   volume = std::move(fresh);
   has_volume = true;
   volume_min = lo;
   volume_max = hi;
+  volume_range_exact = true;
   volume_changed();
 }
 
@@ -184,7 +181,10 @@ void Session::Impl::upload_cameras(const std::vector<Camera>& cams) {
   cameras = packed;
   camera_params = params;
   scene.cameras = cams;
-  if (target.valid() && target.shape() != image_shape()) target = DeviceArray();
+  if (target.valid() && target.shape() != image_shape()) {
+    target = DeviceArray();
+    target_abs_max = -1;
+  }
   if (scene.integrator.tolerance > 0) resolved.reset();
 }
 

@@ -116,7 +116,10 @@ void Session::set_target(const Image& target) {
   ivr::check_target(s.scene, target);
   DeviceArray fresh = make_array(s.device, s.dev, s.image_shape(), real_dtype(s.f64), "the target");
   fresh.upload(target.pixels.data(), target.pixels.size());
+  double largest = 0;  // for the deterministic gradient's bound (lib/adjoint.cpp)
+  for (float v : target.pixels) largest = std::max(largest, std::abs(double(v)));
   s.target = fresh;
+  s.target_abs_max = largest;
 }
 
 void Session::set_target(const DeviceArray& target) {
@@ -135,6 +138,7 @@ void Session::set_target(const DeviceArray& target) {
   if (first < fresh.size())
     bad("target element " + std::to_string(first) + " is not finite");
   s.target = fresh;
+  s.target_abs_max = std::max(std::abs(lo), std::abs(hi));
 }
 
 // --- accessors -------------------------------------------------------------------------------------
@@ -285,6 +289,7 @@ void Session::step(Optimizer& optimizer, const DeviceArray& gradient) {
   s.volume_changed();
   s.volume_min = o.options.lower;
   s.volume_max = o.options.upper;
+  s.volume_range_exact = false;
 }
 
 OperationStats Session::last_stats() {

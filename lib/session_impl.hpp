@@ -50,7 +50,11 @@ struct Session::Impl {
   Scene scene;  // the description; volume.data empty (dims and spacing kept)
   bool has_volume = false;
   DeviceArray volume;  // reals (nz, ny, nx)
+  // The densities' range: exact where volume_range_exact (set by every upload, which checks
+  // them), else only bounds (an optimiser step's [lower, upper]); the deterministic gradient's
+  // bound measures it again then (lib/adjoint.cpp).
   double volume_min = 0, volume_max = 0;
+  bool volume_range_exact = false;
   // The caller's host copy of the densities, while it is known to be alive and current (the
   // one-shot functions: their scene outlives their session): where the grid may be built on the
   // host (CPU devices, $IVR_GRID=host). Dropped by every change of the densities.
@@ -60,12 +64,14 @@ struct Session::Impl {
   int tf_count = 0;
   double tf_scalars[2] = {0, 0};
   DeviceArray target;  // reals, the image shape (invalid until set)
+  // Its largest |element| (< 0: not known), set with it: the deterministic gradient's bound reads
+  // it (lib/adjoint.cpp), so the target changes only through set_target.
+  double target_abs_max = -1;
 
   SessionGrid grid;
   std::optional<Integrator> resolved;  // the integrator with its step chosen (stale: none)
   StepChoice choice;
   std::optional<CostModel> cost;
-  int fixed_exponent;  // the deterministic gradient's scale, carried between calls
   KernelSet kernels;
   ArrayKernels arrays;
   cl::Buffer no_occupancy;  // one byte: the kernels' occupancy argument when not skipping
@@ -157,9 +163,6 @@ Scene description_of(const Scene& scene);
 // scene outlives it, so its host densities may serve the host-side grid. Throws like
 // validate_with where the scene's volume lacks its data.
 Session one_shot_session(Device& device, const Scene& scene, const SessionOptions& options);
-
-// The deterministic gradient's fixed-point scale before one was measured.
-constexpr int kUnknownExponent = -1000000;
 
 // The integrator step chosen for a tolerance by pilot renders of `s`'s scene at a quarter of the
 // resolution (lib/tolerance.cpp).

@@ -315,9 +315,10 @@ TEST(AdjointHardCases, AxisAlignedRays) {
         c.width = c.height = 3;
         s.cameras.push_back(c);
       }
-  // Not 0.2: chords of 1 voxel multiples over a step dividing them make ceil(chord / step) an
-  // exact integer, where float32 and float64 may round it to different sample counts.
-  const double step = 0.23;
+  // 0.2: chords of whole voxels over a step dividing them make length / step an integer, where a
+  // count from each precision's own geometry would round to n or n + 1 (DESIGN.md, sample
+  // counts: both take the definition's).
+  const double step = 0.2;
   const Image target = offset_target(s, step);
   const Gradient g = expect_precisions_agree(s, target, step, "axis-aligned");
   expect_matches_differences(s, target, step, g, "axis-aligned");

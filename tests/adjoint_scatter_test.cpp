@@ -4,6 +4,8 @@
 // atomics the scatter uses.
 #include <gtest/gtest.h>
 
+#include "runtime.hpp"
+
 #include <cmath>
 #include <random>
 
@@ -85,28 +87,39 @@ TEST_P(AdjointScatter, EveryVoxelMatchesCentralDifferences) {
 INSTANTIATE_TEST_SUITE_P(Steps, AdjointScatter, ::testing::Values(0.3, 1.7));
 
 // The scatter's atomics: the device's float atomic add where it reports cl_ext_float_atomics,
-// else a compare-and-swap loop; $IVR_FLOAT_ATOMICS=0 forces the loop. The kernel built as OpenCL
-// C 3.0 with IVR_FLOAT_ATOMICS=1 (the native add where the compiler has the feature, the loop
-// where it does not) agrees with the default build within the rounding of the atomic sums.
-TEST(AdjointAtomics, ReportedAndEveryBuildAgrees) {
+// else inline PTX on NVIDIA's OpenCL, else a compare-and-swap loop; $IVR_ATOMICS forces any the
+// device offers ($IVR_FLOAT_ATOMICS=0, the older switch, the loop). Every one agrees with the
+// default within the rounding of the atomic sums. Also the kernel built as OpenCL C 3.0 with
+// IVR_FLOAT_ATOMICS=1 (the native add where the compiler has the feature, the loop where not).
+TEST(AdjointAtomics, ReportedAndEveryOfferedPathAgrees) {
   const Scene s = walk_scene(0.3);
   const Image target = render(device(), s, {Precision::f64});
-  const bool opencl3 = device().info().version.rfind("OpenCL 3.", 0) == 0;
+  const DeviceInfo& info = device().info();
+  const bool opencl3 = info.version.rfind("OpenCL 3.", 0) == 0;
   GradientOptions o;
   o.tf = true;
   for (Precision p : {Precision::f32, Precision::f64}) {
     o.precision = p;
-    const double tolerance = p == Precision::f32 ? 1e-5 : 1e-12;
+    const bool f64 = p == Precision::f64;
+    const double tolerance = f64 ? 1e-12 : 1e-5;
     const Gradient g = gradient(device(), s, target, o);
-    const bool native =
-        p == Precision::f32 ? device().info().float_atomic_add : device().info().double_atomic_add;
-    EXPECT_EQ(g.atomics, native ? "cl_ext_float_atomics" : "compare-and-swap") << name(p);
+    const bool ext = f64 ? info.double_atomic_add : info.float_atomic_add;
+    const bool ptx = info.nv_compute_capability >= (f64 ? 60 : 20);
+    EXPECT_EQ(g.atomics, ext ? "cl_ext_float_atomics" : ptx ? "ptx" : "compare-and-swap")
+        << name(p);
+    std::vector<std::pair<std::string, std::string>> forced = {{"cas", "compare-and-swap"}};
+    if (ext) forced.push_back({"ext", "cl_ext_float_atomics"});
+    if (ptx) forced.push_back({"ptx", "ptx"});
+    for (const auto& [value, reported] : forced) {
+      ScopedEnv force("IVR_ATOMICS", value);
+      const Gradient c = gradient(device(), s, target, o);
+      EXPECT_EQ(c.atomics, reported);
+      EXPECT_LE(relative_error(c.density, g.density), tolerance) << name(p) << " " << value;
+      EXPECT_LE(relative_error(c.tf, g.tf), tolerance) << name(p) << " " << value;
+    }
     {
       ScopedEnv cas("IVR_FLOAT_ATOMICS", "0");
-      const Gradient c = gradient(device(), s, target, o);
-      EXPECT_EQ(c.atomics, "compare-and-swap");
-      EXPECT_LE(relative_error(c.density, g.density), tolerance) << name(p);
-      EXPECT_LE(relative_error(c.tf, g.tf), tolerance) << name(p);
+      EXPECT_EQ(gradient(device(), s, target, o).atomics, "compare-and-swap");
     }
     if (opencl3) {
       ScopedEnv build("IVR_BUILD_OPTIONS", "-cl-std=CL3.0 -DIVR_FLOAT_ATOMICS=1");
@@ -115,6 +128,64 @@ TEST(AdjointAtomics, ReportedAndEveryBuildAgrees) {
       EXPECT_LE(relative_error(c.tf, g.tf), tolerance) << name(p);
     }
   }
+}
+
+// Forcing a path the device lacks, or one that does not exist, is one clear error.
+TEST(AdjointAtomics, ForcingAnAbsentPathIsAClearError) {
+  const Scene s = walk_scene(0.3);
+  const Image target = render(device(), s, {Precision::f32});
+  const DeviceInfo& info = device().info();
+  if (info.nv_compute_capability < 20) {
+    ScopedEnv force("IVR_ATOMICS", "ptx");
+    try {
+      gradient(device(), s, target, {});
+      ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+      EXPECT_TRUE(has(e.what(), "IVR_ATOMICS=ptx: " + info.name + " has no inline-PTX float32"))
+          << e.what();
+    }
+  }
+  ScopedEnv force("IVR_ATOMICS", "fast");
+  try {
+    gradient(device(), s, target, {});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_TRUE(has(e.what(), "IVR_ATOMICS must be auto, ext, ptx or cas, got 'fast'")) << e.what();
+  }
+}
+
+// The choice itself, on devices this machine does not have: cl_ext_float_atomics first, then
+// NVIDIA's PTX by compute capability (float64 adds need sm_60), then the loop.
+TEST(AdjointAtomics, SelectionOrderOnEveryKindOfDevice) {
+  ScopedEnv neutral("IVR_ATOMICS", "auto");
+  DeviceInfo plain;
+  plain.name = "plain";
+  EXPECT_EQ(atomic_add_for(plain, false), AtomicAdd::compare_and_swap);
+  DeviceInfo ext = plain;
+  ext.float_atomic_add = true;
+  EXPECT_EQ(atomic_add_for(ext, false), AtomicAdd::ext_float_atomics);
+  EXPECT_EQ(atomic_add_for(ext, true), AtomicAdd::compare_and_swap);
+  DeviceInfo hopper = plain;
+  hopper.nv_compute_capability = 90;
+  EXPECT_EQ(atomic_add_for(hopper, false), AtomicAdd::ptx);
+  EXPECT_EQ(atomic_add_for(hopper, true), AtomicAdd::ptx);
+  DeviceInfo maxwell = plain;
+  maxwell.nv_compute_capability = 52;
+  EXPECT_EQ(atomic_add_for(maxwell, false), AtomicAdd::ptx);
+  EXPECT_EQ(atomic_add_for(maxwell, true), AtomicAdd::compare_and_swap);
+  DeviceInfo both = hopper;
+  both.float_atomic_add = both.double_atomic_add = true;
+  EXPECT_EQ(atomic_add_for(both, true), AtomicAdd::ext_float_atomics);
+  {
+    ScopedEnv force("IVR_ATOMICS", "cas");
+    EXPECT_EQ(atomic_add_for(both, false), AtomicAdd::compare_and_swap);
+  }
+  {
+    ScopedEnv force("IVR_ATOMICS", "ptx");
+    EXPECT_EQ(atomic_add_for(both, false), AtomicAdd::ptx);
+    EXPECT_THROW(atomic_add_for(maxwell, true), Error);
+  }
+  EXPECT_STREQ(atomic_add_name(AtomicAdd::ptx), "ptx");
 }
 
 }  // namespace

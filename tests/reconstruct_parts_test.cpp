@@ -219,9 +219,10 @@ TEST(ReconstructPartsTest, DeterministicGradientRepeatsBitForBit) {
   }
 }
 
-// Densities: the checkpoint restores the level, the densities, Adam's moments and the
-// fixed-point scale exactly, and with the deterministic gradient (the default) the continuation
-// is the uninterrupted run, bit for bit, whatever PoCL's thread scheduling.
+// Densities: the checkpoint restores the level, the densities and Adam's moments exactly, and
+// with the deterministic gradient (the default; its fixed-point scale a function of each
+// iteration's inputs) the continuation is the uninterrupted run, bit for bit, whatever PoCL's
+// thread scheduling.
 TEST(ReconstructPartsTest, DensityResumeContinuesTheRun) {
   const Small p;
   const std::string dir = test::temp_dir("density_resume");

@@ -3,8 +3,10 @@
     python run.py --framework jax --task grad --case DIR --out RESULT.json [--budget S]
                   [--device cpu|gpu]
 
-Tasks: render (image), grad (loss and d loss / d voxel by reverse mode), tf_forward (loss and
-d loss / d TF parameters by forward mode). The first call (tracing, compiling, warming up) is timed
+Tasks of the march frameworks (jax, drjit, torch; case "ivr-bench-scene/1"): render (image), grad
+(loss and d loss / d voxel by reverse mode), tf_forward (loss and d loss / d TF parameters by
+forward mode). Tasks of the projector baseline astra (astra_project.py; case "ivr-bench-tomo/1",
+--device gpu only): project, backproject. The first call (tracing, compiling, warming up) is timed
 on its own; then the call repeats until the budget is spent (at least --min-repeats times). Peak
 memory: the process's high-water mark is reset after the first call (/proc/self/clear_refs), so
 peak_increase_bytes is what the timed calls needed above the resident set they started from.
@@ -34,8 +36,13 @@ sys.path.insert(0, HERE)
 
 from common import DEVICES, DeviceUnavailable, load_scene, outputs_to_numpy  # noqa: E402
 
-FRAMEWORKS = ("jax", "drjit", "torch")
-TASKS = ("render", "grad", "tf_forward")
+MARCH_TASKS = ("render", "grad", "tf_forward")
+# framework -> (module, its tasks); a module may add load_case (else common.load_scene),
+# case_fields and INSTALL_HINT.
+FRAMEWORKS = {"jax": ("jax_march", MARCH_TASKS), "drjit": ("drjit_march", MARCH_TASKS),
+              "torch": ("torch_march", MARCH_TASKS),
+              "astra": ("astra_project", ("project", "backproject"))}
+TASKS = tuple(dict.fromkeys(t for _, tasks in FRAMEWORKS.values() for t in tasks))
 
 
 def _status_kib(field: str) -> int:
@@ -107,6 +114,9 @@ def main() -> int:
     p.add_argument("--device", choices=DEVICES, default="cpu",
                    help="where the framework computes: cpu, or gpu (its CUDA device)")
     a = p.parse_args()
+    module_name, tasks = FRAMEWORKS[a.framework]
+    if a.task not in tasks:
+        p.error(f"--framework {a.framework} does the tasks {', '.join(tasks)}, not {a.task}")
 
     result = {"framework": a.framework, "task": a.task, "case": a.case, "device": a.device}
 
@@ -121,22 +131,23 @@ def main() -> int:
         write(result)
         return 0
 
+    module = None
     try:
-        module = importlib.import_module(f"{a.framework}_march")
+        module = importlib.import_module(module_name)
         result["version"] = module.version(a.threads, a.device)
         result["device_name"] = module.device_name(a.device)
     except DeviceUnavailable as e:
         return no_gpu(e)
     except ImportError as e:
-        result.update(available=False, note=f"{a.framework} is not installed ({e}); "
-                      "scripts/bench_setup.sh installs the baselines")
+        hint = getattr(module, "INSTALL_HINT", "scripts/bench_setup.sh installs the baselines")
+        result.update(available=False, note=f"{a.framework} is not installed ({e}); {hint}")
         write(result)
         return 0
     result["available"] = True
 
     gpu = a.device == "gpu"
     try:
-        scene = load_scene(a.case)
+        scene = getattr(module, "load_case", load_scene)(a.case)
         rss0 = _status_kib("VmRSS")
         start = time.perf_counter()
         # prepare() puts the scene on the device; every call() returns only once the device has
@@ -183,12 +194,14 @@ def main() -> int:
         median_s=statistics.median(times),
         min_s=min(times),
         max_s=max(times),
-        march_steps=int(scene.rays.n.sum()),  # an upper bound: early termination not counted
         rss_before_bytes=1024 * rss_before,
         peak_rss_bytes=1024 * peak,
         peak_increase_bytes=1024 * max(0, peak - rss_before),
         outputs=outputs,
     )
+    fields = getattr(module, "case_fields", None)
+    # march_steps is an upper bound: early termination not counted.
+    result.update(fields(scene) if fields else {"march_steps": int(scene.rays.n.sum())})
     write(result)
     return 0
 

@@ -93,6 +93,45 @@ std::string write_case(const std::string& dir, const Scene& scene, double step_v
   return dir;
 }
 
+std::string write_tomo_case(const std::string& dir, const Scene& scene,
+                            const std::vector<double>& volume, const std::vector<double>& lines) {
+  fs::create_directories(dir);
+  const Volume& v = scene.volume;
+  const Camera& first = scene.cameras.front();
+  const std::size_t views = scene.cameras.size(), h = std::size_t(first.height),
+                    w = std::size_t(first.width);
+  if (volume.size() != v.voxel_count() || lines.size() != views * h * w)
+    throw Error(Status::invalid_argument, "write_tomo_case: the arrays do not fit the scene");
+  const std::vector<float> vf(volume.begin(), volume.end()), lf(lines.begin(), lines.end());
+  save_npy(dir + "/volume.npy", {std::size_t(v.nz), std::size_t(v.ny), std::size_t(v.nx)},
+           vf.data());
+  save_npy(dir + "/lines.npy", {views, h, w}, lf.data());
+  json cams = json::array();
+  for (const Camera& c : scene.cameras) {
+    if (c.projection != Projection::orthographic || c.width != first.width ||
+        c.height != first.height)
+      throw Error(Status::invalid_argument,
+                  "the projector baseline takes orthographic cameras of one size only");
+    cams.push_back({{"eye", vec(c.eye)},
+                    {"target", vec(c.target)},
+                    {"up", vec(c.up)},
+                    {"projection", "orthographic"},
+                    {"ortho_height", c.ortho_height},
+                    {"width", c.width},
+                    {"height", c.height}});
+  }
+  const json doc = {{"format", "ivr-bench-tomo/1"},  {"volume", "volume.npy"},
+                    {"lines", "lines.npy"},          {"box_min", vec(scene.box_min)},
+                    {"box_max", vec(scene.box_max)}, {"cameras", cams}};
+  std::ofstream(dir + "/tomo.json") << doc.dump(2) << "\n";
+  return dir;
+}
+
+bool baseline_does(const std::string& framework, const std::string& task) {
+  const bool projector = task == "project" || task == "backproject";
+  return framework == "astra" ? projector : !projector;
+}
+
 BaselineRun run_baseline(const BaselineEnv& env, const std::string& framework,
                          const std::string& task, const std::string& case_dir, double budget,
                          const std::string& output, const std::string& device) {

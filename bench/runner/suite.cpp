@@ -117,6 +117,7 @@ void run_python_baselines(Context& ctx, const std::string& suite, const std::str
                           const std::function<Check(const BaselineRun&, Record&)>& compare) {
   if (!ctx.python_baselines) return;
   for (const std::string& fw : ctx.baselines.frameworks) {
+    if (!baseline_does(fw, task)) continue;  // e.g. astra in the march suites
     Record r{ctx.baseline_device == "gpu" ? kGpuBaselineDevice : kHostDevice, suite, case_name,
              fw, params};
     if (!ctx.baselines.usable) {

@@ -26,7 +26,7 @@ struct Context {
   std::string data_dir;               // ../shared/data (real volumes)
   std::vector<std::string> failures;  // checks that failed: the run's exit status says so
   // Run the Python baselines, on the CPU ("cpu": once per run, beside the first device that is
-  // not a GPU) or on a GPU ("gpu": JAX, PyTorch and Dr.Jit on CUDA, beside the first GPU).
+  // not a GPU) or on a GPU ("gpu": JAX, PyTorch, Dr.Jit and ASTRA on CUDA, beside the first GPU).
   bool python_baselines = true;
   std::string baseline_device = "cpu";
 };
@@ -65,9 +65,10 @@ void record_checked(Context& ctx, Record r, const Check& check);
 std::uint64_t operation_memory(const Context& ctx, const Measurement& m,
                                std::uint64_t device_bytes);
 
-// Runs every Python baseline of ctx.baselines on `case_dir` for `task` and records each (device
-// "host") with the check `compare` makes of its output (which may add metrics to the record, such
-// as an error); skipped frameworks are recorded with their note and no metrics.
+// Runs every Python baseline of ctx.baselines that does `task` (baseline_does) on `case_dir` and
+// records each (device "host", or "cuda" beside a GPU) with the check `compare` makes of its output
+// (which may add metrics to the record, such as an error); skipped frameworks are recorded with
+// their note and no metrics.
 void run_python_baselines(Context& ctx, const std::string& suite, const std::string& case_name,
                           const nlohmann::json& params, const std::string& case_dir,
                           const std::string& task, const std::string& output,

@@ -118,6 +118,10 @@ void gradient_suite(Context& ctx) {
     add_timing(r, m);
     r.params["deterministic"] = g.deterministic;
     r.params["atomics"] = g.atomics;
+    if (g.deterministic) {  // the fixed-point scale and the passes it took (1 unless its bound failed)
+      r.params["fixed_exponent"] = g.fixed_exponent;
+      r.params["fixed_passes"] = g.fixed_passes;
+    }
     r.metrics["loss"] = g.loss;
     r.metrics["samples"] = g.samples;
     r.metrics["samples_per_s"] = double(g.samples) / m.wall.median;
@@ -155,6 +159,12 @@ void gradient_suite(Context& ctx) {
     add_timing(r, m);
     r.params["deterministic"] = stats.deterministic;
     r.params["atomics"] = g.atomics;
+    if (stats.deterministic) {
+      r.params["fixed_exponent"] = stats.fixed_exponent;
+      r.params["fixed_passes"] = stats.fixed_passes;
+      r.metrics["fixed_bound"] = stats.fixed_bound;
+      r.metrics["fixed_largest"] = stats.fixed_largest;
+    }
     r.metrics["loss"] = g.loss.to_doubles()[0];
     r.metrics["samples"] = stats.samples;
     r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;

@@ -140,13 +140,18 @@ void scaling_suite(Context& ctx) {
   const std::vector<double> steps =
       ctx.quick ? std::vector<double>{1, 0.5} : std::vector<double>{1, 0.5, 0.25, 0.125};
   const int base_volume = ctx.quick ? 32 : 128, base_image = ctx.quick ? 64 : 256;
-  std::vector<Series> series(3);
+  std::vector<Series> series(4);
   series[0].name = "volume";
   for (int v : volumes) series[0].points.push_back({v, base_image, 0.5});
   series[1].name = "image";
   for (int i : images) series[1].points.push_back({base_volume, i, 0.5});
   series[2].name = "step";
   for (double s : steps) series[2].points.push_back({base_volume, base_image, s});
+  // Volume and image together (an image of twice the volume's edge): the adjoint's kernel time
+  // against the render's at 128³ → 256² and 256³ → 512², the sizes issue 18's target names.
+  series[3].name = "volume_and_image";
+  for (int v : ctx.quick ? std::vector<int>{16, 32} : std::vector<int>{64, 128, 256})
+    series[3].points.push_back({v, 2 * v, 0.5});
 
   Record summary{ctx.device_key, "scaling", "exponents", "ivr", nlohmann::json::object()};
   for (const Series& s : series) {
@@ -157,7 +162,7 @@ void scaling_suite(Context& ctx) {
       const nlohmann::json params = {
           {"grows", s.name}, {"volume", p.volume}, {"image", p.image}, {"step", p.step}};
       std::cerr << "ivr-bench: scaling/" << name << "\n";
-      const double x = s.name == "volume" ? p.volume : s.name == "image" ? p.image : 1.0 / p.step;
+      const double x = s.name == "image" ? p.image : s.name == "step" ? 1.0 / p.step : p.volume;
 
       Image img;  // the one-shot results, checked against the native marcher, hold the resident
       Gradient g;

@@ -1,8 +1,14 @@
 // tomo.cpp — the tomography suite: throughput of the linear absorption projector and its transpose
-// (parallel and cone beam). Checked before timing: the projection of σ = 1 against each ray's
+// (parallel and cone beam), with ASTRA's FP3D / BP3D beside the parallel cases when asked for
+// (--baselines astra, on a GPU). Checked before timing: the projection of σ = 1 against each ray's
 // chord through the box (closed form), and the dot-product test ⟨N x, y⟩ = ⟨x, Nᵀ y⟩.
+#include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
 #include <random>
+#include <sstream>
 
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
@@ -42,86 +48,200 @@ std::vector<double> chords(const Scene& scene) {
   return out;
 }
 
+struct TomoCase {
+  int n, views;
+  bool cone, large;
+};
+
+// ASTRA's and ivr's results may differ by their discretisations (ASTRA samples the trilinear
+// volume on the planes through voxel centres, zero outside, and back-projects by interpolating
+// the detector; ivr integrates exactly, clamped at the box): a loose bound that still catches a
+// flipped or transposed axis, which on asymmetric data differs by O(1).
+constexpr double kAstraAgreement = 0.1;
+
+std::uint64_t available_host_bytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string name;
+  std::uint64_t kib = 0;
+  while (in >> name >> kib) {
+    if (name == "MemAvailable:") return kib * 1024;
+    in.ignore(1 << 10, '\n');
+  }
+  return 0;
+}
+
+// Why a large case cannot run here ("" when it can). On a CPU device it would take hours (the
+// 2-core PoCL figures: ~50 M ray·cells/s), and its point is the comparison with ASTRA on a GPU.
+// Memory: float32 volume and lines, three of each at once on the device (the one-shot pair, the
+// resident inputs and outputs); about 56 bytes per voxel and ray on the host (the suite's float64
+// vectors, the checks, the baseline's case files and its process).
+std::string large_case_obstacle(const Context& ctx, std::size_t voxels, std::size_t rays) {
+  const DeviceInfo& info = ctx.device.info();
+  const auto gib = [](double b) {
+    std::ostringstream s;
+    s << std::setprecision(3) << b / double(1 << 30) << " GiB";
+    return s.str();
+  };
+  if (info.type == "cpu") return "the large cases run on GPU and accelerator devices only";
+  const double device = 12.0 * double(voxels + rays), host = 56.0 * double(voxels + rays);
+  if (info.global_memory && device > 0.9 * double(info.global_memory))
+    return "needs ~" + gib(device) + " of device memory, the device has " +
+           gib(double(info.global_memory));
+  if (info.max_allocation && 4.0 * double(std::max(voxels, rays)) > double(info.max_allocation))
+    return "a " + gib(4.0 * double(std::max(voxels, rays))) +
+           " buffer exceeds the device's largest allocation (" + gib(double(info.max_allocation)) +
+           ")";
+  const std::uint64_t free_host = available_host_bytes();
+  if (free_host && host > double(free_host))
+    return "needs ~" + gib(host) + " of host memory, " + gib(double(free_host)) + " available";
+  return "";
+}
+
+// ASTRA's FP3D / BP3D (bench/baselines/astra_project.py) on a parallel case, timed end to end from
+// host arrays as ivr's one-shot N / Nᵀ are: records beside ivr's (device "cuda"), whose ratios
+// Results::ratios() makes. Their check: the relative L2 difference from ivr's N and Nᵀ of random
+// ellipsoids (asymmetric: a flipped axis would show), within kAstraAgreement.
+void astra_baseline(Context& ctx, const Scene& scene, const Projector& P, const std::string& base,
+                    const nlohmann::json& params) {
+  const std::vector<std::string>& fws = ctx.baselines.frameworks;
+  if (!ctx.python_baselines || std::find(fws.begin(), fws.end(), "astra") == fws.end()) return;
+  if (ctx.baseline_device != "gpu") {  // nothing to run: ASTRA's 3D projectors are CUDA only
+    for (const char* op : {"_project", "_backproject"}) {
+      Record r{kHostDevice, "tomo", base + op, "astra", params};
+      r.note =
+          "skipped: ASTRA's FP3D/BP3D run on CUDA GPUs only (ivr-bench runs astra beside a "
+          "GPU device)";
+      ctx.results.add(std::move(r));
+    }
+    return;
+  }
+  const Volume& v = scene.volume;
+  std::vector<double> volume, lines, back;
+  std::string dir;
+  if (ctx.baselines.usable) {  // else run_python_baselines records the skip
+    volume = widen(phantom_from_ellipsoids(random_ellipsoids(10, 7), v.nx, v.ny, v.nz).data);
+    lines = P.project(volume);
+    back = P.backproject(lines);
+    dir = write_tomo_case(ctx.work_dir + "/tomo_" + base, scene, volume, lines);
+  }
+  for (bool transpose : {false, true}) {
+    const std::vector<double>& ref = transpose ? back : lines;
+    const std::string against = std::string("ivr ") + (transpose ? "Nᵀ N" : "N") +
+                                " of random ellipsoids (loose: another discretisation)";
+    run_python_baselines(ctx, "tomo", base + (transpose ? "_backproject" : "_project"), params, dir,
+                         transpose ? "backproject" : "project", transpose ? "volume" : "lines",
+                         [&](const BaselineRun& run, Record& r) {
+                           const Difference d = difference(run.output, ref);
+                           r.metrics["relative_l2_vs_ivr"] = d.relative_l2;
+                           r.metrics["error_max_abs_vs_ivr"] = d.max_abs;
+                           return check_l2(d, against, kAstraAgreement);
+                         });
+  }
+}
+
 }  // namespace
 
 void tomo_suite(Context& ctx) {
-  const std::vector<int> sizes = ctx.quick ? std::vector<int>{32} : std::vector<int>{64, 128};
-  for (int n : sizes)
-    for (bool cone : {false, true}) {
-      const int views = n / 2;
-      const Scene scene = tomo_scene(n, views, cone, 1);
-      const Projector P(ctx.device, scene);
-      const std::vector<double> x = uniform(P.voxel_count(), 1), y = uniform(P.ray_count(), 2);
-      const double lhs = dot(P.project(x), y), rhs = dot(x, P.backproject(y));
-      const double mismatch = std::abs(lhs - rhs) / std::max(std::abs(lhs), std::abs(rhs));
-      Check check{mismatch <= 1e-5, "⟨N x, y⟩ = ⟨x, Nᵀ y⟩", "relative", mismatch, 1e-5};
-      if (!cone && check.passed) {  // the chords: parallel beam has them in closed form
-        const Check chord = check_max(
-            difference(P.project(std::vector<double>(P.voxel_count(), 1.0)), chords(scene)),
-            "chord lengths through the box (closed form)", 1e-6, 1e-5);
-        if (!chord.passed) check = chord;
-      }
-      const std::string base = "v" + std::to_string(n) + "_" + (cone ? "cone" : "parallel");
-      const nlohmann::json params = {{"volume", n},
-                                     {"views", views},
-                                     {"detector", n},
-                                     {"beam", cone ? "cone" : "parallel"},
-                                     {"rays", P.ray_count()}};
-      for (bool transpose : {false, true}) {
-        const Measurement m = measure(
-            ctx.budget,
-            [&] {
-              if (transpose)
-                P.backproject(y);
-              else
-                P.project(x);
-              return P.last_kernel_seconds();
-            },
-            [&] { return check.passed; });
-        Record r{ctx.device_key, "tomo", base + (transpose ? "_backproject" : "_project"), "ivr",
-                 params};
-        add_timing(r, m);
-        r.metrics["rays_per_s"] = double(P.ray_count()) / m.wall.median;
-        r.metrics["ray_cells_per_s"] = double(P.ray_count()) * n / m.wall.median;
-        r.metrics["memory_bytes"] = operation_memory(ctx, m, 0);
-        record_checked(ctx, std::move(r), check);
-      }
-      // Resident: the volume and the lines already on the device, the result left there; held
-      // to the same dot-product test on device arrays first.
-      Scene geometry = scene;
-      geometry.volume.data.clear();
-      Session session(ctx.device, geometry);
-      DeviceArray xd(ctx.device, session.volume_shape(), DType::f32);
-      std::vector<std::int64_t> ray_shape = session.image_shape();
-      ray_shape[3] = 1;
-      DeviceArray yd(ctx.device, ray_shape, DType::f32);
-      xd.upload(x.data(), x.size());
-      yd.upload(y.data(), y.size());
-      const double resident_lhs = dot(session.project(xd).to_doubles(), y),
-                   resident_rhs = dot(x, session.backproject(yd).to_doubles());
-      const double resident_mismatch = std::abs(resident_lhs - resident_rhs) /
-                                       std::max(std::abs(resident_lhs), std::abs(resident_rhs));
-      const Check resident_check{resident_mismatch <= 1e-5 && check.passed,
-                                 "⟨N x, y⟩ = ⟨x, Nᵀ y⟩ on device arrays", "relative",
-                                 resident_mismatch, 1e-5};
-      for (bool transpose : {false, true}) {
-        DeviceArray out;
-        const Measurement m = measure_resident(
-            ctx.budget, session,
-            [&] {
-              out = transpose ? session.backproject(yd) : session.project(xd);
-              out.wait();
-            },
-            [&] { return resident_check.passed; });
-        Record r{ctx.device_key, "tomo", base + (transpose ? "_backproject" : "_project"),
-                 "ivr-resident", params};
-        add_timing(r, m);
-        r.metrics["rays_per_s"] = double(P.ray_count()) / m.wall.median;
-        r.metrics["ray_cells_per_s"] = double(P.ray_count()) * n / m.wall.median;
-        r.metrics["memory_bytes"] = operation_memory(ctx, m, 0);
-        record_checked(ctx, std::move(r), resident_check);
+  std::vector<TomoCase> cases;
+  for (int n : ctx.quick ? std::vector<int>{32} : std::vector<int>{64, 128})
+    for (bool cone : {false, true}) cases.push_back({n, n / 2, cone, false});
+  if (!ctx.quick) {  // issue 18's sizes, parallel beam (ASTRA's FP3D/BP3D beside them)
+    cases.push_back({256, 256, false, true});
+    cases.push_back({512, 128, false, true});
+  }
+  for (const TomoCase& tc : cases) {
+    const int n = tc.n, views = tc.views;
+    const bool cone = tc.cone;
+    const std::string base = "v" + std::to_string(n) +
+                             (views == n / 2 ? "" : "_views" + std::to_string(views)) + "_" +
+                             (cone ? "cone" : "parallel");
+    const nlohmann::json params = {{"volume", n},
+                                   {"views", views},
+                                   {"detector", n},
+                                   {"beam", cone ? "cone" : "parallel"},
+                                   {"rays", std::size_t(views) * n * n}};
+    if (tc.large) {
+      const std::string why =
+          large_case_obstacle(ctx, std::size_t(n) * n * n, std::size_t(views) * n * n);
+      if (!why.empty()) {
+        for (const char* op : {"_project", "_backproject"}) {
+          Record r{ctx.device_key, "tomo", base + op, "ivr", params};
+          r.note = "skipped: " + why;
+          ctx.results.add(std::move(r));
+        }
+        std::cerr << "ivr-bench: tomo/" << base << " skipped: " << why << "\n";
+        continue;
       }
     }
+    std::cerr << "ivr-bench: tomo/" << base << "...\n";
+    const Scene scene = tomo_scene(n, views, cone, 1);
+    const Projector P(ctx.device, scene);
+    const std::vector<double> x = uniform(P.voxel_count(), 1), y = uniform(P.ray_count(), 2);
+    const double lhs = dot(P.project(x), y), rhs = dot(x, P.backproject(y));
+    const double mismatch = std::abs(lhs - rhs) / std::max(std::abs(lhs), std::abs(rhs));
+    Check check{mismatch <= 1e-5, "⟨N x, y⟩ = ⟨x, Nᵀ y⟩", "relative", mismatch, 1e-5};
+    if (!cone && check.passed) {  // the chords: parallel beam has them in closed form
+      const Check chord =
+          check_max(difference(P.project(std::vector<double>(P.voxel_count(), 1.0)), chords(scene)),
+                    "chord lengths through the box (closed form)", 1e-6, 1e-5);
+      if (!chord.passed) check = chord;
+    }
+    for (bool transpose : {false, true}) {
+      const Measurement m = measure(
+          ctx.budget,
+          [&] {
+            if (transpose)
+              P.backproject(y);
+            else
+              P.project(x);
+            return P.last_kernel_seconds();
+          },
+          [&] { return check.passed; });
+      Record r{ctx.device_key, "tomo", base + (transpose ? "_backproject" : "_project"), "ivr",
+               params};
+      add_timing(r, m);
+      r.metrics["rays_per_s"] = double(P.ray_count()) / m.wall.median;
+      r.metrics["ray_cells_per_s"] = double(P.ray_count()) * n / m.wall.median;
+      r.metrics["memory_bytes"] = operation_memory(ctx, m, 0);
+      record_checked(ctx, std::move(r), check);
+    }
+    if (!cone && check.passed) astra_baseline(ctx, scene, P, base, params);
+    // Resident: the volume and the lines already on the device, the result left there; held
+    // to the same dot-product test on device arrays first.
+    Scene geometry = scene;
+    geometry.volume.data.clear();
+    Session session(ctx.device, geometry);
+    DeviceArray xd(ctx.device, session.volume_shape(), DType::f32);
+    std::vector<std::int64_t> ray_shape = session.image_shape();
+    ray_shape[3] = 1;
+    DeviceArray yd(ctx.device, ray_shape, DType::f32);
+    xd.upload(x.data(), x.size());
+    yd.upload(y.data(), y.size());
+    const double resident_lhs = dot(session.project(xd).to_doubles(), y),
+                 resident_rhs = dot(x, session.backproject(yd).to_doubles());
+    const double resident_mismatch = std::abs(resident_lhs - resident_rhs) /
+                                     std::max(std::abs(resident_lhs), std::abs(resident_rhs));
+    const Check resident_check{resident_mismatch <= 1e-5 && check.passed,
+                               "⟨N x, y⟩ = ⟨x, Nᵀ y⟩ on device arrays", "relative",
+                               resident_mismatch, 1e-5};
+    for (bool transpose : {false, true}) {
+      DeviceArray out;
+      const Measurement m = measure_resident(
+          ctx.budget, session,
+          [&] {
+            out = transpose ? session.backproject(yd) : session.project(xd);
+            out.wait();
+          },
+          [&] { return resident_check.passed; });
+      Record r{ctx.device_key, "tomo", base + (transpose ? "_backproject" : "_project"),
+               "ivr-resident", params};
+      add_timing(r, m);
+      r.metrics["rays_per_s"] = double(P.ray_count()) / m.wall.median;
+      r.metrics["ray_cells_per_s"] = double(P.ray_count()) * n / m.wall.median;
+      r.metrics["memory_bytes"] = operation_memory(ctx, m, 0);
+      record_checked(ctx, std::move(r), resident_check);
+    }
+  }
 }
 
 }  // namespace ivr::bench

@@ -16,6 +16,7 @@
 #include "ivr/tangents.hpp"
 #include "ivr/tolerance.hpp"
 #include "ivr/tomo.hpp"
+#include "ivr/tune.hpp"
 #include "ivr/viewpoint.hpp"
 #include "ivr/version.h"
 #include "ivr/volume_io.hpp"

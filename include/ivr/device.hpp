@@ -16,10 +16,17 @@ struct DeviceInfo {
   int device_index = 0;                                       // device number within its platform
   std::string platform, name, vendor, type, version, driver;  // type: cpu, gpu, accelerator
   bool fp64 = false;
+  // CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT in CL_DEVICE_SINGLE_FP_CONFIG: the device can build
+  // float32 division and sqrt correctly rounded (-cl-fp32-correctly-rounded-divide-sqrt).
+  bool correctly_rounded_divide_sqrt = false;
   // cl_ext_float_atomics: atomic add of float / double to global and local memory (the adjoint's
   // scatter uses it instead of a compare-and-swap loop), and the -cl-std that enables it.
   bool float_atomic_add = false, double_atomic_add = false;
   std::string atomics_std;  // "CL3.0" or "CL2.0" where either is true
+  // NVIDIA's OpenCL (cl_nv_device_attribute_query): the CUDA compute capability, major·10 + minor
+  // (0 elsewhere). Its OpenCL C compiles inline PTX, whose red.global.add.f32 (sm_20 on) and
+  // .f64 (sm_60 on) are the native float atomic adds it does not report as cl_ext_float_atomics.
+  int nv_compute_capability = 0;
   std::uint64_t global_memory = 0, max_allocation = 0;
   int compute_units = 0;
 };

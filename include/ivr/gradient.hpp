@@ -30,11 +30,16 @@ struct GradientOptions {
   // Sums the density gradient in 64-bit fixed point (where the device has
   // cl_khr_int64_base_atomics), so that it does not depend on the order in which rays add to a
   // voxel: the same inputs give the same bits on every run. Each ray's share is scaled by a
-  // power of two that puts the largest just under 2^62 / (16 · rays) and rounded to an integer
-  // (an absolute error of ~2^-41 of the largest share at 10^5 rays, far below float rounding of
-  // the sums); the integer sums are exact. The scale is measured by a first pass (a
-  // reconstruction carries it from one iteration to the next instead). The TF, background and
-  // camera gradients keep their float atomics.
+  // power of two 2^S and rounded to an integer; the integer sums are exact. S is chosen before
+  // the march from an a-priori bound B on what one ray adds (from the TF's extremes over the
+  // densities' range, the background, the target's largest element, the loss and the box
+  // diagonal: lib/adjoint_bound.hpp), so that B·2^S < 2^62 / (2 · rays) and no voxel's sum can
+  // leave the 64-bit range: one pass. A second pass, at the scale the largest ray measured in the
+  // first calls for, runs only where a ray's scaled share exceeded 2^62 / rays (the bound failed;
+  // the kernel checks every ray) or the largest single contribution kept fewer than 24 bits (the
+  // bound was too loose to resolve it like a float); Gradient::fixed_passes says which. Every
+  // step depends on the inputs alone, so the bits do too (not on earlier calls). The TF,
+  // background and camera gradients keep their float atomics.
   bool deterministic = false;
 };
 
@@ -53,6 +58,7 @@ struct Gradient {
   double step = 0;                 // the integrator step used (voxel units)
   bool deterministic = false;      // the density gradient was summed in fixed point
   int fixed_exponent = 0;          // its scale 2^S, when it was
+  int fixed_passes = 0;            // the adjoint passes that took (1; 2 where the bound failed)
 };
 
 // Shape of the TF gradient: identity → 1 x 2 (extinction_scale, color_scale); piecewise_linear

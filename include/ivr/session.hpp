@@ -115,6 +115,10 @@ struct OperationStats {
   int passes = 0, lanes = 0;       // forward mode
   bool deterministic = false;      // the density gradient was summed in fixed point
   int fixed_exponent = 0;          // its scale 2^S, when it was
+  int fixed_passes = 0;            // the adjoint passes that took (1; 2 where the bound failed)
+  double fixed_bound = 0;          // the a-priori bound on one ray's Σ |contribution| that set S
+  double fixed_largest_ray = 0;    // the largest ray's Σ |contribution| measured (≤ fixed_bound)
+  double fixed_largest = 0;        // the largest single contribution (≥ 2^24·2^−S, or 2 passes)
 };
 
 // A scene on one device. Not copyable; one thread at a time (calls from several threads are

@@ -1,6 +1,7 @@
 // reference.cpp — the double-precision CPU reference: written from DESIGN.md alone, sharing no
 // code with kernels/*.cl or lib/render.cpp, so that agreement between the two means something.
 #include "reference/reference.hpp"
+#include "reference/sample_count.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -211,20 +212,19 @@ void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec
   }
 }
 
-// The midpoint rule of DESIGN.md's `midpoint` integrator itself: [t0, t1] cut into
-// n = ceil((t1 − t0)/step) equal segments, σ and c at each midpoint, exact compositing of each
-// segment (C += T·(1 − e^{−σΔ})·c, T ·= e^{−σΔ}); with `early` the ray stops after the sample
+// The midpoint rule of DESIGN.md's `midpoint` integrator itself: [t0, t1] cut into n equal
+// segments (the sample count, sample_count.hpp; 0: the ray misses the box), σ and c at each
+// midpoint, exact compositing of each segment (C += T·(1 − e^{−σΔ})·c, T ·= e^{−σΔ}); with `early` the ray stops after the sample
 // that takes T below min_transmittance.
 void march_midpoint(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec3& dir,
-                    double step, bool early, double* out) {
+                    unsigned n, bool early, double* out) {
   const bool ea = scene.model == ivr::Model::emission_absorption;
   const glm::dvec3 bg = scene.effective_background();
   double t0, t1, transmittance = 1.0;
   glm::dvec3 radiance(0.0);
-  if (clip_to_box(scene.box_min, scene.box_max, o, dir, &t0, &t1)) {
-    const long n = std::max(1L, long(std::ceil((t1 - t0) / step)));
+  if (n > 0 && clip_to_box(scene.box_min, scene.box_max, o, dir, &t0, &t1)) {
     const double dt = (t1 - t0) / double(n);
-    for (long i = 0; i < n; ++i) {
+    for (unsigned i = 0; i < n; ++i) {
       const TfSample s = transfer(scene.tf, density(scene, o + (t0 + (i + 0.5) * dt) * dir));
       const double decay = std::exp(-s.sigma * dt);
       // emission = c·σ: the segment's share T·(1 − e^{−σΔ})·c (σ = 0: no emission either).
@@ -254,7 +254,7 @@ std::vector<double> render_rows(const ivr::Scene& scene, Integrate&& integrate) 
       for (int x = 0; x < w; ++x) {
         glm::dvec3 o, d;
         ray(scene.cameras[v], x, y, &o, &d);
-        integrate(o, d, &image[((std::size_t(v) * h + y) * w + x) * c]);
+        integrate(o, d, Pixel{v, x, y}, &image[((std::size_t(v) * h + y) * w + x) * c]);
       }
     }
   };
@@ -271,14 +271,15 @@ std::vector<double> render_midpoint(const ivr::Scene& scene, double step_world,
                                     bool early_termination) {
   if (!(step_world > 0))
     throw std::invalid_argument("reference::render_midpoint: step must be > 0");
-  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, double* out) {
-    march_midpoint(scene, o, d, step_world, early_termination, out);
+  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, Pixel p, double* out) {
+    march_midpoint(scene, o, d, sample_count(scene, p.view, p.x, p.y, step_world),
+                   early_termination, out);
   });
 }
 
 std::vector<double> render(const ivr::Scene& scene, double step_world, bool early_termination) {
   if (!(step_world > 0)) throw std::invalid_argument("reference::render: step must be > 0");
-  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, double* out) {
+  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, Pixel, double* out) {
     integrate_ray(scene, o, d, step_world, early_termination, out);
   });
 }

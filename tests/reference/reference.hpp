@@ -11,6 +11,11 @@ namespace ivr::reference {
 // Trilinear density between cell centres, clamped to the edge centres inside the box, 0 outside.
 double density(const ivr::Scene& scene, glm::dvec3 world_point);
 
+// A pixel of a view, for what depends on more than its ray (the sample count).
+struct Pixel {
+  int view, x, y;
+};
+
 // The ray through the centre of pixel (x, y), row 0 at the top; dir is unit length.
 void ray(const ivr::Camera& camera, int x, int y, glm::dvec3* origin, glm::dvec3* dir);
 

@@ -30,6 +30,7 @@
 #include <thread>
 
 #include "reference/reference.hpp"
+#include "reference/sample_count.hpp"
 
 namespace ivr::reference {
 namespace {
@@ -416,7 +417,7 @@ void continuous_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dve
   }
 }
 
-// Every pixel of every view through `one_ray(o, dir, out)`, rows interleaved over two threads.
+// Every pixel of every view through `one_ray(o, dir, pixel, out)`, rows interleaved over two threads.
 template <class PerThread>
 std::vector<double> render_rows(const ivr::Scene& scene, PerThread make) {
   if (scene.cameras.empty()) return {};
@@ -431,7 +432,7 @@ std::vector<double> render_rows(const ivr::Scene& scene, PerThread make) {
       for (int x = 0; x < w; ++x) {
         glm::dvec3 o, d;
         ray(scene.cameras[v], x, y, &o, &d);
-        one_ray(o, d, &image[((std::size_t(v) * h + y) * w + x) * c]);
+        one_ray(o, d, Pixel{v, x, y}, &image[((std::size_t(v) * h + y) * w + x) * c]);
       }
     }
   };
@@ -454,7 +455,7 @@ std::vector<double> render_continuous(const ivr::Scene& scene, bool early_termin
   const double tau_stop = stop_depth(scene, early_termination);
   return render_rows(scene, [&] {
     return [&, ri = RayIntegrator(scene, ea, tau_stop, refinement)](
-               const glm::dvec3& o, const glm::dvec3& d, double* out) mutable {
+               const glm::dvec3& o, const glm::dvec3& d, Pixel, double* out) mutable {
       double t0, t1;
       if (!clip_to_box(scene.box_min, scene.box_max, o, d, &t0, &t1))
         return background_pixel(scene, out);
@@ -476,12 +477,12 @@ std::vector<double> render_linear_segments(const ivr::Scene& scene, double step_
   const bool ea = scene.model == ivr::Model::emission_absorption;
   return render_rows(scene, [&] {
     return [&, ri = RayIntegrator(scene, ea, std::numeric_limits<double>::infinity(), 1)](
-               const glm::dvec3& o, const glm::dvec3& d, double* out) mutable {
+               const glm::dvec3& o, const glm::dvec3& d, Pixel p, double* out) mutable {
       double t0, t1;
-      if (!clip_to_box(scene.box_min, scene.box_max, o, d, &t0, &t1))
+      const unsigned n = sample_count(scene, p.view, p.x, p.y, step_world);
+      if (n == 0 || !clip_to_box(scene.box_min, scene.box_max, o, d, &t0, &t1))
         return background_pixel(scene, out);
       ri.reset();
-      const double n = std::max(1.0, std::ceil((t1 - t0) / step_world));
       const double dt = (t1 - t0) / n;
       double prev = density_in_box(scene, o + t0 * d);
       for (long i = 1; i <= long(n) && !ri.done(); ++i) {

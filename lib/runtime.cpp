@@ -268,7 +268,15 @@ Device::Device(const std::string& selector) : impl_(std::make_unique<Impl>()) {
   });
 }
 
-Device::~Device() = default;
+// Waits for the queue for the same reason as ~Session (lib/session_api.cpp): no launch may still
+// be compiling in PoCL's worker threads when the process exits.
+Device::~Device() {
+  if (!impl_) return;
+  try {
+    impl_->queue.finish();
+  } catch (...) {
+  }
+}
 Device::Device(Device&&) noexcept = default;
 Device& Device::operator=(Device&&) noexcept = default;
 const DeviceInfo& Device::info() const {

@@ -32,7 +32,17 @@ Volume dims_of(std::int64_t nz, std::int64_t ny, std::int64_t nx, const char* wh
 Session::Session(Device& device, const Scene& scene, const SessionOptions& options)
     : impl_(std::make_unique<Impl>(device, scene, options, false)) {}
 Session::Session(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
-Session::~Session() = default;
+// Waits for the session's commands: operations enqueue and return, and a process that ended with
+// a launch still pending could exit while PoCL's worker threads compile that kernel's work-group
+// function (LLVM's pass registry is torn down under them: a crash at exit). Buffers themselves
+// would be safe (OpenCL keeps them until their commands complete).
+Session::~Session() {
+  if (!impl_) return;
+  try {
+    impl_->dev.queue.finish();
+  } catch (...) {  // nothing to report to from a destructor; the device's own error shows later
+  }
+}
 Session::Session(Session&&) noexcept = default;
 Session& Session::operator=(Session&&) noexcept = default;
 

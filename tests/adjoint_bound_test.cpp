@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include "variants.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -20,20 +22,6 @@
 
 namespace ivr::test {
 namespace {
-
-const char* kind_name(TfKind k) {
-  switch (k) {
-    case TfKind::identity:
-      return "identity";
-    case TfKind::piecewise_linear:
-      return "piecewise_linear";
-    case TfKind::table:
-      return "table";
-    case TfKind::gaussian:
-      return "gaussian";
-  }
-  return "?";
-}
 
 // A target of the scene's shape with values in [0, 1] from a fixed seed: a non-zero loss
 // gradient without rendering (and compiling) anything.
@@ -90,7 +78,7 @@ TEST(AdjointBound, TfExtremesBoundTheSampledTransferFunction) {
         }
       }
       const std::string where =
-          std::string(kind_name(kind)) + " [" + std::to_string(r[0]) + ", " + std::to_string(r[1]) + "]";
+          std::string(tf_kind_name(kind)) + " [" + std::to_string(r[0]) + ", " + std::to_string(r[1]) + "]";
       // 1e-6: the central differences' rounding; the extremes themselves are exact.
       EXPECT_GE(e.sigma * (1 + 1e-6), seen.sigma) << where;
       EXPECT_GE(e.sigma_slope * (1 + 1e-6) + 1e-6, seen.sigma_slope) << where;
@@ -178,7 +166,7 @@ struct Case {
 std::string case_name(const ::testing::TestParamInfo<Case>& info) {
   const Case& c = info.param;
   return std::string(c.model == Model::absorption ? "absorption" : "emission") + "_" +
-         scheme_name(c.scheme) + "_" + kind_name(c.kind) + "_" + (c.loss == Loss::l1 ? "l1" : "mse");
+         scheme_name(c.scheme) + "_" + tf_kind_name(c.kind) + "_" + (c.loss == Loss::l1 ? "l1" : "mse");
 }
 
 std::vector<Case> all_cases() {

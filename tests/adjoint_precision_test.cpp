@@ -3,6 +3,8 @@
 // l1 loss, and bad targets.
 #include <gtest/gtest.h>
 
+#include "variants.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -124,20 +126,6 @@ double worst_against(const Gradient& g, const Differences& d, double tolerance,
   return worst;
 }
 
-const char* kind_name(TfKind k) {
-  switch (k) {
-    case TfKind::identity:
-      return "identity";
-    case TfKind::piecewise_linear:
-      return "piecewise_linear";
-    case TfKind::table:
-      return "table";
-    case TfKind::gaussian:
-      return "gaussian";
-  }
-  return "?";
-}
-
 class AdjointFloat32VsFiniteDifferences
     : public ::testing::TestWithParam<std::tuple<TfKind, Model>> {};
 
@@ -147,7 +135,7 @@ TEST_P(AdjointFloat32VsFiniteDifferences, DensityTfAndBackground) {
   const Scene s = small_scene(model, kind);
   const Image target = shifted_target(s);
   const std::string label =
-      std::string(kind_name(kind)) + (model == Model::absorption ? " abs" : " ea");
+      std::string(tf_kind_name(kind)) + (model == Model::absorption ? " abs" : " ea");
   const Gradient g = gradient_of(s, target, Precision::f32, Loss::mse);
   const Differences d = differences(s, target, Loss::mse, every_fifth_and_largest(g.density));
   const double worst = worst_against(g, d, 1e-3, label);

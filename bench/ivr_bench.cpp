@@ -53,6 +53,26 @@ std::string utc_now() {
   return text;
 }
 
+// A fresh folder under $TMPDIR (else /tmp), removed with everything in it when the run ends
+// in any way, unless `keep`.
+struct ScratchDir {
+  std::string path;
+  bool keep = false;
+  ScratchDir() {
+    const char* tmp = std::getenv("TMPDIR");
+    std::string pattern = std::string(tmp && *tmp ? tmp : "/tmp") + "/ivr-bench-XXXXXX";
+    if (!mkdtemp(pattern.data()))
+      throw ivr::Error(ivr::Status::io, "cannot make a scratch folder '" + pattern + "'");
+    path = pattern;
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    if (!keep) fs::remove_all(path, ec);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -124,9 +144,18 @@ int main(int argc, char** argv) {
     if (budget.max_runs < budget.min_runs)
       throw ivr::Error(ivr::Status::invalid_argument, "--max-runs is below --min-runs");
 
-    // PoCL keeps its own kernel cache; without it a "cold" compile is cold. Set before any
-    // OpenCL call; a value the user set is kept.
-    setenv("POCL_KERNEL_CACHE", "0", 0);
+    // The run's scratch folder (the baselines' cases, the compile suite's caches), removed at
+    // exit unless --keep-cases. Made before any OpenCL call: PoCL's kernel cache goes into it.
+    ScratchDir scratch;
+    scratch.keep = keep_cases;
+    const std::string work_dir = scratch.path;
+    // PoCL's kernel cache: a fresh one of this run's own (unless the user chose one), so that
+    // no other process shares or removes its files, and so that what is cold is cold.
+    // POCL_KERNEL_CACHE=0 is not used: with it PoCL deletes a program's folder when the program
+    // is released, and programs made from the same binary (ivr's disk cache) share that folder —
+    // in one process or several — so a release removed the files of another program's pending
+    // kernel compile ("Can't get stat() on …/uncached/…/brick_ranges/0-0-0").
+    setenv("POCL_CACHE_DIR", (work_dir + "/pocl-cache").c_str(), 0);
     if (device_filter.empty())
       if (const char* env = std::getenv("IVR_DEVICE")) device_filter = env;
     std::vector<ivr::DeviceInfo> devices;
@@ -158,11 +187,6 @@ int main(int argc, char** argv) {
     if (!baselines.usable && !frameworks.empty() && !no_baselines)
       std::cerr << "ivr-bench: Python baselines skipped: " << baselines.note << "\n";
     if (data_dir.empty()) data_dir = std::string(IVR_SOURCE_DIR) + "/../shared/data";
-
-    char dir_template[] = "/tmp/ivr-bench-XXXXXX";
-    const char* made = mkdtemp(dir_template);
-    if (!made) throw ivr::Error(ivr::Status::io, "cannot make a scratch folder in /tmp");
-    const std::string work_dir = made;
 
     bench::Results results;
     results.meta = {{"ivr_version", IVR_VERSION_STRING},
@@ -233,10 +257,7 @@ int main(int argc, char** argv) {
     results.meta["failures"] = failures;
     results.write(output);
     std::cerr << "ivr-bench: wrote " << output << ".json and " << output << ".csv\n";
-    if (!keep_cases)
-      fs::remove_all(work_dir);
-    else
-      std::cerr << "ivr-bench: the baselines' cases are in " << work_dir << "\n";
+    if (keep_cases) std::cerr << "ivr-bench: the baselines' cases are in " << work_dir << "\n";
 
     int status = failures.empty() ? 0 : 1;
     for (const std::string& f : failures) std::cerr << "ivr-bench: FAILED " << f << "\n";

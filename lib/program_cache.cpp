@@ -92,6 +92,19 @@ void store_binary(const cl::Program& program, const std::string& file) {
   }
 }
 
+// PoCL with POCL_KERNEL_CACHE=0 deletes a program's folder when the program is released, and
+// programs made from the same binary share that folder (named by the build hash the binary
+// carries), in one process or several: releasing one removed the files another's pending kernel
+// compile needed (tests/runtime_test.cpp, ProgramCache.NoBinariesForPoclWithoutItsCache). There,
+// every program is built from source, into a folder of its own.
+bool binaries_share_deleted_folders(const DeviceInfo& info) {
+  if (info.platform.find("Portable Computing Language") == std::string::npos) return false;
+  const char* v = std::getenv("POCL_KERNEL_CACHE");
+  if (!v) return false;
+  const std::string s = v;
+  return s == "0" || s == "false" || s == "FALSE" || s == "off" || s == "OFF" || s == "no";
+}
+
 }  // namespace
 
 cl::Program ProgramCache::get(const cl::Context& context, const cl::Device& device,
@@ -115,7 +128,7 @@ cl::Program ProgramCache::get(const cl::Context& context, const cl::Device& devi
   };
   if (auto it = programs_.find(key); it != programs_.end()) return done(it->second, "memory");
 
-  const std::string dir = kernel_cache_dir();
+  const std::string dir = binaries_share_deleted_folders(info) ? "" : kernel_cache_dir();
   const std::string file = dir.empty() ? "" : dir + "/" + key + ".bin";
   if (cl::Program cached = load_binary(context, device, file, options); cached()) {
     programs_[key] = cached;

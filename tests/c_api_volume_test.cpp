@@ -97,7 +97,7 @@ TEST_F(CApiVolume, FromMemoryAndJsonReadBackAndRenderLikeTheCore) {
 }
 
 TEST_F(CApiVolume, FromAFileRelativeToBaseDir) {
-  const std::string dir = ::testing::TempDir();
+  const std::string dir = ivr::test::temp_dir("c_api_volume_relative");  // this process's own
   std::vector<float> data(2 * 3 * 4);
   for (size_t i = 0; i < data.size(); ++i) data[i] = float(i) / 24.f;
   save_npy(dir + "/c_api_volume.npy", {2, 3, 4}, data.data());

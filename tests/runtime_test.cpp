@@ -130,6 +130,33 @@ TEST(ProgramCache, MemoryThenDiskThenCompiledAfterCorruption) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
 }
 
+// With POCL_KERNEL_CACHE=0, PoCL deletes a program's folder at its release, and programs made
+// from one binary share that folder: ivr then builds every program from source (each gets a
+// folder of its own), on PoCL only.
+TEST(ProgramCache, NoBinariesForPoclWithoutItsCache) {
+  const std::string dir = temp_dir("program_cache_pocl_uncached");
+  ScopedEnv env("IVR_CACHE_DIR", dir);
+  Device::Impl& dev = device().impl();
+  DeviceInfo pocl = dev.info, other = dev.info;
+  pocl.platform = "Portable Computing Language";
+  other.platform = "NVIDIA CUDA";
+  const std::string source = std::string(kSource) + "// pocl uncached " + dir + "\n";
+  auto origin = [&](const DeviceInfo& info) {
+    ProgramCache fresh;  // a new process, in effect
+    fresh.get(dev.context, dev.device, info, source, "", "twice");
+    return fresh.last_origin();
+  };
+  {
+    ScopedEnv cached("POCL_KERNEL_CACHE", "1");
+    EXPECT_EQ(origin(pocl), "compiled");  // and stored
+    EXPECT_EQ(origin(pocl), "disk");
+    EXPECT_EQ(origin(other), "compiled");
+  }
+  ScopedEnv uncached("POCL_KERNEL_CACHE", "0");
+  EXPECT_EQ(origin(pocl), "compiled");  // the stored binary is not used
+  EXPECT_EQ(origin(other), "disk");     // other platforms are not PoCL
+}
+
 TEST(ProgramCache, DisabledCacheWritesNothing) {
   const std::string dir = temp_dir("program_cache_off");
   ScopedEnv env("IVR_CACHE_DIR", dir);

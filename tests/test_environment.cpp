@@ -1,5 +1,6 @@
 // test_environment.cpp — the environment every test process runs in, set by the binary itself:
-// the planner's built-in cost model (not a calibration stored on the machine), and under
+// the planner's built-in cost model (not a calibration stored on the machine), PoCL's kernel cache
+// inside the build tree, and under
 // AddressSanitizer the options and LeakSanitizer suppressions (the OpenCL ICD loader and the PoCL
 // driver with its LLVM keep process-lifetime allocations).
 #include <cstdlib>
@@ -8,6 +9,10 @@ namespace {
 
 const bool environment_set = [] {
   ::setenv("IVR_COST_MODEL", "/nonexistent/ivr-tests-use-the-default-cost-model.json", 0);
+  // PoCL's kernel cache of this build's tests (and of the CLI and ivr-bench they start), not the
+  // user's ~/.cache/pocl: what is there from other builds or other PoCL programs cannot matter.
+  // Set before the first OpenCL call, when PoCL reads it.
+  ::setenv("POCL_CACHE_DIR", IVR_TEST_POCL_CACHE_DIR, 0);
   return true;
 }();
 

@@ -11,6 +11,7 @@
 #include "ivr/volume_io.hpp"
 #include "optimizer.hpp"
 #include "real_args.hpp"
+#include "reconstruct_checkpoint.hpp"
 #include "reconstruct_impl.hpp"
 
 namespace ivr {
@@ -154,8 +155,27 @@ void Reconstruction::remove_checkpoint(const std::string& prefix) {
     std::remove((prefix + suffix).c_str());  // a file that is not there is fine
 }
 
-void Reconstruction::resume(const std::string& prefix) {
-  Impl& p = *impl_;
+namespace {
+
+void check(bool ok, const std::string& path, const std::string& what) {
+  if (!ok) throw Error(Status::invalid_argument, "resume: '" + path + "' " + what);
+}
+
+std::vector<double> doubles(const json& j) {
+  return j.get<std::vector<double>>();
+}
+
+Optimizer::State checked_state(const json& j, std::size_t n, bool second, const std::string& path,
+                               const std::string& what) {
+  Optimizer::State s = optimizer_state(j);
+  check(s.iterations >= 0 && s.first.size() == n && s.second.size() == (second ? n : 0), path,
+        "has an optimiser state for " + what + " that does not fit this run");
+  return s;
+}
+
+}  // namespace
+
+CheckpointData read_checkpoint(const std::string& prefix, const CheckpointShape& shape) {
   const std::string path = prefix + "_checkpoint.json";
   const std::string dir = parent_dir(path);
   json j;
@@ -164,56 +184,73 @@ void Reconstruction::resume(const std::string& prefix) {
   } catch (const json::exception& e) {
     throw Error(Status::invalid_argument, "resume: '" + path + "' is not JSON: " + e.what());
   }
+  CheckpointData c;
   try {
-    if (j.value("format", "") != kFormat || j.value("version", 0) != 1)
-      throw Error(Status::invalid_argument, "resume: '" + path +
-                                                "' is not a version-1 ivr "
-                                                "reconstruct checkpoint");
-    const json mine = fingerprint(p), theirs = j.at("fingerprint");
-    for (auto it = mine.begin(); it != mine.end(); ++it)
+    check(j.is_object() && j.value("format", "") == kFormat && j.value("version", 0) == 1, path,
+          "is not a version-1 ivr reconstruct checkpoint");
+    const json& theirs = j.at("fingerprint");
+    check(theirs.is_object(), path, "has no fingerprint object");
+    for (auto it = shape.fingerprint.begin(); it != shape.fingerprint.end(); ++it)
       if (!theirs.contains(it.key()) || theirs[it.key()] != it.value())
         throw Error(Status::invalid_argument,
                     "resume: the checkpoint '" + path + "' was written with " + it.key() + " = " +
                         (theirs.contains(it.key()) ? theirs[it.key()].dump() : "nothing") +
                         ", this run has " + it.value().dump());
-    const int k = j.at("iteration").get<int>();
-    const int level = j.at("level").get<int>();
-    if (k < 0 || k > p.o.iterations || (p.o.density && level != p.level_of(k == 0 ? 0 : k - 1)))
-      throw Error(Status::invalid_argument, "resume: '" + path + "' has iteration " +
-                                                std::to_string(k) + " on level " +
-                                                std::to_string(level) + ", which this run lacks");
-    if (p.o.density) {
+    c.iteration = j.at("iteration").get<int>();
+    c.level = j.at("level").get<int>();
+    const bool density = !shape.voxels.empty();
+    const int k = c.iteration;
+    check(k >= 0 && k <= shape.iterations &&
+              (!density || c.level == shape.level_of(k == 0 ? 0 : k - 1)),
+          path, "has iteration " + std::to_string(k) + " on level " + std::to_string(c.level) +
+                    ", which this run lacks");
+    if (density) {
       const json& d = j.at("density");
-      const std::vector<int>& dims = p.dims[std::size_t(level)];
-      const std::size_t n = std::size_t(dims[0]) * dims[1] * dims[2];
-      p.enter_level(level, read_array(dir + "/" + d.at("values").get<std::string>(), n));
-      Optimizer::State s;
-      s.iterations = d.at("iterations").get<int>();
-      s.first = read_array(dir + "/" + d.at("first").get<std::string>(), n);
-      if (!d.at("second").is_null())
-        s.second = read_array(dir + "/" + d.at("second").get<std::string>(), n);
-      p.density_opt->restore(s);
+      const std::size_t n = shape.voxels.at(std::size_t(c.level));
+      // File names only: a checkpoint names files beside itself, nothing elsewhere.
+      auto file = [&](const json& name) {
+        const std::string f = name.get<std::string>();
+        check(!f.empty() && f.find('/') == std::string::npos && f != "." && f != "..", path,
+              "names the file '" + f + "', not one beside it");
+        return dir + "/" + f;
+      };
+      c.density = read_array(file(d.at("values")), n);
+      c.density_state.iterations = d.at("iterations").get<int>();
+      check(c.density_state.iterations >= 0, path, "has a negative optimiser iteration count");
+      c.density_state.first = read_array(file(d.at("first")), n);
+      check(d.at("second").is_null() != shape.density_second_moments, path,
+            "has density second moments where this run's optimiser has none, or none where it "
+            "has them");
+      if (!d.at("second").is_null()) c.density_state.second = read_array(file(d.at("second")), n);
       // (Checkpoints of earlier versions also hold "fixed_exponent", the deterministic
       // gradient's carried scale; the scale is now a function of each gradient's inputs.)
     }
-    if (p.o.tf) {
+    if (shape.tf_parameters > 0) {
       const json& tf = j.at("tf");
-      p.u = tf.at("u").get<std::vector<double>>();
-      if (p.tf_opt) p.tf_opt->restore(optimizer_state(tf.at("optimizer")));
-      if (p.lbfgs) {
+      const std::size_t n = shape.tf_parameters;
+      c.u = doubles(tf.at("u"));
+      check(c.u.size() == n, path,
+            "has " + std::to_string(c.u.size()) + " TF parameters, this run " + std::to_string(n));
+      if (shape.tf_optimizer_second_moments)
+        c.tf_state = checked_state(tf.at("optimizer"), n, *shape.tf_optimizer_second_moments, path,
+                                   "the TF");
+      if (shape.lbfgs_history >= 0) {
         const json& l = tf.at("lbfgs");
         Lbfgs::State s;
         s.iterations = l.at("iterations").get<int>();
         s.evaluated = l.at("evaluated").get<bool>();
         s.f = number(l.at("f"));
-        s.g = l.at("g").get<std::vector<double>>();
+        s.g = doubles(l.at("g"));
         s.s = l.at("s").get<std::vector<std::vector<double>>>();
         s.y = l.at("y").get<std::vector<std::vector<double>>>();
-        p.lbfgs->restore(s);
+        bool fits = s.iterations >= 0 && (s.g.empty() || s.g.size() == n) &&
+                    s.s.size() == s.y.size() && s.s.size() <= std::size_t(shape.lbfgs_history);
+        for (std::size_t i = 0; fits && i < s.s.size(); ++i)
+          fits = s.s[i].size() == n && s.y[i].size() == n;
+        check(fits, path, "has an L-BFGS state that does not fit this run");
+        c.lbfgs = s;
       }
-      p.apply_tf();
     }
-    p.history.clear();
     for (const json& r : j.at("history")) {
       IterationRecord rec;
       rec.iteration = r.at(0).get<int>();
@@ -223,12 +260,46 @@ void Reconstruction::resume(const std::string& prefix) {
       rec.lr = r.at(4).get<double>();
       rec.seconds = r.at(5).get<double>();
       rec.views = r.at(6).get<int>();
-      p.history.push_back(rec);
+      c.history.push_back(rec);
     }
-    p.k = k;
+    check(c.history.size() <= std::size_t(shape.iterations), path,
+          "has a longer history than this run's iterations");
   } catch (const json::exception& e) {
     throw Error(Status::invalid_argument, "resume: '" + path + "' is damaged: " + e.what());
   }
+  return c;
+}
+
+void Reconstruction::resume(const std::string& prefix) {
+  Impl& p = *impl_;
+  CheckpointShape shape;
+  shape.fingerprint = fingerprint(p);
+  shape.iterations = p.o.iterations;
+  if (p.o.density) {
+    shape.level_of = [&p](int i) { return p.level_of(i); };
+    for (const std::vector<int>& d : p.dims)
+      shape.voxels.push_back(std::size_t(d[0]) * std::size_t(d[1]) * std::size_t(d[2]));
+    shape.density_second_moments = p.density_optimizer_options(0).kind == OptimizerKind::adam;
+  }
+  if (p.o.tf) {
+    shape.tf_parameters = p.u.size();
+    if (p.tf_opt) shape.tf_optimizer_second_moments = p.o.optimizer.kind == OptimizerKind::adam;
+    if (p.lbfgs) shape.lbfgs_history = p.o.optimizer.history;
+  }
+  // Everything is read and checked before the run changes.
+  CheckpointData c = read_checkpoint(prefix, shape);
+  if (p.o.density) {
+    p.enter_level(c.level, c.density);
+    p.density_opt->restore(c.density_state);
+  }
+  if (p.o.tf) {
+    p.u = std::move(c.u);
+    if (p.tf_opt) p.tf_opt->restore(*c.tf_state);
+    if (p.lbfgs) p.lbfgs->restore(*c.lbfgs);
+    p.apply_tf();
+  }
+  p.history = std::move(c.history);
+  p.k = c.iteration;
 }
 
 }  // namespace ivr

@@ -10,6 +10,7 @@ packages=(
   python3-numpy python3-pytest python3-matplotlib  # Python binding tests, bench/ plots
   python3-pip python3-setuptools  # the test of `pip install ./bindings/python`
   python3-torch  # runs examples/python/torch_function.py in the tests (skipped where absent)
+  clang libclang-rt-dev  # the loaders' libFuzzer harnesses (scripts/fuzz.sh, CTest label fuzz)
 )
 
 missing=()

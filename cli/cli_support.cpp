@@ -83,7 +83,12 @@ void write_outputs(const std::vector<Output>& outputs) {
       staged.push_back(
           (p.parent_path() / ("." + p.filename().string() + ".tmp" + std::to_string(::getpid())))
               .string());
-      save_npy(staged.back(), o.shape, o.data.data());
+      if (o.float64) {
+        save_npy(staged.back(), o.shape, o.data.data());
+      } else {
+        const std::vector<float> rounded(o.data.begin(), o.data.end());
+        save_npy(staged.back(), o.shape, rounded.data());
+      }
     }
     for (std::size_t i = 0; i < outputs.size(); ++i) fs::rename(staged[i], outputs[i].path);
   } catch (...) {

@@ -23,10 +23,18 @@ Image load_target(const std::string& path, const Scene& scene);
 // "12.3 KiB", "4.5 MiB".
 std::string bytes_text(std::uint64_t bytes);
 
+// An array output: stored as float64 when `float64` (a --precision f64 result the library
+// computed in float64), else as float32.
 struct Output {
   std::string path;
   std::vector<std::size_t> shape;
-  std::vector<float> data;
+  std::vector<double> data;
+  bool float64 = false;
+  Output(std::string path, std::vector<std::size_t> shape, const std::vector<float>& values)
+      : path(std::move(path)), shape(std::move(shape)), data(values.begin(), values.end()) {}
+  Output(std::string path, std::vector<std::size_t> shape, std::vector<double> values,
+         bool float64)
+      : path(std::move(path)), shape(std::move(shape)), data(std::move(values)), float64(float64) {}
 };
 
 // Writes every output under a hidden staging name first, then renames them all, so that a

@@ -48,7 +48,8 @@ Runner add_grad_command(CLI::App& app) {
   cmd->add_option("--loss", args->loss, "Image loss: mse (default) or l1");
   add_march_options(cmd, args->march);
   cmd->add_option("-o,--output", args->prefix,
-                  "Output prefix: writes PREFIX_<group>.npy (float32) for every group asked for")
+                  "Output prefix: writes PREFIX_<group>.npy for every group asked for (float32; "
+                  "float64 with --precision f64)")
       ->required();
   cmd->add_flag("--json", args->json,
                 "Print one JSON object with the loss, mode, plan, timings and outputs");
@@ -85,8 +86,8 @@ Runner add_grad_command(CLI::App& app) {
     std::vector<Output> outputs;
     std::vector<std::string> paths, names;
     for (const GroupGradient& g : d.groups) {
-      outputs.push_back({args->prefix + "_" + g.name + ".npy", g.shape,
-                         std::vector<float>(g.values.begin(), g.values.end())});
+      outputs.emplace_back(args->prefix + "_" + g.name + ".npy", g.shape, g.values,
+                           precision == Precision::f64);
       paths.push_back(outputs.back().path);
       names.push_back(g.name);
     }

@@ -77,10 +77,6 @@ std::vector<double> load_rays(const std::string& path, const std::string& option
   return a.data;
 }
 
-std::vector<float> to_float(const std::vector<double>& v) {
-  return std::vector<float>(v.begin(), v.end());
-}
-
 std::vector<std::size_t> volume_shape(const Scene& s) {
   return {std::size_t(s.volume.nz), std::size_t(s.volume.ny), std::size_t(s.volume.nx)};
 }
@@ -131,7 +127,7 @@ Runner add_project_command(CLI::App& app) {
   auto args = std::make_shared<CommonArgs>();
   CLI::App* cmd = app.add_subcommand(
       "project", "Line integrals N v of the scene's volume along every camera ray (exact)");
-  add_common(cmd, *args, "Output .npy: float32 of shape (views, H, W, 1)");
+  add_common(cmd, *args, "Output .npy: (views, H, W, 1), float32 (float64 with --precision f64)");
   return [args] {
     const Precision precision = checked_common(*args);
     const Scene scene = load_scene(args->scene);
@@ -141,7 +137,7 @@ Runner add_project_command(CLI::App& app) {
         projector.project({scene.volume.data.begin(), scene.volume.data.end()});
     const std::size_t views = std::size_t(projector.views()), h = std::size_t(projector.height()),
                       w = std::size_t(projector.width());
-    write_outputs({{args->output, {views, h, w, 1}, to_float(lines)}});
+    write_outputs({{args->output, {views, h, w, 1}, lines, precision == Precision::f64}});
     const double seconds = projector.last_kernel_seconds();
     if (args->json) {
       std::cout << nlohmann::json{{"device", device.info().name},
@@ -171,7 +167,7 @@ Runner add_backproject_command(CLI::App& app) {
   auto args = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand(
       "backproject", "Back-projection N^T p of line integrals onto the scene's grid (exact)");
-  add_common(cmd, args->common, "Output .npy: float32 of the volume's shape (Z, Y, X)");
+  add_common(cmd, args->common, "Output .npy: the volume's shape (Z, Y, X), float32 (float64 with --precision f64)");
   cmd->add_option("--images", args->images,
                   "Line integrals, .npy float32/float64 of shape (views, H, W, 1) or (views, H, W)")
       ->required();
@@ -183,7 +179,7 @@ Runner add_backproject_command(CLI::App& app) {
     Device device(c.device);
     const Projector projector(device, scene, precision);
     const std::vector<double> volume = projector.backproject(lines);
-    write_outputs({{c.output, volume_shape(scene), to_float(volume)}});
+    write_outputs({{c.output, volume_shape(scene), volume, precision == Precision::f64}});
     const double seconds = projector.last_kernel_seconds();
     if (c.json) {
       std::cout << nlohmann::json{{"device", device.info().name}, {"precision", c.precision},
@@ -206,7 +202,7 @@ Runner add_tomo_command(CLI::App& app) {
       "tomo",
       "Reconstruct the volume from line integrals (or intensities) by least squares; Ctrl-C "
       "stops after the current iteration, writes the last iterate and exits with status 130");
-  add_common(cmd, args->common, "Output .npy: float32 of the volume's shape (Z, Y, X)");
+  add_common(cmd, args->common, "Output .npy: the volume's shape (Z, Y, X), float32 (float64 with --precision f64)");
   TomoOptions& o = args->options;
   cmd->add_option("--projections", args->projections,
                   "Line integrals p = N v, .npy float32/float64 of shape (views, H, W, 1) or "
@@ -251,7 +247,10 @@ Runner add_tomo_command(CLI::App& app) {
       std::cerr << line.str() << std::flush;
       return interrupt.signal() == 0;
     });
-    write_outputs({{c.output, volume_shape(scene), r.volume}});
+    if (args->options.precision == Precision::f64)
+      write_outputs({{c.output, volume_shape(scene), r.volume_f64, true}});
+    else
+      write_outputs({{c.output, volume_shape(scene), r.volume}});
 
     const double seconds = r.history.empty() ? 0.0 : r.history.back().seconds;
     if (c.json) {

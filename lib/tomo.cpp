@@ -332,6 +332,7 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
   }
   const std::vector<double> values = P.download(x, P.voxels);
   result.volume.assign(values.begin(), values.end());
+  if (options.precision == Precision::f64) result.volume_f64 = values;
   return result;
 }
 

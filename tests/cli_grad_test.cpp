@@ -154,6 +154,26 @@ TEST_F(CliGrad, DensityFileEqualsTheLibraryGradient) {
   EXPECT_NEAR(json::parse(r.out)["loss"].get<double>(), g.loss, 1e-6 * g.loss);
 }
 
+// --precision f64 writes float64 files, unrounded: values float32 cannot hold, within float32
+// accuracy of the default's float32 file.
+TEST_F(CliGrad, Float64PrecisionWritesFloat64Files) {
+  ASSERT_EQ(grad("--wrt density,tf --mode adjoint --precision f64").status, 0);
+  const NpyArray d64 = load_npy(prefix() + "_density.npy"), t64 = load_npy(prefix() + "_tf.npy");
+  EXPECT_EQ(d64.dtype, "float64");
+  EXPECT_EQ(t64.dtype, "float64");
+  std::size_t unrounded = 0;
+  for (double x : d64.data) unrounded += double(float(x)) != x;
+  EXPECT_GT(unrounded, d64.data.size() / 2);
+  ASSERT_EQ(grad("--wrt density --mode adjoint").status, 0);
+  const NpyArray d32 = load_npy(prefix() + "_density.npy");
+  EXPECT_EQ(d32.dtype, "float32");
+  ASSERT_EQ(d32.data.size(), d64.data.size());
+  double largest = 0;
+  for (double x : d64.data) largest = std::max(largest, std::abs(x));
+  for (std::size_t i = 0; i < d64.data.size(); ++i)
+    EXPECT_NEAR(d32.data[i], d64.data[i], 1e-4 * largest) << "voxel " << i;
+}
+
 TEST_F(CliGrad, AcceptsTargetsWithoutTheUnitAxes) {
   target_ = write_target({7, 8, 4}, 0.25f);  // one view: (H, W, C)
   CliResult r = grad("--wrt density --json");

@@ -82,6 +82,7 @@ struct TomoIteration {
 
 struct TomoResult {
   std::vector<float> volume;           // the last iterate, the scene volume's shape
+  std::vector<double> volume_f64;      // the same iterate unrounded (Precision::f64 only)
   std::vector<TomoIteration> history;  // one entry per completed iteration
   std::string stop_reason;             // "iterations", "tolerance", "interrupted"
   double setup_seconds = 0;            // compiling, uploads, SIRT's normalisations

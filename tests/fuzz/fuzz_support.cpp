@@ -14,19 +14,28 @@ namespace fs = std::filesystem;
 
 namespace ivr::fuzz {
 
-const std::string& scratch() {
-  static const std::string dir = [] {
+namespace {
+
+// The folder, removed with its files when the process exits normally.
+struct Scratch {
+  std::string path;
+  Scratch() {
     const char* tmp = std::getenv("TMPDIR");
-    const fs::path d =
-        fs::path(tmp && *tmp ? tmp : "/tmp") / ("ivr-fuzz-" + std::to_string(::getpid()));
-    fs::create_directories(d);
-    std::atexit([] {
-      std::error_code ec;
-      fs::remove_all(scratch(), ec);
-    });
-    return d.string();
-  }();
-  return dir;
+    path = (fs::path(tmp && *tmp ? tmp : "/tmp") / ("ivr-fuzz-" + std::to_string(::getpid())))
+               .string();
+    fs::create_directories(path);
+  }
+  ~Scratch() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+}  // namespace
+
+const std::string& scratch() {
+  static const Scratch dir;
+  return dir.path;
 }
 
 std::string put(const std::string& name, const std::uint8_t* data, std::size_t size) {

@@ -1,13 +1,17 @@
 // files.cpp — whole-file reads with clear errors and write-to-temporary-then-rename.
 #include "files.hpp"
 
+#include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <random>
+#include <thread>
 
 #include "ivr/error.hpp"
 
@@ -41,6 +45,29 @@ std::string read_text_file(const std::string& path, const std::string& what) {
   return std::string(bytes.begin(), bytes.end());
 }
 
+namespace {
+
+// $IVR_TEST_PAUSE_BEFORE_RENAME=TEXT[:N] (tests only): the Nth write (default 1st) of a path
+// containing TEXT stops with its temporary file complete and not yet renamed, says so on stderr,
+// and waits to be killed — so a test can SIGKILL a process in the middle of a write for real.
+void pause_for_fault_tests(const std::string& tmp, const std::string& path) {
+  static const char* spec = std::getenv("IVR_TEST_PAUSE_BEFORE_RENAME");
+  if (!spec || !*spec) return;
+  static std::atomic<int> seen{0};
+  std::string text = spec;
+  int nth = 1;
+  if (const std::size_t colon = text.rfind(':'); colon != std::string::npos) {
+    nth = std::atoi(text.c_str() + colon + 1);
+    text.erase(colon);
+  }
+  if (path.find(text) == std::string::npos || ++seen != nth) return;
+  std::fprintf(stderr, "ivr: paused before renaming '%s' to '%s'\n", tmp.c_str(), path.c_str());
+  std::fflush(stderr);
+  for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+}
+
+}  // namespace
+
 void write_atomically(const std::string& path,
                       const std::function<void(const std::string&)>& write) {
   const fs::path target(path);
@@ -58,6 +85,7 @@ void write_atomically(const std::string& path,
                               std::to_string(rd() % 1000000) + target.extension().string());
   try {
     write(tmp.string());
+    pause_for_fault_tests(tmp.string(), path);
     fs::rename(tmp, target);
   } catch (const fs::filesystem_error& e) {
     fs::remove(tmp, ec);

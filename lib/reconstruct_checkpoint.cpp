@@ -1,8 +1,10 @@
 // reconstruct_checkpoint.cpp — a reconstruction's checkpoint: PREFIX_checkpoint.json (iteration,
 // level, options' fingerprint, TF and optimiser state, history; doubles round-trip exactly) and
 // PREFIX_checkpoint_{density,first,second}.npy (float64). Resuming restores every bit.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -95,6 +97,28 @@ std::vector<double> read_array(const std::string& path, std::size_t count) {
   return a.data;
 }
 
+// Removes PREFIX_checkpoint_{density,first,second}*.npy but the files named in `keep` (the
+// arrays of earlier checkpoints, and of one a killed process did not finish), and the temporary
+// files of checkpoint writes a killed process left.
+void remove_checkpoint_arrays(const std::string& prefix, const std::vector<std::string>& keep) {
+  namespace fs = std::filesystem;
+  const std::string dir = parent_dir(prefix + "_checkpoint.json"), base = base_name(prefix);
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    bool ours = false;
+    for (const char* part : {"_checkpoint_density", "_checkpoint_first", "_checkpoint_second"})
+      ours = ours || name.rfind(base + part, 0) == 0;
+    // The temporary file of a checkpoint write that a killed process left (lib/files.cpp).
+    const bool dead_temporary =
+        name.rfind("." + base + "_checkpoint", 0) == 0 && name.find(".tmp") != std::string::npos;
+    if ((ours && name.size() > 4 && name.compare(name.size() - 4, 4, ".npy") == 0 &&
+         std::find(keep.begin(), keep.end(), name) == keep.end()) ||
+        dead_temporary)
+      fs::remove(it->path(), ec);
+  }
+}
+
 }  // namespace
 
 void Reconstruction::save_checkpoint(const std::string& prefix) const {
@@ -109,9 +133,12 @@ void Reconstruction::save_checkpoint(const std::string& prefix) const {
                                             std::size_t(p.level_scene.volume.ny),
                                             std::size_t(p.level_scene.volume.nx)};
     const Optimizer::State s = p.density_opt->state();
-    const std::string names[3] = {prefix + "_checkpoint_density.npy",
-                                  prefix + "_checkpoint_first.npy",
-                                  prefix + "_checkpoint_second.npy"};
+    // Named by iteration: the JSON, written last, names the arrays of its own iteration, so a
+    // process killed between these writes leaves the previous checkpoint whole.
+    const std::string k = "_" + std::to_string(p.k) + ".npy";
+    const std::string names[3] = {prefix + "_checkpoint_density" + k,
+                                  prefix + "_checkpoint_first" + k,
+                                  prefix + "_checkpoint_second" + k};
     save_npy(names[0], shape, p.density_host().data());
     save_npy(names[1], shape, s.first.data());
     if (!s.second.empty()) save_npy(names[2], shape, s.second.data());
@@ -147,12 +174,16 @@ void Reconstruction::save_checkpoint(const std::string& prefix) const {
     out.close();
     if (!out) throw Error(Status::io, "cannot write the checkpoint '" + path + "'");
   });
+  std::vector<std::string> keep;
+  if (p.o.density)
+    for (const char* part : {"values", "first", "second"})
+      if (j["density"][part].is_string()) keep.push_back(j["density"][part].get<std::string>());
+  remove_checkpoint_arrays(prefix, keep);
 }
 
 void Reconstruction::remove_checkpoint(const std::string& prefix) {
-  for (const char* suffix : {"_checkpoint.json", "_checkpoint_density.npy", "_checkpoint_first.npy",
-                             "_checkpoint_second.npy"})
-    std::remove((prefix + suffix).c_str());  // a file that is not there is fine
+  std::remove((prefix + "_checkpoint.json").c_str());  // a file that is not there is fine
+  remove_checkpoint_arrays(prefix, {});
 }
 
 namespace {

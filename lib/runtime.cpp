@@ -283,6 +283,10 @@ const DeviceInfo& Device::info() const {
   return impl_->info;
 }
 
+namespace {
+std::atomic<long> allocation_countdown{0};  // inject_allocation_failure
+}  // namespace
+
 cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const void* host,
                                 const char* what) {
   if (bytes > info.max_allocation) {
@@ -292,9 +296,40 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
     throw Error(Status::out_of_memory, msg.str());
   }
   if (host) flags |= CL_MEM_COPY_HOST_PTR;
-  return cl_call(std::string("allocating ") + what, [&] {
-    return cl::Buffer(context, flags, std::max<std::size_t>(bytes, 1), const_cast<void*>(host));
+  const std::size_t size = std::max<std::size_t>(bytes, 1);
+  if (allocation_countdown > 0 && allocation_countdown.fetch_sub(1) == 1)
+    throw_cl(cl::Error(CL_MEM_OBJECT_ALLOCATION_FAILURE, "clCreateBuffer (injected)"),
+             std::string("allocating ") + what);
+  cl::Buffer b = cl_call(std::string("allocating ") + what, [&] {
+    return cl::Buffer(context, flags, size, const_cast<void*>(host));
   });
+  // Counted out by the driver when the last reference goes, whoever holds it.
+  struct Tracker {
+    std::shared_ptr<Live> live;
+    std::int64_t bytes;
+  };
+  auto* tracker = new Tracker{live, std::int64_t(size)};
+  live->bytes += tracker->bytes;
+  live->buffers += 1;
+  const cl_int status = clSetMemObjectDestructorCallback(
+      b(),
+      [](cl_mem, void* user) {
+        const auto* t = static_cast<Tracker*>(user);
+        t->live->bytes -= t->bytes;
+        t->live->buffers -= 1;
+        delete t;
+      },
+      tracker);
+  if (status != CL_SUCCESS) {  // not counted then
+    live->bytes -= tracker->bytes;
+    live->buffers -= 1;
+    delete tracker;
+  }
+  return b;
+}
+
+void inject_allocation_failure(long nth) {
+  allocation_countdown = nth;
 }
 
 namespace {

@@ -1,5 +1,8 @@
 // runtime.hpp — the OpenCL layer: error translation, device discovery and the Device internals.
 #pragma once
+#include <atomic>
+#include <cstdint>
+#include <memory>
 #include <CL/opencl.hpp>
 #include <string>
 #include <vector>
@@ -55,6 +58,17 @@ struct Device::Impl {
   // Device buffer of `bytes`, checked against the device's limits first so that an impossible
   // request is a clear out_of_memory error rather than a driver failure later.
   cl::Buffer buffer(cl_mem_flags flags, std::size_t bytes, const void* host, const char* what);
+
+  // The bytes and buffers of this device's allocations still alive (every buffer comes from
+  // buffer(); the driver's destructor callback counts them out), for leak tests and reports.
+  struct Live {
+    std::atomic<std::int64_t> bytes{0}, buffers{0};
+  };
+  std::shared_ptr<Live> live = std::make_shared<Live>();
 };
+
+// Fault injection for tests: the `nth` next buffer() call in this process (1 = the next) fails
+// as a driver's CL_MEM_OBJECT_ALLOCATION_FAILURE would; 0 turns it off.
+void inject_allocation_failure(long nth);
 
 }  // namespace ivr

@@ -137,7 +137,8 @@ TEST_F(CliReconstruct, DensityWritesEveryOutputAndReportsVolumeErrorAndHeldOutPs
   EXPECT_EQ(v.dtype, "float32");
   EXPECT_EQ(v.shape, (std::vector<std::size_t>{16, 16, 16}));
   EXPECT_FALSE(fs::exists(p + "_checkpoint.json")) << "removed once the run is complete";
-  EXPECT_FALSE(fs::exists(p + "_checkpoint_density.npy"));
+  for (const auto& e : fs::directory_iterator(dir_))  // no checkpoint file of any iteration
+    EXPECT_EQ(e.path().filename().string().find("_checkpoint"), std::string::npos) << e.path();
 
   // The loss falls: the last iteration's is far below the first's.
   const std::vector<double> l = losses(p + "_loss.csv");
@@ -201,36 +202,10 @@ TEST_F(CliReconstruct, TfWritesItsValuesAndJsonThatParsesBack) {
   EXPECT_NEAR(tf.points[1].extinction, 8, 0.8);  // from 5
 }
 
-// `ivr reconstruct` started by fork/exec, not through a shell's `&`: a non-interactive shell
-// starts background jobs with SIGINT ignored, which the command then (rightly) keeps ignoring.
-// Waits until stderr holds `wait_for`, sends `signal`, and returns the exit status.
+// `ivr` stopped by `signal` once its stderr holds `wait_for`; its exit status.
 int interrupted(const std::vector<std::string>& args, const std::string& err,
                 const std::string& wait_for, int signal) {
-  fs::remove(err);
-  std::vector<char*> argv = {const_cast<char*>("ivr")};
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    // Only async-signal-safe calls between fork and exec.
-    ::dup2(::open("/dev/null", O_WRONLY), 1);
-    ::dup2(::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644), 2);
-    ::execv(IVR_CLI_PATH, argv.data());
-    std::_Exit(127);
-  }
-  const auto start = std::chrono::steady_clock::now();
-  while (!has(file_text(err), wait_for)) {
-    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(60)) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, nullptr, 0);
-      ADD_FAILURE() << "no '" << wait_for << "' within 60 s: " << file_text(err);
-      return -1;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  ::kill(pid, signal);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  const int status = signalled_cli(args, err, wait_for, signal);
   EXPECT_TRUE(WIFEXITED(status)) << "ended by signal " << WTERMSIG(status);
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
@@ -239,9 +214,19 @@ int interrupted(const std::vector<std::string>& args, const std::string& err,
 // written yet.
 int checkpoint_iteration(const std::string& prefix, const std::string& err) {
   EXPECT_FALSE(fs::exists(prefix + "_density.npy"));
-  EXPECT_TRUE(fs::exists(prefix + "_checkpoint_density.npy"));
   std::ifstream in(prefix + "_checkpoint.json");
-  const int k = json::parse(in).at("iteration").get<int>();
+  const json j = json::parse(in);
+  const int k = j.at("iteration").get<int>();
+  // The arrays of its own iteration, and no other checkpoint's.
+  EXPECT_EQ(j["density"]["values"], fs::path(prefix).filename().string() + "_checkpoint_density_" +
+                                        std::to_string(k) + ".npy");
+  EXPECT_TRUE(fs::exists(fs::path(prefix).parent_path() / j["density"]["values"].get<std::string>()));
+  std::size_t arrays = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(prefix).parent_path()))
+    arrays += e.path().filename().string().rfind(fs::path(prefix).filename().string() +
+                                                     "_checkpoint_", 0) == 0 &&
+              e.path().extension() == ".npy";
+  EXPECT_EQ(arrays, 3u);  // density, first and second moments (Adam)
   EXPECT_TRUE(has(file_text(err), "interrupted after iteration " + std::to_string(k) +
                                       " of 60; continue with --resume\n"))
       << file_text(err);

@@ -2,13 +2,18 @@
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
+#include <fcntl.h>
+#include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 namespace fs = std::filesystem;
 
@@ -115,6 +120,42 @@ std::string where(Precision p, int v, int y, int x, double extra) {
 
 CliResult run_cli(const std::string& args, const std::string& env) {
   return run_program(IVR_CLI_PATH, args, env);
+}
+
+int signalled_cli(const std::vector<std::string>& args, const std::string& err,
+                  const std::string& wait_for, int signal, const std::string& env) {
+  fs::remove(err);
+  std::vector<char*> argv = {const_cast<char*>("ivr")};
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  // The child's environment, made before the fork (nothing but async-signal-safe calls after it).
+  std::vector<std::string> environment;
+  for (char** e = environ; *e; ++e) environment.emplace_back(*e);
+  if (!env.empty()) environment.push_back(env);
+  std::vector<char*> envp;
+  for (std::string& e : environment) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::dup2(::open("/dev/null", O_WRONLY), 1);
+    ::dup2(::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644), 2);
+    ::execve(IVR_CLI_PATH, argv.data(), envp.data());
+    std::_Exit(127);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  while (file_text(err).find(wait_for) == std::string::npos) {
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(60)) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, nullptr, 0);
+      ADD_FAILURE() << "no '" << wait_for << "' within 60 s: " << file_text(err);
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ::kill(pid, signal);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return status;
 }
 
 CliResult run_program(const std::string& program, const std::string& args, const std::string& env) {

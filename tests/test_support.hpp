@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "ivr/core.hpp"
 
@@ -69,6 +70,12 @@ struct CliResult {
 };
 CliResult run_cli(const std::string& args, const std::string& env = "");
 // The same for another program of the build (ivr-bench).
+// `ivr args…` started by fork/exec (not through a shell's `&`, whose background jobs ignore
+// SIGINT), stdout to /dev/null and stderr to the file `err`; once `err` holds `wait_for`, sent
+// `signal`. Returns the raw wait status (-1 when `wait_for` did not come within 60 s, a failure).
+int signalled_cli(const std::vector<std::string>& args, const std::string& err,
+                  const std::string& wait_for, int signal, const std::string& env = "");
+
 CliResult run_program(const std::string& program, const std::string& args,
                       const std::string& env = "");
 

@@ -148,12 +148,8 @@ TEST_F(CliTomo, Float64OutputsKeepTheTransposeIdentityInTheFiles) {
   ASSERT_EQ(run_cli("project " + scene_path_ + " -o " + dir_ + "/P.npy --precision f64").status, 0);
   const NpyArray p = load_npy(dir_ + "/P.npy");
   EXPECT_EQ(p.dtype, "float64");
-  std::vector<double> y(p.data.size());
-  std::uint64_t state = 19;
-  for (double& v : y) {
-    state = state * 6364136223846793005ull + 1442695040888963407ull;
-    v = double(state >> 11) / double(1ull << 53) - 0.5;
-  }
+  std::vector<double> y = uniform(p.data.size(), 19);
+  for (double& v : y) v -= 0.5;
   write_npy(dir_ + "/Y.npy", "<f8", {24, 16, 16, 1}, y.data(), y.size() * 8);
   const CliResult b = run_cli("backproject " + zeros_path_ + " --images " + dir_ + "/Y.npy -o " +
                               out() + " --precision f64");

@@ -12,6 +12,9 @@
 namespace ivr {
 namespace {
 
+using test::dot;
+using test::uniform;
+
 struct Geometry {
   const char* name;
   Scene (*make)();
@@ -87,19 +90,6 @@ const Geometry kGeometries[] = {{"parallel", parallel_scene},
                                 {"cone", cone_scene},
                                 {"inside", inside_scene},
                                 {"axis_aligned", axis_scene}};
-
-std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<double> v(n);
-  for (double& x : v) x = double(rng() >> 11) * 0x1.0p-53;
-  return v;
-}
-
-double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  long double s = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
-  return double(s);
-}
 
 std::vector<double> as_double(const Volume& v) {
   return {v.data.begin(), v.data.end()};

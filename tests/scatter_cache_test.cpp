@@ -51,19 +51,6 @@ Scene shared_voxel_scene(Model model, Scheme scheme) {
   return s;
 }
 
-std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<double> v(n);
-  for (double& x : v) x = double(rng() >> 11) * 0x1.0p-53;
-  return v;
-}
-
-double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  long double s = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
-  return double(s);
-}
-
 // |got − want| ≤ relative·|want| + absolute·max |want| element by element (the table changes the
 // order of each voxel's float additions, so agreement is to rounding, not bit for bit).
 ::testing::AssertionResult agree(const std::vector<double>& got, const std::vector<double>& want,

@@ -2,6 +2,8 @@
 #pragma once
 #include <cmath>
 #include <cstdlib>
+#include <cstdint>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -21,6 +23,21 @@ std::string file_text(const std::string& path);
 // Whether `text` contains `part` (for messages and outputs).
 inline bool has(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
+}
+
+// n values uniform in [0, 1) from a fixed seed (the same on every machine).
+inline std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<double> v(n);
+  for (double& x : v) x = double(rng() >> 11) * 0x1.0p-53;
+  return v;
+}
+
+// ⟨a, b⟩ accumulated in long double (adjoint identities checked to ~1e-12).
+inline double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  long double s = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
+  return double(s);
 }
 
 // One shared device for the whole test process ($IVR_DEVICE or the default).

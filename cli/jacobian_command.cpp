@@ -44,7 +44,8 @@ Runner add_jacobian_command(CLI::App& app) {
       ->required();
   add_march_options(cmd, args->march);
   cmd->add_option("-o,--output", args->output,
-                  "Output .npy: float32 of shape (views, H, W, C, P), P in --wrt order")
+                  "Output .npy: float32 (float64 with --precision f64) of shape (views, H, W, C, P), P in "
+                  "--wrt order")
       ->required();
   cmd->add_flag("--json", args->json, "Print one JSON object with the layout and timings");
   return [args] {
@@ -57,7 +58,7 @@ Runner add_jacobian_command(CLI::App& app) {
     const std::vector<std::size_t> shape{scene.cameras.size(), std::size_t(cam.height),
                                          std::size_t(cam.width), std::size_t(scene.channels()),
                                          params.size()};
-    const double bytes = 4.0 * double(shape[0]) * double(shape[1]) * double(shape[2]) *
+    const double bytes = (precision == Precision::f64 ? 8.0 : 4.0) * double(shape[0]) * double(shape[1]) * double(shape[2]) *
                          double(shape[3]) * double(shape[4]);
     if (bytes > double(1ull << 34))
       throw Error(Status::out_of_memory, "a Jacobian of shape " + shape_text(shape) + " needs " +
@@ -69,7 +70,10 @@ Runner add_jacobian_command(CLI::App& app) {
     options.step = args->march.step;
     options.jacobian = true;
     Tangents t = tangents(device, scene, params, nullptr, options);
-    write_outputs({{args->output, shape, std::move(t.jacobian)}});
+    if (precision == Precision::f64)
+      write_outputs({{args->output, shape, std::move(t.jacobian_f64), true}});
+    else
+      write_outputs({{args->output, shape, std::move(t.jacobian)}});
     if (args->json) {
       std::cout << nlohmann::json{{"mode", "forward"},
                                   {"parameters", params.size()},

@@ -48,7 +48,7 @@ Runner add_render_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("render", "Render every view of a scene");
   cmd->add_option("scene", args->scene, "Scene JSON file (see DESIGN.md)")->required();
   cmd->add_option("-o,--output", args->output,
-                  "Output: .npy (views, H, W, C) float32, or .png/.exr/.tif (one file per view: "
+                  "Output: .npy (views, H, W, C) float32 (float64 with --precision f64), or .png/.exr/.tif (one file per view: "
                   "OUT_<v>.ext)")
       ->required();
   add_march_options(cmd, args->march);

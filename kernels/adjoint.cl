@@ -39,7 +39,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
                       __global const real* restrict tf, const int tf_count, const real4 tf_scalars,
                       const real4 background, const real step, const real min_transmittance,
                       __global const real* restrict target, const real norm,
-                      __global float* restrict image, __global real* restrict pixel_terms,
+                      __global real* restrict image, __global real* restrict pixel_terms,
                       __global real* restrict grad_volume, __global real* restrict grad_tf,
                       __local real* tf_acc, const int tf_acc_size, __global uint* restrict samples,
                       __global const real* restrict camera_params,
@@ -95,11 +95,11 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     ar.gg = loss_term(ar.total_g, tgt[1], norm, &loss);
     ar.gb = loss_term(ar.total_b, tgt[2], norm, &loss);
     ar.ga = loss_term(alpha, tgt[3], norm, &loss);
-    __global float* out = image + pixel * 4;
-    out[0] = (float)ar.total_r;
-    out[1] = (float)ar.total_g;
-    out[2] = (float)ar.total_b;
-    out[3] = (float)alpha;
+    __global real* out = image + pixel * 4;
+    out[0] = ar.total_r;
+    out[1] = ar.total_g;
+    out[2] = ar.total_b;
+    out[3] = alpha;
     pixel_terms[pixel * 4 + 0] = loss;
     pixel_terms[pixel * 4 + 1] = ar.gr * r.transmittance;  // dL/dbackground, per pixel
     pixel_terms[pixel * 4 + 2] = ar.gg * r.transmittance;
@@ -108,7 +108,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     ar.total_r = ar.total_g = ar.total_b = (real)0;
     ar.intensity = background.x * r.transmittance;
     ar.gi = loss_term(ar.intensity, tgt[0], norm, &loss);
-    image[pixel] = (float)ar.intensity;
+    image[pixel] = ar.intensity;
     pixel_terms[pixel * 4 + 0] = loss;
     pixel_terms[pixel * 4 + 1] = ar.gi * r.transmittance;
     pixel_terms[pixel * 4 + 2] = (real)0;

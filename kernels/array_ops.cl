@@ -147,7 +147,7 @@ IVR_SUM_ROWS(sum_acc_rows, acc)
 
 // The loss of an image against a target (DESIGN.md's mse, or l1), per work-group partial sums of
 // the elements' terms × norm (1 / elements), grid-stride; sum_rows adds the groups' partials.
-__kernel void loss_partial(const ulong n, __global const float* restrict image,
+__kernel void loss_partial(const ulong n, __global const real* restrict image,
                            __global const real* restrict target, const acc norm, const int l1,
                            __global acc* restrict partial) {
   __local acc scratch[IVR_REDUCE_SIZE];
@@ -169,11 +169,11 @@ __kernel void gather(const int n, __global const real* restrict src,
   if (i < n) dst[i] = src[index[i]];
 }
 
-// Columns [src_first, src_first + count) of a rows × src_cols float matrix into columns
+// Columns [src_first, src_first + count) of a rows × src_cols real matrix into columns
 // [dst_first, …) of a rows × dst_cols one: a forward-mode pass's Jacobian lanes into the whole
 // Jacobian.
-__kernel void copy_columns(const ulong rows, __global const float* restrict src, const int src_cols,
-                           const int src_first, __global float* restrict dst, const int dst_cols,
+__kernel void copy_columns(const ulong rows, __global const real* restrict src, const int src_cols,
+                           const int src_first, __global real* restrict dst, const int dst_cols,
                            const int dst_first, const int count) {
   const ulong r = get_global_id(0);
   if (r >= rows) return;

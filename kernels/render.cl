@@ -12,7 +12,7 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
                      __global const real* restrict tf, const int tf_count, const real4 tf_scalars,
                      const real4 background, const real step, const real min_transmittance,
                      __global const uchar* restrict occupied, const int4 bricks,
-                     __global float* restrict image, __global uint* restrict samples) {
+                     __global real* restrict image, __global uint* restrict samples) {
   const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
   if (x >= width || y >= height) return;
 
@@ -27,12 +27,12 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
   const size_t pixel = ((size_t)view * height + y) * width + x;
   samples[pixel] = r.samples;
 #if IVR_EMISSION
-  __global float* out = image + pixel * 4;
-  out[0] = (float)(r.cr + r.transmittance * background.x);
-  out[1] = (float)(r.cg + r.transmittance * background.y);
-  out[2] = (float)(r.cb + r.transmittance * background.z);
-  out[3] = (float)((real)1 - r.transmittance);
+  __global real* out = image + pixel * 4;  // the image in the precision it was computed in
+  out[0] = r.cr + r.transmittance * background.x;
+  out[1] = r.cg + r.transmittance * background.y;
+  out[2] = r.cb + r.transmittance * background.z;
+  out[3] = (real)1 - r.transmittance;
 #else
-  image[pixel] = (float)(background.x * r.transmittance);
+  image[pixel] = background.x * r.transmittance;
 #endif
 }

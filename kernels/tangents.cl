@@ -38,7 +38,7 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
                        __global const int4* restrict lanes,
                        __global const real* restrict camera_params,
                        __global const real* restrict target, const real norm,
-                       __global float* restrict image, __global float* restrict jacobian,
+                       __global real* restrict image, __global real* restrict jacobian,
                        __global real* restrict partial, __local real* scratch,
                        __global const uchar* restrict occupied, const int4 bricks) {
   const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
@@ -72,7 +72,7 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
 #else
     value[0] = background.x * transmittance;
 #endif
-    for (int c = 0; c < IVR_CHANNELS; ++c) image[pixel * IVR_CHANNELS + c] = (float)value[c];
+    for (int c = 0; c < IVR_CHANNELS; ++c) image[pixel * IVR_CHANNELS + c] = value[c];
 #if IVR_LOSS_GRADIENT
     real g[IVR_CHANNELS];
     for (int c = 0; c < IVR_CHANNELS; ++c)
@@ -93,7 +93,7 @@ __kernel void tangents(__global const real* restrict volume, const int4 dims, co
 #endif
 #if IVR_JACOBIAN
       for (int c = 0; c < IVR_CHANNELS; ++c)
-        jacobian[(pixel * IVR_CHANNELS + c) * IVR_LANES + p] = (float)dv[c];
+        jacobian[(pixel * IVR_CHANNELS + c) * IVR_LANES + p] = dv[c];
 #endif
 #if IVR_LOSS_GRADIENT
       for (int c = 0; c < IVR_CHANNELS; ++c) dloss[p] += g[c] * dv[c];

@@ -126,7 +126,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
 
   AdjointResult out;
   out.atomics = atomic_add_name(atomics);
-  out.image = s.output("gradient image", s.image_shape(), DType::f32, "the image");
+  out.image = s.output("gradient image", s.image_shape(), real_dtype(s.f64), "the image");
   const cl::Buffer& terms = s.scratch("terms", pixels * 4 * real, "the per-pixel terms");
   const cl::Buffer& samples = s.scratch("samples", pixels * sizeof(cl_uint), "the sample counts");
   const std::size_t grad_bytes =

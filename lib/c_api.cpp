@@ -277,7 +277,9 @@ ivr_status ivr_jacobian(ivr_context* c, const ivr_scene* s, const char* wrt,
     const ivr::Image& im = t.image;
     r->arrays.push_back({"jacobian",
                          {im.views, im.height, im.width, im.channels, int64_t(params.size())},
-                         std::vector<double>(t.jacobian.begin(), t.jacobian.end())});
+                         t.jacobian_f64.empty()
+                             ? std::vector<double>(t.jacobian.begin(), t.jacobian.end())
+                             : t.jacobian_f64});  // a float64 run's, unrounded
     *out = r;
   });
 }

@@ -1,4 +1,4 @@
-// image_io.cpp — rendered images out: float32 .npy of every view, or one view as EXR/PNG/TIFF
+// image_io.cpp — rendered images out: .npy of every view (float64 for a float64 render), or one view as EXR/PNG/TIFF
 // through OpenImageIO, with PNG tone-mapped by the documented rule.
 #include <OpenImageIO/imageio.h>
 
@@ -20,10 +20,19 @@ unsigned char tone_map_8bit(double linear) {
 }
 
 void save_image_npy(const std::string& path, const Image& image) {
-  save_npy(path,
-           {std::size_t(image.views), std::size_t(image.height), std::size_t(image.width),
-            std::size_t(image.channels)},
-           image.pixels.data());
+  const std::vector<std::size_t> shape{std::size_t(image.views), std::size_t(image.height),
+                                       std::size_t(image.width), std::size_t(image.channels)};
+  const std::size_t count = shape[0] * shape[1] * shape[2] * shape[3];
+  const bool f64 = !image.pixels_f64.empty();
+  if ((f64 ? image.pixels_f64.size() : image.pixels.size()) != count)
+    throw Error(Status::invalid_argument,
+                "cannot write '" + path + "': the image holds " +
+                    std::to_string(f64 ? image.pixels_f64.size() : image.pixels.size()) +
+                    " values, its shape needs " + std::to_string(count));
+  if (f64)
+    save_npy(path, shape, image.pixels_f64.data());
+  else
+    save_npy(path, shape, image.pixels.data());
 }
 
 void save_image_file(const std::string& path, const Image& image, int view) {

@@ -63,7 +63,8 @@ DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op) {
   }
   const std::size_t pixels = s.pixels();
   const std::vector<std::int64_t> shape = s.image_shape();
-  DeviceArray image = s.output("image", shape, DType::f32, "the image");
+  // The image in the precision it was computed in (float64 stays float64 to the user).
+  DeviceArray image = s.output("image", shape, real_dtype(s.f64), "the image");
   const cl::Buffer& samples = s.scratch("samples", pixels * sizeof(cl_uint), "the sample counts");
   cl_call("running the render kernel on " + s.dev.info.name, [&] {
     cl::Kernel& k = s.kernels.get(config, &op.stats.build_seconds);
@@ -105,7 +106,13 @@ Image render(Device& device, const Scene& scene, const RenderOptions& options, R
   Session::Impl& s = session.impl();
   const DeviceArray image = enqueue_render(s, s.begin("render"));
   const std::vector<std::int64_t> shape = image.shape();
-  Image out{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]), image.to_floats()};
+  Image out{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]), {}};
+  if (s.f64) {
+    out.pixels_f64 = image.to_doubles();
+    out.pixels.assign(out.pixels_f64.begin(), out.pixels_f64.end());
+  } else {
+    out.pixels = image.to_floats();
+  }
   if (stats) {
     const OperationStats st = session.last_stats();
     stats->kernel_seconds = st.kernel_seconds;

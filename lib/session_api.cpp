@@ -261,8 +261,8 @@ DeviceArray Session::loss(const DeviceArray& image, const DeviceArray& target, L
         " differ in size (or are empty)");
   OperationRecord& op = s.begin("loss");
   return cl_call("computing the loss on " + s.dev.info.name, [&] {
-    // The kernel reads float32 images and targets of the session's precision.
-    const cl::Buffer img = s.buffer_as(image, DType::f32, "the loss's image", op);
+    // The kernel reads images and targets of the session's precision.
+    const cl::Buffer img = s.buffer_as(image, real_dtype(s.f64), "the loss's image", op);
     const cl::Buffer tgt = s.buffer_as(target, real_dtype(s.f64), "the loss's target", op);
     DeviceArray out = s.output("loss", {1}, s.arrays.acc_dtype(), "the loss");
     mark_written(out, s.arrays.loss(img, tgt, image.size(), kind == Loss::l1, buffer_of(out),

@@ -141,11 +141,11 @@ TangentResult enqueue_tangents(Session::Impl& s, const std::vector<cl_int4>& all
   const int pass_lanes = lanes_for(std::min<std::size_t>(params, kMaxLanes));
 
   TangentResult out;
-  out.image = s.output("tangent image", s.image_shape(), DType::f32, "the image");
+  out.image = s.output("tangent image", s.image_shape(), real_dtype(s.f64), "the image");
   if (jacobian) {
     std::vector<std::int64_t> shape = s.image_shape();
     shape.push_back(std::int64_t(params));
-    out.jacobian = s.output("jacobian", shape, DType::f32, "the Jacobian");
+    out.jacobian = s.output("jacobian", shape, real_dtype(s.f64), "the Jacobian");
   }
   const DType acc = s.arrays.acc_dtype();
   if (loss) {
@@ -155,7 +155,7 @@ TangentResult enqueue_tangents(Session::Impl& s, const std::vector<cl_int4>& all
   const std::size_t row = std::size_t(pass_lanes) + 1;
   const std::size_t jacobian_size = jacobian ? pixels * channels * std::size_t(pass_lanes) : 1;
   const cl::Buffer& jacobian_pass =
-      s.scratch("jacobian pass", jacobian_size * sizeof(float), "the Jacobian");
+      s.scratch("jacobian pass", jacobian_size * (s.f64 ? 8 : 4), "the Jacobian");
   const cl::Buffer& sums = s.scratch("tangent sums", row * 8, "the loss gradient's sums");
   const cl::Buffer& target_buf =
       loss ? buffer_of(*target) : s.scratch("no target", real, "the target");
@@ -296,7 +296,11 @@ Tangents tangents(Device& device, const Scene& scene, const std::vector<Paramete
   Tangents out;
   const std::vector<std::int64_t> shape = r.image.shape();
   out.image = Image{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]), r.image.to_floats()};
-  if (options.jacobian) out.jacobian = r.jacobian.to_floats();
+  if (s.f64) out.image.pixels_f64 = r.image.to_doubles();
+  if (options.jacobian) {
+    out.jacobian = r.jacobian.to_floats();
+    if (s.f64) out.jacobian_f64 = r.jacobian.to_doubles();
+  }
   if (target) {
     out.loss = r.loss.to_doubles()[0];
     out.gradient = r.gradient.to_doubles();

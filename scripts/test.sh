@@ -1,22 +1,33 @@
 #!/usr/bin/env bash
 # Builds ivr and runs the whole test suite (CTest label "default"), from dependencies onward.
-# Usage: scripts/test.sh [--sanitize]   (--sanitize: AddressSanitizer + UBSan build in build-asan/)
+# Usage: scripts/test.sh [--sanitize | --tsan]
+#   --sanitize: AddressSanitizer + UBSan build in build-asan/, the default label
+#   --tsan:     ThreadSanitizer build in build-tsan/, the label tsan (every test on threads)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 "$(pwd)/scripts/install-deps.sh"
 
 build=build
+label=default
 flags=(-DCMAKE_BUILD_TYPE=Release -DIVR_BUILD_TESTS=ON)  # ON: scripts/demo.sh may have turned it off in build/
 if [ "${1:-}" = "--sanitize" ]; then
   build=build-asan
   flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DIVR_SANITIZE=ON -DIVR_BUILD_BENCH=OFF -DIVR_BUILD_TESTS=ON)
+elif [ "${1:-}" = "--tsan" ]; then
+  build=build-tsan
+  label=tsan
+  flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DIVR_TSAN=ON -DIVR_BUILD_BENCH=OFF -DIVR_BUILD_EXAMPLES=OFF
+    -DIVR_BUILD_TESTS=ON)
+elif [ -n "${1:-}" ]; then
+  echo "test.sh: unknown option '$1' (use --sanitize or --tsan)" >&2
+  exit 2
 fi
 jobs=$(nproc 2>/dev/null || echo 2)
 cmake -S . -B "$build" "${flags[@]}"
 cmake --build "$build" -j"$jobs"
-log="$build/ctest-default.log"
-if ctest --test-dir "$build" -L default -j"$jobs" --output-on-failure --timeout 600 --output-log "$log"; then
+log="$build/ctest-$label.log"
+if ctest --test-dir "$build" -L "$label" -j"$jobs" --output-on-failure --timeout 600 --output-log "$log"; then
   exit 0
 fi
 # LeakSanitizer's stop-the-world tracer itself crashed in processes whose tests all passed

@@ -299,5 +299,77 @@ TEST_F(CApiSession, OneSessionUsedByTwoThreadsAtOnceGivesEveryCallItsResult) {
   EXPECT_EQ(mismatches.load(), 0);
 }
 
+// Four threads at once on one context: two with sessions of their own (set, render, gradients),
+// and two sharing the fixture's session while also calling the one-shot API on the shared scene.
+// Each computes what it computes alone on one thread. (The ThreadSanitizer build runs this, with
+// every test named *Thread*, under the label `tsan`: scripts/test.sh --tsan.)
+TEST_F(CApiSession, FourThreadsAtOnceOnOneContextMatchOneThread) {
+  const std::vector<std::vector<float>> volumes_a = {test_volume(16, 18, 20, 51), volume_};
+  const std::vector<std::vector<float>> volumes_b = {test_volume(16, 18, 20, 52),
+                                                     test_volume(16, 18, 20, 53)};
+  const std::vector<float> target = perturbed_target();
+  const auto fresh_session = [&](ivr_session** s) {
+    ASSERT_EQ(ivr_session_create(ctx_, scene_, nullptr, s), IVR_OK) << ivr_last_error();
+    ASSERT_EQ(ivr_session_set_target(*s, target.data(), target.size()), IVR_OK);
+  };
+  // What each thread's work gives alone: a shared-session step (render and project) and a
+  // one-shot step (render and project of the scene, unchanged by anyone).
+  struct Shared {
+    std::vector<float> render, one_shot_render, one_shot_lines;
+    std::vector<double> lines;
+    bool ok = false;
+  };
+  const size_t rays = kPixels / 4;
+  const auto shared_step = [&](Shared* out) {
+    out->render = session_render(session_);
+    ivr_array* p = nullptr;
+    if (ivr_session_project(session_, nullptr, &p) != IVR_OK) return;
+    const ArrayPtr lines(p);
+    out->lines = doubles(p);
+    out->one_shot_render = one_shot_render(ctx_, scene_);
+    out->one_shot_lines.assign(rays, 0.f);
+    out->ok = ivr_project(ctx_, scene_, IVR_PRECISION_F32, nullptr, 0, out->one_shot_lines.data(),
+                          rays) == IVR_OK;
+  };
+  const int rounds = 3;
+  ivr_session *a = nullptr, *b = nullptr;
+  ASSERT_NO_FATAL_FAILURE(fresh_session(&a));
+  ASSERT_NO_FATAL_FAILURE(fresh_session(&b));
+  const Work want_a = run_work(a, volumes_a, rounds), want_b = run_work(b, volumes_b, rounds);
+  ASSERT_EQ(want_a.status, IVR_OK) << want_a.error;
+  ASSERT_EQ(want_b.status, IVR_OK) << want_b.error;
+  Shared want_shared;
+  shared_step(&want_shared);
+  ASSERT_TRUE(want_shared.ok) << ivr_last_error();
+  EXPECT_FALSE(want_a.renders[0] == want_shared.render);  // a mix-up would show
+  EXPECT_EQ(ivr_session_release(a), IVR_OK);
+  EXPECT_EQ(ivr_session_release(b), IVR_OK);
+
+  ASSERT_NO_FATAL_FAILURE(fresh_session(&a));
+  ASSERT_NO_FATAL_FAILURE(fresh_session(&b));
+  Work got_a, got_b;
+  std::vector<Shared> got_shared(2 * rounds);
+  std::vector<std::thread> threads;
+  threads.emplace_back([&] { got_a = run_work(a, volumes_a, rounds); });
+  threads.emplace_back([&] { got_b = run_work(b, volumes_b, rounds); });
+  for (int t = 0; t < 2; ++t)
+    threads.emplace_back([&, t] {
+      for (int k = 0; k < rounds; ++k) shared_step(&got_shared[size_t(t * rounds + k)]);
+    });
+  for (std::thread& t : threads) t.join();
+  expect_same_work(got_a, want_a, "session a");
+  expect_same_work(got_b, want_b, "session b");
+  for (size_t k = 0; k < got_shared.size(); ++k) {
+    const Shared& got = got_shared[k];
+    ASSERT_TRUE(got.ok) << "shared step " << k;
+    EXPECT_TRUE(got.render == want_shared.render) << "shared session render " << k;
+    EXPECT_TRUE(got.lines == want_shared.lines) << "shared session projection " << k;
+    EXPECT_TRUE(got.one_shot_render == want_shared.one_shot_render) << "one-shot render " << k;
+    EXPECT_TRUE(got.one_shot_lines == want_shared.one_shot_lines) << "one-shot projection " << k;
+  }
+  EXPECT_EQ(ivr_session_release(a), IVR_OK);
+  EXPECT_EQ(ivr_session_release(b), IVR_OK);
+}
+
 }  // namespace
 }  // namespace ivr::test

@@ -9,6 +9,7 @@
 #include "adjoint_support.hpp"
 #include "ivr/calibrate.hpp"
 #include "ivr/tangents.hpp"
+#include "reference/reference.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -77,6 +78,52 @@ TEST_F(CliJacobian, BadInputWritesNothing) {
     EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << r.err;
     EXPECT_FALSE(fs::exists(out)) << args;
   }
+}
+
+// With --precision f64 the image and the Jacobian reach their files unrounded: the image equals
+// the midpoint rule's own discretisation evaluated in double precision (tests/reference) to
+// 1e-12, which float32 storage (~3e-8 here) could not, and the Jacobian with respect to the
+// background holds its closed form, d pixel_c / d background_c = T = 1 - alpha, from the files.
+TEST_F(CliJacobian, Float64FilesKeepTheImageAndTheJacobianUnrounded) {
+  const std::string image_path = dir_ + "/image.npy", jacobian_path = dir_ + "/J.npy";
+  CliResult r = run_cli("render " + scene_path_ + " --precision f64 -o " + image_path);
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run_cli("jacobian " + scene_path_ + " --wrt background --precision f64 -o " + jacobian_path);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const NpyArray image = load_npy(image_path), jacobian = load_npy(jacobian_path);
+  EXPECT_EQ(image.dtype, "float64");
+  EXPECT_EQ(jacobian.dtype, "float64");
+  ASSERT_EQ(image.shape, (std::vector<std::size_t>{1, 5, 6, 4}));
+  ASSERT_EQ(jacobian.shape, (std::vector<std::size_t>{1, 5, 6, 4, 3}));
+
+  const Scene scene = load_scene(scene_path_);
+  const std::vector<double> want =
+      reference::render_midpoint(scene, 0.5 * reference::min_voxel_edge(scene));
+  ASSERT_EQ(want.size(), image.data.size());
+  double worst = 0;
+  std::size_t unrounded = 0;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    worst = std::max(worst, std::abs(image.data[i] - want[i]));
+    unrounded += double(float(image.data[i])) != image.data[i];
+  }
+  std::printf("[ measured ] f64 image file vs double midpoint reference: max|diff| %.3g\n", worst);
+  EXPECT_LE(worst, 1e-12);
+  EXPECT_GT(unrounded, want.size() / 2);
+
+  for (std::size_t p = 0; p < 5 * 6; ++p) {
+    const double transmittance = 1 - image.data[p * 4 + 3];
+    for (std::size_t c = 0; c < 4; ++c)
+      for (std::size_t k = 0; k < 3; ++k) {
+        const double got = jacobian.data[(p * 4 + c) * 3 + k];
+        EXPECT_NEAR(got, c == k ? transmittance : 0.0, 1e-14) << "pixel " << p << " c " << c
+                                                              << " background " << k;
+      }
+  }
+
+  // float32 stays the default.
+  r = run_cli("render " + scene_path_ + " -o " + image_path);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(load_npy(image_path).dtype, "float32");
 }
 
 TEST_F(CliJacobian, CalibrateWritesAModelThePlannerReads) {

@@ -1,8 +1,8 @@
 // test_environment.cpp — the environment every test process runs in, set by the binary itself:
 // the planner's built-in cost model (not a calibration stored on the machine), PoCL's kernel cache
-// inside the build tree, and under
-// AddressSanitizer the options and LeakSanitizer suppressions (the OpenCL ICD loader and the PoCL
-// driver with its LLVM keep process-lifetime allocations).
+// inside the build tree, under AddressSanitizer the options and LeakSanitizer suppressions (the
+// OpenCL ICD loader and the PoCL driver with its LLVM keep process-lifetime allocations), and
+// under ThreadSanitizer its options and suppressions.
 #include <cstdlib>
 
 namespace {
@@ -42,3 +42,9 @@ const bool children_suppressed = [] {
   return true;
 }();
 }  // namespace
+
+// ThreadSanitizer (IVR_TSAN, label tsan): stop at the first report, and the suppressions of
+// tests/tsan.supp, each with its reason.
+extern "C" const char* __tsan_default_options() {
+  return "halt_on_error=1:second_deadlock_stack=1:suppressions=" IVR_TESTS_DIR "/tsan.supp";
+}

@@ -87,7 +87,7 @@ IVR_API ivr_status ivr_session_volume_shape(const ivr_session* session, int64_t 
 IVR_API ivr_status ivr_session_volume(ivr_session* session, ivr_array** densities);
 
 /* Operations: enqueued on the device; each result is a new array reference for the caller. */
-/* Every view: float32 (views, H, W, C). */
+/* Every view: (views, H, W, C), float32, or float64 in a session of precision f64. */
 IVR_API ivr_status ivr_session_render(ivr_session* session, ivr_array** image);
 /* The loss of the render against `target` (NULL: the session's, checked once when set; a target
  * given here is checked on every call) and its gradient by group, `wrt` as for ivr_gradient:
@@ -100,7 +100,7 @@ IVR_API ivr_status ivr_session_gradient(ivr_session* session, const ivr_array* t
                                         int deterministic, ivr_array** loss_value,
                                         ivr_array** groups, size_t capacity, size_t* count,
                                         ivr_mode* ran);
-/* d pixel / d parameter (forward mode): float32 (views, H, W, C, P). */
+/* d pixel / d parameter (forward mode): (views, H, W, C, P), float32, or float64 at f64. */
 IVR_API ivr_status ivr_session_jacobian(ivr_session* session, const char* wrt,
                                         ivr_array** jacobian);
 /* Line integrals N v of the densities (volume NULL) or of `volume` (nz, ny, nx):

@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ivr/device.hpp"
@@ -27,9 +28,17 @@ struct RenderOptions {
 
 // Images of shape (views, height, width, channels), float32, row 0 at the top.
 // channels: 1 (absorption: I) or 4 (emission-absorption: premultiplied RGB over the background, A).
+// A float64 render also keeps its pixels unrounded in pixels_f64 (empty otherwise; inputs such as
+// targets are read from `pixels` alone).
 struct Image {
   int views = 0, height = 0, width = 0, channels = 0;
   std::vector<float> pixels;
+  std::vector<double> pixels_f64;
+  Image() = default;
+  Image(int views, int height, int width, int channels, std::vector<float> pixels = {},
+        std::vector<double> pixels_f64 = {})
+      : views(views), height(height), width(width), channels(channels), pixels(std::move(pixels)),
+        pixels_f64(std::move(pixels_f64)) {}
   float at(int view, int y, int x, int c) const {
     return pixels[((std::size_t(view) * height + y) * width + x) * channels + c];
   }
@@ -54,7 +63,7 @@ struct RenderStats {
 IVR_API Image render(Device& device, const Scene& scene, const RenderOptions& options = {},
                      RenderStats* stats = nullptr);
 
-// Writes the images as float32 .npy (views, H, W, C).
+// Writes the images as .npy (views, H, W, C): float64 when the image has pixels_f64, else float32.
 IVR_API void save_image_npy(const std::string& path, const Image& image);
 
 // Writes one view as EXR/PNG/TIFF by the file extension through OpenImageIO. EXR and TIFF keep

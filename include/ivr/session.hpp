@@ -169,12 +169,13 @@ class IVR_API Session {
   Integrator integrator();
 
   // --- operations: enqueued; results stay on the device ---------------------------------------
-  // Every view: float32 (views, H, W, C).
+  // Every view: (views, H, W, C), float32, or float64 in a session of precision f64.
   DeviceArray render();
   // The loss of the render against the target (set_target, or `target`) and its gradients.
   SessionGradient gradient(const GradientRequest& request = {});
   SessionGradient gradient(const DeviceArray& target, const GradientRequest& request = {});
-  // d pixel / d parameter in forward mode: float32 (views, H, W, C, P), P in `wrt` order.
+  // d pixel / d parameter in forward mode: (views, H, W, C, P), P in `wrt` order; float32, or
+  // float64 at f64.
   DeviceArray jacobian(const std::vector<std::string>& wrt);
   // Forward mode on any list of parameters (ivr/tangents.hpp; repeats allowed) against the
   // target: the loss and one group, "parameters", of their derivatives in order.

@@ -51,6 +51,7 @@ struct Tangents {
   double loss = 0;                 // of the render against the target (0 without a target)
   std::vector<double> gradient;    // d loss / d parameter, one per parameter (with a target)
   std::vector<float> jacobian;     // (views, H, W, C, P) when asked for
+  std::vector<double> jacobian_f64;  // the same unrounded, from a float64 run (else empty)
   Image image;                     // the render the derivatives are of
   double kernel_seconds = 0;       // all passes
   int passes = 0, lanes = 0;       // kernel launches, and tangent lanes per launch

@@ -352,7 +352,7 @@ class Session(_Owned):
         return DeviceArray._wrap(out)
 
     def render(self):
-        """Every view: float32 (views, H, W, C)."""
+        """Every view: (views, H, W, C), float32 (float64 in a session of precision f64)."""
         return self._one(self._lib.ivr_session_render)
 
     def gradient(self, target=None, wrt=("density",), mode="auto", loss="mse",
@@ -389,8 +389,8 @@ class Session(_Owned):
         return loss_array, arrays
 
     def jacobian(self, wrt=("tf",)):
-        """d pixel / d parameter (forward mode): float32 (views, H, W, C, P), P in `wrt`
-        order."""
+        """d pixel / d parameter (forward mode): (views, H, W, C, P), P in `wrt` order;
+        float32 (float64 in a session of precision f64)."""
         text = wrt if isinstance(wrt, str) else ",".join(wrt)
         return self._one(self._lib.ivr_session_jacobian, text.encode())
 

@@ -287,8 +287,10 @@ Integrator read_integrator(const Reader& r, const json& it, const std::string& w
 json parse_json(const std::string& text, const std::string& where) {
   try {
     return json::parse(text);
-  } catch (const json::parse_error& e) {
-    // e.what() reads "[json.exception.parse_error.101] parse error at line 3, column 5: ..."
+  } catch (const json::exception& e) {
+    // e.what() reads "[json.exception.parse_error.101] parse error at line 3, column 5: ..." —
+    // or, for a number too large for a double ("1e999"), out_of_range.406 "number overflow
+    // parsing '1e999'" (found by fuzzing: tests/fuzz/regressions/).
     std::string what = e.what();
     const std::size_t cut = what.find("] ");
     throw Error(Status::io, where + ": malformed JSON: " +

@@ -91,6 +91,16 @@ TEST_F(CliErrors, MalformedJson) {
   EXPECT_TRUE(one_line(err)) << err;
 }
 
+// A number beyond the double range is malformed JSON too, not an uncaught exception (found by
+// fuzzing; nlohmann reports it as out_of_range, not parse_error).
+TEST_F(CliErrors, NumberBeyondTheDoubleRangeIsMalformedJson) {
+  const std::string err = expect_failure(
+      std::string(R"({"volume": {"file": "vol.npy"}, "integrator": {"step": 1e999}})"));
+  EXPECT_NE(err.find("malformed JSON"), std::string::npos) << err;
+  EXPECT_NE(err.find("1e999"), std::string::npos) << err;
+  EXPECT_TRUE(one_line(err)) << err;
+}
+
 TEST_F(CliErrors, UnknownValuesAndKeys) {
   json j = scene_;
   j["tf"]["type"] = "rainbow";

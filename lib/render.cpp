@@ -98,21 +98,30 @@ Session one_shot_session(Device& device, const Scene& scene, const SessionOption
   return Session(std::make_unique<Session::Impl>(device, scene, options, true));
 }
 
+void download_kept(const DeviceArray& a, std::vector<float>* floats, std::vector<double>* doubles) {
+  doubles->clear();
+  if (a.dtype() != DType::f64) {
+    *floats = a.to_floats();
+    return;
+  }
+  *doubles = a.to_doubles();
+  floats->assign(doubles->begin(), doubles->end());
+}
+
+Image image_of(const DeviceArray& image) {
+  const std::vector<std::int64_t> shape = image.shape();
+  Image out{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3])};
+  download_kept(image, &out.pixels, &out.pixels_f64);
+  return out;
+}
+
 Image render(Device& device, const Scene& scene, const RenderOptions& options, RenderStats* stats) {
   Session session = one_shot_session(
       device, scene,
       {options.precision, options.step, options.empty_space, options.min_empty_fraction,
        options.brick_size});
   Session::Impl& s = session.impl();
-  const DeviceArray image = enqueue_render(s, s.begin("render"));
-  const std::vector<std::int64_t> shape = image.shape();
-  Image out{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]), {}};
-  if (s.f64) {
-    out.pixels_f64 = image.to_doubles();
-    out.pixels.assign(out.pixels_f64.begin(), out.pixels_f64.end());
-  } else {
-    out.pixels = image.to_floats();
-  }
+  const Image out = image_of(enqueue_render(s, s.begin("render")));
   if (stats) {
     const OperationStats st = session.last_stats();
     stats->kernel_seconds = st.kernel_seconds;

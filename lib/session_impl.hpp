@@ -129,8 +129,15 @@ struct Session::Impl {
 // --- the operations (lib/render.cpp, adjoint.cpp, tangents.cpp, differentiate.cpp, project.cpp)
 // Each enqueues into the session's last-operation record and returns device arrays.
 
-// The image (float32) and, where `samples` is set, the per-pixel sample counts into it.
+// The image (in the session's precision) and, where `samples` is set, the per-pixel sample
+// counts into it.
 DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op);
+
+// An array's values on the host, downloaded once: as float32 in `floats`, and for a float64
+// array also unrounded in `doubles` (left empty otherwise).
+void download_kept(const DeviceArray& a, std::vector<float>* floats, std::vector<double>* doubles);
+// An image array (views, H, W, C) as an Image, pixels_f64 filled for a float64 one.
+Image image_of(const DeviceArray& image);
 
 struct AdjointRequest {
   bool density = true, tf = false, background = false, camera = false;

@@ -294,13 +294,8 @@ Tangents tangents(Device& device, const Scene& scene, const std::vector<Paramete
   const TangentResult r = enqueue_tangents(s, lanes, target ? &s.target : nullptr,
                                            options.jacobian, options.loss, s.begin("tangents"));
   Tangents out;
-  const std::vector<std::int64_t> shape = r.image.shape();
-  out.image = Image{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]), r.image.to_floats()};
-  if (s.f64) out.image.pixels_f64 = r.image.to_doubles();
-  if (options.jacobian) {
-    out.jacobian = r.jacobian.to_floats();
-    if (s.f64) out.jacobian_f64 = r.jacobian.to_doubles();
-  }
+  out.image = image_of(r.image);
+  if (options.jacobian) download_kept(r.jacobian, &out.jacobian, &out.jacobian_f64);
   if (target) {
     out.loss = r.loss.to_doubles()[0];
     out.gradient = r.gradient.to_doubles();

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "../bench/bench_support.hpp"
 #include "ivr/core.hpp"
 
 namespace ivr::test {
@@ -25,20 +26,10 @@ inline bool has(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
 }
 
-// n values uniform in [0, 1) from a fixed seed (the same on every machine).
-inline std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<double> v(n);
-  for (double& x : v) x = double(rng() >> 11) * 0x1.0p-53;
-  return v;
-}
-
-// ⟨a, b⟩ accumulated in long double (adjoint identities checked to ~1e-12).
-inline double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  long double s = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
-  return double(s);
-}
+// n values uniform in [0, 1) from a fixed seed, and ⟨a, b⟩ accumulated in long double (adjoint
+// identities checked to ~1e-12): the benchmarks' own, so that both check with the same vectors.
+using bench::dot;
+using bench::uniform;
 
 // One shared device for the whole test process ($IVR_DEVICE or the default).
 Device& device();

@@ -1,8 +1,8 @@
 // test_environment.cpp — the environment every test process runs in, set by the binary itself:
 // the planner's built-in cost model (not a calibration stored on the machine), PoCL's kernel cache
-// inside the build tree, under AddressSanitizer the options and LeakSanitizer suppressions (the
-// OpenCL ICD loader and the PoCL driver with its LLVM keep process-lifetime allocations), and
-// under ThreadSanitizer its options and suppressions.
+// inside the build tree, the image module of this build, under AddressSanitizer the options and
+// LeakSanitizer suppressions (the OpenCL ICD loader and the PoCL driver with its LLVM keep
+// process-lifetime allocations), and under ThreadSanitizer its options and suppressions.
 #include <cstdlib>
 
 namespace {
@@ -13,6 +13,10 @@ const bool environment_set = [] {
   // user's ~/.cache/pocl: what is there from other builds or other PoCL programs cannot matter.
   // Set before the first OpenCL call, when PoCL reads it.
   ::setenv("POCL_CACHE_DIR", IVR_TEST_POCL_CACHE_DIR, 0);
+#ifdef IVR_TEST_IMAGE_MODULE
+  // This binary links libivr statically, so the image module is not next to it.
+  ::setenv("IVR_IMAGE_MODULE", IVR_TEST_IMAGE_MODULE, 0);
+#endif
   return true;
 }();
 

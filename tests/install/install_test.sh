@@ -27,4 +27,28 @@ LD_LIBRARY_PATH="$work/prefix/lib" "$work/consumer_pc"
 cc -std=c99 "$src/tests/install/consumer.c" -o "$work/consumer_c" $(pkg-config --cflags --libs ivr)
 LD_LIBRARY_PATH="$work/prefix/lib" "$work/consumer_c"
 "$work/prefix/bin/ivr" --version
+# Image files: the installed CLI loads the installed image module on its first PNG, and neither it
+# nor libivr links OpenImageIO; without the module a PNG is one clear error and no file.
+if ldd "$work/prefix/bin/ivr" | grep -q OpenImageIO; then echo "the CLI links OpenImageIO"; exit 1; fi
+if [ -e "$work/prefix/lib/libivr_image.so" ]; then
+  python3 - "$work" <<'PY'
+import struct, sys
+w = sys.argv[1]
+header = "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 2, 2), }"
+header += " " * (63 - len(header)) + "\n"
+open(w + "/vol.npy", "wb").write(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(header)) +
+                                 header.encode() + struct.pack("<8f", *[0.5] * 8))
+open(w + "/scene.json", "w").write('{"volume": {"file": "vol.npy"}, "tf": {"type": "identity"}, '
+  '"cameras": [{"eye": [0, 0, 2], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40, '
+  '"width": 4, "height": 4}]}')
+PY
+  IVR_IMAGE_MODULE= "$work/prefix/bin/ivr" render "$work/scene.json" -o "$work/a.png" >/dev/null
+  [ -s "$work/a.png" ] || { echo "no PNG through the installed image module"; exit 1; }
+  rm "$work/prefix/lib/libivr_image.so"
+  if IVR_IMAGE_MODULE= "$work/prefix/bin/ivr" render "$work/scene.json" -o "$work/b.png" 2>"$work/err"; then
+    echo "a PNG without the image module"; exit 1
+  fi
+  grep -q "ivr: error: cannot write .*libivr_image.so" "$work/err" || { cat "$work/err"; exit 1; }
+  [ ! -e "$work/b.png" ] || { echo "a PNG written despite the error"; exit 1; }
+fi
 echo "install test passed"

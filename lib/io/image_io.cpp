@@ -1,12 +1,11 @@
-// image_io.cpp — rendered images out: .npy of every view (float64 for a float64 render), or one view as EXR/PNG/TIFF
-// through OpenImageIO, with PNG tone-mapped by the documented rule.
-#include <OpenImageIO/imageio.h>
-
+// image_io.cpp — rendered images out: .npy of every view (float64 for a float64 render), or one
+// view as EXR/PNG/TIFF through the image module, with PNG tone-mapped by the documented rule.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 
 #include "files.hpp"
+#include "io/image_module.hpp"
 #include "ivr/error.hpp"
 #include "ivr/render.hpp"
 #include "ivr/volume_io.hpp"
@@ -61,16 +60,8 @@ void save_image_file(const std::string& path, const Image& image, int view) {
         bytes[i * channels + c] = tone_map_8bit(src[i * image.channels + c]);
   }
   write_atomically(path, [&](const std::string& tmp) {
-    auto out = OIIO::ImageOutput::create(tmp);
-    if (!out) throw Error(Status::io, "cannot write '" + path + "': " + OIIO::geterror());
-    OIIO::ImageSpec spec(image.width, image.height, channels,
-                         png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
-    if (!png && channels == 4) spec.alpha_channel = 3;
-    const bool ok = out->open(tmp, spec) &&
-                    (png ? out->write_image(OIIO::TypeDesc::UINT8, bytes.data())
-                         : out->write_image(OIIO::TypeDesc::FLOAT, src)) &&
-                    out->close();
-    if (!ok) throw Error(Status::io, "cannot write '" + path + "': " + out->geterror());
+    write_image_through_module(tmp, path, image.width, image.height, channels, png,
+                               png ? static_cast<const void*>(bytes.data()) : src);
   });
 }
 

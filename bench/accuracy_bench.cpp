@@ -1,7 +1,7 @@
 // accuracy_bench.cpp — speed against error: every scene of the suite (bench/accuracy_suite.cpp:
 // synthetic and real volumes × transfer functions and models) × every integrator (with and
 // without empty-space skipping) × a range of steps, each against the independent float64
-// continuous integral (tests/reference: render_continuous): relative RMS and max error, median
+// continuous integral (reference/: render_continuous): relative RMS and max error, median
 // kernel time (plus the grid), samples. Per scene and integrator the time at a relative RMS of
 // --target (log-log interpolation between steps) and the best integrator against midpoint; the
 // exact scheme in both precisions; and the tolerance section: the step chosen for each tolerance,
@@ -238,7 +238,7 @@ int main(int argc, char** argv) {
                          {"device", device.info().name},
                          {"image", image},
                          {"views", 2},
-                         {"reference", "tests/reference render_continuous (float64)"},
+                         {"reference", "reference/ render_continuous (float64)"},
                          {"time", "median kernel (+ grid) ms over repeats"},
                          {"repeats", repeats},
                          {"scenes", scenes},

@@ -1,7 +1,7 @@
 // adjoint_bench.cpp — gradient benchmark: for 128³ and 256³ volumes into 256² images at steps 0.5
 // and 0.1, the forward render's kernel time next to the gradient's (primal march + loss + adjoint
 // march, d mse / d density against a target rendered from a perturbed volume), their ratio, and
-// the peak memory of one gradient evaluation: Gradient::device_bytes and the peak resident set of
+// the peak memory of one gradient evaluation: AdjointGradient::device_bytes and the peak resident set of
 // a fresh process (on a CPU device the device buffers live in host memory). Checks the two
 // targets of issue 3: gradient <= 3x render, peak memory at step 0.1 within 5% of step 0.5.
 // Prints one JSON document.
@@ -41,8 +41,8 @@ constexpr double kMemoryTarget = 0.05;  // peak RSS at step 0.1 within 5% of ste
 constexpr double kSteps[] = {0.5, 0.1};
 constexpr int kImage = 256;
 
-ivr::GradientOptions gradient_options(double step) {
-  return ivr::GradientOptions{ivr::Precision::f32, step,
+ivr::AdjointOptions gradient_options(double step) {
+  return ivr::AdjointOptions{ivr::Precision::f32, step,
                               ivr::Loss::mse,      /*density=*/true,
                               /*tf=*/false,        /*background=*/false};
 }
@@ -80,7 +80,7 @@ int measure_memory(const std::string& device_sel, int n, double step) {
   const ivr::Scene scene = ivr::bench::bench_scene(n, kImage);
   const ivr::Image target = ivr::bench::perturbed_target(device, scene, step);
   const long before = max_rss_kib();
-  const ivr::Gradient g = ivr::gradient(device, scene, target, gradient_options(step));
+  const ivr::AdjointGradient g = ivr::adjoint(device, scene, target, gradient_options(step));
   const long after = max_rss_kib();
   std::cout << json{{"max_rss_kib", after},       {"max_rss_kib_before_gradient", before},
                     {"vm_hwm_kib", vm_hwm_kib()}, {"device_bytes", g.device_bytes},
@@ -178,10 +178,10 @@ int main(int argc, char** argv) {
       for (double step : kSteps) {
         const ivr::Image target = ivr::bench::perturbed_target(device, scene, step);
         const ivr::RenderOptions ro{ivr::Precision::f32, step};
-        const ivr::GradientOptions go = gradient_options(step);
+        const ivr::AdjointOptions go = gradient_options(step);
         ivr::RenderStats stats;
         ivr::render(device, scene, ro, &stats);                      // warm-up, compiles
-        ivr::Gradient g = ivr::gradient(device, scene, target, go);  // warm-up, compiles
+        ivr::AdjointGradient g = ivr::adjoint(device, scene, target, go);  // warm-up, compiles
         // Interleaved (render, gradient, render, ...), so that a burst of load from elsewhere on
         // this shared machine hits both.
         std::vector<double> render_s, grad_s, render_wall, grad_wall, render_cpu, grad_cpu,
@@ -192,7 +192,7 @@ int main(int argc, char** argv) {
           render_cpu.push_back(worker_cpu_seconds() - cpu);
           render_s.push_back(stats.kernel_seconds);
           cpu = worker_cpu_seconds();
-          grad_wall.push_back(wall_seconds([&] { g = ivr::gradient(device, scene, target, go); }));
+          grad_wall.push_back(wall_seconds([&] { g = ivr::adjoint(device, scene, target, go); }));
           grad_cpu.push_back(worker_cpu_seconds() - cpu);
           grad_s.push_back(g.kernel_seconds);
           pair_ratio.push_back(grad_s.back() / render_s.back());

@@ -39,7 +39,7 @@ inline Scene tomo_scene(int n, int views, bool cone, int supersample = 4) {
   return s;
 }
 
-// The phantom's TF of the test suite (tests/reconstruct_support.hpp): every density visible.
+// The phantom's TF of the test suite (tests/reconstruct/reconstruct_support.hpp): every density visible.
 inline TransferFunction phantom_tf() {
   TransferFunction tf;
   tf.kind = TfKind::piecewise_linear;

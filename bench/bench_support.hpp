@@ -1,5 +1,5 @@
 // bench_support.hpp — what the benchmark runners share: medians, wall-clock timing, seeded vectors
-// and their dot product, the target image rendered from a smoothly perturbed volume (so that
+// and their dot product (reference/random.hpp), the target image rendered from a smoothly perturbed volume (so that
 // d loss / d pixel is non-zero), and the JSON result printed and written.
 #pragma once
 #include <algorithm>
@@ -13,8 +13,12 @@
 #include <vector>
 
 #include "ivr/core.hpp"
+#include "reference/random.hpp"
 
 namespace ivr::bench {
+
+using reference::dot;
+using reference::uniform;
 
 // Prints a benchmark's JSON document and, where `path` is given, writes it there too: a file that
 // cannot be written is an error naming it, not a result silently missing.
@@ -25,21 +29,6 @@ inline void emit_json(const nlohmann::json& doc, const std::string& path) {
   std::ofstream out(path);
   out << text;
   if (!out) throw Error(Status::io, "cannot write the results to " + path);
-}
-
-// n values uniform in [0, 1) from a fixed seed (the dot-product tests' vectors).
-inline std::vector<double> uniform(std::size_t n, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<double> v(n);
-  for (double& x : v) x = double(rng() >> 11) * 0x1.0p-53;
-  return v;
-}
-
-// ⟨a, b⟩ summed in long double.
-inline double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  long double s = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) s += (long double)a[i] * b[i];
-  return double(s);
 }
 
 inline double median(std::vector<double> v) {

@@ -139,17 +139,17 @@ int main(int argc, char** argv) {
         c.scene.integrator.scheme = scheme;
         if (scheme == ivr::Scheme::exact) c.scene.model = ivr::Model::absorption;
         const ivr::Image target = ivr::bench::perturbed_target(device, c.scene, 0.5);
-        ivr::GradientOptions on, off;
+        ivr::AdjointOptions on, off;
         on.step = off.step = 0.5;
         on.empty_space = ivr::EmptySpace::on;
         off.empty_space = ivr::EmptySpace::off;
-        ivr::Gradient g_on = ivr::gradient(device, c.scene, target, on);  // warm-up, compiles
-        ivr::Gradient g_off = ivr::gradient(device, c.scene, target, off);
+        ivr::AdjointGradient g_on = ivr::adjoint(device, c.scene, target, on);  // warm-up, compiles
+        ivr::AdjointGradient g_off = ivr::adjoint(device, c.scene, target, off);
         std::vector<double> k_on, k_off;
         for (int r = 0; r < repeats; ++r) {
-          g_on = ivr::gradient(device, c.scene, target, on);
+          g_on = ivr::adjoint(device, c.scene, target, on);
           k_on.push_back(g_on.kernel_seconds);
-          g_off = ivr::gradient(device, c.scene, target, off);
+          g_off = ivr::adjoint(device, c.scene, target, off);
           k_off.push_back(g_off.kernel_seconds);
         }
         double scale = 0, diff = 0;

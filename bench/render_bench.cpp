@@ -12,7 +12,7 @@
 #include "bench_scene.hpp"
 #include "bench_support.hpp"
 #include "ivr/core.hpp"
-#include "native_marcher.hpp"
+#include "reference/native_marcher.hpp"
 
 using nlohmann::json;
 

@@ -2,7 +2,7 @@
 // cases (near-opaque walls and media, 1e5 samples per ray, rays grazing faces and edges,
 // axis-aligned rays, a camera inside, one-voxel and anisotropic volumes, density jumps and TF
 // kinks, an all-zero volume) through every integrator: the forward error against the continuous
-// float64 reference (tests/reference) and the float32 gradient's error against the float64 one
+// float64 reference (reference/) and the float32 gradient's error against the float64 one
 // (density, TF, background; the measure of DESIGN.md's DiffDVR experiment), NaN/Inf counted, with
 // the render and gradient times. Prints JSON.
 #include <CLI/CLI.hpp>
@@ -223,16 +223,16 @@ int main(int argc, char** argv) {
           for (std::size_t i = 0; i < target.pixels.size(); ++i)
             target.pixels[i] -=
                 model == ivr::Model::absorption ? 0.1f : 0.15f + 0.05f * float(i % 4);
-          ivr::GradientOptions go;
+          ivr::AdjointOptions go;
           go.step = hc.step;
           go.tf = go.background = true;
           go.precision = ivr::Precision::f64;
-          const ivr::Gradient g64 = ivr::gradient(device, s, target, go);
+          const ivr::AdjointGradient g64 = ivr::adjoint(device, s, target, go);
           go.precision = ivr::Precision::f32;
           std::vector<double> gms;
-          ivr::Gradient g32;
+          ivr::AdjointGradient g32;
           for (int r = 0; r < repeats + 1; ++r) {
-            g32 = ivr::gradient(device, s, target, go);
+            g32 = ivr::adjoint(device, s, target, go);
             if (r > 0) gms.push_back(1e3 * g32.kernel_seconds);
           }
           std::size_t bad_gradient = 0;
@@ -263,7 +263,7 @@ int main(int argc, char** argv) {
     const json result = {{"benchmark", "stability"},
                          {"ivr_version", IVR_VERSION_STRING},
                          {"device", device.info().name},
-                         {"reference", "tests/reference render_continuous (float64)"},
+                         {"reference", "reference/ render_continuous (float64)"},
                          {"gradient_error", "max |f32 - f64| / max |f64| per group"},
                          {"repeats", repeats},
                          {"rows", rows}};

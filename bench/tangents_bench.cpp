@@ -65,7 +65,7 @@ int main(int argc, char** argv) {
 
     const ivr::Scene scene = ivr::bench::bench_scene(volume, image);
     const ivr::Image target = ivr::bench::perturbed_target(device, scene, 0);
-    ivr::DifferentiateOptions forward, adjoint, automatic;
+    ivr::GradientOptions forward, adjoint, automatic;
     forward.mode = ivr::Mode::forward;
     adjoint.mode = ivr::Mode::adjoint;
 
@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
     for (int r = 0; r <= repeats; ++r) {
       ivr::RenderStats st;
       ivr::render(device, scene, {ivr::Precision::f32}, &st);
-      const auto a = ivr::differentiate(device, scene, target, {one}, adjoint);
+      const auto a = ivr::gradient(device, scene, target, {one}, adjoint);
       if (r > 0) {
         render_s.push_back(st.kernel_seconds);
         adjoint_s.push_back(a.kernel_seconds);
@@ -93,8 +93,8 @@ int main(int argc, char** argv) {
       ivr::Mode chosen = ivr::Mode::automatic;
       ivr::Plan plan;
       for (int r = 0; r <= repeats; ++r) {
-        const auto f = ivr::differentiate(device, scene, target, {group}, forward);
-        const auto a = ivr::differentiate(device, scene, target, {group}, automatic);
+        const auto f = ivr::gradient(device, scene, target, {group}, forward);
+        const auto a = ivr::gradient(device, scene, target, {group}, automatic);
         chosen = a.plan.mode;
         plan = a.plan;
         if (r > 0) {

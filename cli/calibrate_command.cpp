@@ -1,5 +1,5 @@
 // calibrate_command.cpp — `ivr calibrate`: measures the device's cost model for the planner and
-// stores it where `ivr grad --mode auto` reads it.
+// stores it where `ivr gradient --mode auto` reads it.
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>

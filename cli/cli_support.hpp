@@ -41,7 +41,7 @@ struct Output {
 // failure leaves none of them behind.
 void write_outputs(const std::vector<Output>& outputs);
 
-// The options of the marching commands (render, grad, jacobian): --precision, --step, --scheme,
+// The options of the marching commands (render, gradient, jacobian): --precision, --step, --scheme,
 // --tolerance, --device.
 struct MarchOptions {
   std::string precision = "f32", device, scheme;

@@ -9,7 +9,7 @@ namespace ivr::cli {
 using Runner = std::function<int()>;
 Runner add_devices_command(CLI::App& app);
 Runner add_render_command(CLI::App& app);
-Runner add_grad_command(CLI::App& app);
+Runner add_gradient_command(CLI::App& app);
 Runner add_jacobian_command(CLI::App& app);
 Runner add_calibrate_command(CLI::App& app);
 Runner add_phantom_command(CLI::App& app);

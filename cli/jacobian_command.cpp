@@ -65,11 +65,11 @@ Runner add_jacobian_command(CLI::App& app) {
                                              bytes_text(std::uint64_t(bytes)) +
                                              "; ask for fewer parameters (voxels:LIST)");
     Device device(args->march.device);
-    TangentOptions options;
+    JacobianOptions options;
     options.precision = precision;
     options.step = args->march.step;
     options.jacobian = true;
-    Tangents t = tangents(device, scene, params, nullptr, options);
+    Jacobian t = jacobian(device, scene, params, nullptr, options);
     if (precision == Precision::f64)
       write_outputs({{args->output, shape, std::move(t.jacobian_f64), true}});
     else

@@ -14,7 +14,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", IVR_VERSION_STRING);
   const ivr::cli::Runner devices = ivr::cli::add_devices_command(app);
   const ivr::cli::Runner render = ivr::cli::add_render_command(app);
-  const ivr::cli::Runner grad = ivr::cli::add_grad_command(app);
+  const ivr::cli::Runner gradient = ivr::cli::add_gradient_command(app);
   const ivr::cli::Runner jacobian = ivr::cli::add_jacobian_command(app);
   const ivr::cli::Runner calibrate = ivr::cli::add_calibrate_command(app);
   const ivr::cli::Runner phantom = ivr::cli::add_phantom_command(app);
@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("devices")) return devices();
     if (app.got_subcommand("render")) return render();
-    if (app.got_subcommand("grad")) return grad();
+    if (app.got_subcommand("gradient")) return gradient();
     if (app.got_subcommand("jacobian")) return jacobian();
     if (app.got_subcommand("calibrate")) return calibrate();
     if (app.got_subcommand("phantom")) return phantom();

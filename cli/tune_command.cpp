@@ -1,5 +1,5 @@
 // tune_command.cpp — `ivr tune`: times work-group shapes per kernel on a device and prints the
-// launch database's rows for it (lib/device_params_db.inc), with a JSON record of every timing.
+// launch database's rows for it (lib/runtime/device_params_db.inc), with a JSON record of every timing.
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -185,7 +185,7 @@ Runner add_tune_command(CLI::App& app) {
                 "8x8 and 16x16 (options given explicitly still apply)");
   cmd->add_option("--json", args->json_path, "Write every timing and the winners to this file");
   cmd->add_flag("--emit-entries", args->emit,
-                "Print only the database rows (to append to lib/device_params_db.inc)");
+                "Print only the database rows (to append to lib/runtime/device_params_db.inc)");
   cmd->add_flag("--progress", args->progress,
                 "Report every shape on stderr once its kernel is timed");
   return [args] {

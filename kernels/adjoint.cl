@@ -13,13 +13,13 @@
 #include "march.cl"
 #include "primal.cl"
 #include "scatter_cache.cl"
-#include "tf_grad.cl"
+#include "adjoint_tf.cl"
 // Every scheme's march (the files' own include lines are resolved once, wherever they first
 // appear, so none is included under a condition); the scheme's is called.
 #include "adjoint_endpoints.cl"
 #include "adjoint_exact.cl"
 #include "adjoint_midpoint.cl"
-// IVR_PRIMAL_GIVEN: the primal march already ran (the CPU packet render, lib/adjoint.cpp): each
+// IVR_PRIMAL_GIVEN: the primal march already ran (the CPU packet render, lib/adjoint/adjoint.cpp): each
 // pixel's emitted colour and transmittance are in `image` and its samples in `samples`, read
 // before this item overwrites them with the pixel.
 #ifndef IVR_PRIMAL_GIVEN

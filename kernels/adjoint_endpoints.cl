@@ -11,7 +11,7 @@
 #include "compositing.cl"
 #include "empty_space.cl"
 #include "end_sample.cl"
-#include "preintegrated_adjoint.cl"
+#include "adjoint_preintegrated.cl"
 
 // An end sample with what its scatter needs, and the gradient it has collected so far.
 typedef struct {
@@ -88,7 +88,7 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
   AdjointSample a = adjoint_sample(volume, dims, m, 0, tf, tf_count, tf_scalars, &seg_value);
   bool open = true;  // a still waits for its scatter
   for (uint i = 0; i < ar->end;) {
-#if IVR_SKIP_EMPTY
+#if IVR_EMPTY_SPACE
     {
       const uint k = endpoint_skip(i, ar->end, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks);
       if (k > i) {  // the segments in between add nothing, nor does their gradient

@@ -28,7 +28,7 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
     t_last = tb;
     last_axis = p.axis;
     if (!(tb > ta)) continue;
-#if IVR_SKIP_EMPTY
+#if IVR_EMPTY_SPACE
     if (pieces_skip_empty(&p, m, dims, ta, tb, occupied, bricks)) continue;
 #endif
     const PieceCell pc = piece_cell(m, dims, ta, tb);

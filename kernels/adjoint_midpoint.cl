@@ -23,7 +23,7 @@ inline void adjoint_march_midpoint(__global const real* volume, int4 dims, const
   for (uint i = 0; i < ar->end;) {
     const real t = sample_t(m, i);
     const real ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
-#if IVR_SKIP_EMPTY
+#if IVR_EMPTY_SPACE
     const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
     if (exit >= (real)0) {
       i = skip_to(i, ar->end, m->t0, m->dt, exit);

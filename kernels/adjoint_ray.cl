@@ -6,9 +6,9 @@
 #include "adjoint_scatter.cl"
 #include "config.cl"
 #include "geometry.cl"
-#include "geometry_tangent.cl"
+#include "jacobian_geometry.cl"
 #include "march.cl"
-#include "tf_grad.cl"
+#include "adjoint_tf.cl"
 
 #ifndef IVR_GRAD_TF
 #define IVR_GRAD_TF 0

@@ -17,10 +17,10 @@
 
 #if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
 #pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
-// The deterministic density gradient (lib/adjoint.cpp): integer adds do not depend on their
+// The deterministic density gradient (lib/adjoint/adjoint.cpp): integer adds do not depend on their
 // order, so each contribution is scaled by 2^S, rounded to a long and added with atom_add. `grad`
 // then points at longs: [0] S (the host's, from an a-priori bound on one ray's Σ |contribution|:
-// lib/adjoint_bound.hpp), [1] the cap on one ray's scaled Σ |contribution| (2^62 / rays: no
+// lib/adjoint/adjoint_bound.hpp), [1] the cap on one ray's scaled Σ |contribution| (2^62 / rays: no
 // voxel's sum leaves the long range, whatever the bound said), [2] rays (or single
 // contributions) over the cap: the bound failed, the host runs again at a smaller S, [3] the
 // largest |contribution| and [4] the largest ray's Σ |contribution|, as float bits

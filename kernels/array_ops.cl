@@ -1,4 +1,4 @@
-// array_ops.cl — the device arrays' own operations (lib/device_array.cpp, lib/session.cpp): the
+// array_ops.cl — the device arrays' own operations (lib/runtime/device_array.cpp, lib/session/session.cpp): the
 // volume check run when a session's densities are set, reductions to the loss and the per-view
 // sums, conversions between float32 and float64, and the gathers and column copies that leave
 // a result's parts in arrays of their own — so that nothing has to come back to the host.

@@ -1,7 +1,7 @@
 // atomics.cl — adding reals to global and local memory without losing updates: OpenCL 1.2 has no
 // float atomics, so a compare-and-swap loop on the value's bits (32-bit, or 64-bit through
 // cl_khr_int64_base_atomics for float64), unless the device has cl_ext_float_atomics or is
-// NVIDIA's, whose native adds are reached through inline PTX (the host picks: lib/runtime.hpp,
+// NVIDIA's, whose native adds are reached through inline PTX (the host picks: lib/runtime/runtime.hpp,
 // atomic_add_for).
 #ifndef IVR_ATOMICS_CL
 #define IVR_ATOMICS_CL

@@ -35,8 +35,8 @@
 #ifndef IVR_EARLY_TERMINATION  // 1: stop a ray once its transmittance < min_transmittance
 #define IVR_EARLY_TERMINATION 1
 #endif
-#ifndef IVR_SKIP_EMPTY  // 1: jump over bricks whose σ is 0 everywhere (kernels/empty_space.cl)
-#define IVR_SKIP_EMPTY 0
+#ifndef IVR_EMPTY_SPACE  // 1: jump over bricks whose σ is 0 everywhere (kernels/empty_space.cl)
+#define IVR_EMPTY_SPACE 0
 #endif
 #ifndef IVR_BRICK_SIZE  // cells per brick edge of the occupancy grid
 #define IVR_BRICK_SIZE 8
@@ -68,8 +68,7 @@ inline real lerp(real a, real b, real t) {
   return a + (b - a) * t;
 }
 
-// Values per view in the camera buffer: eye, forward, right and up scaled to the image plane
-// (tan(fov/2)·aspect·right, tan(fov/2)·up' — or ortho half-extents), orthographic flag.
-#define IVR_CAMERA_STRIDE 16
+// IVR_CAMERA_STRIDE and the other layouts the host shares.
+#include "ivr_constants.h"
 
 #endif

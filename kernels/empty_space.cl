@@ -1,5 +1,5 @@
 // empty_space.cl — empty-space skipping: the brick a sample reads, where the ray leaves it, and
-// the brick ranges behind the occupancy grid (lib/empty_space.cpp maps them through the TF).
+// the brick ranges behind the occupancy grid (lib/empty_space/empty_space.cpp maps them through the TF).
 #ifndef IVR_EMPTY_SPACE_CL
 #define IVR_EMPTY_SPACE_CL
 #include "config.cl"
@@ -87,7 +87,7 @@ __attribute__((always_inline)) inline uint endpoint_skip(uint i, uint n, real ux
 }
 
 // Per brick (one work-item each): the min and max density over the voxels its samples read,
-// [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space.hpp), as float pairs.
+// [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space/empty_space.hpp), as float pairs.
 __kernel void brick_ranges(__global const real* restrict volume, const int4 dims, const int4 bricks,
                            __global float* restrict ranges) {
   const int bx = get_global_id(0), by = get_global_id(1), bz = get_global_id(2);

@@ -1,4 +1,4 @@
-// linalg.cl — the vector operations of the tomography solvers (lib/tomo.cpp) on the device:
+// linalg.cl — the vector operations of the tomography solvers (lib/tomo/tomo.cpp) on the device:
 // axpy-type updates, element-wise products, non-negativity, partial dot products, and the
 // weighted forward-difference operator of the TV regulariser with its exact transpose.
 #include "config.cl"

@@ -37,7 +37,7 @@
 //                   where E flattens). f32 20 exp, 250 ns 28x; f64 40 exp, 620 ns 11x.
 // Each rule is used only up to a depth where its error is ~5e-8 (f32) / 3e-14 (f64) (the second
 // f64 piece, depth ≤ 29, carries a weight below e^{−13}), so switching regime leaves no jump above
-// that: tests/linear_segment_test.cpp checks values astride each switch, and f64 central
+// that: tests/render/linear_segment_test.cpp checks values astride each switch, and f64 central
 // differences across them.
 // Accuracy, measured on PoCL against a long-double adaptive Gauss–Kronrod quadrature of the
 // defining integrals on 26364 (a, b) from a log grid (16 per decade) over [1e-6, 1e4] with 0 and

@@ -1,4 +1,4 @@
-// optimize.cl — first-order optimiser steps on the device (lib/optimizer.cpp): Adam and SGD with
+// optimize.cl — first-order optimiser steps on the device (lib/reconstruct/optimize.cpp): Adam and SGD with
 // momentum, each followed by the projection onto the box [lower, upper] (density ≥ 0, colours in
 // [0, 1], …). One work-item per parameter.
 #include "config.cl"

@@ -1,7 +1,7 @@
 // preintegrated.cl — the `preintegrated` integrator's segment: the density linear between the two
 // end samples, integrated exactly through the TF. Cut where the density crosses a TF knot, each
 // sub-segment has σ and the colour linear along the ray, whose emission–absorption integral is
-// closed (kernels/linear_segment.cl). The adjoint is kernels/preintegrated_adjoint.cl.
+// closed (kernels/linear_segment.cl). The adjoint is kernels/adjoint_preintegrated.cl.
 #ifndef IVR_PREINTEGRATED_CL
 #define IVR_PREINTEGRATED_CL
 #ifndef IVR_SCHEME  // compiled on its own: this file's scheme (preintegrated)

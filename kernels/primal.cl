@@ -98,7 +98,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
   for (uint i = 0; i < m->n;) {
     const real t = sample_t(m, i);
     const real ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
-#if IVR_SKIP_EMPTY
+#if IVR_EMPTY_SPACE
     // (Reading the grid at every sample measured faster on PoCL than tracking where the ray
     // leaves each occupied brick: bench/empty_space_bench.cpp.)
     const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
@@ -132,7 +132,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
   EndSample a = end_sample(volume, dims, m, 0, tf, tf_count, tf_scalars, &segment);
   ++r->samples;
   for (uint i = 0; i < m->n;) {
-#if IVR_SKIP_EMPTY
+#if IVR_EMPTY_SPACE
     {
       const uint k = endpoint_skip(i, m->n, a.ux, a.uy, a.uz, m, dims, occupied, bricks);
       if (k > i) {
@@ -181,7 +181,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
   while (pieces_next(&p, m, dims, &ta, &tb)) {
     ++r->end;
     if (!(tb > ta)) continue;
-#if IVR_SKIP_EMPTY
+#if IVR_EMPTY_SPACE
     if (pieces_skip_empty(&p, m, dims, ta, tb, occupied, bricks)) continue;
 #endif
     const PieceCell cell = piece_cell(m, dims, ta, tb);

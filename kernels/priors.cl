@@ -1,4 +1,4 @@
-// priors.cl — smoothness priors on the density (lib/priors.cpp): smoothed isotropic total
+// priors.cl — smoothness priors on the density (lib/reconstruct/priors.cpp): smoothed isotropic total
 // variation and L2 smoothness of the forward differences, their value and their gradient added to
 // the loss gradient. Each voxel gathers from its neighbours: no atomics, a deterministic result.
 #include "config.cl"

@@ -3,14 +3,14 @@
 // or terminates; the packet stops when all have). PoCL runs one work-item's loop as scalar code
 // and cannot vectorise across work-items whose loops differ in length, so on CPUs the lanes have
 // to be explicit. Emission–absorption, the midpoint rule, a piecewise-linear TF, float32, no
-// empty-space skipping (lib/render.cpp chooses it); the arithmetic is render.cl's, lane by lane.
+// empty-space skipping (lib/render/render.cpp chooses it); the arithmetic is render.cl's, lane by lane.
 #include "compositing.cl"
 #include "config.cl"
 #include "geometry.cl"
 #include "march.cl"
 #include "tf.cl"
 
-// IVR_PACKET_PRIMAL: the adjoint's primal march (lib/adjoint.cpp): each pixel's emitted colour C
+// IVR_PACKET_PRIMAL: the adjoint's primal march (lib/adjoint/adjoint.cpp): each pixel's emitted colour C
 // and transmittance T into `image` (not C + T·background, 1 − T), for kernels/adjoint.cl to read.
 #ifndef IVR_PACKET_PRIMAL
 #define IVR_PACKET_PRIMAL 0

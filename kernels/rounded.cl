@@ -2,7 +2,7 @@
 // geometry and the sample count (sample_count.cl) use them so that no device's rounding of
 // division moves a ray (NVIDIA's float32 quotient is not correctly rounded by default; 28 % of
 // random quotients differ). The host picks the means per device (IVR_COUNT_ARITHMETIC,
-// lib/runtime.hpp count_arithmetic): per ray a handful of these, never per sample.
+// lib/runtime/runtime.hpp count_arithmetic): per ray a handful of these, never per sample.
 #ifndef IVR_ROUNDED_CL
 #define IVR_ROUNDED_CL
 #include "config.cl"

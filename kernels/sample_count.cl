@@ -8,7 +8,7 @@
 // an integer number of steps (the hard cases are built that way) then gets n or n + 1 depending on
 // all three. Here the inputs are the float32 roundings of the camera, box and step (the float64
 // kernel rounds its own), products are summed only through explicit fma (nothing left to
-// contract), and division and square root are correctly rounded (rounded.cl). tests/reference/sample_count.cpp is the same definition on the
+// contract), and division and square root are correctly rounded (rounded.cl). reference/sample_count.cpp is the same definition on the
 // host.
 #ifndef IVR_SAMPLE_COUNT_CL
 #define IVR_SAMPLE_COUNT_CL

@@ -23,7 +23,7 @@
 // of 8x8 rays in lockstep (one add each per step; 128³ → 256² from a corner) leaves 0.20 of the
 // global adds with the packed table, 0.78 with the keyed one, 0.135 the floor (one per voxel).
 //
-// IVR_SCATTER_CACHE (the host's, lib/scatter_cache.hpp; $IVR_SCATTER_CACHE forces it) turns the
+// IVR_SCATTER_CACHE (the host's, lib/adjoint/scatter_cache.hpp; $IVR_SCATTER_CACHE forces it) turns the
 // table on; off, scatter_add() is the plain global atomic add and nothing here takes memory or a
 // barrier. Float sums in the table change the order of the additions (results agree to
 // rounding); the deterministic fixed-point gradient does not use the table (its adds are
@@ -36,7 +36,7 @@
 #ifndef IVR_SCATTER_CACHE
 #define IVR_SCATTER_CACHE 0
 #endif
-#ifndef IVR_SCATTER_SLOTS  // lib/scatter_cache.cpp's kScatterSlots
+#ifndef IVR_SCATTER_SLOTS  // lib/adjoint/scatter_cache.cpp's kScatterSlots
 #define IVR_SCATTER_SLOTS 1024
 #endif
 #if IVR_SCATTER_CACHE && (IVR_SCATTER_SLOTS < 1 || (IVR_SCATTER_SLOTS & (IVR_SCATTER_SLOTS - 1)))

@@ -9,9 +9,7 @@
 //   piecewise_linear:  rows [density, r, g, b, sigma], sorted by density
 //   table:             rows [r, g, b, sigma]; scalars = (lo, hi)
 //   gaussian:          rows [mean, width, r, g, b, extinction]
-#define IVR_TF_STRIDE_PIECEWISE_LINEAR 5
-#define IVR_TF_STRIDE_TABLE 4
-#define IVR_TF_STRIDE_GAUSSIAN 6
+#include "ivr_constants.h"  // IVR_TF_STRIDE_*: the row widths above
 
 // sigma(d), and with IVR_EMISSION the premultiplied emission in (*er, *eg, *eb). Scalars rather
 // than real3 because PoCL compiles real3 into padded 4-wide vectors with lane shuffles around them.

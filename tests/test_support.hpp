@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "../bench/bench_support.hpp"
+#include "reference/random.hpp"
 #include "ivr/core.hpp"
 
 namespace ivr::test {
@@ -28,8 +28,8 @@ inline bool has(const std::string& text, const std::string& part) {
 
 // n values uniform in [0, 1) from a fixed seed, and ⟨a, b⟩ accumulated in long double (adjoint
 // identities checked to ~1e-12): the benchmarks' own, so that both check with the same vectors.
-using bench::dot;
-using bench::uniform;
+using reference::dot;
+using reference::uniform;
 
 // One shared device for the whole test process ($IVR_DEVICE or the default).
 Device& device();

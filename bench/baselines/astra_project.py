@@ -38,7 +38,7 @@ astra = None  # imported by version()
 def parallel3d_vectors(cameras) -> np.ndarray:
     """ASTRA parallel3d_vec rows (views, 12) for ivr orthographic cameras of one size.
 
-    ivr (kernels/geometry.cl, lib/device_scene.hpp): f = normalize(target − eye), r =
+    ivr (kernels/geometry.cl, lib/scene/device_scene.hpp): f = normalize(target − eye), r =
     normalize(f × up), u = r × f, half_h = ortho_height/2, half_w = half_h·W/H; pixel (x, y) is the
     ray eye + sx·half_w·r + sy·half_h·u + t·f with sx = (2x + 1 − W)/W, sy = (H − 2y − 1)/H (row
     0 at the top). ASTRA: pixel (row i, col j) is the line through d + (j + ½ − cols/2)·U +

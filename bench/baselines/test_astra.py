@@ -4,7 +4,7 @@
 
 No GPU is needed: the ivr camera → parallel3d_vec conversion is checked in numpy against the
 cameras' pixel rays written out here from ivr's definition (kernels/geometry.cl,
-lib/device_scene.hpp) and against ASTRA's own parallel3d geometry; run.py's unavailable paths
+lib/scene/device_scene.hpp) and against ASTRA's own parallel3d geometry; run.py's unavailable paths
 (astra missing, astra without CUDA, --device cpu) and its end-to-end plumbing run with stand-in
 `astra` packages put first on PYTHONPATH. Where the real astra imports, its geometry
 constructors are compared too (those tests skip elsewhere); its CUDA projectors are not run here.

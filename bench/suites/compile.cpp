@@ -59,15 +59,15 @@ void compile_suite(Context& ctx) {
                                        }},
                                       {"gradient",
                                        [&](Device& d) {
-                                         GradientOptions o;
+                                         AdjointOptions o;
                                          o.step = 0.5;
-                                         gradient(d, scene, target, o);
+                                         adjoint(d, scene, target, o);
                                          return -1.0;
                                        }},
                                       {"forward_16_lanes", [&](Device& d) {
-                                         TangentOptions o;
+                                         JacobianOptions o;
                                          o.step = 0.5;
-                                         tangents(d, scene, lanes, &target, o);
+                                         jacobian(d, scene, lanes, &target, o);
                                          return -1.0;
                                        }}};
   // A build option no earlier compile used makes the programs new to PoCL's kernel cache too (its

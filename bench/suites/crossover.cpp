@@ -29,7 +29,7 @@ double reference_loss(const Scene& scene, double step_world, const Image& target
 }
 
 // The adjoint's value for a tf or background parameter (rows × 4 then the background).
-double adjoint_value(const Gradient& g, const Parameter& p) {
+double adjoint_value(const AdjointGradient& g, const Parameter& p) {
   if (p.group == ParameterGroup::background) return g.background[std::size_t(p.index)];
   return g.tf[std::size_t(p.index) * 4 + std::size_t(p.column)];
 }
@@ -47,11 +47,11 @@ void crossover_suite(Context& ctx) {
   nlohmann::json params = {{"volume", n}, {"image", image}, {"step", step}, {"loss", "mse"}};
 
   // The adjoint: every TF row and the background in one pass.
-  GradientOptions go;
+  AdjointOptions go;
   go.step = step;
   go.density = false;
   go.tf = go.background = true;
-  Gradient adj;
+  AdjointGradient adj;
   Measurement am;
   {
     // Central differences of the reference loss for two parameters, a colour and an extinction,
@@ -59,7 +59,7 @@ void crossover_suite(Context& ctx) {
     // threshold between the two evaluations jumps by ~ the threshold, which swamps the quotient.
     Scene smooth = scene;
     smooth.integrator.min_transmittance = 0;
-    const Gradient smooth_adj = gradient(ctx.device, smooth, target, go);
+    const AdjointGradient smooth_adj = adjoint(ctx.device, smooth, target, go);
     const double hw = reference::min_voxel_edge(scene) * step, eps = 1e-4;
     double worst = 0;
     for (const auto& [row, column] : {std::pair{2, 0}, std::pair{2, 3}}) {
@@ -81,7 +81,7 @@ void crossover_suite(Context& ctx) {
     am = measure(
         ctx.budget,
         [&] {
-          adj = gradient(ctx.device, scene, target, go);
+          adj = adjoint(ctx.device, scene, target, go);
           return adj.kernel_seconds;
         },
         [&] { return worst <= kFdTolerance; });
@@ -160,14 +160,14 @@ void crossover_suite(Context& ctx) {
   for (int P : lanes) {
     std::vector<Parameter> ps;
     for (int i = 0; i < P; ++i) ps.push_back(pool[std::size_t(i) % pool.size()]);
-    TangentOptions to;
+    JacobianOptions to;
     to.step = step;
-    Tangents t;
+    Jacobian t;
     double worst = 0;
     const Measurement m = measure(
         ctx.budget,
         [&] {
-          t = tangents(ctx.device, scene, ps, &target, to);
+          t = jacobian(ctx.device, scene, ps, &target, to);
           return t.kernel_seconds;
         },
         [&] {
@@ -230,15 +230,15 @@ void crossover_suite(Context& ctx) {
 
   // Forward mode on the 16 TF parameters against the Python baselines' forward mode.
   std::vector<Parameter> tf_params = parameters_of(scene, "tf");
-  TangentOptions to;
+  JacobianOptions to;
   to.step = step;
-  Tangents t;
+  Jacobian t;
   const std::vector<double> adjoint_tf(adj.tf.begin(), adj.tf.end());
   Check check;
   const Measurement m = measure(
       ctx.budget,
       [&] {
-        t = tangents(ctx.device, scene, tf_params, &target, to);
+        t = jacobian(ctx.device, scene, tf_params, &target, to);
         return t.kernel_seconds;
       },
       [&] {

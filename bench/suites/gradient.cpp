@@ -8,7 +8,7 @@
 
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
-#include "../native_marcher.hpp"
+#include "reference/native_marcher.hpp"
 #include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
 #include "reference/reference.hpp"
@@ -101,15 +101,15 @@ void gradient_suite(Context& ctx) {
 
   std::vector<float> ivr_gradient;
   for (const bool deterministic : {false, true}) {
-    GradientOptions o;
+    AdjointOptions o;
     o.step = c.step;
     o.deterministic = deterministic;
-    const Check check = directional_check(gradient(ctx.device, smooth, target, o).density);
-    Gradient g;
+    const Check check = directional_check(adjoint(ctx.device, smooth, target, o).density);
+    AdjointGradient g;
     const Measurement m = measure(
         ctx.budget,
         [&] {
-          g = gradient(ctx.device, scene, target, o);
+          g = adjoint(ctx.device, scene, target, o);
           return g.kernel_seconds;
         },
         [&] { return check.passed; });

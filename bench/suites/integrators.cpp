@@ -1,7 +1,7 @@
 // integrators.cpp — the integrators suite: speed against error for every integrator (midpoint,
 // trapezoid, pre-integrated; exact for absorption) over a range of steps, on the Marschner–Lobb
 // volume and the shared real volumes, under a smooth TF, a narrow-band TF and the absorption
-// model. The error is against the float64 continuous integral (tests/reference); before timing,
+// model. The error is against the float64 continuous integral (reference/); before timing,
 // midpoint is checked against the reference's same-step midpoint rule and pre-integration against
 // its same-step linear-segment definition, the others for a bounded error.
 #include <cmath>

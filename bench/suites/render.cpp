@@ -6,7 +6,7 @@
 #include <map>
 
 #include "../bench_scene.hpp"
-#include "../native_marcher.hpp"
+#include "reference/native_marcher.hpp"
 #include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
 #include "reference/reference.hpp"

@@ -8,7 +8,7 @@
 
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
-#include "../native_marcher.hpp"
+#include "reference/native_marcher.hpp"
 #include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
 
@@ -165,7 +165,7 @@ void scaling_suite(Context& ctx) {
       const double x = s.name == "image" ? p.image : s.name == "step" ? 1.0 / p.step : p.volume;
 
       Image img;  // the one-shot results, checked against the native marcher, hold the resident
-      Gradient g;
+      AdjointGradient g;
       {  // render
         RenderStats stats;
         const RenderOptions o{Precision::f32, p.step};
@@ -193,13 +193,13 @@ void scaling_suite(Context& ctx) {
       }
       const Image target = perturbed_target(ctx.device, scene, p.step);
       {  // density gradient
-        GradientOptions o;
+        AdjointOptions o;
         o.step = p.step;
         Check k;
         const Measurement m = measure(
             ctx.budget,
             [&] {
-              g = gradient(ctx.device, scene, target, o);
+              g = adjoint(ctx.device, scene, target, o);
               return g.kernel_seconds;
             },
             [&] {

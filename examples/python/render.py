@@ -20,7 +20,7 @@ with ivr.Context() as ctx:
     scene["tf"]["points"][1]["extinction"] = 8.0  # start away from the target's 20
     for it in range(60):
         info = {}
-        loss, grads = ctx.grad(scene, None, target, wrt="tf", info=info)
+        loss, grads = ctx.gradient(scene, None, target, wrt="tf", info=info)
         g = grads["tf"][1, 3]  # d loss / d extinction of the second point
         scene["tf"]["points"][1]["extinction"] -= 2e4 * g
         if it % 20 == 0:

@@ -21,7 +21,7 @@ class RenderLoss(torch.autograd.Function):
     @staticmethod
     def forward(ctx, volume, target, context, scene):
         v = volume.detach().cpu().numpy().astype(np.float32)
-        loss, grads = context.grad(scene, v, target.cpu().numpy(), wrt="density", mode="adjoint")
+        loss, grads = context.gradient(scene, v, target.cpu().numpy(), wrt="density", mode="adjoint")
         ctx.save_for_backward(torch.from_numpy(grads["density"].astype(np.float32)))
         return volume.new_tensor(loss)
 

@@ -157,7 +157,7 @@ IVR_API ivr_status ivr_render(ivr_context* context, const ivr_scene* scene, ivr_
                               double step, float* image, size_t capacity);
 
 /* The loss of the render against `target` (float32, the image shape; `count` floats) and its
- * gradient with respect to the comma-separated groups in `wrt` (as `ivr grad --wrt`: density,
+ * gradient with respect to the comma-separated groups in `wrt` (as `ivr gradient --wrt`: density,
  * tf, tf_points, scales, background, camera, step, voxels:LIST), in `mode`. */
 IVR_API ivr_status ivr_gradient(ivr_context* context, const ivr_scene* scene, const float* target,
                                 size_t count, const char* wrt, ivr_mode mode, ivr_loss loss,

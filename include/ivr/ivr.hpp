@@ -212,7 +212,7 @@ struct Options {
   double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
 };
 struct GradientOptions : Options {
-  std::string wrt = "density";  // comma-separated groups, as `ivr grad --wrt`
+  std::string wrt = "density";  // comma-separated groups, as `ivr gradient --wrt`
   Mode mode = Mode::automatic;
   Loss loss = Loss::mse;
 };

@@ -9,7 +9,7 @@
 
 #include "ivr/device.hpp"
 #include "ivr/export.h"
-#include "ivr/gradient.hpp"
+#include "ivr/adjoint.hpp"
 #include "ivr/optimize.hpp"
 #include "ivr/planner.hpp"
 #include "ivr/scene.hpp"
@@ -57,7 +57,7 @@ struct ReconstructOptions {
   // The TF alone: forward or adjoint; automatic = forward up to 32 parameters (deterministic:
   // runs repeat bit for bit), else the planner's choice. Density gradients are always adjoint.
   Mode mode = Mode::automatic;
-  // Densities' gradients summed in fixed point (GradientOptions::deterministic, where the
+  // Densities' gradients summed in fixed point (AdjointOptions::deterministic, where the
   // device has 64-bit integer atomics): a run repeats bit for bit whatever the thread
   // scheduling, so a resumed run equals an uninterrupted one. The joint mode's TF rows keep
   // their float atomics (their last bits vary).

@@ -13,12 +13,12 @@
 
 #include "ivr/device.hpp"
 #include "ivr/export.h"
-#include "ivr/gradient.hpp"
+#include "ivr/adjoint.hpp"
 #include "ivr/optimize.hpp"
 #include "ivr/planner.hpp"
 #include "ivr/render.hpp"
 #include "ivr/scene.hpp"
-#include "ivr/tangents.hpp"
+#include "ivr/jacobian.hpp"
 
 namespace ivr {
 
@@ -74,10 +74,10 @@ struct SessionOptions {
   int brick_size = 0;  // cells per brick edge; 0: 4 up to 128 voxels across, else 8
 };
 
-// What a gradient differentiates and how: the parameter groups of ivr grad --wrt (density, tf,
+// What a gradient differentiates and how: the parameter groups of ivr gradient --wrt (density, tf,
 // tf_points, scales, background, camera, step, voxels:LIST), the mode (automatic: the planner's
 // choice by the parameter count), the loss and, for the adjoint's density gradient, fixed-point
-// sums that repeat bit for bit (GradientOptions::deterministic).
+// sums that repeat bit for bit (AdjointOptions::deterministic).
 struct GradientRequest {
   std::vector<std::string> wrt{"density"};
   Mode mode = Mode::automatic;
@@ -177,7 +177,7 @@ class IVR_API Session {
   // d pixel / d parameter in forward mode: (views, H, W, C, P), P in `wrt` order; float32, or
   // float64 at f64.
   DeviceArray jacobian(const std::vector<std::string>& wrt);
-  // Forward mode on any list of parameters (ivr/tangents.hpp; repeats allowed) against the
+  // Forward mode on any list of parameters (ivr/jacobian.hpp; repeats allowed) against the
   // target: the loss and one group, "parameters", of their derivatives in order.
   SessionGradient forward(const std::vector<Parameter>& parameters, Loss loss = Loss::mse);
   // Line integrals N v of the densities (or of `volume`, (nz, ny, nx)) along every pixel ray,

@@ -1,5 +1,5 @@
 // ivr/tune.hpp — measuring the work-group shape of each kernel on a device and writing the launch
-// database's rows for it (what `ivr tune` runs; the rows go into lib/device_params_db.inc).
+// database's rows for it (what `ivr tune` runs; the rows go into lib/runtime/device_params_db.inc).
 #pragma once
 #include <functional>
 #include <string>
@@ -81,7 +81,7 @@ struct TuneResult {
 // ivr::Error(opencl) naming the kernel and shapes. Bad options throw invalid_argument.
 IVR_API TuneResult tune(Device& device, const TuneOptions& options = {});
 
-// The database rows of the winners, ready to paste into lib/device_params_db.inc: a comment line
+// The database rows of the winners, ready to paste into lib/runtime/device_params_db.inc: a comment line
 // naming the device, vendor, driver, date and `command`, then one
 // {kernel, vendor, device, local_x, local_y}, row a line with the scores in a trailing comment.
 IVR_API std::string tune_database_rows(const TuneResult& result, const std::string& command);

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "files.hpp"
+#include "io/files.hpp"
 #include "io/image_module.hpp"
 #include "ivr/error.hpp"
 #include "ivr/render.hpp"

@@ -6,7 +6,7 @@
 
 #include "fuzz_support.hpp"
 #include "ivr/volume_io.hpp"
-#include "reconstruct_checkpoint.hpp"
+#include "reconstruct/reconstruct_checkpoint.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const ivr::CheckpointShape shape = [] {

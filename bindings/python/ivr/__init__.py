@@ -3,7 +3,7 @@
     import ivr, numpy as np
     ctx = ivr.Context(device=None, precision="f32")
     image = ctx.render(scene, volume)                  # (views, H, W, C) float32
-    loss, grads = ctx.grad(scene, volume, target, wrt=("density", "tf"), mode="auto")
+    loss, grads = ctx.gradient(scene, volume, target, wrt=("density", "tf"), mode="auto")
     J = ctx.jacobian(scene, volume, wrt=("camera",))   # (views, H, W, C, P)
     p = ctx.project(scene, volume)                     # line integrals (views, H, W, 1)
     x, history = ctx.tomo(scene, p, solver="cgls", iterations=50)   # (Z, Y, X)
@@ -306,10 +306,10 @@ class Context(_Owned):
         finally:
             self._lib.ivr_scene_release(s)
 
-    def grad(self, scene, volume, target, wrt=("density",), mode="auto", loss="mse", step=0.0,
+    def gradient(self, scene, volume, target, wrt=("density",), mode="auto", loss="mse", step=0.0,
              base_dir=None, info=None):
         """(loss, {group: array}) of the loss of the render against `target` (its shape).
-        `wrt` names groups as `ivr grad --wrt` (density, tf, tf_points, scales, background,
+        `wrt` names groups as `ivr gradient --wrt` (density, tf, tf_points, scales, background,
         camera, step, "voxels:3,17,40-45"); `info`, a dict, receives the mode that ran."""
         groups = wrt if isinstance(wrt, str) else ",".join(wrt)
         s = self._scene(scene, volume, base_dir)

@@ -360,7 +360,7 @@ class Session(_Owned):
         """(loss, {group: DeviceArray}): the loss (shape (1,); float(loss) reads it) of the
         render against `target` (None: set_target's; else, for this call only, a DeviceArray of
         the image shape or a numpy array as set_target takes it) and its gradient for every
-        group of `wrt` (as ivr grad --wrt: density, tf, tf_points, scales, background, camera,
+        group of `wrt` (as ivr gradient --wrt: density, tf, tf_points, scales, background, camera,
         step, "voxels:3,17,40-45"), keyed by group name ("voxels" for voxels:LIST) in `wrt` order.
         mode "auto", "forward" or "adjoint"; loss "mse" or "l1"; deterministic sums the
         adjoint's density gradient in fixed point. `info`, a dict, receives the mode that ran."""

@@ -78,10 +78,10 @@ def test_grad_equals_the_cli(ctx, files):
     target = np.full((1, 5, 6, 4), 0.25, dtype=np.float32)
     np.save(files / "target.npy", target)
     info = {}
-    loss, grads = ctx.grad(SCENE, volume(), target, wrt=("tf", "background", "voxels:3,7-9"),
+    loss, grads = ctx.gradient(SCENE, volume(), target, wrt=("tf", "background", "voxels:3,7-9"),
                            mode="forward", info=info)
     assert info["mode"] == "forward"
-    out = json.loads(cli("grad", files / "scene.json", "--target", files / "target.npy",
+    out = json.loads(cli("gradient", files / "scene.json", "--target", files / "target.npy",
                          "--wrt", "tf,background,voxels:3,7-9", "--mode", "forward",
                          "-o", files / "g", "--json"))
     assert loss == pytest.approx(out["loss"], rel=1e-12)
@@ -90,8 +90,8 @@ def test_grad_equals_the_cli(ctx, files):
                                    atol=1e-12)
     assert grads["tf"].shape == (2, 4) and grads["voxels"].shape == (4,)
     # density through the adjoint, and the same numbers as the C++ CLI's file
-    loss2, g2 = ctx.grad(SCENE, volume(), target, wrt="density", mode="adjoint")
-    cli("grad", files / "scene.json", "--target", files / "target.npy", "--wrt", "density",
+    loss2, g2 = ctx.gradient(SCENE, volume(), target, wrt="density", mode="adjoint")
+    cli("gradient", files / "scene.json", "--target", files / "target.npy", "--wrt", "density",
         "--mode", "adjoint", "-o", files / "a")
     d = np.load(files / "a_density.npy")
     np.testing.assert_allclose(g2["density"], d, atol=1e-5 * np.abs(d).max())
@@ -109,15 +109,15 @@ def test_errors_raise_ivr_error(ctx):
         ctx.render(SCENE)  # no volume anywhere
     assert e.value.status == "IVR_ERROR_INVALID_ARGUMENT" and "no volume" in str(e.value)
     with pytest.raises(ivr.Error, match="unknown parameter group 'opacity'"):
-        ctx.grad(SCENE, volume(), np.zeros((1, 5, 6, 4), np.float32), wrt="opacity")
+        ctx.gradient(SCENE, volume(), np.zeros((1, 5, 6, 4), np.float32), wrt="opacity")
     with pytest.raises(ivr.Error, match="target has shape"):
-        ctx.grad(SCENE, volume(), np.zeros((5, 6, 3), np.float32))
+        ctx.gradient(SCENE, volume(), np.zeros((5, 6, 3), np.float32))
     with pytest.raises(ivr.Error, match="dtype"):
         ctx.render(SCENE, volume().astype(np.int64))
     with pytest.raises(ivr.Error, match="shape"):
         ctx.render(SCENE, np.zeros((4, 5), np.float32))
     with pytest.raises(ivr.Error, match="mode must be one of"):
-        ctx.grad(SCENE, volume(), np.zeros((1, 5, 6, 4), np.float32), mode="sideways")
+        ctx.gradient(SCENE, volume(), np.zeros((1, 5, 6, 4), np.float32), mode="sideways")
     with pytest.raises(ivr.Error) as e:
         ctx.render({"cameras": 3}, volume())
     assert e.value.status == "IVR_ERROR_INVALID_ARGUMENT"

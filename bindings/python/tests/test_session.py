@@ -180,7 +180,7 @@ WRT = ("density", "tf", "background", "camera")
 @pytest.mark.parametrize("mode", ["forward", "adjoint"])
 def test_gradient_equals_context_grad(ctx, mode):
     target = np.random.default_rng(2).uniform(0, 0.6, (1, 5, 6, 4)).astype(np.float32)
-    want_loss, want = ctx.grad(SCENE, volume(), target, wrt=WRT, mode=mode)
+    want_loss, want = ctx.gradient(SCENE, volume(), target, wrt=WRT, mode=mode)
     s = ivr.Session(ctx, SCENE, volume())
     s.set_target(target)
     info = {}
@@ -198,7 +198,7 @@ def test_gradient_equals_context_grad(ctx, mode):
         close(grads2["voxels"].numpy(), want["density"].ravel()[[3, 7, 8, 9]], rtol=1e-5,
               atol_scale=1e-5)
     l1, g1 = s.gradient(wrt="density", mode=mode, loss="l1")
-    want_l1, want_g1 = ctx.grad(SCENE, volume(), target, wrt="density", mode=mode, loss="l1")
+    want_l1, want_g1 = ctx.gradient(SCENE, volume(), target, wrt="density", mode=mode, loss="l1")
     assert float(l1) == pytest.approx(want_l1, rel=1e-6)
     close(g1["density"].numpy(), want_g1["density"], rtol=1e-5, atol_scale=1e-5)
 

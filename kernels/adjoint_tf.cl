@@ -1,0 +1,310 @@
+// adjoint_tf.cl — derivatives of the transfer functions: with respect to density (for the voxel
+// gradient) and to their own parameters (scattered into a work-group's local accumulator).
+// At a control point or table entry the derivative is one-sided: the segment [d_k, d_k+1) that
+// holds the density is used, as tf_sample() does.
+#ifndef IVR_TF_GRAD_CL
+#define IVR_TF_GRAD_CL
+#include "atomics.cl"
+#include "compositing.cl"
+#include "tf.cl"
+
+// Columns of the TF gradient (lib/adjoint/adjoint.cpp's tf_gradient_shape must agree).
+#if IVR_TF == IVR_TF_IDENTITY
+#define IVR_TF_GRAD_COLUMNS 2
+#elif IVR_TF == IVR_TF_GAUSSIAN
+#define IVR_TF_GRAD_COLUMNS 6
+#else
+#define IVR_TF_GRAD_COLUMNS 4
+#endif
+
+// Row `row`'s [r, g, b, sigma] (piecewise linear: after its density; table: the whole row).
+inline __global const real* tf_rgbs(__global const real* tf, int row) {
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  return tf + row * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+#else
+  return tf + row * IVR_TF_STRIDE_TABLE;
+#endif
+}
+
+// The one or two rows holding density d, their weights, and the slope of the weights in d.
+typedef struct {
+  int row0, row1;
+  real w1;      // weight of row1; row0 has 1 - w1
+  real dw1_dd;  // d w1 / d density (0 where the TF is constant)
+} TfSegment;
+
+inline TfSegment tf_segment(real d, __global const real* tf, int count, real4 scalars,
+                            int* cursor) {
+  TfSegment s;
+  s.row0 = s.row1 = 0;
+  s.w1 = (real)0;
+  s.dw1_dd = (real)0;
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  if (d >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
+    s.row0 = s.row1 = count - 1;
+  } else if (d > tf[0]) {
+    int k = *cursor;
+    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
+    while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
+    *cursor = k;
+    const real da = tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+    const real db = tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+    s.row0 = k;
+    s.row1 = k + 1;
+    s.w1 = (d - da) / (db - da);
+    s.dw1_dd = (real)1 / (db - da);
+  }
+#elif IVR_TF == IVR_TF_TABLE
+  const real scale = (real)(count - 1) / (scalars.y - scalars.x);
+  const real raw = (d - scalars.x) * scale;
+  const real u = clamp(raw, (real)0, (real)(count - 1));
+  s.row0 = min((int)u, count - 1);
+  s.row1 = min(s.row0 + 1, count - 1);
+  s.w1 = u - (real)s.row0;
+  s.dw1_dd = (raw >= (real)0 && raw < (real)(count - 1)) ? scale : (real)0;
+#endif
+  return s;
+}
+
+// d sigma / d d and d emission / d d at density d.
+__attribute__((always_inline)) inline real tf_slope(real d, __global const real* tf, int count,
+                                                    real4 scalars, int* cursor, real* der,
+                                                    real* deg, real* deb) {
+  *der = *deg = *deb = (real)0;
+#if IVR_TF == IVR_TF_IDENTITY
+#if IVR_EMISSION
+  *der = *deg = *deb = (real)2 * scalars.x * scalars.y * d;  // E = a·b·d²
+#endif
+  return scalars.x;
+#elif IVR_TF == IVR_TF_GAUSSIAN
+  real slope = (real)0;
+  for (int k = 0; k < count; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
+    const real z = (d - p[0]) / p[1];
+    const real ds = -p[5] * exp((real)-0.5 * z * z) * z / p[1];
+    slope += ds;
+#if IVR_EMISSION
+    *der += ds * p[2];
+    *deg += ds * p[3];
+    *deb += ds * p[4];
+#endif
+  }
+  return slope;
+#else
+  const TfSegment s = tf_segment(d, tf, count, scalars, cursor);
+  __global const real* a = tf_rgbs(tf, s.row0);  // r, g, b, sigma
+  __global const real* b = tf_rgbs(tf, s.row1);
+  const real sigma = lerp(a[3], b[3], s.w1);
+  const real dsigma = (b[3] - a[3]) * s.dw1_dd;
+#if IVR_EMISSION
+  // E = sigma·c: E' = sigma'·c + sigma·c'
+  *der = dsigma * lerp(a[0], b[0], s.w1) + sigma * (b[0] - a[0]) * s.dw1_dd;
+  *deg = dsigma * lerp(a[1], b[1], s.w1) + sigma * (b[1] - a[1]) * s.dw1_dd;
+  *deb = dsigma * lerp(a[2], b[2], s.w1) + sigma * (b[2] - a[2]) * s.dw1_dd;
+#endif
+  return dsigma;
+#endif
+}
+
+// tf_sample() and tf_slope() in one: sigma and the premultiplied emission, computed exactly as
+// tf_sample() computes them (so that the adjoint march recovers what the primal march rendered),
+// with their density derivatives in *dsigma and (*der, *deg, *deb), from one segment search.
+__attribute__((always_inline)) inline real tf_sample_slope(real d, __global const real* tf,
+                                                           int count, real4 scalars, int* cursor,
+                                                           real* er, real* eg, real* eb,
+                                                           real* dsigma, real* der, real* deg,
+                                                           real* deb) {
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  __global const real* a = tf + 1;  // r, g, b, sigma of the rows around d
+  __global const real* b = tf + 1;
+  real w = (real)0, dw = (real)0;  // weight of b, and its slope in d
+  if (d >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
+    a = b = tf + (count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+  } else if (d > tf[0]) {
+    int k = *cursor;
+    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
+    while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
+    *cursor = k;
+    a = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+    b = a + IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    const real width = b[-1] - a[-1];
+    w = (d - a[-1]) / width;
+    dw = (real)1 / width;
+  }
+#else
+  const real q = (d - scalars.x) / (scalars.y - scalars.x);
+  const real u = clamp(q, (real)0, (real)1) * (real)(count - 1);
+  const int i0 = min((int)u, count - 1);
+  const int i1 = min(i0 + 1, count - 1);
+  const real w = u - (real)i0;
+  const real dw =
+      (q >= (real)0 && q < (real)1) ? (real)(count - 1) / (scalars.y - scalars.x) : (real)0;
+  __global const real* a = tf + i0 * IVR_TF_STRIDE_TABLE;
+  __global const real* b = tf + i1 * IVR_TF_STRIDE_TABLE;
+#endif
+  const real sigma = lerp(a[3], b[3], w);
+  *dsigma = (b[3] - a[3]) * dw;
+#if IVR_EMISSION
+  const real cr = lerp(a[0], b[0], w), cg = lerp(a[1], b[1], w), cb = lerp(a[2], b[2], w);
+  *er = sigma * cr;
+  *eg = sigma * cg;
+  *eb = sigma * cb;
+  // E = sigma·c: E' = sigma'·c + sigma·c'
+  *der = *dsigma * cr + sigma * (b[0] - a[0]) * dw;
+  *deg = *dsigma * cg + sigma * (b[1] - a[1]) * dw;
+  *deb = *dsigma * cb + sigma * (b[2] - a[2]) * dw;
+#else
+  *der = *deg = *deb = (real)0;
+#endif
+  return sigma;
+#else
+  const real sigma = tf_sample(d, tf, count, scalars, cursor, er, eg, eb);
+  *dsigma = tf_slope(d, tf, count, scalars, cursor, der, deg, deb);
+  return sigma;
+#endif
+}
+
+// A ray's private TF-gradient accumulator: the rows its samples currently touch, each value summed
+// with compensation (accumulate), flushed into the work-group's local accumulator when the rows
+// change and when the ray ends. A ray of 1e5 samples in one TF segment would otherwise add 1e5
+// float32 terms into one value and lose float32 accuracy.
+#if IVR_TF == IVR_TF_GAUSSIAN
+#if defined(IVR_TF_ROWS) && IVR_TF_ROWS <= 8
+#define IVR_TF_CACHE_ROWS IVR_TF_ROWS  // every Gaussian, every sample
+#else
+#define IVR_TF_CACHE_ROWS 0  // many Gaussians: straight to local memory
+#endif
+#elif IVR_TF == IVR_TF_IDENTITY
+#define IVR_TF_CACHE_ROWS 1
+#else
+#define IVR_TF_CACHE_ROWS 2   // the segment's two rows
+#define IVR_TF_CACHE_KEYED 1  // slots re-keyed as the segment changes
+#endif
+#ifndef IVR_TF_CACHE_KEYED
+#define IVR_TF_CACHE_KEYED 0  // slot k holds row k
+#endif
+
+#define IVR_TF_CACHE_SIZE (IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS * IVR_TF_GRAD_COLUMNS : 1)
+
+typedef struct {
+  int row[IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS : 1];  // -1: slot unused
+  real value[IVR_TF_CACHE_SIZE], error[IVR_TF_CACHE_SIZE];
+} TfGradCache;
+
+inline void tf_cache_init(TfGradCache* c) {
+  for (int k = 0; k < (IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS : 1); ++k)
+    c->row[k] = IVR_TF_CACHE_KEYED ? -1 : k;
+  for (int i = 0; i < IVR_TF_CACHE_SIZE; ++i) c->value[i] = c->error[i] = (real)0;
+}
+
+inline void tf_cache_flush(TfGradCache* c, volatile __local real* acc) {
+  for (int k = 0; k < IVR_TF_CACHE_ROWS; ++k) {
+    if (c->row[k] < 0) continue;
+    for (int j = 0; j < IVR_TF_GRAD_COLUMNS; ++j) {
+      const int i = k * IVR_TF_GRAD_COLUMNS + j;
+      if (c->value[i] != (real)0)
+        atomic_add_local(acc + c->row[k] * IVR_TF_GRAD_COLUMNS + j, c->value[i]);
+      c->value[i] = c->error[i] = (real)0;
+    }
+  }
+}
+
+// Adds v to column j of cache slot k.
+inline void tf_cache_add(TfGradCache* c, int k, int j, real v) {
+  accumulate(&c->value[k * IVR_TF_GRAD_COLUMNS + j], &c->error[k * IVR_TF_GRAD_COLUMNS + j], v);
+}
+
+// Adds the parameter gradient of one sample, given gs = dL/dsigma and (gr, gg, gb) = dL/dE,
+// into the ray's cache (flushing into acc, rows x IVR_TF_GRAD_COLUMNS in local memory).
+inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars, int* cursor,
+                       real gs, real gr, real gg, real gb, TfGradCache* cache,
+                       volatile __local real* acc) {
+#if IVR_TF == IVR_TF_IDENTITY
+  // sigma = a·d, E = a·b·d² (grey): dL/da = gs·d + (gr+gg+gb)·b·d², dL/db = (gr+gg+gb)·a·d².
+  const real ge = gr + gg + gb;
+  tf_cache_add(cache, 0, 0, gs * d + ge * scalars.y * d * d);
+  tf_cache_add(cache, 0, 1, ge * scalars.x * d * d);
+#elif IVR_TF == IVR_TF_GAUSSIAN
+  for (int k = 0; k < count; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
+    const real z = (d - p[0]) / p[1];
+    const real g = exp((real)-0.5 * z * z);
+    // sigma += e·G, E += e·G·c: d/de = G·(gs + gE·c), d/dc = e·G·gE, d/dmean = e·(gs + gE·c)·G·z/w,
+    // d/dwidth = e·(gs + gE·c)·G·z²/w.
+    const real through = gs + gr * p[2] + gg * p[3] + gb * p[4];
+    const real v[6] = {p[5] * g * gr,
+                       p[5] * g * gg,
+                       p[5] * g * gb,
+                       g * through,
+                       p[5] * through * g * z / p[1],
+                       p[5] * through * g * z * z / p[1]};
+    for (int j = 0; j < 6; ++j) {
+#if IVR_TF_CACHE_ROWS > 0
+      tf_cache_add(cache, k, j, v[j]);
+#else
+      atomic_add_local(acc + k * IVR_TF_GRAD_COLUMNS + j, v[j]);
+#endif
+    }
+  }
+#else
+  const TfSegment s = tf_segment(d, tf, count, scalars, cursor);
+  if (s.row0 != cache->row[0] || s.row1 != cache->row[1]) {
+    tf_cache_flush(cache, acc);
+    cache->row[0] = s.row0;
+    cache->row[1] = s.row1 == s.row0 ? -1 : s.row1;  // one row beyond the ends
+  }
+  __global const real* a = tf_rgbs(tf, s.row0);  // r, g, b, sigma
+  __global const real* b = tf_rgbs(tf, s.row1);
+  // sigma = lerp(s0, s1, w), c = lerp(c0, c1, w), E = sigma·c.
+  const real sigma = lerp(a[3], b[3], s.w1);
+  const real cr = lerp(a[0], b[0], s.w1), cg = lerp(a[1], b[1], s.w1), cb = lerp(a[2], b[2], s.w1);
+  const real through = gs + gr * cr + gg * cg + gb * cb;  // dL/dsigma including E = sigma·c
+  // Slot 0 holds row0 with weight 1 - w; slot 1 holds row1 with w (beyond the ends: row0, weight
+  // 1).
+  const real w[2] = {s.row1 == s.row0 ? (real)1 : (real)1 - s.w1, s.w1};
+  for (int k = 0; k < (s.row1 == s.row0 ? 1 : 2); ++k) {
+#if IVR_EMISSION
+    tf_cache_add(cache, k, 0, w[k] * sigma * gr);
+    tf_cache_add(cache, k, 1, w[k] * sigma * gg);
+    tf_cache_add(cache, k, 2, w[k] * sigma * gb);
+#endif
+    tf_cache_add(cache, k, 3, w[k] * through);
+  }
+#endif
+}
+
+// Adds a gradient taken through a TF piece (tf.cl, tf_piece) at density x — gs = dL/dσ(x) and
+// (gr, gg, gb) = dL/d colour(x), the colour not premultiplied — into the rows the piece blends:
+// the parameterisation of the integrators that integrate through the TF exactly.
+inline void tf_scatter_piece(const TfPiece* p, real x, real gs, real gr, real gg, real gb,
+                             TfGradCache* cache, volatile __local real* acc) {
+#if IVR_TF == IVR_TF_IDENTITY
+  (void)p, (void)acc;
+  tf_cache_add(cache, 0, 0, gs * x);              // σ = a·x
+  tf_cache_add(cache, 0, 1, (gr + gg + gb) * x);  // colour = b·x
+#elif IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+  const int row1 = p->row1 == p->row0 ? -1 : p->row1;  // one row for a constant piece
+  if (p->row0 != cache->row[0] || row1 != cache->row[1]) {
+    tf_cache_flush(cache, acc);
+    cache->row[0] = p->row0;
+    cache->row[1] = row1;
+  }
+  const real w1 = (x - p->x0) * p->inv_width;  // 0 for a constant piece
+  const real w[2] = {(real)1 - w1, w1};
+  for (int k = 0; k < (row1 < 0 ? 1 : 2); ++k) {
+#if IVR_EMISSION
+    tf_cache_add(cache, k, 0, w[k] * gr);
+    tf_cache_add(cache, k, 1, w[k] * gg);
+    tf_cache_add(cache, k, 2, w[k] * gb);
+#else
+    (void)gr, (void)gg, (void)gb;
+#endif
+    tf_cache_add(cache, k, 3, w[k] * gs);
+  }
+#else
+  (void)p, (void)x, (void)gs, (void)gr, (void)gg, (void)gb, (void)cache, (void)acc;
+#endif
+}
+
+#endif

@@ -1,0 +1,34 @@
+/* ivr_constants.h — the numbers the host and the kernels must agree on (buffer layouts and codes),
+ * written once and included by both: the kernels include it like any kernel file (embedded and
+ * resolved once), lib/ from this folder. Preprocessor definitions only. */
+#ifndef IVR_CONSTANTS_H
+#define IVR_CONSTANTS_H
+
+/* Values per view in the camera buffer (kernels/config.cl): eye, forward, right and up scaled to
+ * the image plane (tan(fov/2)·aspect·right, tan(fov/2)·up' — or ortho half-extents), orthographic
+ * flag; the rest is padding. */
+#define IVR_CAMERA_STRIDE 16
+/* Values per view in the camera-parameter buffer (kernels/jacobian_geometry.cl): eye, target, up,
+ * fov_y (degrees), aspect (W/H), ortho_height, orthographic flag; the rest is padding. */
+#define IVR_CAMERA_PARAMS_STRIDE 16
+
+/* Transfer-function rows (kernels/tf.cl):
+ *   identity:          none; scalars = (extinction_scale, color_scale)
+ *   piecewise_linear:  rows [density, r, g, b, sigma], sorted by density
+ *   table:             rows [r, g, b, sigma]; scalars = (lo, hi)
+ *   gaussian:          rows [mean, width, r, g, b, extinction] */
+#define IVR_TF_STRIDE_PIECEWISE_LINEAR 5
+#define IVR_TF_STRIDE_TABLE 4
+#define IVR_TF_STRIDE_GAUSSIAN 6
+
+/* What a tangent lane differentiates (int4 per lane: kind, a, b, c; kernels/jacobian_ray.cl). */
+#define IVR_LANE_NONE 0       /* padding: derivative 0 */
+#define IVR_LANE_TF 1         /* a = row, b = column */
+#define IVR_LANE_BACKGROUND 2 /* a = channel */
+#define IVR_LANE_CAMERA 3     /* a = view, b = component (0..6) */
+#define IVR_LANE_VOXEL 4      /* (a, b, c) = (x, y, z) */
+#define IVR_LANE_STEP 5       /* the step enters only through the sample count: derivative 0 */
+/* Tangent lanes of one forward-mode pass at most (more parameters run in several passes). */
+#define IVR_MAX_LANES 32
+
+#endif

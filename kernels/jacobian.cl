@@ -1,0 +1,121 @@
+// jacobian.cl — forward-mode derivatives, one work-item per pixel: the scene's integrator's march
+// carrying IVR_LANES tangent lanes (tangent_<scheme>.cl), each the derivative of every quantity
+// with respect to one parameter (a TF parameter, a camera component, a background channel, a
+// voxel), through ray generation, clipping, sampling, the TF and compositing. Writes the Jacobian
+// of the pixel (IVR_JACOBIAN) and/or this work-group's share of the loss and its gradient
+// (IVR_LOSS_GRADIENT), reduced in local memory without writing the Jacobian.
+#include "config.cl"
+#include "geometry.cl"
+#include "loss.cl"
+#include "march.cl"
+#include "primal.cl"
+#include "jacobian_ray.cl"
+// Every scheme's march (the files' own include lines are resolved once, wherever they first
+// appear, so none is included under a condition); the scheme's is called.
+#include "jacobian_endpoints.cl"
+#include "jacobian_exact.cl"
+#include "jacobian_midpoint.cl"
+#if IVR_SCHEME == IVR_SCHEME_MIDPOINT
+#define tangent_march tangent_march_midpoint
+#elif IVR_ENDPOINT_SAMPLES
+#define tangent_march tangent_march_endpoints
+#else
+#define tangent_march tangent_march_exact
+#endif
+
+#ifndef IVR_JACOBIAN
+#define IVR_JACOBIAN 1
+#endif
+#ifndef IVR_LOSS_GRADIENT
+#define IVR_LOSS_GRADIENT 1
+#endif
+
+__kernel void tangents(__global const real* restrict volume, const int4 dims, const real4 box_min,
+                       const real4 box_max, const real4 inv_voxel,
+                       __global const real* restrict cameras, const int width, const int height,
+                       __global const real* restrict tf, const int tf_count, const real4 tf_scalars,
+                       const real4 background, const real step, const real min_transmittance,
+                       __global const int4* restrict lanes,
+                       __global const real* restrict camera_params,
+                       __global const real* restrict target, const real norm,
+                       __global real* restrict image, __global real* restrict jacobian,
+                       __global real* restrict partial, __local real* scratch,
+                       __global const uchar* restrict occupied, const int4 bricks) {
+  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  const bool active = x < width && y < height;  // padding items still meet the barrier
+  real loss = (real)0, dloss[IVR_LANES];
+  IVR_FOR_LANES(p) dloss[p] = (real)0;
+
+  if (active) {
+    const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
+    March m;
+    const bool hit = march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min,
+                                 box_max, inv_voxel, step, &m);
+    TangentRay tr;
+    tangent_ray_begin(&tr, lanes, camera_params, view, x, y, width, height, ray,
+                      hit ? &m : (const March*)0, box_min, box_max);
+    Radiance r = radiance_begin();
+    if (hit)
+      tangent_march(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, min_transmittance,
+                    occupied, bricks, &tr, &r);
+    const real transmittance = r.transmittance;
+    const real cr = r.cr, cg = r.cg, cb = r.cb;
+
+    // The pixel and its tangents; the background's own lanes.
+    const size_t pixel = ((size_t)view * height + y) * width + x;
+    real value[IVR_CHANNELS];
+#if IVR_EMISSION
+    value[0] = cr + transmittance * background.x;
+    value[1] = cg + transmittance * background.y;
+    value[2] = cb + transmittance * background.z;
+    value[3] = (real)1 - transmittance;
+#else
+    value[0] = background.x * transmittance;
+#endif
+    for (int c = 0; c < IVR_CHANNELS; ++c) image[pixel * IVR_CHANNELS + c] = value[c];
+#if IVR_LOSS_GRADIENT
+    real g[IVR_CHANNELS];
+    for (int c = 0; c < IVR_CHANNELS; ++c)
+      g[c] = loss_term(value[c], target[pixel * IVR_CHANNELS + c], norm, &loss);
+#endif
+    IVR_FOR_LANES(p) {
+      const int4 lane = tr.lane[p];
+      real dv[IVR_CHANNELS];
+#if IVR_EMISSION
+      const real bg[3] = {background.x, background.y, background.z};
+      const real dc[3] = {tr.dcr[p], tr.dcg[p], tr.dcb[p]};
+      for (int c = 0; c < 3; ++c)
+        dv[c] = dc[c] + tr.dT[p] * bg[c] +
+                (lane.x == IVR_LANE_BACKGROUND && lane.y == c ? transmittance : (real)0);
+      dv[3] = -tr.dT[p];
+#else
+      dv[0] = background.x * tr.dT[p] + (lane.x == IVR_LANE_BACKGROUND ? transmittance : (real)0);
+#endif
+#if IVR_JACOBIAN
+      for (int c = 0; c < IVR_CHANNELS; ++c)
+        jacobian[(pixel * IVR_CHANNELS + c) * IVR_LANES + p] = dv[c];
+#endif
+#if IVR_LOSS_GRADIENT
+      for (int c = 0; c < IVR_CHANNELS; ++c) dloss[p] += g[c] * dv[c];
+#endif
+    }
+  }
+
+#if IVR_LOSS_GRADIENT
+  // The work-group's loss and gradient: summed in local memory in a fixed order (deterministic),
+  // one row of IVR_LANES + 1 values per group.
+  const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
+  const int lsize = get_local_size(0) * get_local_size(1);
+  scratch[lid * (IVR_LANES + 1)] = loss;
+  IVR_FOR_LANES(p) scratch[lid * (IVR_LANES + 1) + 1 + p] = dloss[p];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const size_t group =
+      ((size_t)get_group_id(2) * get_num_groups(1) + get_group_id(1)) * get_num_groups(0) +
+      get_group_id(0);
+  for (int k = lid; k < IVR_LANES + 1; k += lsize) {
+    real sum = (real)0;
+    for (int i = 0; i < lsize; ++i) sum += scratch[i * (IVR_LANES + 1) + k];
+    partial[group * (IVR_LANES + 1) + k] = sum;
+  }
+#endif
+}

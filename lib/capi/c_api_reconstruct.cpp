@@ -1,0 +1,456 @@
+// c_api_reconstruct.cpp — the C API's inverse rendering (include/ivr/ivr.h): reconstruction
+// handles over ivr::Reconstruction, viewpoint selection, image entropy and PSNR.
+#include <algorithm>
+#include <chrono>
+#include <climits>
+#include <functional>
+
+#include "capi/c_api_handles.hpp"
+#include "reconstruct/reconstruct_params.hpp"
+
+using namespace ivr::capi;
+
+// A reconstruction and the context whose device it runs on (held by reference until release).
+struct ivr_reconstruction {
+  std::atomic<int> references{1};
+  ivr_context* context = nullptr;
+  std::unique_ptr<ivr::Reconstruction> reconstruction;
+  bool explicit_box = false;  // of the source scene: handed on to result scenes
+  ivr::Volume grid;           // the full grid's dims (no data): shapes without a read-back
+};
+
+namespace {
+
+template <class R>
+R* checked_reconstruction(R* r) {
+  return checked(r, Kind::reconstruction, "reconstruction");
+}
+
+ivr_context* context_of_reconstruction(const ivr_reconstruction* r) {
+  return r && is_live(r, Kind::reconstruction) ? r->context : nullptr;
+}
+
+[[noreturn]] void bad(const std::string& message) {
+  throw CError{IVR_ERROR_INVALID_ARGUMENT, message};
+}
+
+ivr_reconstruct_options default_options() {
+  const ivr::ReconstructOptions d;
+  ivr_reconstruct_options o;
+  o.density = d.density;
+  o.tf = d.tf;
+  o.iterations = d.iterations;
+  o.optimizer = IVR_OPTIMIZER_AUTO;
+  o.lr = 0;
+  o.schedule = IVR_SCHEDULE_CONSTANT;
+  o.step_every = d.optimizer.step_every;
+  o.step_gamma = d.optimizer.step_gamma;
+  o.min_lr = d.optimizer.min_lr;
+  o.loss = IVR_LOSS_MSE;
+  o.tv = d.tv;
+  o.smoothness = d.smoothness;
+  o.tf_smoothness = d.tf_smoothness;
+  o.tv_epsilon = d.tv_epsilon;
+  o.batch = d.batch;
+  o.levels = d.levels;
+  o.init = IVR_INIT_SCENE;
+  o.init_value = d.init_value;
+  o.seed = d.seed;
+  o.precision = IVR_PRECISION_F32;
+  o.step = d.step;
+  o.mode = IVR_MODE_AUTO;
+  return o;
+}
+
+ivr::OptimizerKind optimizer_kind(ivr_optimizer k) {
+  switch (k) {
+    case IVR_OPTIMIZER_AUTO:
+    case IVR_OPTIMIZER_ADAM:
+      return ivr::OptimizerKind::adam;
+    case IVR_OPTIMIZER_SGD:
+      return ivr::OptimizerKind::sgd;
+    case IVR_OPTIMIZER_LBFGS:
+      return ivr::OptimizerKind::lbfgs;
+    default:
+      break;
+  }
+  bad("unknown optimizer " + std::to_string(int(k)) +
+      " (IVR_OPTIMIZER_AUTO, IVR_OPTIMIZER_ADAM, IVR_OPTIMIZER_SGD, IVR_OPTIMIZER_LBFGS)");
+}
+
+ivr_optimizer optimizer_enum(ivr::OptimizerKind k) {
+  return k == ivr::OptimizerKind::sgd     ? IVR_OPTIMIZER_SGD
+         : k == ivr::OptimizerKind::lbfgs ? IVR_OPTIMIZER_LBFGS
+                                          : IVR_OPTIMIZER_ADAM;
+}
+
+// The C options as the core's; ranges are left to ivr::validate_reconstruct, which names them.
+ivr::ReconstructOptions reconstruct_options(const ivr_reconstruct_options& c) {
+  ivr::ReconstructOptions o;
+  o.density = c.density != 0;
+  o.tf = c.tf != 0;
+  o.iterations = c.iterations;
+  o.automatic_optimizer = c.optimizer == IVR_OPTIMIZER_AUTO;
+  o.optimizer.kind = optimizer_kind(c.optimizer);
+  o.optimizer.lr = c.lr;
+  switch (c.schedule) {
+    case IVR_SCHEDULE_CONSTANT:
+      o.optimizer.schedule = ivr::Schedule::constant;
+      break;
+    case IVR_SCHEDULE_STEP:
+      o.optimizer.schedule = ivr::Schedule::step;
+      break;
+    case IVR_SCHEDULE_COSINE:
+      o.optimizer.schedule = ivr::Schedule::cosine;
+      break;
+    default:
+      bad("unknown schedule " + std::to_string(int(c.schedule)) +
+          " (IVR_SCHEDULE_CONSTANT, IVR_SCHEDULE_STEP, IVR_SCHEDULE_COSINE)");
+  }
+  o.optimizer.step_every = c.step_every;
+  o.optimizer.step_gamma = c.step_gamma;
+  o.optimizer.min_lr = c.min_lr;
+  if (c.loss != IVR_LOSS_MSE && c.loss != IVR_LOSS_L1)
+    bad("unknown loss " + std::to_string(int(c.loss)) + " (IVR_LOSS_MSE, IVR_LOSS_L1)");
+  o.loss = c.loss == IVR_LOSS_L1 ? ivr::Loss::l1 : ivr::Loss::mse;
+  o.tv = c.tv;
+  o.smoothness = c.smoothness;
+  o.tf_smoothness = c.tf_smoothness;
+  o.tv_epsilon = c.tv_epsilon;
+  o.batch = c.batch;
+  o.levels = c.levels;
+  switch (c.init) {
+    case IVR_INIT_SCENE:
+      o.init = ivr::Init::scene;
+      break;
+    case IVR_INIT_ZEROS:
+      o.init = ivr::Init::zeros;
+      break;
+    case IVR_INIT_CONSTANT:
+      o.init = ivr::Init::constant;
+      break;
+    default:
+      bad("unknown init " + std::to_string(int(c.init)) +
+          " (IVR_INIT_SCENE, IVR_INIT_ZEROS, IVR_INIT_CONSTANT)");
+  }
+  o.init_value = c.init_value;
+  o.seed = c.seed;
+  o.precision = precision_of(c.precision);
+  o.step = c.step;
+  if (c.mode != IVR_MODE_AUTO && c.mode != IVR_MODE_FORWARD && c.mode != IVR_MODE_ADJOINT)
+    bad("unknown mode " + std::to_string(int(c.mode)));
+  o.mode = c.mode == IVR_MODE_FORWARD   ? ivr::Mode::forward
+           : c.mode == IVR_MODE_ADJOINT ? ivr::Mode::adjoint
+                                        : ivr::Mode::automatic;
+  return o;
+}
+
+ivr_reconstruct_iteration record_of(const ivr::IterationRecord& r) {
+  return {r.iteration, r.level, r.loss, r.prior, r.lr, r.seconds, r.views};
+}
+
+ivr_viewpoint_options default_viewpoint_options() {
+  const ivr::ViewpointOptions d;
+  ivr_viewpoint_options o;
+  o.view = d.view;
+  o.iterations = d.iterations;
+  o.optimizer = IVR_OPTIMIZER_AUTO;
+  o.lr = 0;
+  o.precision = IVR_PRECISION_F32;
+  o.step = d.step;
+  return o;
+}
+
+ivr_camera camera_of(const ivr::Camera& c) {
+  ivr_camera out;
+  for (int i = 0; i < 3; ++i) {
+    out.eye[i] = c.eye[i];
+    out.target[i] = c.target[i];
+    out.up[i] = c.up[i];
+  }
+  out.fov_y = c.fov_y;
+  out.orthographic = c.projection == ivr::Projection::orthographic ? 1 : 0;
+  out.ortho_height = c.ortho_height;
+  out.width = c.width;
+  out.height = c.height;
+  return out;
+}
+
+}  // namespace
+
+extern "C" {
+
+ivr_status ivr_reconstruct_options_init(ivr_reconstruct_options* o) {
+  return guarded(nullptr, "ivr_reconstruct_options_init",
+                 [&] { *not_null(o, "options") = default_options(); });
+}
+
+ivr_status ivr_reconstruction_create(ivr_context* c, const ivr_scene* s, const float* targets,
+                                     size_t count, const ivr_reconstruct_options* options,
+                                     ivr_reconstruction** out) {
+  return guarded(c, "ivr_reconstruction_create", [&] {
+    checked(c, Kind::context, "context");
+    with_volume(checked(s, Kind::scene, "scene"));
+    same_context(s->context, c, "scene");
+    not_null(targets, "targets");
+    not_null(out, "reconstruction");
+    *out = nullptr;
+    const ivr::ReconstructOptions o = reconstruct_options(options ? *options : default_options());
+    const ivr::Scene& scene = s->scene;
+    const ivr::Camera& cam = scene.cameras.front();
+    ivr::Image t{int(scene.cameras.size()), cam.height, cam.width, scene.channels(), {}};
+    const size_t want = size_t(t.views) * size_t(t.height) * size_t(t.width) * size_t(t.channels);
+    if (count != want)
+      bad("targets has " + std::to_string(count) + " floats; the scene renders " +
+          std::to_string(want) + " (" + std::to_string(t.views) + " views of " +
+          std::to_string(t.height) + " x " + std::to_string(t.width) + " x " +
+          std::to_string(t.channels) + ")");
+    t.pixels.assign(targets, targets + count);
+    auto r = std::make_unique<ivr_reconstruction>();
+    r->reconstruction = std::make_unique<ivr::Reconstruction>(c->device, scene, t, o);
+    r->explicit_box = s->explicit_box;
+    r->grid.nx = scene.volume.nx;
+    r->grid.ny = scene.volume.ny;
+    r->grid.nz = scene.volume.nz;
+    *out = publish(std::move(r), c, Kind::reconstruction);
+  });
+}
+
+ivr_status ivr_reconstruction_retain(ivr_reconstruction* r) {
+  return retain(r, Kind::reconstruction, "ivr_reconstruction_retain");
+}
+
+ivr_status ivr_reconstruction_release(ivr_reconstruction* r) {
+  return release(r, Kind::reconstruction, "ivr_reconstruction_release");
+}
+
+ivr_status ivr_reconstruction_step(ivr_reconstruction* r, ivr_reconstruct_iteration* iteration) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_step", [&] {
+    const ivr::IterationRecord& rec = checked_reconstruction(r)->reconstruction->step();
+    if (iteration) *iteration = record_of(rec);
+  });
+}
+
+ivr_status ivr_reconstruction_run(ivr_reconstruction* r, ivr_reconstruct_progress progress,
+                                  void* user, ivr_reconstruct_summary* summary) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_run", [&] {
+    ivr::Reconstruction& rec = *checked_reconstruction(r)->reconstruction;
+    const auto start = std::chrono::steady_clock::now();
+    int steps = 0;
+    bool interrupted = false;
+    double loss = rec.history().empty() ? 0.0 : rec.history().back().loss;
+    while (!rec.done()) {
+      const ivr_reconstruct_iteration entry = record_of(rec.step());
+      ++steps;
+      loss = entry.loss;
+      if (progress && progress(&entry, user) == 0) {
+        interrupted = !rec.done();
+        break;
+      }
+    }
+    if (summary) {
+      summary->iterations = rec.iteration();
+      summary->steps = steps;
+      summary->stop_reason = interrupted ? "interrupted" : "done";
+      summary->loss = steps > 0 ? loss : 0.0;
+      summary->seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+  });
+}
+
+ivr_status ivr_reconstruction_done(const ivr_reconstruction* r, int* done) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_done", [&] {
+    *not_null(done, "done") = checked_reconstruction(r)->reconstruction->done() ? 1 : 0;
+  });
+}
+
+ivr_status ivr_reconstruction_info(const ivr_reconstruction* r, ivr_reconstruct_info* info) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_info", [&] {
+    const ivr::Reconstruction& rec = *checked_reconstruction(r)->reconstruction;
+    not_null(info, "info");
+    const ivr::ReconstructOptions& o = rec.options();
+    info->iteration = rec.iteration();
+    info->iterations = o.iterations;
+    info->levels = rec.levels();
+    info->optimizer = optimizer_enum(o.optimizer.kind);
+    info->lr = o.optimizer.lr;
+  });
+}
+
+ivr_status ivr_reconstruction_level_shape(const ivr_reconstruction* r, int level,
+                                          int64_t shape[3]) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_level_shape", [&] {
+    const ivr::Reconstruction& rec = *checked_reconstruction(r)->reconstruction;
+    not_null(shape, "shape");
+    if (level < 0 || level >= rec.levels())
+      bad("level " + std::to_string(level) + " does not exist (the reconstruction has " +
+          std::to_string(rec.levels()) + ")");
+    const std::vector<int> d = rec.level_dims(level);  // (nx, ny, nz)
+    shape[0] = d[2];
+    shape[1] = d[1];
+    shape[2] = d[0];
+  });
+}
+
+ivr_status ivr_reconstruction_history(const ivr_reconstruction* r,
+                                      ivr_reconstruct_iteration* history, size_t capacity,
+                                      size_t* count) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_history", [&] {
+    const std::vector<ivr::IterationRecord>& h =
+        checked_reconstruction(r)->reconstruction->history();
+    if (count) *count = h.size();
+    if (!history && capacity == 0) return;
+    not_null(history, "history");
+    for (size_t i = 0; i < h.size() && i < capacity; ++i) history[i] = record_of(h[i]);
+  });
+}
+
+ivr_status ivr_reconstruction_volume(const ivr_reconstruction* r, float* volume, size_t capacity,
+                                     int64_t shape[3]) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_volume", [&] {
+    const ivr::Reconstruction& rec = *checked_reconstruction(r)->reconstruction;
+    if (!volume && capacity == 0) {  // the shape only: no read-back from the device
+      write_shape(r->grid, not_null(shape, "shape"));
+      return;
+    }
+    not_null(volume, "volume");
+    const ivr::Volume v = rec.result().volume;
+    if (capacity < v.data.size())
+      throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "volume holds " + std::to_string(capacity) +
+                                                   " floats; the grid has " +
+                                                   std::to_string(v.data.size()) + " voxels"};
+    std::copy(v.data.begin(), v.data.end(), volume);
+    if (shape) write_shape(v, shape);
+  });
+}
+
+ivr_status ivr_reconstruction_tf(const ivr_reconstruction* r, double* values, size_t capacity,
+                                 int64_t shape[2]) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_tf", [&] {
+    const ivr::Reconstruction& rec = *checked_reconstruction(r)->reconstruction;
+    const ivr::TransferFunction tf = rec.result().tf;
+    const std::vector<std::size_t> dims = ivr::tf_gradient_shape(tf);
+    const std::vector<double> v = ivr::tf_parameters(tf);
+    if (shape) {
+      shape[0] = int64_t(dims[0]);
+      shape[1] = int64_t(dims[1]);
+    }
+    if (!values && capacity == 0) {
+      not_null(shape, "shape");
+      return;
+    }
+    not_null(values, "values");
+    if (capacity < v.size())
+      throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "values hold " + std::to_string(capacity) +
+                                                   " doubles; the TF has " +
+                                                   std::to_string(v.size()) + " parameters"};
+    std::copy(v.begin(), v.end(), values);
+  });
+}
+
+ivr_status ivr_reconstruction_result_scene(const ivr_reconstruction* r, ivr_scene** out) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_result_scene", [&] {
+    checked_reconstruction(r);
+    not_null(out, "scene");
+    *out = nullptr;
+    auto s = std::make_unique<ivr_scene>();
+    s->scene = r->reconstruction->result();
+    s->explicit_box = r->explicit_box;
+    *out = publish(std::move(s), r->context, Kind::scene);
+  });
+}
+
+ivr_status ivr_reconstruction_save_checkpoint(const ivr_reconstruction* r, const char* prefix) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_save_checkpoint", [&] {
+    checked_reconstruction(r);
+    r->reconstruction->save_checkpoint(not_null(prefix, "prefix"));
+  });
+}
+
+ivr_status ivr_reconstruction_resume(ivr_reconstruction* r, const char* prefix) {
+  return guarded(context_of_reconstruction(r), "ivr_reconstruction_resume", [&] {
+    checked_reconstruction(r);
+    r->reconstruction->resume(not_null(prefix, "prefix"));
+  });
+}
+
+ivr_status ivr_viewpoint_options_init(ivr_viewpoint_options* o) {
+  return guarded(nullptr, "ivr_viewpoint_options_init",
+                 [&] { *not_null(o, "options") = default_viewpoint_options(); });
+}
+
+ivr_status ivr_select_viewpoint(ivr_context* c, const ivr_scene* s,
+                                const ivr_viewpoint_options* options,
+                                ivr_viewpoint_progress progress, void* user,
+                                ivr_viewpoint_step* history, size_t history_capacity,
+                                ivr_viewpoint_result* result) {
+  return guarded(c, "ivr_select_viewpoint", [&] {
+    checked(c, Kind::context, "context");
+    with_volume(checked(s, Kind::scene, "scene"));
+    same_context(s->context, c, "scene");
+    not_null(result, "result");
+    const ivr_viewpoint_options co = options ? *options : default_viewpoint_options();
+    ivr::ViewpointOptions o;
+    o.view = co.view;
+    o.iterations = co.iterations;
+    o.optimizer.kind = optimizer_kind(co.optimizer);
+    o.optimizer.lr = co.lr;  // 0: the core's automatic lr; the rest is checked there
+    o.precision = precision_of(co.precision);
+    o.step = co.step;
+    // Checked before the search: a long run must not end in a buffer error.
+    if (history && co.iterations >= 0 && history_capacity < size_t(co.iterations) + 1)
+      throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "history holds " + std::to_string(history_capacity) +
+                                                   " entries; options ask for up to " +
+                                                   std::to_string(co.iterations + 1) +
+                                                   " (the start and every iteration)"};
+    std::function<bool(const ivr::ViewpointStep&)> callback;
+    if (progress)
+      callback = [&](const ivr::ViewpointStep& st) {
+        const ivr_viewpoint_step entry{st.iteration, st.entropy, st.azimuth, st.elevation};
+        return progress(&entry, user) != 0;
+      };
+    const ivr::Viewpoint v = ivr::select_viewpoint(c->device, s->scene, o, callback);
+    if (history)
+      for (size_t i = 0; i < v.history.size() && i < history_capacity; ++i) {
+        const ivr::ViewpointStep& st = v.history[i];
+        history[i] = {st.iteration, st.entropy, st.azimuth, st.elevation};
+      }
+    result->camera = camera_of(v.camera);
+    result->entropy_start = v.history.empty() ? v.entropy : v.history.front().entropy;
+    result->entropy_best = v.entropy;
+    result->iterations = v.history.empty() ? 0 : int(v.history.size()) - 1;
+  });
+}
+
+ivr_status ivr_image_entropy(const float* image, const int64_t shape[4], double background,
+                             double* entropy) {
+  return guarded(nullptr, "ivr_image_entropy", [&] {
+    not_null(image, "image");
+    not_null(shape, "shape");
+    not_null(entropy, "entropy");
+    for (int i = 0; i < 4; ++i)
+      if (shape[i] < 1 || shape[i] > (int64_t(1) << 24))
+        bad("shape[" + std::to_string(i) + "] = " + std::to_string(shape[i]) +
+            " (each dimension 1 .. 2^24)");
+    ivr::Image im{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]), {}};
+    im.pixels.assign(
+        image, image + size_t(shape[0]) * size_t(shape[1]) * size_t(shape[2]) * size_t(shape[3]));
+    *entropy = ivr::image_entropy(im, nullptr, background);
+  });
+}
+
+ivr_status ivr_psnr(const float* image, const float* reference, size_t count, double* value) {
+  return guarded(nullptr, "ivr_psnr", [&] {
+    not_null(image, "image");
+    not_null(reference, "reference");
+    not_null(value, "value");
+    if (count == 0 || count > size_t(INT_MAX))
+      bad("count is " + std::to_string(count) + " (1 .. 2^31 - 1 values to compare)");
+    const ivr::Image a{1, 1, int(count), 1, std::vector<float>(image, image + count)};
+    const ivr::Image b{1, 1, int(count), 1, std::vector<float>(reference, reference + count)};
+    *value = ivr::psnr(a, b);
+  });
+}
+
+}  // extern "C"

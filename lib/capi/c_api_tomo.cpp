@@ -1,0 +1,211 @@
+// c_api_tomo.cpp — the C API's absorption tomography (include/ivr/ivr.h): project, back-project,
+// the solvers with a progress callback, intensities → line integrals, and the phantoms.
+#include <algorithm>
+#include <cmath>
+
+#include "capi/c_api_handles.hpp"
+
+using namespace ivr::capi;
+
+namespace {
+
+// The scene's ray and voxel counts, as the projector counts them.
+std::size_t ray_count(const ivr::Scene& s) {
+  const ivr::Camera& c = s.cameras.front();
+  return s.cameras.size() * std::size_t(c.width) * std::size_t(c.height);
+}
+
+// "<what> has 5 floats; the scene has 6144 rays": inputs need exactly, outputs at least `want`.
+void check_count(size_t count, size_t want, const char* what, const char* owner, const char* noun) {
+  if (count != want)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT, std::string(what) + " has " + std::to_string(count) +
+                                                 " floats; " + owner + " has " +
+                                                 std::to_string(want) + " " + noun};
+}
+
+void check_capacity(size_t capacity, size_t want, const char* what, const char* owner,
+                    const char* noun) {
+  if (capacity < want)
+    throw CError{IVR_ERROR_BUFFER_TOO_SMALL, std::string(what) + " holds " +
+                                                 std::to_string(capacity) + " floats; " + owner +
+                                                 " has " + std::to_string(want) + " " + noun};
+}
+
+// Caller floats as doubles; the first non-finite one is named by its index.
+std::vector<double> finite_values(const float* p, size_t n, const char* what) {
+  std::vector<double> v(p, p + n);
+  for (size_t i = 0; i < n; ++i)
+    if (!std::isfinite(v[i]))
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, std::string(what) + "[" + std::to_string(i) +
+                                                   "] is not finite (" + std::to_string(v[i]) +
+                                                   ")"};
+  return v;
+}
+
+void copy_out(const std::vector<double>& from, float* to) {
+  for (size_t i = 0; i < from.size(); ++i) to[i] = float(from[i]);
+}
+
+// The library-owned (static) text of a stop reason.
+const char* static_reason(const std::string& reason) {
+  for (const char* r : {"iterations", "tolerance", "converged", "interrupted"})
+    if (reason == r) return r;
+  return "unknown";
+}
+
+// The scene and context of a tomography call, checked.
+const ivr_scene* checked_scene(ivr_context* c, const ivr_scene* s) {
+  checked(c, Kind::context, "context");
+  with_volume(checked(s, Kind::scene, "scene"));
+  same_context(s->context, c, "scene");
+  return s;
+}
+
+// The C++ defaults (ivr/tomo.hpp) in C form.
+ivr_tomo_options default_options() {
+  const ivr::TomoOptions d;
+  ivr_tomo_options o;
+  o.solver = IVR_SOLVER_CGLS;
+  o.precision = IVR_PRECISION_F32;
+  o.iterations = d.iterations;
+  o.nonneg = d.nonneg;
+  o.tv_reweight = d.tv_reweight;
+  o.tolerance = d.tolerance;
+  o.tikhonov = d.tikhonov;
+  o.tv = d.tv;
+  o.tv_epsilon = d.tv_epsilon;
+  o.relaxation = d.relaxation;
+  return o;
+}
+
+ivr::TomoOptions tomo_options(const ivr_tomo_options& o) {
+  ivr::TomoOptions t;
+  if (o.solver != IVR_SOLVER_CGLS && o.solver != IVR_SOLVER_SIRT && o.solver != IVR_SOLVER_LSQR)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "unknown solver " + std::to_string(int(o.solver)) +
+                     " (IVR_SOLVER_CGLS, IVR_SOLVER_SIRT, IVR_SOLVER_LSQR)"};
+  t.solver = o.solver == IVR_SOLVER_SIRT   ? ivr::Solver::sirt
+             : o.solver == IVR_SOLVER_LSQR ? ivr::Solver::lsqr
+                                           : ivr::Solver::cgls;
+  t.precision = precision_of(o.precision);
+  t.iterations = o.iterations;
+  t.nonneg = o.nonneg != 0;
+  t.tv_reweight = o.tv_reweight;
+  t.tolerance = o.tolerance;
+  t.tikhonov = o.tikhonov;
+  t.tv = o.tv;
+  t.tv_epsilon = o.tv_epsilon;
+  t.relaxation = o.relaxation;
+  return t;  // ranges are checked by ivr::tomo, with the field's name
+}
+
+}  // namespace
+
+extern "C" {
+
+ivr_status ivr_project(ivr_context* c, const ivr_scene* s, ivr_precision precision,
+                       const float* volume, size_t count, float* lines, size_t capacity) {
+  return guarded(c, "ivr_project", [&] {
+    checked_scene(c, s);
+    not_null(lines, "lines");
+    const ivr::Scene& scene = s->scene;
+    check_capacity(capacity, ray_count(scene), "lines", "the scene", "rays");
+    std::vector<double> v;
+    if (volume) {
+      check_count(count, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
+      v = finite_values(volume, count, "volume");
+    } else {
+      v.assign(scene.volume.data.begin(), scene.volume.data.end());
+    }
+    const ivr::Projector projector(c->device, scene, precision_of(precision));
+    copy_out(projector.project(v), lines);
+  });
+}
+
+ivr_status ivr_backproject(ivr_context* c, const ivr_scene* s, ivr_precision precision,
+                           const float* lines, size_t count, float* volume, size_t capacity) {
+  return guarded(c, "ivr_backproject", [&] {
+    checked_scene(c, s);
+    not_null(lines, "lines");
+    not_null(volume, "volume");
+    const ivr::Scene& scene = s->scene;
+    check_count(count, ray_count(scene), "lines", "the scene", "rays");
+    check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
+    const std::vector<double> p = finite_values(lines, count, "lines");
+    const ivr::Projector projector(c->device, scene, precision_of(precision));
+    copy_out(projector.backproject(p), volume);
+  });
+}
+
+ivr_status ivr_tomo_options_init(ivr_tomo_options* o) {
+  return guarded(nullptr, "ivr_tomo_options_init",
+                 [&] { *not_null(o, "options") = default_options(); });
+}
+
+ivr_status ivr_tomo(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* options,
+                    const float* lines, size_t count, float* volume, size_t capacity,
+                    ivr_tomo_progress progress, void* user, ivr_tomo_iteration* history,
+                    size_t history_capacity, ivr_tomo_summary* summary) {
+  return guarded(c, "ivr_tomo", [&] {
+    checked_scene(c, s);
+    not_null(lines, "lines");
+    not_null(volume, "volume");
+    const ivr::TomoOptions o = tomo_options(options ? *options : default_options());
+    const ivr::Scene& scene = s->scene;
+    check_count(count, ray_count(scene), "lines", "the scene", "rays");
+    check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
+    // Checked before the solve: a long run must not end in a buffer error.
+    if (history && o.iterations > 0 && history_capacity < size_t(o.iterations))
+      throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "history holds " + std::to_string(history_capacity) +
+                                                   " entries; options " + "ask for up to " +
+                                                   std::to_string(o.iterations) + " iterations"};
+    const std::vector<double> p = finite_values(lines, count, "lines");
+    ivr::TomoProgress callback;
+    if (progress)
+      callback = [&](const ivr::TomoIteration& it) {
+        const ivr_tomo_iteration entry{it.iteration, it.residual, it.seconds};
+        return progress(&entry, user) != 0;
+      };
+    const ivr::TomoResult r = ivr::tomo(c->device, scene, p, o, callback);
+    std::copy(r.volume.begin(), r.volume.end(), volume);
+    if (history)
+      for (size_t i = 0; i < r.history.size() && i < history_capacity; ++i)
+        history[i] = {r.history[i].iteration, r.history[i].residual, r.history[i].seconds};
+    if (summary) {
+      summary->iterations = int(r.history.size());
+      summary->stop_reason = static_reason(r.stop_reason);
+      summary->residual = r.history.empty() ? 0.0 : r.history.back().residual;
+      summary->seconds = r.history.empty() ? 0.0 : r.history.back().seconds;
+      summary->setup_seconds = r.setup_seconds;
+    }
+  });
+}
+
+ivr_status ivr_lines_from_intensities(const ivr_scene* s, const float* intensities, size_t count,
+                                      double clamp, float* lines, size_t capacity) {
+  return guarded(context_of(s), "ivr_lines_from_intensities", [&] {
+    checked(s, Kind::scene, "scene");
+    not_null(intensities, "intensities");
+    not_null(lines, "lines");
+    check_count(count, ray_count(s->scene), "intensities", "the scene", "rays");
+    check_capacity(capacity, count, "lines", "the scene", "rays");
+    copy_out(ivr::lines_from_intensities(
+                 s->scene, std::vector<double>(intensities, intensities + count), clamp),
+             lines);
+  });
+}
+
+ivr_status ivr_phantom(const char* name, int n, uint64_t seed, int supersample, float* volume,
+                       size_t capacity) {
+  return guarded(nullptr, "ivr_phantom", [&] {
+    not_null(name, "name");
+    not_null(volume, "volume");
+    if (n < 1 || n > 1024)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "n = " + std::to_string(n) + " (1 .. 1024)"};
+    check_capacity(capacity, size_t(n) * size_t(n) * size_t(n), "volume", "the phantom", "voxels");
+    const ivr::Volume v = ivr::phantom(name, n, seed, supersample);
+    std::copy(v.data.begin(), v.data.end(), volume);
+  });
+}
+
+}  // extern "C"

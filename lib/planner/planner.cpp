@@ -1,0 +1,161 @@
+// planner.cpp — the forward/adjoint choice: cost models per device (calibration JSON or
+// defaults) and the plan for one gradient request.
+#include "ivr/planner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "ivr/error.hpp"
+
+namespace ivr {
+
+namespace {
+
+constexpr std::size_t kMaxLanes = 32;  // lib/jacobian/jacobian.cpp
+
+// A file name from the device's identity: letters, digits and '-' kept, the rest as '_'.
+std::string file_key(const DeviceInfo& d) {
+  std::string key = d.platform + "-" + d.name + "-" + d.driver;
+  for (char& c : key)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-') c = '_';
+  return key;
+}
+
+double number(const nlohmann::json& j, const char* field, const std::string& path) {
+  if (!j.contains(field) || !j[field].is_number())
+    throw Error(Status::io, "cost model '" + path + "': field '" + field +
+                                "' is missing or not a "
+                                "number");
+  const double v = j[field].get<double>();
+  if (!(v > 0) || !std::isfinite(v))
+    throw Error(Status::io, "cost model '" + path + "': field '" + field +
+                                "' must be a positive number, got " + std::to_string(v));
+  return v;
+}
+
+}  // namespace
+
+const char* mode_name(Mode mode) {
+  switch (mode) {
+    case Mode::automatic:
+      return "auto";
+    case Mode::forward:
+      return "forward";
+    case Mode::adjoint:
+      return "adjoint";
+  }
+  return "?";
+}
+
+std::string cost_model_path(const DeviceInfo& device) {
+  if (const char* env = std::getenv("IVR_COST_MODEL"); env && *env) return env;
+  std::string base;
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+    base = xdg;
+  else if (const char* home = std::getenv("HOME"); home && *home)
+    base = std::string(home) + "/.cache";
+  else
+    base = ".";
+  return base + "/ivr/cost/" + file_key(device) + ".json";
+}
+
+CostModel read_cost_model(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw Error(Status::io, "cannot read cost model '" + path + "'");
+  nlohmann::json j;
+  try {
+    in >> j;
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(Status::io, "cost model '" + path + "' is not valid JSON: " + e.what());
+  }
+  CostModel m;
+  m.forward_base = number(j, "forward_base", path);
+  m.forward_per_lane = number(j, "forward_per_lane", path);
+  m.adjoint = number(j, "adjoint", path);
+  m.seconds_per_sample = number(j, "seconds_per_sample", path);
+  m.source = path;
+  return m;
+}
+
+CostModel load_cost_model(const DeviceInfo& device) {
+  const std::string path = cost_model_path(device);
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return CostModel{};
+  return read_cost_model(path);
+}
+
+void save_cost_model(const std::string& path, const CostModel& m, const DeviceInfo& device) {
+  const nlohmann::json j = {{"device", device.name},
+                            {"platform", device.platform},
+                            {"driver", device.driver},
+                            {"forward_base", m.forward_base},
+                            {"forward_per_lane", m.forward_per_lane},
+                            {"adjoint", m.adjoint},
+                            {"seconds_per_sample", m.seconds_per_sample}};
+  std::error_code ec;
+  const std::filesystem::path p(path);
+  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path(), ec);
+  const std::string staged = path + ".tmp";
+  {
+    std::ofstream out(staged);
+    out << j.dump(2) << "\n";
+    if (!out) throw Error(Status::io, "cannot write cost model '" + path + "'");
+  }
+  std::filesystem::rename(staged, path, ec);
+  if (ec) throw Error(Status::io, "cannot write cost model '" + path + "': " + ec.message());
+}
+
+double forward_cost(const CostModel& model, std::size_t parameters, std::size_t* passes,
+                    std::size_t* lanes) {
+  std::size_t n = 0, widest = 0;
+  double cost = 0;
+  for (std::size_t left = std::max<std::size_t>(parameters, 1); left > 0;) {
+    const std::size_t count = std::min(left, kMaxLanes);
+    std::size_t l = 1;
+    while (l < count) l *= 2;
+    cost += model.forward_base + model.forward_per_lane * double(l);
+    widest = std::max(widest, l);
+    left -= count;
+    ++n;
+  }
+  if (passes) *passes = n;
+  if (lanes) *lanes = widest;
+  return cost;
+}
+
+Plan plan_gradient(const CostModel& model, const Scene& scene, std::size_t forward_parameters,
+                   bool forward_possible, bool adjoint_possible, Mode requested, double step) {
+  if (!forward_possible && !adjoint_possible)
+    throw Error(Status::invalid_argument, "no mode computes every group asked for");
+  // Samples of one render, roughly: every pixel marches the box's diagonal at the step.
+  const glm::dvec3 h = scene.voxel_size();
+  const double world_step = (step > 0 ? step : scene.integrator.step) * std::min({h.x, h.y, h.z});
+  double pixels = 0;
+  for (const Camera& c : scene.cameras) pixels += double(c.width) * double(c.height);
+  const double samples = pixels * glm::length(scene.box_max - scene.box_min) / world_step;
+  const double render = samples * model.seconds_per_sample;
+
+  Plan p;
+  p.model = model.source;
+  const double inf = std::numeric_limits<double>::infinity();
+  p.forward_seconds = forward_possible
+                          ? render * forward_cost(model, forward_parameters, &p.passes, &p.lanes)
+                          : inf;
+  p.adjoint_seconds = adjoint_possible ? render * model.adjoint : inf;
+  if (requested == Mode::forward && !forward_possible)
+    throw Error(Status::invalid_argument, "--mode forward cannot compute every group asked for");
+  if (requested == Mode::adjoint && !adjoint_possible)
+    throw Error(Status::invalid_argument, "--mode adjoint cannot compute every group asked for");
+  p.mode = requested != Mode::automatic
+               ? requested
+               : (p.forward_seconds <= p.adjoint_seconds ? Mode::forward : Mode::adjoint);
+  return p;
+}
+
+}  // namespace ivr

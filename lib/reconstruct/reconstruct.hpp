@@ -1,0 +1,58 @@
+// reconstruct_impl.hpp — the state of a reconstruction (ivr::Reconstruction), shared by the loop
+// (lib/reconstruct/reconstruct.cpp) and its checkpoints (lib/reconstruct/reconstruct_checkpoint.cpp).
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "ivr/reconstruct.hpp"
+#include "ivr/session.hpp"
+#include "reconstruct/lbfgs.hpp"
+#include "reconstruct/priors.hpp"
+#include "reconstruct/reconstruct_params.hpp"
+#include "runtime/runtime.hpp"
+
+namespace ivr {
+
+struct Reconstruction::Impl {
+  Device& device;
+  Device::Impl& dev;
+  Scene scene;  // the full grid; volume.data: the start (Init::scene) or the fixed volume (TF)
+  Image targets;
+  ReconstructOptions o;  // resolved: optimiser kind and lr
+  bool f64 = false;
+  double scale = 1;  // density_scale(scene): density steps are lr · scale
+
+  std::vector<std::vector<int>> dims;  // per level (nx, ny, nz)
+  std::vector<int> level_end;          // completed iterations at the end of each level
+  int level = -1;                      // the level on the device (-1: none yet)
+  int k = 0;                           // completed iterations
+  std::vector<IterationRecord> history;
+
+  // Density (o.density): the level's grid, resident in a session (densities, cameras, TF); the
+  // targets on the device once, batches gathered there.
+  Scene level_scene;  // the level's grid; volume.data empty (the densities live in the session)
+  std::unique_ptr<Session> session;
+  DeviceArray all_targets;
+  std::unique_ptr<Optimizer> density_opt;
+  std::unique_ptr<DensityPrior> prior;
+
+  // TF (o.tf): normalised parameters u = value / bounds.scale.
+  std::vector<double> u;
+  TfBounds bounds;
+  std::unique_ptr<Optimizer> tf_opt;
+  std::unique_ptr<Lbfgs> lbfgs;
+
+  Impl(Device& device, const Scene& scene, const Image& targets, const ReconstructOptions& o);
+  int level_of(int iteration) const;  // the level iteration `iteration` (0-based) runs on
+  // Puts `density` (the level's grid, x fastest) on the device with a fresh optimiser.
+  void enter_level(int l, const std::vector<double>& density);
+  std::vector<double> density_host() const;  // the level's densities, read back
+  Volume level_volume() const;
+  void apply_tf();  // u → scene.tf and level_scene.tf
+  OptimizerOptions density_optimizer_options(int l) const;
+  const IterationRecord& step();
+  // The targets of `views` on the device: all of them, or a batch gathered from them.
+  DeviceArray batch_targets(const std::vector<int>& views);
+};
+
+}  // namespace ivr

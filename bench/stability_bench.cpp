@@ -1,9 +1,9 @@
-// stability_bench.cpp — the stability section of the speed-against-error suite: DESIGN.md's hard
+// stability_bench.cpp — the stability section of the speed-against-error suite: docs/design.md's hard
 // cases (near-opaque walls and media, 1e5 samples per ray, rays grazing faces and edges,
 // axis-aligned rays, a camera inside, one-voxel and anisotropic volumes, density jumps and TF
 // kinks, an all-zero volume) through every integrator: the forward error against the continuous
 // float64 reference (reference/) and the float32 gradient's error against the float64 one
-// (density, TF, background; the measure of DESIGN.md's DiffDVR experiment), NaN/Inf counted, with
+// (density, TF, background; the measure of docs/design.md's DiffDVR experiment), NaN/Inf counted, with
 // the render and gradient times. Prints JSON.
 #include <CLI/CLI.hpp>
 #include <cmath>

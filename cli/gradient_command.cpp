@@ -35,7 +35,7 @@ Runner add_gradient_command(CLI::App& app) {
   auto args = std::make_shared<GradientArgs>();
   CLI::App* cmd = app.add_subcommand(
       "gradient", "Gradient of an image loss with respect to groups of scene parameters");
-  cmd->add_option("scene", args->scene, "Scene JSON file (see DESIGN.md)")->required();
+  cmd->add_option("scene", args->scene, "Scene JSON file (see docs/design.md)")->required();
   cmd->add_option("--target", args->target,
                   "Target images, .npy of the render's shape (views, H, W, C); (H, W, C) for one "
                   "view, (views, H, W) or (H, W) for one channel")

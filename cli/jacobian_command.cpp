@@ -37,7 +37,7 @@ Runner add_jacobian_command(CLI::App& app) {
   auto args = std::make_shared<JacobianArgs>();
   CLI::App* cmd = app.add_subcommand(
       "jacobian", "Derivative of every pixel with respect to a few parameters (forward mode)");
-  cmd->add_option("scene", args->scene, "Scene JSON file (see DESIGN.md)")->required();
+  cmd->add_option("scene", args->scene, "Scene JSON file (see docs/design.md)")->required();
   cmd->add_option("--wrt", args->wrt,
                   "Comma-separated parameter groups: tf, tf_points, scales, background, camera, "
                   "step, voxels:LIST, density")

@@ -46,7 +46,7 @@ std::vector<std::string> output_paths(const std::string& out, int views) {
 Runner add_render_command(CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand("render", "Render every view of a scene");
-  cmd->add_option("scene", args->scene, "Scene JSON file (see DESIGN.md)")->required();
+  cmd->add_option("scene", args->scene, "Scene JSON file (see docs/design.md)")->required();
   cmd->add_option("-o,--output", args->output,
                   "Output: .npy (views, H, W, C) float32 (float64 with --precision f64), or .png/.exr/.tif (one file per view: "
                   "OUT_<v>.ext)")

@@ -82,7 +82,7 @@ Runner add_viewpoint_command(CLI::App& app) {
       "viewpoint",
       "Find the camera of highest image entropy on the orbit of one of the scene's cameras "
       "(gradient ascent over azimuth and elevation, forward mode)");
-  cmd->add_option("scene", a.scene, "Scene JSON file (see DESIGN.md)")->required();
+  cmd->add_option("scene", a.scene, "Scene JSON file (see docs/design.md)")->required();
   cmd->add_option("-o,--output", a.output,
                   "Output CAMERA.json: the best camera as a scene file's camera object")
       ->required();

@@ -1,5 +1,5 @@
 // adjoint_midpoint.cl — the adjoint march of the midpoint rule, front to back: each sample's
-// remaining radiance is C minus the prefix (DESIGN.md: no division by 1 − α, no per-sample
+// remaining radiance is C minus the prefix (docs/design.md: no division by 1 − α, no per-sample
 // storage); dL/d density goes to the voxels, dL/d TF to the work-group's accumulator.
 #ifndef IVR_ADJOINT_MIDPOINT_CL
 #define IVR_ADJOINT_MIDPOINT_CL

@@ -145,7 +145,7 @@ __kernel void volume_check(const ulong n, const ulong chunk, __global const real
 IVR_SUM_ROWS(sum_rows, real)
 IVR_SUM_ROWS(sum_acc_rows, acc)
 
-// The loss of an image against a target (DESIGN.md's mse, or l1), per work-group partial sums of
+// The loss of an image against a target (docs/design.md's mse, or l1), per work-group partial sums of
 // the elements' terms × norm (1 / elements), grid-stride; sum_rows adds the groups' partials.
 __kernel void loss_partial(const ulong n, __global const real* restrict image,
                            __global const real* restrict target, const acc norm, const int l1,

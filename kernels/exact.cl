@@ -1,6 +1,6 @@
 // exact.cl — the `exact` integrator's traversal: a ray cut where it crosses the planes through the
 // voxel centres (between two such crossings every trilinear weight is linear along the ray, so the
-// density is a cubic there, DESIGN.md) and, inside those pieces, where the density crosses a knot
+// density is a cubic there, docs/design.md) and, inside those pieces, where the density crosses a knot
 // of the TF (then σ is linear in the density, a cubic along the ray: Simpson's rule is exact).
 // Used by the render, both gradient modes and the absorption projector.
 #ifndef IVR_EXACT_CL

@@ -1,4 +1,4 @@
-// geometry.cl — camera rays, exact ray–box clipping and trilinear density with DESIGN.md's
+// geometry.cl — camera rays, exact ray–box clipping and trilinear density with docs/design.md's
 // conventions (values at cell centres, clamped to the edge centres inside the box).
 #ifndef IVR_GEOMETRY_CL
 #define IVR_GEOMETRY_CL

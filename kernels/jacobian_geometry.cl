@@ -11,7 +11,7 @@ inline real component(real3 v, int axis) {
 }
 
 // d origin and d direction of the ray through (sx, sy) (camera_ray()'s screen coordinates) for a
-// unit change of camera component k: 0..2 eye, 3..5 target, 6 fov_y in degrees. DESIGN.md's
+// unit change of camera component k: 0..2 eye, 3..5 target, 6 fov_y in degrees. docs/design.md's
 // camera: f = normalize(target - eye), r = normalize(f x up), u = r x f.
 inline void camera_ray_tangent(__global const real* cp, real sx, real sy, int k, real3* dorigin,
                                real3* ddir) {

@@ -1,4 +1,4 @@
-// loss.cl — the image losses of DESIGN.md per element: the term added to the loss and the
+// loss.cl — the image losses of docs/design.md per element: the term added to the loss and the
 // derivative with respect to the pixel value.
 #ifndef IVR_LOSS_CL
 #define IVR_LOSS_CL

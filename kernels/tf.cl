@@ -1,4 +1,4 @@
-// tf.cl — the transfer functions of DESIGN.md: extinction sigma(d) and, for emission–absorption,
+// tf.cl — the transfer functions of docs/design.md: extinction sigma(d) and, for emission–absorption,
 // the premultiplied emission sigma(d)·colour(d). Only the scene's TF kind is compiled.
 #ifndef IVR_TF_CL
 #define IVR_TF_CL

@@ -114,8 +114,8 @@ inline void slab(float o, float d, float lo, float hi, float& t0, float& t1) {
 // A ray inside the box as kernels/march.cl cuts it: n segments of dt from t0, sample i at its
 // midpoint t0 + (i + ½)·dt, at voxel coordinates u0 + t·du (voxel centre i at u = i).
 struct Ray {
-  float t0, dt;
-  unsigned n;
+  float t0 = 0, dt = 0;  // set by ray_at where the ray hits the box
+  unsigned n = 0;
   V3 u0, du;
 };
 
@@ -282,7 +282,7 @@ struct PixelAdjoint {
 // gathered for them, added to `grad` when the march leaves the cell.
 struct CellCache {
   Cell cell{-1, 0, 0, 0, 0, 0, 0};
-  float v[8], g[8];
+  float v[8] = {}, g[8] = {};  // read only once a cell is entered; zero for the compiler
 
   void enter(const Cell& c, const float* vol, float* grad) {
     if (c.base != cell.base) {

@@ -1,4 +1,4 @@
-// reference.cpp — the double-precision CPU reference: written from DESIGN.md alone, sharing no
+// reference.cpp — the double-precision CPU reference: written from docs/design.md alone, sharing no
 // code with kernels/*.cl or lib/render/render.cpp, so that agreement between the two means something.
 #include "reference/reference.hpp"
 #include "reference/sample_count.hpp"
@@ -212,7 +212,7 @@ void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec
   }
 }
 
-// The midpoint rule of DESIGN.md's `midpoint` integrator itself: [t0, t1] cut into n equal
+// The midpoint rule of docs/design.md's `midpoint` integrator itself: [t0, t1] cut into n equal
 // segments (the sample count, sample_count.hpp; 0: the ray misses the box), σ and c at each
 // midpoint, exact compositing of each segment (C += T·(1 − e^{−σΔ})·c, T ·= e^{−σΔ}); with `early` the ray stops after the sample
 // that takes T below min_transmittance.

@@ -1,4 +1,4 @@
-// reference.hpp — an independent double-precision CPU evaluation of DESIGN.md's continuous model
+// reference.hpp — an independent double-precision CPU evaluation of docs/design.md's continuous model
 // (density, camera rays, transfer functions, both optical models), the yardstick for the kernels.
 #pragma once
 #include <glm/vec3.hpp>
@@ -60,7 +60,7 @@ double min_voxel_edge(const ivr::Scene& scene);
 // spectral integration matrix of the same nodes. Emission-absorption rays stop once exp(-tau)
 // < 1e-300 (the rest contributes nothing representable).
 
-// The continuous integral of DESIGN.md with no step parameter (same layout as render). With
+// The continuous integral of docs/design.md with no step parameter (same layout as render). With
 // early_termination the ray stops exactly where tau reaches -log(min_transmittance): the output
 // then holds transmittance min_transmittance and the emission up to that point. `refinement` > 1
 // subdivides every sub-interval that many times more (for self-convergence checks only).

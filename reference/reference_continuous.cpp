@@ -1,7 +1,7 @@
-// reference_continuous.cpp — the high-accuracy references: the continuous integral of DESIGN.md
+// reference_continuous.cpp — the high-accuracy references: the continuous integral of docs/design.md
 // with no step parameter (render_continuous, optical_depth) and the definition of the
 // `preintegrated` integrator (render_linear_segments: density linear between samples, the optical
-// model integrated exactly along it). Written from DESIGN.md alone, like reference.cpp.
+// model integrated exactly along it). Written from docs/design.md alone, like reference.cpp.
 //
 // Method. Along a ray the density is a polynomial in t on "pieces": a cubic between consecutive
 // crossings of the planes through voxel centres (trilinear interpolation of a straight line), or

@@ -70,7 +70,7 @@ void slab(CountArithmetic ar, float o, float d, float lo, float hi, float* t0, f
 }  // namespace
 
 PackedCamera packed_camera(const ivr::Camera& c) {
-  // DESIGN.md's camera basis, in double as the library packs it, then rounded once.
+  // docs/design.md's camera basis, in double as the library packs it, then rounded once.
   const glm::dvec3 fwd = glm::normalize(c.target - c.eye);
   const glm::dvec3 right = glm::normalize(glm::cross(fwd, c.up));
   const glm::dvec3 up = glm::cross(right, fwd);

@@ -42,7 +42,7 @@ int main(void) {
   int64_t shape[4];
   /* README: C begin */
   CHECK(ivr_context_create(NULL, &ctx)); /* NULL: $IVR_DEVICE, else a GPU, else the first */
-  CHECK(ivr_scene_from_json(ctx, scene_json, NULL, &scene)); /* DESIGN.md's JSON */
+  CHECK(ivr_scene_from_json(ctx, scene_json, NULL, &scene)); /* docs/design.md's JSON */
   CHECK(ivr_scene_set_volume(scene, volume, IVR_FLOAT32, volume_shape)); /* (nz, ny, nx) */
   CHECK(ivr_scene_image_shape(scene, shape)); /* (views, H, W, C) */
   const size_t count = (size_t)(shape[0] * shape[1] * shape[2] * shape[3]);

@@ -49,7 +49,7 @@ int main(void) {
   CHECK(ivr_context_create(NULL, &ctx)); /* NULL: $IVR_DEVICE, else a GPU, else the first */
   const char* device = NULL;
   CHECK(ivr_context_device_name(ctx, &device));
-  CHECK(ivr_scene_from_json(ctx, scene_json, NULL, &scene));            /* DESIGN.md's JSON */
+  CHECK(ivr_scene_from_json(ctx, scene_json, NULL, &scene));            /* docs/design.md's JSON */
   CHECK(ivr_scene_set_volume(scene, truth, IVR_FLOAT32, volume_shape)); /* (nz, ny, nx) */
   CHECK(ivr_session_create(ctx, scene, NULL, &session)); /* the scene goes to the device */
   CHECK(ivr_scene_release(scene));                       /* the session has its own copy */

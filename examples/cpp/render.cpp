@@ -26,7 +26,7 @@ int main() try {
 
   // README: C++ begin
   ivr::api::Context ctx;  // $IVR_DEVICE, else a GPU, else the first
-  ivr::api::Scene scene = ctx.scene_from_json(scene_json);  // DESIGN.md's JSON
+  ivr::api::Scene scene = ctx.scene_from_json(scene_json);  // docs/design.md's JSON
   scene.set_volume(volume, {n, n, n});                      // (nz, ny, nx), copied
   ivr::api::Array<float> image = ctx.render(scene);         // shape (views, H, W, C)
 

@@ -7,6 +7,7 @@
 
 #include "ivr/export.h"
 #include "ivr/render.hpp"
+#include "ivr/tf_parameters.hpp"
 
 namespace ivr {
 
@@ -61,16 +62,7 @@ struct AdjointGradient {
   int fixed_passes = 0;            // the adjoint passes that took (1; 2 where the bound failed)
 };
 
-// Shape of the TF gradient: identity → 1 x 2 (extinction_scale, color_scale); piecewise_linear
-// and table → rows x 4 [r, g, b, extinction]; gaussian → rows x 6 [r, g, b, extinction, mean,
-// width]. Where the TF is not differentiable (at a control point's density, at a table entry)
-// the derivative is one-sided: the segment [d_k, d_k+1) holding the density is used.
-IVR_API std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf);
-// The TF's parameters in that layout, row-major (what a "tf" gradient is the derivative by; what
-// reconstructions write as PREFIX_tf.npy), and back; set_tf_parameters throws
-// ivr::Error(invalid_argument) for a count that does not fit.
-IVR_API std::vector<double> tf_parameters(const TransferFunction& tf);
-IVR_API void set_tf_parameters(TransferFunction& tf, const std::vector<double>& values);
+// The TF gradient's layout: ivr/tf_parameters.hpp.
 
 // Loss of `image` against `target` (same shape) — evaluated on the host in double precision.
 IVR_API double image_loss(const Image& image, const Image& target, Loss loss);

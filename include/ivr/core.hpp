@@ -15,6 +15,7 @@
 #include "ivr/session.hpp"
 #include "ivr/jacobian.hpp"
 #include "ivr/tolerance.hpp"
+#include "ivr/tf_parameters.hpp"
 #include "ivr/tomo.hpp"
 #include "ivr/tune.hpp"
 #include "ivr/viewpoint.hpp"

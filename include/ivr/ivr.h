@@ -73,7 +73,7 @@ typedef struct ivr_context ivr_context; /* a device, its queue and program cache
 typedef struct ivr_scene ivr_scene;     /* a scene with its volume (belongs to one context) */
 typedef struct ivr_result ivr_result;   /* a gradient or Jacobian: loss, mode, named arrays */
 typedef struct ivr_volume ivr_volume;   /* densities (nz, ny, nx) with their voxel spacing */
-typedef struct ivr_transfer_function ivr_transfer_function; /* DESIGN.md's "tf" object */
+typedef struct ivr_transfer_function ivr_transfer_function; /* docs/design.md's "tf" object */
 
 /* Static name of a status, e.g. "IVR_ERROR_INVALID_ARGUMENT". Never NULL. */
 IVR_API const char* ivr_status_string(ivr_status status);
@@ -99,7 +99,7 @@ IVR_API const char* ivr_context_last_error(const ivr_context* context);
 /* The device's name (library-owned string, valid while the context lives). */
 IVR_API ivr_status ivr_context_device_name(const ivr_context* context, const char** name);
 
-/* A scene from DESIGN.md's JSON text; relative volume paths resolve against base_dir (NULL: the
+/* A scene from docs/design.md's JSON text; relative volume paths resolve against base_dir (NULL: the
  * working folder). The JSON may leave out "volume" when ivr_scene_set_volume follows. */
 IVR_API ivr_status ivr_scene_from_json(ivr_context* context, const char* json, const char* base_dir,
                                        ivr_scene** scene);
@@ -117,7 +117,7 @@ IVR_API ivr_status ivr_scene_set_volume(ivr_scene* scene, const void* data, ivr_
 /* A volume from caller memory, copied (dtypes as ivr_scene_set_volume), spacing 1. */
 IVR_API ivr_status ivr_volume_create(ivr_context* context, const void* data, ivr_dtype dtype,
                                      const int64_t shape[3], ivr_volume** volume);
-/* A volume from DESIGN.md's "volume" object, e.g. {"file": "head.nrrd"} or {"synthetic":
+/* A volume from docs/design.md's "volume" object, e.g. {"file": "head.nrrd"} or {"synthetic":
  * "sphere", "dims": [32, 32, 32]}; relative paths resolve against base_dir (NULL: working folder).
  */
 IVR_API ivr_status ivr_volume_from_json(ivr_context* context, const char* json,
@@ -130,7 +130,7 @@ IVR_API ivr_status ivr_volume_shape(const ivr_volume* volume, int64_t shape[3]);
 IVR_API ivr_status ivr_volume_data(const ivr_volume* volume, float* values, size_t capacity);
 /* Copies the volume (with its spacing) into the scene; the box as for ivr_scene_set_volume. */
 IVR_API ivr_status ivr_scene_set_volume_handle(ivr_scene* scene, const ivr_volume* volume);
-/* A transfer function from DESIGN.md's "tf" object, checked as in a scene. */
+/* A transfer function from docs/design.md's "tf" object, checked as in a scene. */
 IVR_API ivr_status ivr_tf_from_json(ivr_context* context, const char* json,
                                     ivr_transfer_function** tf);
 IVR_API ivr_status ivr_tf_retain(ivr_transfer_function* tf);
@@ -211,6 +211,7 @@ typedef enum ivr_solver {
 /* What ivr_tomo solves: min 1/2 |N x - p|^2 (SIRT: row-normalised) + an optional regulariser,
  * optionally x >= 0. Fill it with ivr_tomo_options_init, then change fields. */
 typedef struct ivr_tomo_options {
+  size_t size;             /* sizeof the struct, set by the init function (it may grow) */
   ivr_solver solver;       /* IVR_SOLVER_CGLS */
   ivr_precision precision; /* IVR_PRECISION_F32 */
   int iterations;          /* 50: the most iterations, >= 1 */
@@ -305,6 +306,7 @@ typedef enum ivr_init {
 /* What a reconstruction optimises and how. Fill it with ivr_reconstruct_options_init, then
  * change fields; ranges are checked by ivr_reconstruction_create, naming the field. */
 typedef struct ivr_reconstruct_options {
+  size_t size;             /* sizeof the struct, set by the init function (it may grow) */
   int density;             /* 1: optimise every voxel (adjoint mode) */
   int tf;                  /* 0: optimise the TF's parameters (rows as ivr_reconstruction_tf) */
   int iterations;          /* 300: in total, over every level, >= 1 */
@@ -402,7 +404,7 @@ IVR_API ivr_status ivr_reconstruction_history(const ivr_reconstruction* reconstr
  * floats); shape (may be NULL) gets (nz, ny, nx). NULL volume with capacity 0: the shape only. */
 IVR_API ivr_status ivr_reconstruction_volume(const ivr_reconstruction* reconstruction,
                                              float* volume, size_t capacity, int64_t shape[3]);
-/* The current TF's parameters, rows x columns in the layout of its gradient (DESIGN.md: one row
+/* The current TF's parameters, rows x columns in the layout of its gradient (docs/design.md: one row
  * per control point / table entry [r, g, b, extinction], Gaussian [r, g, b, extinction, mean,
  * width], identity one row [extinction_scale, color_scale]): float64 into `values` (`capacity`),
  * shape (may be NULL) gets (rows, columns). NULL values with capacity 0: the shape only. */
@@ -424,6 +426,7 @@ IVR_API ivr_status ivr_reconstruction_resume(ivr_reconstruction* reconstruction,
  * orbit about its target (azimuth about its up axis, elevation within +-85 degrees, distance
  * kept), derivatives in forward mode. */
 typedef struct ivr_viewpoint_options {
+  size_t size;             /* sizeof the struct, set by the init function (it may grow) */
   int view;                /* 0: the scene's camera to start from */
   int iterations;          /* 40: >= 0 (0: the start's entropy only) */
   ivr_optimizer optimizer; /* IVR_OPTIMIZER_AUTO (adam); sgd or lbfgs */
@@ -444,7 +447,7 @@ typedef struct ivr_viewpoint_step {
  * same context. */
 typedef int (*ivr_viewpoint_progress)(const ivr_viewpoint_step* step, void* user);
 
-/* A camera as DESIGN.md's JSON object has it. */
+/* A camera as docs/design.md's JSON object has it. */
 typedef struct ivr_camera {
   double eye[3];
   double target[3];

@@ -74,7 +74,6 @@ enum class Mode {
   adjoint = IVR_MODE_ADJOINT
 };
 enum class Loss { mse = IVR_LOSS_MSE, l1 = IVR_LOSS_L1 };
-enum class Solver { cgls = IVR_SOLVER_CGLS, sirt = IVR_SOLVER_SIRT, lsqr = IVR_SOLVER_LSQR };
 
 inline int version() {
   return ivr_version();
@@ -158,14 +157,14 @@ class Volume : public detail::Handle<ivr_volume, ivr_volume_retain, ivr_volume_r
   }
 };
 
-// A transfer function (DESIGN.md's "tf" object); set on scenes of its context by copy.
+// A transfer function (docs/design.md's "tf" object); set on scenes of its context by copy.
 class TransferFunction
     : public detail::Handle<ivr_transfer_function, ivr_tf_retain, ivr_tf_release> {
  public:
   using Handle::Handle;
 };
 
-// A scene (DESIGN.md's JSON) with its volume; belongs to the context that made it.
+// A scene (docs/design.md's JSON) with its volume; belongs to the context that made it.
 class Scene : public detail::Handle<ivr_scene, ivr_scene_retain, ivr_scene_release> {
  public:
   using Handle::Handle;
@@ -217,18 +216,10 @@ struct GradientOptions : Options {
   Loss loss = Loss::mse;
 };
 
-// What Context::tomo solves (ivr_tomo_options; these are the library's defaults).
-struct TomoOptions {
-  Solver solver = Solver::cgls;
-  Precision precision = Precision::f32;
-  int iterations = 50;       // the most iterations
-  bool nonneg = false;       // keep x >= 0
-  double tolerance = 0;      // > 0: stop once |p - N x| / |p| <= tolerance
-  double tikhonov = 0;       // lambda/2 |x|^2
-  double tv = 0;             // smoothed total variation (not with tikhonov)
-  double tv_epsilon = 1e-3;  // the TV's smoothing
-  int tv_reweight = 10;      // CGLS/LSQR iterations between TV re-weightings
-  double relaxation = 1;     // SIRT's omega in (0, 2)
+// What Context::tomo solves: ivr_tomo_options (its fields are documented in ivr.h) filled with
+// the library's defaults.
+struct TomoOptions : ivr_tomo_options {
+  TomoOptions() : ivr_tomo_options() { detail::check(ivr_tomo_options_init(this)); }
 };
 // Called after every iteration (number, relative residual, seconds); return false to stop.
 using TomoProgress = std::function<bool(const ivr_tomo_iteration&)>;
@@ -291,7 +282,7 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
     detail::check(ivr_scene_load(get(), path.c_str(), &s));
     return Scene(s);
   }
-  // A volume from memory (copied, shape {nz, ny, nx}) or from DESIGN.md's "volume" object.
+  // A volume from memory (copied, shape {nz, ny, nx}) or from docs/design.md's "volume" object.
   Volume volume(const std::vector<float>& data, const std::vector<int64_t>& shape) {
     if (shape.size() != 3 || data.size() != detail::product(shape))
       throw Exception(IVR_ERROR_INVALID_ARGUMENT,
@@ -370,18 +361,7 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
   // Reconstructs the scene's grid from line integrals (views * H * W values).
   TomoResult tomo(const Scene& scene, const std::vector<float>& lines,
                   const TomoOptions& options = {}, const TomoProgress& progress = {}) {
-    ivr_tomo_options o;
-    detail::check(ivr_tomo_options_init(&o));
-    o.solver = ivr_solver(options.solver);
-    o.precision = ivr_precision(options.precision);
-    o.iterations = options.iterations;
-    o.nonneg = options.nonneg ? 1 : 0;
-    o.tolerance = options.tolerance;
-    o.tikhonov = options.tikhonov;
-    o.tv = options.tv;
-    o.tv_epsilon = options.tv_epsilon;
-    o.tv_reweight = options.tv_reweight;
-    o.relaxation = options.relaxation;
+    const ivr_tomo_options& o = options;
     TomoResult r;
     r.volume.shape = scene.volume_shape();
     r.volume.values.resize(detail::product(r.volume.shape));

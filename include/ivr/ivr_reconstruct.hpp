@@ -5,41 +5,12 @@
 
 namespace ivr::api {
 
-enum class OptimizerKind {
-  automatic = IVR_OPTIMIZER_AUTO,  // adam; lbfgs when only the TF is optimised
-  adam = IVR_OPTIMIZER_ADAM,
-  sgd = IVR_OPTIMIZER_SGD,
-  lbfgs = IVR_OPTIMIZER_LBFGS
-};
-enum class Schedule {
-  constant = IVR_SCHEDULE_CONSTANT,
-  step = IVR_SCHEDULE_STEP,
-  cosine = IVR_SCHEDULE_COSINE
-};
-enum class Init { scene = IVR_INIT_SCENE, zeros = IVR_INIT_ZEROS, constant = IVR_INIT_CONSTANT };
-
-// What a Reconstruction optimises and how (ivr_reconstruct_options; these are the library's
-// defaults).
-struct ReconstructOptions {
-  bool density = true;  // every voxel
-  bool tf = false;      // the TF's parameters
-  int iterations = 300;
-  OptimizerKind optimizer = OptimizerKind::automatic;
-  double lr = 0;  // 0: automatic
-  Schedule schedule = Schedule::constant;
-  int step_every = 100;
-  double step_gamma = 0.5;
-  double min_lr = 0;
-  Loss loss = Loss::mse;
-  double tv = 0, smoothness = 0, tf_smoothness = 0, tv_epsilon = 1e-2;
-  int batch = 0;   // views per iteration (0: every view)
-  int levels = 0;  // coarse-to-fine levels (0: automatic)
-  Init init = Init::scene;
-  double init_value = 0.5;
-  uint64_t seed = 1;
-  Precision precision = Precision::f32;
-  double step = 0;  // > 0 overrides the scene's integrator step (voxel units)
-  Mode mode = Mode::automatic;
+// What a Reconstruction optimises and how: ivr_reconstruct_options (its fields are documented
+// in ivr.h) filled with the library's defaults.
+struct ReconstructOptions : ivr_reconstruct_options {
+  ReconstructOptions() : ivr_reconstruct_options() {
+    detail::check(ivr_reconstruct_options_init(this));
+  }
 };
 
 // Called after every iteration of Reconstruction::run; return false to stop.
@@ -79,32 +50,8 @@ class Reconstruction : public detail::Handle<ivr_reconstruction, ivr_reconstruct
   // `targets`: the scene's image shape (views, H, W, C) of finite values.
   Reconstruction(const Context& context, const Scene& scene, const std::vector<float>& targets,
                  const ReconstructOptions& options = {}) {
-    ivr_reconstruct_options o;
-    detail::check(ivr_reconstruct_options_init(&o));
-    o.density = options.density ? 1 : 0;
-    o.tf = options.tf ? 1 : 0;
-    o.iterations = options.iterations;
-    o.optimizer = ivr_optimizer(options.optimizer);
-    o.lr = options.lr;
-    o.schedule = ivr_schedule(options.schedule);
-    o.step_every = options.step_every;
-    o.step_gamma = options.step_gamma;
-    o.min_lr = options.min_lr;
-    o.loss = ivr_loss(options.loss);
-    o.tv = options.tv;
-    o.smoothness = options.smoothness;
-    o.tf_smoothness = options.tf_smoothness;
-    o.tv_epsilon = options.tv_epsilon;
-    o.batch = options.batch;
-    o.levels = options.levels;
-    o.init = ivr_init(options.init);
-    o.init_value = options.init_value;
-    o.seed = options.seed;
-    o.precision = ivr_precision(options.precision);
-    o.step = options.step;
-    o.mode = ivr_mode(options.mode);
     detail::check(ivr_reconstruction_create(context.get(), scene.get(), targets.data(),
-                                            targets.size(), &o, &handle_));
+                                            targets.size(), &options, &handle_));
   }
   // One iteration (throws once done()).
   ivr_reconstruct_iteration step() {
@@ -176,14 +123,10 @@ class Reconstruction : public detail::Handle<ivr_reconstruction, ivr_reconstruct
   }
 };
 
-// What select_viewpoint searches (ivr_viewpoint_options; the library's defaults).
-struct ViewpointOptions {
-  int view = 0;
-  int iterations = 40;
-  OptimizerKind optimizer = OptimizerKind::automatic;  // adam
-  double lr = 0;                                       // 0: 0.05 radians per step
-  Precision precision = Precision::f32;
-  double step = 0;
+// What select_viewpoint searches: ivr_viewpoint_options (documented in ivr.h) filled with the
+// library's defaults.
+struct ViewpointOptions : ivr_viewpoint_options {
+  ViewpointOptions() : ivr_viewpoint_options() { detail::check(ivr_viewpoint_options_init(this)); }
 };
 using ViewpointProgress = std::function<bool(const ivr_viewpoint_step&)>;
 struct ViewpointResult {
@@ -196,14 +139,7 @@ struct ViewpointResult {
 inline ViewpointResult select_viewpoint(const Context& context, const Scene& scene,
                                         const ViewpointOptions& options = {},
                                         const ViewpointProgress& progress = {}) {
-  ivr_viewpoint_options o;
-  detail::check(ivr_viewpoint_options_init(&o));
-  o.view = options.view;
-  o.iterations = options.iterations;
-  o.optimizer = ivr_optimizer(options.optimizer);
-  o.lr = options.lr;
-  o.precision = ivr_precision(options.precision);
-  o.step = options.step;
+  const ivr_viewpoint_options& o = options;
   ViewpointResult r;
   r.history.resize(size_t(options.iterations >= 0 ? options.iterations + 1 : 1));
   detail::Callback<ivr_viewpoint_step> state{&progress, nullptr};

@@ -43,6 +43,7 @@ IVR_API ivr_status ivr_array_wait(const ivr_array* array);
 
 /* What stays fixed for a session's life. Fill it with ivr_session_options_init. */
 typedef struct ivr_session_options {
+  size_t size;             /* sizeof the struct, set by the init function (it may grow) */
   ivr_precision precision;   /* IVR_PRECISION_F32: of the device copies and kernels */
   double step;               /* 0; > 0 overrides the scene's integrator step and tolerance */
   int empty_space;           /* 0: automatic, 1: on, 2: off */

@@ -67,13 +67,9 @@ inline DeviceArray::DeviceArray(const Context& context, const std::vector<int64_
                                  &handle_));
 }
 
-// ivr_session_options with the library's defaults.
-struct SessionOptions {
-  Precision precision = Precision::f32;
-  double step = 0;  // > 0 overrides the scene's integrator step and tolerance (voxel units)
-  int empty_space = 0;  // 0: automatic, 1: on, 2: off
-  double min_empty_fraction = 0.05;
-  int brick_size = 0;
+// ivr_session_options (documented in ivr_session.h) with the library's defaults.
+struct SessionOptions : ivr_session_options {
+  SessionOptions() : ivr_session_options() { detail::check(ivr_session_options_init(this)); }
 };
 
 // A gradient left on the device: the loss (shape {1}) and one array per group, in `wrt` order.
@@ -105,13 +101,7 @@ class Session : public detail::Handle<ivr_session, ivr_session_retain, ivr_sessi
  public:
   using Handle::Handle;
   Session(const Context& context, const Scene& scene, const SessionOptions& options = {}) {
-    ivr_session_options o;
-    detail::check(ivr_session_options_init(&o));
-    o.precision = ivr_precision(options.precision);
-    o.step = options.step;
-    o.empty_space = options.empty_space;
-    o.min_empty_fraction = options.min_empty_fraction;
-    o.brick_size = options.brick_size;
+    const ivr_session_options& o = options;
     detail::check(ivr_session_create(context.get(), scene.get(), &o, &handle_));
   }
   // Densities {nz, ny, nx}, x fastest.

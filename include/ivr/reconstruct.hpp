@@ -126,7 +126,7 @@ IVR_API double psnr(const Image& image, const Image& reference);
 IVR_API double relative_volume_error(const Volume& a, const Volume& b);
 
 // The volume resampled to nx × ny × nz cells over the same box: each new cell is the mean of the
-// trilinear density (DESIGN.md's convention) at ⌈old/new⌉³ points spread over it.
+// trilinear density (docs/design.md's convention) at ⌈old/new⌉³ points spread over it.
 IVR_API Volume resample_volume(const Volume& volume, int nx, int ny, int nz);
 
 }  // namespace ivr

@@ -1,5 +1,5 @@
 // ivr/scene.hpp — the host-side scene: volume, box, optical model, transfer function, cameras,
-// integrator and background, with the exact conventions of DESIGN.md.
+// integrator and background, with the exact conventions of docs/design.md.
 #pragma once
 #include <cstdint>
 #include <glm/vec2.hpp>
@@ -37,7 +37,7 @@ struct TfGaussian {
   double extinction = 0;
 };
 
-// sigma(d) and colour(d); which fields are used depends on kind (see DESIGN.md).
+// sigma(d) and colour(d); which fields are used depends on kind (see docs/design.md).
 struct TransferFunction {
   TfKind kind = TfKind::identity;
   double extinction_scale = 1.0, color_scale = 1.0;  // identity
@@ -57,7 +57,7 @@ struct Camera {
   int width = 256, height = 256;
 };
 
-// How each ray's integral is evaluated (DESIGN.md, README "Integrators"):
+// How each ray's integral is evaluated (docs/design.md, README "Integrators"):
 //   midpoint       n = ceil(L/step) equal segments, one sample at each segment's midpoint
 //   trapezoid      the same segments, samples at their ends: the trapezoid rule for the optical
 //                  depth, the segment's emission from its two ends' average
@@ -115,7 +115,7 @@ IVR_API Volume synthetic_volume(const std::string& name, int nx, int ny, int nz)
 IVR_API void validate(const Scene& scene);
 IVR_API void validate_tf(const TransferFunction& tf);
 
-// Reads a scene file (DESIGN.md's JSON); relative volume paths resolve against its folder.
+// Reads a scene file (docs/design.md's JSON); relative volume paths resolve against its folder.
 IVR_API Scene load_scene(const std::string& path);
 // Parses scene JSON text; `base_dir` resolves relative paths; `where` names the source in errors.
 IVR_API Scene parse_scene(const std::string& json_text, const std::string& base_dir,

@@ -15,7 +15,7 @@
 namespace ivr {
 
 // N and Nᵀ for a scene's grid (volume dims and box) and cameras. (N v)[ray] = ∫ v(x(t)) dt over
-// the ray's part in the box, with v the trilinear interpolant of the voxel values (DESIGN.md
+// the ray's part in the box, with v the trilinear interpolant of the voxel values (docs/design.md
 // conventions; t in world units), evaluated exactly: the `exact` integrator's pieces between
 // centre planes, whatever the scene's integrator and step. Rays are the cameras' pixel rays
 // (perspective: cone beam on a flat detector; orthographic: parallel beam), ordered (view, y, x).

@@ -12,22 +12,9 @@
 #include "adjoint/scatter_cache.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
+#include "adjoint/adjoint.hpp"
 
 namespace ivr {
-
-std::vector<std::size_t> tf_gradient_shape(const TransferFunction& tf) {
-  switch (tf.kind) {
-    case TfKind::identity:
-      return {1, 2};
-    case TfKind::piecewise_linear:
-      return {tf.points.size(), 4};
-    case TfKind::table:
-      return {tf.entries.size(), 4};
-    case TfKind::gaussian:
-      return {tf.gaussians.size(), 6};
-  }
-  return {0, 0};
-}
 
 namespace {
 

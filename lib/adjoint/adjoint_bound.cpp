@@ -1,7 +1,7 @@
 // adjoint_bound.cpp — the a-priori bound on one ray's density-gradient contributions and the
 // fixed-point scale it sets (lib/adjoint/adjoint_bound.hpp).
 //
-// Why the bound holds (DESIGN.md's discrete model, T_i ≤ 1, Σ_i Δ_i = the chord ≤ L):
+// Why the bound holds (docs/design.md's discrete model, T_i ≤ 1, Σ_i Δ_i = the chord ≤ L):
 // emission–absorption, sample i with σ_i, premultiplied emission E_i = σ_i·c_i, weight
 // w_i = T_i·Δ_i·f(τ_i) (f(τ) = (1 − e^{−τ})/τ ≤ 1, so w_i = T_i·α_i/σ_i ≤ T_i·Δ_i), C = Σ w_i E_i + T_n B:
 //   ∂C/∂E_i = w_i ≤ T_i Δ_i;

@@ -6,6 +6,7 @@
 #include <functional>
 
 #include "capi/c_api_handles.hpp"
+#include "capi/options.hpp"
 #include "reconstruct/reconstruct_params.hpp"
 
 using namespace ivr::capi;
@@ -34,131 +35,14 @@ ivr_context* context_of_reconstruction(const ivr_reconstruction* r) {
   throw CError{IVR_ERROR_INVALID_ARGUMENT, message};
 }
 
-ivr_reconstruct_options default_options() {
-  const ivr::ReconstructOptions d;
-  ivr_reconstruct_options o;
-  o.density = d.density;
-  o.tf = d.tf;
-  o.iterations = d.iterations;
-  o.optimizer = IVR_OPTIMIZER_AUTO;
-  o.lr = 0;
-  o.schedule = IVR_SCHEDULE_CONSTANT;
-  o.step_every = d.optimizer.step_every;
-  o.step_gamma = d.optimizer.step_gamma;
-  o.min_lr = d.optimizer.min_lr;
-  o.loss = IVR_LOSS_MSE;
-  o.tv = d.tv;
-  o.smoothness = d.smoothness;
-  o.tf_smoothness = d.tf_smoothness;
-  o.tv_epsilon = d.tv_epsilon;
-  o.batch = d.batch;
-  o.levels = d.levels;
-  o.init = IVR_INIT_SCENE;
-  o.init_value = d.init_value;
-  o.seed = d.seed;
-  o.precision = IVR_PRECISION_F32;
-  o.step = d.step;
-  o.mode = IVR_MODE_AUTO;
-  return o;
-}
-
-ivr::OptimizerKind optimizer_kind(ivr_optimizer k) {
-  switch (k) {
-    case IVR_OPTIMIZER_AUTO:
-    case IVR_OPTIMIZER_ADAM:
-      return ivr::OptimizerKind::adam;
-    case IVR_OPTIMIZER_SGD:
-      return ivr::OptimizerKind::sgd;
-    case IVR_OPTIMIZER_LBFGS:
-      return ivr::OptimizerKind::lbfgs;
-    default:
-      break;
-  }
-  bad("unknown optimizer " + std::to_string(int(k)) +
-      " (IVR_OPTIMIZER_AUTO, IVR_OPTIMIZER_ADAM, IVR_OPTIMIZER_SGD, IVR_OPTIMIZER_LBFGS)");
-}
-
 ivr_optimizer optimizer_enum(ivr::OptimizerKind k) {
   return k == ivr::OptimizerKind::sgd     ? IVR_OPTIMIZER_SGD
          : k == ivr::OptimizerKind::lbfgs ? IVR_OPTIMIZER_LBFGS
                                           : IVR_OPTIMIZER_ADAM;
 }
 
-// The C options as the core's; ranges are left to ivr::validate_reconstruct, which names them.
-ivr::ReconstructOptions reconstruct_options(const ivr_reconstruct_options& c) {
-  ivr::ReconstructOptions o;
-  o.density = c.density != 0;
-  o.tf = c.tf != 0;
-  o.iterations = c.iterations;
-  o.automatic_optimizer = c.optimizer == IVR_OPTIMIZER_AUTO;
-  o.optimizer.kind = optimizer_kind(c.optimizer);
-  o.optimizer.lr = c.lr;
-  switch (c.schedule) {
-    case IVR_SCHEDULE_CONSTANT:
-      o.optimizer.schedule = ivr::Schedule::constant;
-      break;
-    case IVR_SCHEDULE_STEP:
-      o.optimizer.schedule = ivr::Schedule::step;
-      break;
-    case IVR_SCHEDULE_COSINE:
-      o.optimizer.schedule = ivr::Schedule::cosine;
-      break;
-    default:
-      bad("unknown schedule " + std::to_string(int(c.schedule)) +
-          " (IVR_SCHEDULE_CONSTANT, IVR_SCHEDULE_STEP, IVR_SCHEDULE_COSINE)");
-  }
-  o.optimizer.step_every = c.step_every;
-  o.optimizer.step_gamma = c.step_gamma;
-  o.optimizer.min_lr = c.min_lr;
-  if (c.loss != IVR_LOSS_MSE && c.loss != IVR_LOSS_L1)
-    bad("unknown loss " + std::to_string(int(c.loss)) + " (IVR_LOSS_MSE, IVR_LOSS_L1)");
-  o.loss = c.loss == IVR_LOSS_L1 ? ivr::Loss::l1 : ivr::Loss::mse;
-  o.tv = c.tv;
-  o.smoothness = c.smoothness;
-  o.tf_smoothness = c.tf_smoothness;
-  o.tv_epsilon = c.tv_epsilon;
-  o.batch = c.batch;
-  o.levels = c.levels;
-  switch (c.init) {
-    case IVR_INIT_SCENE:
-      o.init = ivr::Init::scene;
-      break;
-    case IVR_INIT_ZEROS:
-      o.init = ivr::Init::zeros;
-      break;
-    case IVR_INIT_CONSTANT:
-      o.init = ivr::Init::constant;
-      break;
-    default:
-      bad("unknown init " + std::to_string(int(c.init)) +
-          " (IVR_INIT_SCENE, IVR_INIT_ZEROS, IVR_INIT_CONSTANT)");
-  }
-  o.init_value = c.init_value;
-  o.seed = c.seed;
-  o.precision = precision_of(c.precision);
-  o.step = c.step;
-  if (c.mode != IVR_MODE_AUTO && c.mode != IVR_MODE_FORWARD && c.mode != IVR_MODE_ADJOINT)
-    bad("unknown mode " + std::to_string(int(c.mode)));
-  o.mode = c.mode == IVR_MODE_FORWARD   ? ivr::Mode::forward
-           : c.mode == IVR_MODE_ADJOINT ? ivr::Mode::adjoint
-                                        : ivr::Mode::automatic;
-  return o;
-}
-
 ivr_reconstruct_iteration record_of(const ivr::IterationRecord& r) {
   return {r.iteration, r.level, r.loss, r.prior, r.lr, r.seconds, r.views};
-}
-
-ivr_viewpoint_options default_viewpoint_options() {
-  const ivr::ViewpointOptions d;
-  ivr_viewpoint_options o;
-  o.view = d.view;
-  o.iterations = d.iterations;
-  o.optimizer = IVR_OPTIMIZER_AUTO;
-  o.lr = 0;
-  o.precision = IVR_PRECISION_F32;
-  o.step = d.step;
-  return o;
 }
 
 ivr_camera camera_of(const ivr::Camera& c) {
@@ -182,7 +66,7 @@ extern "C" {
 
 ivr_status ivr_reconstruct_options_init(ivr_reconstruct_options* o) {
   return guarded(nullptr, "ivr_reconstruct_options_init",
-                 [&] { *not_null(o, "options") = default_options(); });
+                 [&] { *not_null(o, "options") = c_options(ivr::ReconstructOptions{}); });
 }
 
 ivr_status ivr_reconstruction_create(ivr_context* c, const ivr_scene* s, const float* targets,
@@ -195,7 +79,8 @@ ivr_status ivr_reconstruction_create(ivr_context* c, const ivr_scene* s, const f
     not_null(targets, "targets");
     not_null(out, "reconstruction");
     *out = nullptr;
-    const ivr::ReconstructOptions o = reconstruct_options(options ? *options : default_options());
+    // Ranges: checked by ivr::validate_reconstruct, which names them.
+    const ivr::ReconstructOptions o = core_options(options);
     const ivr::Scene& scene = s->scene;
     const ivr::Camera& cam = scene.cameras.front();
     ivr::Image t{int(scene.cameras.size()), cam.height, cam.width, scene.channels(), {}};
@@ -377,7 +262,7 @@ ivr_status ivr_reconstruction_resume(ivr_reconstruction* r, const char* prefix) 
 
 ivr_status ivr_viewpoint_options_init(ivr_viewpoint_options* o) {
   return guarded(nullptr, "ivr_viewpoint_options_init",
-                 [&] { *not_null(o, "options") = default_viewpoint_options(); });
+                 [&] { *not_null(o, "options") = c_options(ivr::ViewpointOptions{}); });
 }
 
 ivr_status ivr_select_viewpoint(ivr_context* c, const ivr_scene* s,
@@ -390,19 +275,12 @@ ivr_status ivr_select_viewpoint(ivr_context* c, const ivr_scene* s,
     with_volume(checked(s, Kind::scene, "scene"));
     same_context(s->context, c, "scene");
     not_null(result, "result");
-    const ivr_viewpoint_options co = options ? *options : default_viewpoint_options();
-    ivr::ViewpointOptions o;
-    o.view = co.view;
-    o.iterations = co.iterations;
-    o.optimizer.kind = optimizer_kind(co.optimizer);
-    o.optimizer.lr = co.lr;  // 0: the core's automatic lr; the rest is checked there
-    o.precision = precision_of(co.precision);
-    o.step = co.step;
+    const ivr::ViewpointOptions o = core_options(options);  // ranges: checked by the core
     // Checked before the search: a long run must not end in a buffer error.
-    if (history && co.iterations >= 0 && history_capacity < size_t(co.iterations) + 1)
+    if (history && o.iterations >= 0 && history_capacity < size_t(o.iterations) + 1)
       throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "history holds " + std::to_string(history_capacity) +
                                                    " entries; options ask for up to " +
-                                                   std::to_string(co.iterations + 1) +
+                                                   std::to_string(o.iterations + 1) +
                                                    " (the start and every iteration)"};
     std::function<bool(const ivr::ViewpointStep&)> callback;
     if (progress)

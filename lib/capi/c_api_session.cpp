@@ -1,6 +1,7 @@
 // c_api_session.cpp — the C API's sessions, device arrays and density optimisers: handles over
 // ivr::Session, ivr::DeviceArray and ivr::Optimizer, each holding its context.
 #include "capi/c_api_handles.hpp"
+#include "capi/options.hpp"
 #include "ivr/session.hpp"
 #include "session/session.hpp"
 
@@ -193,13 +194,7 @@ ivr_status ivr_array_wait(const ivr_array* a) {
 
 ivr_status ivr_session_options_init(ivr_session_options* o) {
   return guarded(nullptr, "ivr_session_options_init", [&] {
-    not_null(o, "options");
-    const ivr::SessionOptions d;
-    o->precision = IVR_PRECISION_F32;
-    o->step = d.step;
-    o->empty_space = 0;
-    o->min_empty_fraction = d.min_empty_fraction;
-    o->brick_size = d.brick_size;
+    *not_null(o, "options") = c_options(ivr::SessionOptions{});
   });
 }
 
@@ -210,20 +205,7 @@ ivr_status ivr_session_create(ivr_context* c, const ivr_scene* s, const ivr_sess
     checked(s, Kind::scene, "scene");
     same_context(s->context, c, "scene");
     out_handle(out, "session");
-    ivr::SessionOptions so;
-    if (o) {
-      so.precision = precision_of(o->precision);
-      so.step = o->step;
-      if (o->empty_space < 0 || o->empty_space > 2)
-        throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                     "options.empty_space " + std::to_string(o->empty_space) +
-                         " (0: automatic, 1: on, 2: off)"};
-      so.empty_space = o->empty_space == 1   ? ivr::EmptySpace::on
-                       : o->empty_space == 2 ? ivr::EmptySpace::off
-                                             : ivr::EmptySpace::automatic;
-      so.min_empty_fraction = o->min_empty_fraction;
-      so.brick_size = o->brick_size;
-    }
+    const ivr::SessionOptions so = core_options(o);
     auto h = std::make_unique<ivr_session>();
     h->explicit_box = s->explicit_box;
     if (s->has_volume) {

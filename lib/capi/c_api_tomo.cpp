@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "capi/c_api_handles.hpp"
+#include "capi/options.hpp"
 
 using namespace ivr::capi;
 
@@ -61,43 +62,6 @@ const ivr_scene* checked_scene(ivr_context* c, const ivr_scene* s) {
   return s;
 }
 
-// The C++ defaults (ivr/tomo.hpp) in C form.
-ivr_tomo_options default_options() {
-  const ivr::TomoOptions d;
-  ivr_tomo_options o;
-  o.solver = IVR_SOLVER_CGLS;
-  o.precision = IVR_PRECISION_F32;
-  o.iterations = d.iterations;
-  o.nonneg = d.nonneg;
-  o.tv_reweight = d.tv_reweight;
-  o.tolerance = d.tolerance;
-  o.tikhonov = d.tikhonov;
-  o.tv = d.tv;
-  o.tv_epsilon = d.tv_epsilon;
-  o.relaxation = d.relaxation;
-  return o;
-}
-
-ivr::TomoOptions tomo_options(const ivr_tomo_options& o) {
-  ivr::TomoOptions t;
-  if (o.solver != IVR_SOLVER_CGLS && o.solver != IVR_SOLVER_SIRT && o.solver != IVR_SOLVER_LSQR)
-    throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                 "unknown solver " + std::to_string(int(o.solver)) +
-                     " (IVR_SOLVER_CGLS, IVR_SOLVER_SIRT, IVR_SOLVER_LSQR)"};
-  t.solver = o.solver == IVR_SOLVER_SIRT   ? ivr::Solver::sirt
-             : o.solver == IVR_SOLVER_LSQR ? ivr::Solver::lsqr
-                                           : ivr::Solver::cgls;
-  t.precision = precision_of(o.precision);
-  t.iterations = o.iterations;
-  t.nonneg = o.nonneg != 0;
-  t.tv_reweight = o.tv_reweight;
-  t.tolerance = o.tolerance;
-  t.tikhonov = o.tikhonov;
-  t.tv = o.tv;
-  t.tv_epsilon = o.tv_epsilon;
-  t.relaxation = o.relaxation;
-  return t;  // ranges are checked by ivr::tomo, with the field's name
-}
 
 }  // namespace
 
@@ -139,7 +103,7 @@ ivr_status ivr_backproject(ivr_context* c, const ivr_scene* s, ivr_precision pre
 
 ivr_status ivr_tomo_options_init(ivr_tomo_options* o) {
   return guarded(nullptr, "ivr_tomo_options_init",
-                 [&] { *not_null(o, "options") = default_options(); });
+                 [&] { *not_null(o, "options") = c_options(ivr::TomoOptions{}); });
 }
 
 ivr_status ivr_tomo(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* options,
@@ -150,7 +114,7 @@ ivr_status ivr_tomo(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* 
     checked_scene(c, s);
     not_null(lines, "lines");
     not_null(volume, "volume");
-    const ivr::TomoOptions o = tomo_options(options ? *options : default_options());
+    const ivr::TomoOptions o = core_options(options);  // ranges: checked by ivr::tomo
     const ivr::Scene& scene = s->scene;
     check_count(count, ray_count(scene), "lines", "the scene", "rays");
     check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");

@@ -1,5 +1,5 @@
 // c_api_volume.cpp — the C API's volumes and transfer functions: handles made from caller memory
-// or DESIGN.md's JSON objects, read back, and copied into scenes.
+// or docs/design.md's JSON objects, read back, and copied into scenes.
 #include "capi/c_api_handles.hpp"
 
 using namespace ivr::capi;

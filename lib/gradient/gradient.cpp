@@ -11,6 +11,11 @@
 #include "ivr/error.hpp"
 #include "ivr/jacobian.hpp"
 #include "session/session.hpp"
+#include "render/render.hpp"
+#include "adjoint/adjoint.hpp"
+#include "jacobian/jacobian.hpp"
+#include "gradient/gradient.hpp"
+#include "gradient/parameter_groups.hpp"
 
 namespace ivr {
 
@@ -44,13 +49,9 @@ struct GroupPlan {
 };
 
 GroupPlan plan_group(const Scene& scene, const std::string& g) {
-  static const std::set<std::string> known = {"density",    "tf",     "tf_points", "scales",
-                                              "background", "camera", "step"};
-  const bool voxels = g.rfind("voxels:", 0) == 0;
-  if (!voxels && !known.count(g))
-    throw bad_group("unknown parameter group '" + g +
-                    "' (known: density, tf, tf_points, scales, background, camera, step, "
-                    "voxels:LIST)");
+  const ParameterGroupInfo* info = find_parameter_group(g);
+  if (!info) throw bad_group(unknown_group_message(g));
+  const bool voxels = std::string(info->name) == "voxels";
   GroupPlan p;
   p.name = voxels ? "voxels" : g;
   p.asked = g;
@@ -65,7 +66,7 @@ GroupPlan plan_group(const Scene& scene, const std::string& g) {
     p.shape = {std::int64_t(scene.cameras.size()), 7};
   else
     p.shape = {std::int64_t(p.parameters.size())};
-  p.adjoint = g != "tf_points";
+  p.adjoint = info->adjoint;
   return p;
 }
 
@@ -130,7 +131,7 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
         const std::vector<Parameter> listed = p.forward_parameters(s.scene);
         all.insert(all.end(), listed.begin(), listed.end());
       }
-      const TangentResult t = enqueue_tangents(s, lanes_of(s.scene, all), &target, false,
+      const JacobianResult t = enqueue_jacobian(s, lanes_of(s.scene, all), &target, false,
                                                request.loss, op);
       out.loss = t.loss;
       // Each group's slice of the one gradient vector, copied into an array of its own.

@@ -14,6 +14,10 @@
 #include "scene/scene.hpp"
 #include "session/session.hpp"
 #include "ivr_constants.h"
+#include "scene/tf_kinds.hpp"
+#include "gradient/parameter_groups.hpp"
+#include "render/render.hpp"
+#include "jacobian/jacobian.hpp"
 
 namespace ivr {
 
@@ -119,7 +123,7 @@ std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& 
   return lanes;
 }
 
-TangentResult enqueue_tangents(Session::Impl& s, const std::vector<cl_int4>& all_lanes,
+JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& all_lanes,
                                const DeviceArray* target, bool jacobian, Loss loss_kind,
                                OperationRecord& op) {
   Device::Impl& dev = s.dev;
@@ -141,7 +145,7 @@ TangentResult enqueue_tangents(Session::Impl& s, const std::vector<cl_int4>& all
       gradient_may_skip(scene.tf, any_tf, any_position), variant, op.stats);
   const int pass_lanes = lanes_for(std::min<std::size_t>(params, kMaxLanes));
 
-  TangentResult out;
+  JacobianResult out;
   out.image = s.output("tangent image", s.image_shape(), real_dtype(s.f64), "the image");
   if (jacobian) {
     std::vector<std::int64_t> shape = s.image_shape();
@@ -274,10 +278,7 @@ std::vector<Parameter> parameters_of(const Scene& scene, const std::string& grou
     for (std::int64_t i : voxel_list(group.substr(7), scene.volume))
       out.push_back({ParameterGroup::voxel, i, 0});
   } else {
-    throw Error(Status::invalid_argument,
-                "unknown parameter group '" + group +
-                    "' (known: density, tf, tf_points, scales, background, camera, step, "
-                    "voxels:LIST)");
+    throw Error(Status::invalid_argument, unknown_group_message(group));
   }
   return out;
 }
@@ -290,7 +291,7 @@ Jacobian jacobian(Device& device, const Scene& scene, const std::vector<Paramete
   Session::Impl& s = session.impl();
   if (target) session.set_target(*target);
   const std::vector<cl_int4> lanes = lanes_of(s.scene, parameters);
-  const TangentResult r = enqueue_tangents(s, lanes, target ? &s.target : nullptr,
+  const JacobianResult r = enqueue_jacobian(s, lanes, target ? &s.target : nullptr,
                                            options.jacobian, options.loss, s.begin("tangents"));
   Jacobian out;
   out.image = image_of(r.image);

@@ -13,6 +13,8 @@
 #include "reconstruct/reconstruct.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
+#include "adjoint/adjoint.hpp"
+#include "gradient/gradient.hpp"
 
 namespace ivr {
 

@@ -9,6 +9,8 @@
 #include "ivr/error.hpp"
 #include "ivr/adjoint.hpp"
 #include "ivr/reconstruct.hpp"
+#include "ivr/tf_parameters.hpp"
+#include "scene/tf_kinds.hpp"
 
 namespace ivr {
 
@@ -16,85 +18,31 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 }
 
-std::vector<double> tf_parameters(const TransferFunction& tf) {
-  std::vector<double> v;
-  switch (tf.kind) {
-    case TfKind::identity:
-      v = {tf.extinction_scale, tf.color_scale};
-      break;
-    case TfKind::piecewise_linear:
-      for (const TfPoint& p : tf.points)
-        v.insert(v.end(), {p.color.x, p.color.y, p.color.z, p.extinction});
-      break;
-    case TfKind::table:
-      for (const glm::dvec4& e : tf.entries) v.insert(v.end(), {e.x, e.y, e.z, e.w});
-      break;
-    case TfKind::gaussian:
-      for (const TfGaussian& g : tf.gaussians)
-        v.insert(v.end(), {g.color.x, g.color.y, g.color.z, g.extinction, g.mean, g.width});
-      break;
-  }
-  return v;
-}
-
-void set_tf_parameters(TransferFunction& tf, const std::vector<double>& v) {
-  if (v.size() != tf_parameters(tf).size())
-    throw Error(Status::invalid_argument, "TF values: " + std::to_string(v.size()) +
-                                              " values for a TF of " +
-                                              std::to_string(tf_parameters(tf).size()));
-  switch (tf.kind) {
-    case TfKind::identity:
-      tf.extinction_scale = v[0];
-      tf.color_scale = v[1];
-      break;
-    case TfKind::piecewise_linear:
-      for (std::size_t r = 0; r < tf.points.size(); ++r) {
-        tf.points[r].color = {v[4 * r], v[4 * r + 1], v[4 * r + 2]};
-        tf.points[r].extinction = v[4 * r + 3];
-      }
-      break;
-    case TfKind::table:
-      for (std::size_t r = 0; r < tf.entries.size(); ++r)
-        tf.entries[r] = {v[4 * r], v[4 * r + 1], v[4 * r + 2], v[4 * r + 3]};
-      break;
-    case TfKind::gaussian:
-      for (std::size_t r = 0; r < tf.gaussians.size(); ++r) {
-        TfGaussian& g = tf.gaussians[r];
-        g.color = {v[6 * r], v[6 * r + 1], v[6 * r + 2]};
-        g.extinction = v[6 * r + 3];
-        g.mean = v[6 * r + 4];
-        g.width = v[6 * r + 5];
-      }
-      break;
-  }
-}
-
 TfBounds tf_bounds(const TransferFunction& tf, double density_scale) {
   const std::vector<double> v = tf_parameters(tf);
+  const std::vector<TfColumnInfo>& columns = tf_kind_info(tf.kind).columns;
+  double largest_extinction = 0;
+  for (std::size_t i = 0; i < v.size(); ++i)
+    if (columns[i % columns.size()].column == TfColumn::extinction)
+      largest_extinction = std::max(largest_extinction, v[i]);
   TfBounds b;
-  if (tf.kind == TfKind::identity) {
-    b.lower = {0, 0};
-    b.upper = {kInf, kInf};
-    b.scale = {std::max(std::abs(v[0]), 1e-3), std::max(std::abs(v[1]), 1e-3)};
-    return b;
-  }
-  const std::size_t cols = tf.kind == TfKind::gaussian ? 6 : 4;
-  double max_extinction = 0;
-  for (std::size_t i = 3; i < v.size(); i += cols) max_extinction = std::max(max_extinction, v[i]);
   for (std::size_t i = 0; i < v.size(); ++i) {
-    const std::size_t c = i % cols;
-    if (c < 3) {  // colour
-      b.lower.push_back(0);
-      b.upper.push_back(1);
-      b.scale.push_back(1);
-    } else if (c == 3) {  // extinction
-      b.lower.push_back(0);
-      b.upper.push_back(kInf);
-      b.scale.push_back(max_extinction > 0 ? max_extinction : 1.0);
-    } else {  // Gaussian mean (free) and width (> 0)
-      b.lower.push_back(c == 4 ? -kInf : 1e-6 * density_scale);
-      b.upper.push_back(kInf);
-      b.scale.push_back(density_scale);
+    const TfColumnInfo& c = columns[i % columns.size()];
+    b.lower.push_back(c.lower_in_density_units ? c.lower * density_scale : c.lower);
+    b.upper.push_back(c.upper);
+    switch (c.scale) {
+      case TfScale::unit:
+        b.scale.push_back(1);
+        break;
+      case TfScale::largest_extinction:
+        b.scale.push_back(largest_extinction > 0 ? largest_extinction : 1.0);
+        break;
+      case TfScale::density:
+        b.scale.push_back(density_scale);
+        break;
+      case TfScale::own_magnitude:
+        b.scale.push_back(std::max(std::abs(v[i]), 1e-3));
+        break;
     }
   }
   return b;
@@ -132,7 +80,7 @@ Volume resample_volume(const Volume& in, int nx, int ny, int nz) {
   out.data.resize(out.voxel_count());
   const int fx = std::max(1, (in.nx + nx - 1) / nx), fy = std::max(1, (in.ny + ny - 1) / ny),
             fz = std::max(1, (in.nz + nz - 1) / nz);
-  // Trilinear between cell centres, clamped to the edge centres (DESIGN.md); u in cells of `in`.
+  // Trilinear between cell centres, clamped to the edge centres (docs/design.md); u in cells of `in`.
   auto axis = [](double u, int n, int& i0, int& i1, double& w) {
     u = std::clamp(u - 0.5, 0.0, double(n - 1));
     i0 = std::min(int(u), n - 1);

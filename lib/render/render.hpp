@@ -1,10 +1,12 @@
-// render_packet.hpp — internal: the CPU packet render (kernels/render_packet.cl), which renders and
-// also marches the adjoint kernel's primal (lib/adjoint/adjoint.cpp).
+// render.hpp — internal: the render operation of a session, the one-shot session behind the
+// one-shot functions, images downloaded from the device, and the CPU packet render
+// (kernels/render_packet.cl), which renders and also marches the adjoint kernel's primal.
 #pragma once
 #include "ivr/scene.hpp"
 #include "runtime/launch.hpp"
 #include "runtime/runtime.hpp"
 #include "runtime/variants.hpp"
+#include "session/session.hpp"
 
 namespace ivr {
 
@@ -16,5 +18,20 @@ int packet_lanes();
 bool use_packet(const Device::Impl& dev, const Scene& scene, const RenderVariant& v);
 KernelConfig packet_config(const RenderVariant& variant, bool primal);
 PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene);
+
+// The image (in the session's precision) and, where `samples` is set, the per-pixel sample
+// counts into it.
+DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op);
+
+// An array's values on the host, downloaded once: as float32 in `floats`, and for a float64
+// array also unrounded in `doubles` (left empty otherwise).
+void download_kept(const DeviceArray& a, std::vector<float>* floats, std::vector<double>* doubles);
+// An image array (views, H, W, C) as an Image, pixels_f64 filled for a float64 one.
+Image image_of(const DeviceArray& image);
+
+// A session over `scene` for one call of a one-shot function (render(), gradient(), …): the
+// scene outlives it, so its host densities may serve the host-side grid. Throws like
+// validate_with where the scene's volume lacks its data.
+Session one_shot_session(Device& device, const Scene& scene, const SessionOptions& options);
 
 }  // namespace ivr

@@ -11,6 +11,8 @@
 #include "ivr/error.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
+#include "render/render.hpp"
+#include "render/tolerance.hpp"
 
 namespace ivr {
 

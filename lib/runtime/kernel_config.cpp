@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "runtime/device_params.hpp"
+#include "scene/tf_kinds.hpp"
 
 namespace ivr {
 namespace {
@@ -74,20 +75,6 @@ std::vector<std::string> switches_off_by_default() {
   for (const SwitchInfo& info : kInfo)
     if (info.zero_is_default) out.push_back(info.macro);
   return out;
-}
-
-const char* tf_kind_name(TfKind kind) {
-  switch (kind) {
-    case TfKind::identity:
-      return "identity";
-    case TfKind::piecewise_linear:
-      return "piecewise_linear";
-    case TfKind::table:
-      return "table";
-    case TfKind::gaussian:
-      return "gaussian";
-  }
-  return "?";
 }
 
 KernelConfig& KernelConfig::with_atomics(AtomicAdd kind) {

@@ -95,7 +95,6 @@ struct KernelConfig {
   std::array<int, kSwitches> values_{};
 };
 
-const char* tf_kind_name(TfKind kind);
 // The switches the kernels read as 0 where undefined, which a preamble therefore leaves out at 0
 // (tests/runtime/kernel_config_test.cpp checks the kernels' #ifndef defaults against it).
 std::vector<std::string> switches_off_by_default();

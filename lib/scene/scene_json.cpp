@@ -1,4 +1,4 @@
-// scene_json.cpp — scene files: DESIGN.md's JSON, exact field names, unknown keys and values
+// scene_json.cpp — scene files: docs/design.md's JSON, exact field names, unknown keys and values
 // rejected with the path of the offending field.
 #include <cmath>
 #include <filesystem>
@@ -13,6 +13,7 @@
 
 using nlohmann::json;
 namespace fs = std::filesystem;
+#include "scene/tf_kinds.hpp"
 
 namespace ivr {
 
@@ -123,15 +124,18 @@ TransferFunction read_tf(const Reader& r, const json& j) {
   TransferFunction tf;
   if (!j.is_object() || !j.contains("type")) r.fail("tf", "needs a 'type'");
   const std::string type = r.string(j["type"], "tf.type");
-  if (type == "identity") {
+  const TfKindInfo* kind = find_tf_kind(type);
+  if (!kind)
+    r.fail("tf.type",
+           "unknown transfer function type '" + type + "' (known: " + tf_kind_names() + ")");
+  tf.kind = kind->kind;
+  if (tf.kind == TfKind::identity) {
     r.only_keys(j, "tf", {"type", "extinction_scale", "color_scale"});
-    tf.kind = TfKind::identity;
     if (j.contains("extinction_scale"))
       tf.extinction_scale = r.number(j["extinction_scale"], "tf.extinction_scale");
     if (j.contains("color_scale")) tf.color_scale = r.number(j["color_scale"], "tf.color_scale");
-  } else if (type == "piecewise_linear") {
+  } else if (tf.kind == TfKind::piecewise_linear) {
     r.only_keys(j, "tf", {"type", "points"});
-    tf.kind = TfKind::piecewise_linear;
     if (!j.contains("points")) r.fail("tf", "piecewise_linear needs 'points'");
     const json& pts = r.array(j["points"], "tf.points");
     for (std::size_t i = 0; i < pts.size(); ++i) {
@@ -143,9 +147,8 @@ TransferFunction read_tf(const Reader& r, const json& j) {
                            r.vec3(pts[i]["color"], p + ".color"),
                            r.number(pts[i]["extinction"], p + ".extinction")});
     }
-  } else if (type == "table") {
+  } else if (tf.kind == TfKind::table) {
     r.only_keys(j, "tf", {"type", "range", "entries"});
-    tf.kind = TfKind::table;
     if (!j.contains("entries")) r.fail("tf", "table needs 'entries'");
     if (j.contains("range")) {
       const auto v = r.numbers(j["range"], "tf.range", 2);
@@ -156,9 +159,8 @@ TransferFunction read_tf(const Reader& r, const json& j) {
       const auto v = r.numbers(rows[i], "tf.entries[" + std::to_string(i) + "]", 4);
       tf.entries.emplace_back(v[0], v[1], v[2], v[3]);
     }
-  } else if (type == "gaussian") {
+  } else {  // gaussian
     r.only_keys(j, "tf", {"type", "gaussians"});
-    tf.kind = TfKind::gaussian;
     if (!j.contains("gaussians")) r.fail("tf", "gaussian needs 'gaussians'");
     const json& gs = r.array(j["gaussians"], "tf.gaussians");
     for (std::size_t i = 0; i < gs.size(); ++i) {
@@ -170,9 +172,6 @@ TransferFunction read_tf(const Reader& r, const json& j) {
           {r.number(gs[i]["mean"], p + ".mean"), r.number(gs[i]["width"], p + ".width"),
            r.vec3(gs[i]["color"], p + ".color"), r.number(gs[i]["extinction"], p + ".extinction")});
     }
-  } else {
-    r.fail("tf.type", "unknown transfer function type '" + type +
-                          "' (known: identity, piecewise_linear, table, gaussian)");
   }
   return tf;
 }

@@ -1,5 +1,5 @@
 // scene_writer.cpp — the inverse of scene_json.cpp for what reconstructions produce: a TF and a
-// camera as DESIGN.md's JSON objects (doubles written to round-trip exactly), and a Volume as NRRD.
+// camera as docs/design.md's JSON objects (doubles written to round-trip exactly), and a Volume as NRRD.
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -7,6 +7,7 @@
 #include "ivr/error.hpp"
 #include "ivr/scene.hpp"
 #include "ivr/volume_io.hpp"
+#include "scene/tf_kinds.hpp"
 
 namespace ivr {
 
@@ -21,21 +22,19 @@ std::string tf_json(const TransferFunction& tf) {
   json j;
   switch (tf.kind) {
     case TfKind::identity:
-      j = {{"type", "identity"},
-           {"extinction_scale", tf.extinction_scale},
-           {"color_scale", tf.color_scale}};
+      j = {{"extinction_scale", tf.extinction_scale}, {"color_scale", tf.color_scale}};
       break;
     case TfKind::piecewise_linear: {
       json points = json::array();
       for (const TfPoint& p : tf.points)
         points.push_back(
             {{"density", p.density}, {"color", vec(p.color)}, {"extinction", p.extinction}});
-      j = {{"type", "piecewise_linear"}, {"points", points}};
+      j = {{"points", points}};
     } break;
     case TfKind::table: {
       json entries = json::array();
       for (const glm::dvec4& e : tf.entries) entries.push_back({e.x, e.y, e.z, e.w});
-      j = {{"type", "table"}, {"range", {tf.range.x, tf.range.y}}, {"entries", entries}};
+      j = {{"range", {tf.range.x, tf.range.y}}, {"entries", entries}};
     } break;
     case TfKind::gaussian: {
       json gs = json::array();
@@ -44,9 +43,10 @@ std::string tf_json(const TransferFunction& tf) {
                       {"width", g.width},
                       {"color", vec(g.color)},
                       {"extinction", g.extinction}});
-      j = {{"type", "gaussian"}, {"gaussians", gs}};
+      j = {{"gaussians", gs}};
     } break;
   }
+  j["type"] = tf_kind_name(tf.kind);
   return j.dump(1);
 }
 

@@ -8,6 +8,7 @@
 #include "runtime/real_args.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
+#include "render/tolerance.hpp"
 
 namespace ivr {
 

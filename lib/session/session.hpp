@@ -1,4 +1,4 @@
-// session_impl.hpp — internal: a session's state (the scene's device copies, what is derived from
+// session.hpp — internal: a session's state (the scene's device copies, what is derived from
 // them and whether it is fresh) and the pieces the operations share — the leading kernel
 // arguments, the skipping plan, pooled outputs, the record of the last operation.
 #pragma once
@@ -126,54 +126,11 @@ struct Session::Impl {
   std::vector<std::int64_t> volume_shape() const;
 };
 
-// --- the operations (lib/render/render.cpp, adjoint.cpp, tangents.cpp, differentiate.cpp, project.cpp)
-// Each enqueues into the session's last-operation record and returns device arrays.
-
-// The image (in the session's precision) and, where `samples` is set, the per-pixel sample
-// counts into it.
-DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op);
-
-// An array's values on the host, downloaded once: as float32 in `floats`, and for a float64
-// array also unrounded in `doubles` (left empty otherwise).
-void download_kept(const DeviceArray& a, std::vector<float>* floats, std::vector<double>* doubles);
-// An image array (views, H, W, C) as an Image, pixels_f64 filled for a float64 one.
-Image image_of(const DeviceArray& image);
-
-struct AdjointRequest {
-  bool density = true, tf = false, background = false, camera = false;
-  Loss loss = Loss::mse;
-  bool deterministic = false;
-};
-struct AdjointResult {
-  DeviceArray loss, density, tf, background, camera, image;
-  std::string atomics;
-};
-AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const AdjointRequest& r,
-                              OperationRecord& op);
-
-// Forward mode: lanes as kernels/jacobian.cl's int4s (lib/jacobian/jacobian.cpp lane_of).
-struct TangentResult {
-  DeviceArray loss, gradient, jacobian, image;
-};
-TangentResult enqueue_tangents(Session::Impl& s, const std::vector<cl_int4>& lanes,
-                               const DeviceArray* target, bool jacobian, Loss loss,
-                               OperationRecord& op);
-std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& parameters);
-
-SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
-                                 const GradientRequest& request);
+// The operations enqueue into the session's last-operation record and return device arrays:
+// lib/render/render.hpp, lib/adjoint/adjoint.hpp, lib/jacobian/jacobian.hpp,
+// lib/gradient/gradient.hpp, lib/tomo/project.hpp.
 
 // The scene without its densities (they go to the device; a copy would double host memory).
 Scene description_of(const Scene& scene);
-
-// A session over `scene` for one call of a one-shot function (render(), gradient(), …): the
-// scene outlives it, so its host densities may serve the host-side grid. Throws like
-// validate_with where the scene's volume lacks its data.
-Session one_shot_session(Device& device, const Scene& scene, const SessionOptions& options);
-
-// The integrator step chosen for a tolerance by pilot renders of `s`'s scene at a quarter of the
-// resolution (lib/render/tolerance.cpp).
-StepChoice choose_session_step(Session::Impl& s, double tolerance);
-
 
 }  // namespace ivr

@@ -6,6 +6,9 @@
 #include "reconstruct/optimize.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
+#include "render/render.hpp"
+#include "jacobian/jacobian.hpp"
+#include "gradient/gradient.hpp"
 
 namespace ivr {
 
@@ -233,7 +236,7 @@ DeviceArray Session::jacobian(const std::vector<std::string>& wrt) {
   for (const std::string& g : wrt)
     for (const Parameter& p : parameters_of(s.scene, g)) params.push_back(p);
   OperationRecord& op = s.begin("jacobian");
-  return enqueue_tangents(s, lanes_of(s.scene, params), nullptr, true, Loss::mse, op).jacobian;
+  return enqueue_jacobian(s, lanes_of(s.scene, params), nullptr, true, Loss::mse, op).jacobian;
 }
 
 SessionGradient Session::forward(const std::vector<Parameter>& parameters, Loss kind) {
@@ -243,7 +246,7 @@ SessionGradient Session::forward(const std::vector<Parameter>& parameters, Loss 
   if (!s.target.valid()) bad("forward: the session has no target (set_target first)");
   const std::vector<cl_int4> lanes = lanes_of(s.scene, parameters);
   OperationRecord& op = s.begin("forward");
-  const TangentResult t = enqueue_tangents(s, lanes, &s.target, false, kind, op);
+  const JacobianResult t = enqueue_jacobian(s, lanes, &s.target, false, kind, op);
   SessionGradient g;
   g.loss = t.loss;
   g.groups.emplace_back("parameters", t.gradient);

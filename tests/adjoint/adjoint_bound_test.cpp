@@ -4,6 +4,7 @@
 // bits on every run and after any history, and agreement with the float-atomic gradient; both
 // second passes forced through $IVR_FIXED_BOUND_SHIFT (a test-only knob).
 #include "adjoint/adjoint_bound.hpp"
+#include "scene/tf_kinds.hpp"
 
 #include <gtest/gtest.h>
 

@@ -222,7 +222,7 @@ TEST(AdjointHardCases, ThinWall) {
 }
 
 // A smooth medium with total optical depth 10, 30, 300 and 3000 along the deepest of four rays,
-// sampled ~400 times per ray (DESIGN.md's float32 experiment with DiffDVR's division by 1 - alpha:
+// sampled ~400 times per ray (docs/design.md's float32 experiment with DiffDVR's division by 1 - alpha:
 // errors of 8e-4 at depth 10 and 6e5 at 30), both models, early termination off and on.
 TEST(AdjointHardCases, TotalOpticalDepth) {
   for (Model model : {Model::emission_absorption, Model::absorption})
@@ -316,7 +316,7 @@ TEST(AdjointHardCases, AxisAlignedRays) {
         s.cameras.push_back(c);
       }
   // 0.2: chords of whole voxels over a step dividing them make length / step an integer, where a
-  // count from each precision's own geometry would round to n or n + 1 (DESIGN.md, sample
+  // count from each precision's own geometry would round to n or n + 1 (docs/design.md, sample
   // counts: both take the definition's).
   const double step = 0.2;
   const Image target = offset_target(s, step);

@@ -11,6 +11,7 @@
 
 #include "adjoint/adjoint_support.hpp"
 #include "reference/compare.hpp"
+#include "scene/tf_kinds.hpp"
 
 namespace ivr::test {
 namespace {

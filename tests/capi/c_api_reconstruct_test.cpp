@@ -334,7 +334,7 @@ TEST_F(CApiReconstruct, ErrorsHaveAStatusAndAMessage) {
   bad = o;
   bad.optimizer = ivr_optimizer(9);
   expect_error(create_with(bad, kPixels), IVR_ERROR_INVALID_ARGUMENT, "ivr_reconstruction_create",
-               "unknown optimizer 9");
+               "options.optimizer 9 is unknown (IVR_OPTIMIZER_AUTO,");
   bad = o;
   bad.iterations = 0;
   expect_error(create_with(bad, kPixels), IVR_ERROR_INVALID_ARGUMENT, "ivr_reconstruction_create",
@@ -342,7 +342,7 @@ TEST_F(CApiReconstruct, ErrorsHaveAStatusAndAMessage) {
   bad = o;
   bad.schedule = ivr_schedule(5);
   expect_error(create_with(bad, kPixels), IVR_ERROR_INVALID_ARGUMENT, "ivr_reconstruction_create",
-               "unknown schedule 5");
+               "options.schedule 5 is unknown (IVR_SCHEDULE_CONSTANT,");
   std::vector<float> nan_targets = targets_;
   nan_targets[17] = NAN;
   expect_error(ivr_reconstruction_create(ctx_, scene_, nan_targets.data(), kPixels, &o, &r),
@@ -465,7 +465,7 @@ TEST_F(CApiReconstruct, CppWrappers) {
   const api::Array<float> targets = context.render(scene);
   api::ReconstructOptions o;
   o.iterations = 8;
-  o.init = api::Init::constant;
+  o.init = IVR_INIT_CONSTANT;
   api::Reconstruction r(context, scene, targets.values, o);
   EXPECT_EQ(r.info().optimizer, IVR_OPTIMIZER_ADAM);
   EXPECT_EQ(r.level_shape(1), (std::vector<int64_t>{8, 8, 8}));

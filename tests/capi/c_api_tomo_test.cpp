@@ -255,7 +255,7 @@ TEST_F(CApiTomo, ErrorsHaveAStatusAndAMessage) {
   o.solver = ivr_solver(7);
   expect_error(ivr_tomo(ctx_, scene_, &o, lines.data(), kRays, volume.data(), kVoxels, nullptr,
                         nullptr, nullptr, 0, nullptr),
-               IVR_ERROR_INVALID_ARGUMENT, "ivr_tomo", "unknown solver 7");
+               IVR_ERROR_INVALID_ARGUMENT, "ivr_tomo", "options.solver 7 is unknown (IVR_SOLVER_CGLS,");
   expect_error(ivr_project(ctx_, scene_, ivr_precision(3), nullptr, 0, lines.data(), kRays),
                IVR_ERROR_INVALID_ARGUMENT, "ivr_project", "unknown precision 3");
   for (float v : volume) ASSERT_EQ(v, 7.0f) << "an output was written despite the error";

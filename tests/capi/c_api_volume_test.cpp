@@ -1,5 +1,5 @@
 // c_api_volume_test.cpp — the C API's volume and transfer-function handles: made from memory and
-// from DESIGN.md's JSON objects, read back, set on scenes (the render equals the core's with the
+// from docs/design.md's JSON objects, read back, set on scenes (the render equals the core's with the
 // same volume and TF), and every error path (NULL, released, wrong kind, other context, bad JSON).
 #include <gtest/gtest.h>
 

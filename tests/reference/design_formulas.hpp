@@ -1,4 +1,4 @@
-// design_formulas.hpp — DESIGN.md camera rays and ray–box chords in double precision, for tests.
+// design_formulas.hpp — docs/design.md camera rays and ray–box chords in double precision, for tests.
 #pragma once
 #include <algorithm>
 #include <cmath>

@@ -13,10 +13,10 @@ namespace {
 constexpr double kEps32 = 1.1920928955078125e-07;  // float32 machine epsilon
 
 // ---------------------------------------------------------------------------------------------
-// DESIGN.md's transfer functions, re-derived here in double precision independently of the
+// docs/design.md's transfer functions, re-derived here in double precision independently of the
 // kernels (rays and chords: design_formulas.hpp).
 
-// sigma(d) and colour(d) of every TF kind exactly as DESIGN.md defines them.
+// sigma(d) and colour(d) of every TF kind exactly as docs/design.md defines them.
 struct TfValue {
   double sigma;
   glm::dvec3 color;
@@ -128,7 +128,7 @@ TEST(ClosedForm, BeerLambertAxisAlignedOrthographic) {
     }
 }
 
-// Oblique perspective rays: L from the test's own ray–box intersection of DESIGN.md's ray.
+// Oblique perspective rays: L from the test's own ray–box intersection of docs/design.md's ray.
 TEST(ClosedForm, BeerLambertObliquePerspective) {
   Scene s = oblique_scene(1.0f);
   s.background = glm::dvec3(2.5);
@@ -172,7 +172,7 @@ struct Ramp {
     return a *
            (h / 2 * v.front() + double(X - 1) * h * (v.front() + v.back()) / 2 + h / 2 * v.back());
   }
-  // DESIGN.md's density at world x: linear between centres, clamped to the edge centres.
+  // docs/design.md's density at world x: linear between centres, clamped to the edge centres.
   double density(double x) const {
     const double u = std::clamp((x - scene.box_min.x) / h - 0.5, 0.0, double(v.size() - 1));
     const std::size_t i = std::min(std::size_t(u), v.size() - 2);

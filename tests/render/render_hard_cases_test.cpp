@@ -1,4 +1,4 @@
-// render_hard_cases_test.cpp — the renderer on DESIGN.md's hard cases: near-opaque media, 1e5
+// render_hard_cases_test.cpp — the renderer on docs/design.md's hard cases: near-opaque media, 1e5
 // samples per ray, grazing and axis-aligned rays, a camera inside, 1-voxel and all-zero volumes,
 // density jumps and TF kinks; each judged against the CPU reference or a closed form.
 #include <gtest/gtest.h>

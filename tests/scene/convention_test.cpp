@@ -1,4 +1,4 @@
-// convention_test.cpp — DESIGN.md conventions: axes, cell centres, box, rays, image files.
+// convention_test.cpp — docs/design.md conventions: axes, cell centres, box, rays, image files.
 #include <gtest/gtest.h>
 #ifdef IVR_TEST_IMAGE_MODULE  // built with the image module: read its files back
 #include <OpenImageIO/imageio.h>
@@ -81,7 +81,7 @@ TEST(Convention, SingleVoxelLandsOnTheRightPixelForEachAxis) {
   s.box_min = -s.box_max;
   struct Case {
     Camera cam;
-    glm::ivec2 pixel;  // hand-derived from DESIGN.md (comments)
+    glm::ivec2 pixel;  // hand-derived from docs/design.md (comments)
   } cases[] = {
       // Down -z, up y: forward (0,0,-1), right = forward × up = (1,0,0), up' = (0,1,0):
       // column = x = 3, row 0 = largest y, so row = Y-1-y = 2.
@@ -236,7 +236,7 @@ TEST(Convention, PerspectiveCornerRayAndAspect) {
     s.cameras = {cam};
     const Ray corner = design_ray(cam, 0, 0);
     const glm::dvec3 at_z0 = corner.origin + (2 / -corner.dir.z) * corner.dir;
-    ASSERT_NEAR(glm::length(at_z0 - c.hit), 0, 1e-12);  // the hand value matches DESIGN.md's ray
+    ASSERT_NEAR(glm::length(at_z0 - c.hit), 0, 1e-12);  // the hand value matches docs/design.md's ray
     const Image img = render_checked(s, Precision::f32);
     for (int y = 0; y < c.h; ++y)
       for (int x = 0; x < c.w; ++x) {

@@ -19,7 +19,7 @@
             s.step(opt, g["density"])                  # densities updated in place (>= 0)
         v = s.volume.numpy()                           # (Z, Y, X); s.render().numpy() images
 
-`scene` is a dict with the JSON fields of DESIGN.md (or JSON text); `volume`, a (Z, Y, X) array
+`scene` is a dict with the JSON fields of docs/design.md (or JSON text); `volume`, a (Z, Y, X) array
 of float32/float64/uint8/uint16, replaces the scene's own volume (which may then be left out).
 Errors raise ivr.Error with the C status name and the library's message.
 """
@@ -241,7 +241,7 @@ class Context(_Owned):
 
     def load_volume(self, source, base_dir=None):
         """A volume as float32 (Z, Y, X) densities, read as a scene would: `source` is a path
-        or DESIGN.md's "volume" object (a dict: {"file": ..., "dims": ..., "type": ...} or
+        or docs/design.md's "volume" object (a dict: {"file": ..., "dims": ..., "type": ...} or
         {"synthetic": "sphere", "dims": [X, Y, Z]}); relative paths resolve against base_dir."""
         obj = {"file": os.fspath(source)} if isinstance(source, (str, os.PathLike)) else source
         handle = _capi.HANDLE()
@@ -405,22 +405,23 @@ class Context(_Owned):
         finally:
             self._lib.ivr_scene_release(s)
 
-    def tomo(self, scene, lines, solver="cgls", iterations=50, nonneg=False, tv=0.0, tikhonov=0.0,
-             tolerance=0.0, tv_epsilon=1e-3, tv_reweight=10, relaxation=1.0, progress=None,
+    def tomo(self, scene, lines, solver=None, iterations=None, nonneg=None, tv=None, tikhonov=None,
+             tolerance=None, tv_epsilon=None, tv_reweight=None, relaxation=None, progress=None,
              grid=None, base_dir=None, info=None):
         """(volume, history): the scene's grid (or `grid`) reconstructed from line integrals
         `lines` (views, H, W[, 1]) by least squares (cgls, sirt or lsqr), optionally with x >= 0,
         Tikhonov or smoothed-TV regularisation; volume float32 (Z, Y, X), history a list of
         {"iteration", "residual" (|p - N x| / |p|), "seconds"}. progress(entry) is called after
         every iteration with that entry; returning False stops (the last iterate is returned).
-        `info`, a dict, receives stop_reason, setup_seconds and seconds."""
-        o = _capi.TomoOptions()
-        _check(self._lib.ivr_tomo_options_init(ctypes.byref(o)))
-        o.solver = _choice(_SOLVERS, solver, "solver")
-        o.precision = _PRECISIONS[self.precision]
-        o.iterations, o.nonneg, o.tv_reweight = int(iterations), int(bool(nonneg)), int(tv_reweight)
-        o.tolerance, o.tikhonov, o.tv = float(tolerance), float(tikhonov), float(tv)
-        o.tv_epsilon, o.relaxation = float(tv_epsilon), float(relaxation)
+        `info`, a dict, receives stop_reason, setup_seconds and seconds. Options left at None take
+        the library's defaults (ivr_tomo_options_init: cgls, 50 iterations, no regulariser)."""
+        o = _capi.filled(
+            _capi.TomoOptions, self._lib.ivr_tomo_options_init, _check,
+            solver=None if solver is None else _choice(_SOLVERS, solver, "solver"),
+            precision=_PRECISIONS[self.precision], iterations=iterations,
+            nonneg=None if nonneg is None else bool(nonneg), tv_reweight=tv_reweight,
+            tolerance=tolerance, tikhonov=tikhonov, tv=tv, tv_epsilon=tv_epsilon,
+            relaxation=relaxation)
         failure = []
 
         def call(entry, _user):
@@ -472,12 +473,12 @@ class Context(_Owned):
 
     # --- inverse rendering (bindings/python/ivr/_reconstruct.py) ------------------------------
 
-    def reconstruct(self, scene, targets, volume=None, wrt=("density",), iterations=300, lr=0.0,
-                    optimizer="auto", schedule="constant", loss="mse", tv=0.0, smoothness=0.0,
-                    tf_smoothness=0.0, batch=0, levels=0, init="scene", init_value=0.5, seed=1,
-                    step=0.0, progress=None, checkpoint=None, resume=False, checkpoint_every=0,
-                    step_every=100, step_gamma=0.5, min_lr=0.0, tv_epsilon=1e-2, mode="auto",
-                    base_dir=None):
+    def reconstruct(self, scene, targets, volume=None, wrt=("density",), iterations=None, lr=None,
+                    optimizer=None, schedule=None, loss=None, tv=None, smoothness=None,
+                    tf_smoothness=None, batch=None, levels=None, init=None, init_value=None,
+                    seed=None, step=None, progress=None, checkpoint=None, resume=False,
+                    checkpoint_every=0, step_every=None, step_gamma=None, min_lr=None,
+                    tv_epsilon=None, mode=None, base_dir=None):
         """Recovers the densities (wrt "density"), the TF's parameters ("tf") or both from
         `targets`, the images (views, H, W, C) of the scene's cameras. The scene's volume (or
         `volume`, (Z, Y, X)) gives the grid and, with init="scene", the start ("zeros",
@@ -493,7 +494,8 @@ class Context(_Owned):
         columns in the TF-gradient layout, e.g. [r, g, b, extinction] per control point, with
         tf), "history" (a list of {"iteration", "level", "loss", "prior", "lr", "seconds",
         "views"}), "iterations" (completed), "stopped" (by progress), and the "optimizer",
-        "lr" and "levels" that ran."""
+        "lr" and "levels" that ran. Options left at None take the library's defaults
+        (ivr_reconstruct_options_init: 300 iterations, optimizer auto, lr automatic, ...)."""
         from . import _reconstruct
         return _reconstruct.reconstruct(
             self, scene, targets, volume, wrt, iterations, lr, optimizer, schedule, loss, tv,
@@ -501,15 +503,15 @@ class Context(_Owned):
             checkpoint, resume, checkpoint_every, step_every, step_gamma, min_lr, tv_epsilon,
             mode, base_dir)
 
-    def viewpoint(self, scene, volume=None, view=0, iterations=40, lr=0.0, optimizer="adam",
-                  step=0.0, progress=None, base_dir=None):
+    def viewpoint(self, scene, volume=None, view=None, iterations=None, lr=None, optimizer=None,
+                  step=None, progress=None, base_dir=None):
         """The camera on camera `view`'s orbit (about its target and up axis, distance kept)
         whose image has the highest entropy (ivr.image_entropy), by gradient ascent in
         azimuth and elevation (optimizer "adam", "sgd" or "lbfgs"; lr in radians, 0: 0.05).
         Returns {"camera": {"eye", "target", "up", "fov_y", "width", "height"} (a scene's
         camera object), "entropy_start", "entropy_best", "history": [{"iteration", "entropy",
         "azimuth", "elevation"} (degrees), the start first]}. progress(entry) returning False
-        stops."""
+        stops. Options left at None take the library's defaults (ivr_viewpoint_options_init)."""
         from . import _reconstruct
         return _reconstruct.viewpoint(self, scene, volume, view, iterations, lr, optimizer, step,
                                       progress, base_dir)

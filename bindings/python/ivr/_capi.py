@@ -16,9 +16,22 @@ class _Handle(ctypes.Structure):
 HANDLE = ctypes.POINTER(_Handle)
 
 
+def filled(struct, init, check, /, **values):
+    """An option struct filled by its init function (the library's defaults and its size), then
+    the values given (None keeps the default), each as its field's C type: the defaults are
+    the library's alone (bindings/python/tests/test_options.py checks the fields against ivr.h)."""
+    options = struct()
+    check(init(ctypes.byref(options)))
+    types = dict(struct._fields_)
+    for name, value in values.items():
+        if value is not None:
+            setattr(options, name, float(value) if types[name] is ctypes.c_double else int(value))
+    return options
+
+
 class TomoOptions(ctypes.Structure):
     """ivr_tomo_options"""
-    _fields_ = [("solver", ctypes.c_int), ("precision", ctypes.c_int),
+    _fields_ = [("size", ctypes.c_size_t), ("solver", ctypes.c_int), ("precision", ctypes.c_int),
                 ("iterations", ctypes.c_int), ("nonneg", ctypes.c_int),
                 ("tv_reweight", ctypes.c_int), ("tolerance", ctypes.c_double),
                 ("tikhonov", ctypes.c_double), ("tv", ctypes.c_double),
@@ -43,7 +56,7 @@ TOMO_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(TomoIteration), ct
 
 class ReconstructOptions(ctypes.Structure):
     """ivr_reconstruct_options"""
-    _fields_ = [("density", ctypes.c_int), ("tf", ctypes.c_int), ("iterations", ctypes.c_int),
+    _fields_ = [("size", ctypes.c_size_t), ("density", ctypes.c_int), ("tf", ctypes.c_int), ("iterations", ctypes.c_int),
                 ("optimizer", ctypes.c_int), ("lr", ctypes.c_double),
                 ("schedule", ctypes.c_int), ("step_every", ctypes.c_int),
                 ("step_gamma", ctypes.c_double), ("min_lr", ctypes.c_double),
@@ -69,7 +82,7 @@ class ReconstructInfo(ctypes.Structure):
 
 class ViewpointOptions(ctypes.Structure):
     """ivr_viewpoint_options"""
-    _fields_ = [("view", ctypes.c_int), ("iterations", ctypes.c_int),
+    _fields_ = [("size", ctypes.c_size_t), ("view", ctypes.c_int), ("iterations", ctypes.c_int),
                 ("optimizer", ctypes.c_int), ("lr", ctypes.c_double),
                 ("precision", ctypes.c_int), ("step", ctypes.c_double)]
 
@@ -100,7 +113,7 @@ VIEWPOINT_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(ViewpointStep
 
 class SessionOptions(ctypes.Structure):
     """ivr_session_options"""
-    _fields_ = [("precision", ctypes.c_int), ("step", ctypes.c_double),
+    _fields_ = [("size", ctypes.c_size_t), ("precision", ctypes.c_int), ("step", ctypes.c_double),
                 ("empty_space", ctypes.c_int), ("min_empty_fraction", ctypes.c_double),
                 ("brick_size", ctypes.c_int)]
 

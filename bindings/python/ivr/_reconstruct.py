@@ -50,20 +50,18 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
                 mode, base_dir):
     density, tf = _groups(wrt)
     lib = ctx._lib
-    o = _capi.ReconstructOptions()
-    _check(lib.ivr_reconstruct_options_init(ctypes.byref(o)))
-    o.density, o.tf, o.iterations = int(density), int(tf), int(iterations)
-    o.optimizer = _choice(_OPTIMIZERS, optimizer, "optimizer")
-    o.schedule = _choice(_SCHEDULES, schedule, "schedule")
-    o.loss = _choice(_LOSSES, loss, "loss")
-    o.init = _choice(_INITS, init, "init")
-    o.mode = _choice(_MODES, mode, "mode")
-    o.lr, o.tv, o.smoothness, o.tf_smoothness = float(lr), float(tv), float(smoothness), \
-        float(tf_smoothness)
-    o.batch, o.levels, o.seed = int(batch), int(levels), int(seed)
-    o.init_value, o.step, o.tv_epsilon = float(init_value), float(step), float(tv_epsilon)
-    o.step_every, o.step_gamma, o.min_lr = int(step_every), float(step_gamma), float(min_lr)
-    o.precision = _PRECISIONS[ctx.precision]
+    def pick(table, value, what):
+        return None if value is None else _choice(table, value, what)
+
+    o = _capi.filled(
+        _capi.ReconstructOptions, lib.ivr_reconstruct_options_init, _check, density=density,
+        tf=tf, iterations=iterations, optimizer=pick(_OPTIMIZERS, optimizer, "optimizer"),
+        schedule=pick(_SCHEDULES, schedule, "schedule"), loss=pick(_LOSSES, loss, "loss"),
+        init=pick(_INITS, init, "init"), mode=pick(_MODES, mode, "mode"), lr=lr, tv=tv,
+        smoothness=smoothness, tf_smoothness=tf_smoothness, batch=batch, levels=levels,
+        seed=seed, init_value=init_value, step=step, tv_epsilon=tv_epsilon,
+        step_every=step_every, step_gamma=step_gamma, min_lr=min_lr,
+        precision=_PRECISIONS[ctx.precision])
     if resume and checkpoint is None:
         raise Error("IVR_ERROR_INVALID_ARGUMENT",
                     "reconstruct: resume=True needs checkpoint= (the prefix it was saved under)")
@@ -137,11 +135,11 @@ def _camera(c):
 
 def viewpoint(ctx, scene, volume, view, iterations, lr, optimizer, step, progress, base_dir):
     lib = ctx._lib
-    o = _capi.ViewpointOptions()
-    _check(lib.ivr_viewpoint_options_init(ctypes.byref(o)))
-    o.view, o.iterations, o.lr, o.step = int(view), int(iterations), float(lr), float(step)
-    o.optimizer = _choice(_OPTIMIZERS, optimizer, "optimizer")
-    o.precision = _PRECISIONS[ctx.precision]
+    o = _capi.filled(
+        _capi.ViewpointOptions, lib.ivr_viewpoint_options_init, _check, view=view,
+        iterations=iterations, lr=lr, step=step,
+        optimizer=None if optimizer is None else _choice(_OPTIMIZERS, optimizer, "optimizer"),
+        precision=_PRECISIONS[ctx.precision])
     failure = []
 
     def call(entry, _user):

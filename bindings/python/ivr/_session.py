@@ -172,7 +172,7 @@ class Session(_Owned):
                 s.step(opt, g["density"])
             print(float(loss), s.volume.numpy().mean())
 
-    `scene` is a dict with DESIGN.md's fields (or JSON text), as Context.render takes it;
+    `scene` is a dict with docs/design.md's fields (or JSON text), as Context.render takes it;
     `volume` ((Z, Y, X) float32/float64/uint8/uint16) replaces the scene's own, which may then
     be left out. `precision` ("f32"/"f64") defaults to the context's; `step` > 0 overrides the
     integrator's step; `empty_space` is "auto", "on" or "off"; `brick_size` 0 chooses itself.
@@ -182,18 +182,17 @@ class Session(_Owned):
     sessions of one context may run on different threads at once."""
     _release, _what = "ivr_session_release", "session"
 
-    def __init__(self, context, scene, volume=None, precision=None, step=0.0, empty_space="auto",
-                 min_empty_fraction=0.05, brick_size=0, base_dir=None):
+    def __init__(self, context, scene, volume=None, precision=None, step=None, empty_space=None,
+                 min_empty_fraction=None, brick_size=None, base_dir=None):
         self._lib = _library()
         self._handle = self._ctx = None
         self.precision = context.precision if precision is None else precision
-        options = _capi.SessionOptions()
-        _check(self._lib.ivr_session_options_init(ctypes.byref(options)))
-        options.precision = _choice(_PRECISIONS, self.precision, "precision")
-        options.step = float(step)
-        options.empty_space = _choice(_EMPTY_SPACE, empty_space, "empty_space")
-        options.min_empty_fraction = float(min_empty_fraction)
-        options.brick_size = int(brick_size)
+        options = _capi.filled(
+            _capi.SessionOptions, self._lib.ivr_session_options_init, _check,
+            precision=_choice(_PRECISIONS, self.precision, "precision"), step=step,
+            empty_space=None if empty_space is None else _choice(_EMPTY_SPACE, empty_space,
+                                                                  "empty_space"),
+            min_empty_fraction=min_empty_fraction, brick_size=brick_size)
         on_device = isinstance(volume, DeviceArray)
         if volume is not None and not on_device:
             _volume_array(volume)
@@ -271,7 +270,7 @@ class Session(_Owned):
                                                 _DTYPES[v.dtype], shape))
 
     def set_tf(self, tf):
-        """A new transfer function: DESIGN.md's "tf" object (a dict or JSON text)."""
+        """A new transfer function: docs/design.md's "tf" object (a dict or JSON text)."""
         h = self._live()
         text = tf if isinstance(tf, str) else json.dumps(tf)
         t = _capi.HANDLE()

@@ -77,7 +77,7 @@ def speed_vs_error(doc, path) -> bool:
 def baselines(doc, path) -> bool:
     groups = defaultdict(dict)  # (suite, case) -> impl -> (median_s, memory)
     for r in doc["results"]:
-        if r["suite"] not in ("render", "gradient", "crossover") or "median_s" not in r["metrics"]:
+        if r["suite"] not in ("render", "gradient", "planner", "crossover") or "median_s" not in r["metrics"]:
             continue
         if r["suite"] == "crossover" and not r["case"].split("_")[-1].startswith("tf"):
             continue

@@ -11,7 +11,7 @@ const std::vector<Suite>& all_suites() {
       {"compile", "kernel compile time, cold and from the program cache", compile_suite},
       {"render", "forward render vs the native C++ marcher and the Python baselines", render_suite},
       {"gradient", "density gradient (adjoint) vs native, JAX, Dr.Jit, PyTorch", gradient_suite},
-      {"crossover", "forward mode vs adjoint by parameter count (TF lanes)", crossover_suite},
+      {"planner", "forward mode vs adjoint by parameter count (TF lanes): the crossover", planner_suite},
       {"integrators", "every integrator's speed against its error", integrators_suite},
       {"tomo", "absorption projector and back-projector throughput", tomo_suite},
       {"reconstruct", "reconstruction iterations per second", reconstruct_suite},

@@ -77,7 +77,7 @@ void run_python_baselines(Context& ctx, const std::string& suite, const std::str
 // The suites (bench/suites/*.cpp).
 void render_suite(Context& ctx);
 void gradient_suite(Context& ctx);
-void crossover_suite(Context& ctx);
+void planner_suite(Context& ctx);
 void integrators_suite(Context& ctx);
 void tomo_suite(Context& ctx);
 void reconstruct_suite(Context& ctx);

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numeric>
 
-#include "tomo/project.hpp"
+#include "tomo/linalg.hpp"
 #include "runtime/real_args.hpp"
 
 namespace ivr {

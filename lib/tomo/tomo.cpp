@@ -7,7 +7,7 @@
 #include <string>
 
 #include "ivr/error.hpp"
-#include "tomo/project.hpp"
+#include "tomo/linalg.hpp"
 #include "scene/scene.hpp"
 
 namespace ivr {

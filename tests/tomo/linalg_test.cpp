@@ -6,7 +6,7 @@
 #include <cmath>
 #include <random>
 
-#include "tomo/project.hpp"
+#include "tomo/linalg.hpp"
 #include "test_support.hpp"
 
 namespace ivr {

@@ -1,8 +1,9 @@
-// crossover.cpp — the crossover suite: forward mode (P tangent lanes through one march) against the
-// adjoint (one reverse pass, any number of parameters) for the TF and background parameters, by
-// P; the measured crossover beside the device's cost model's; and forward mode against JAX's
-// jacfwd, Dr.Jit's dr.forward and PyTorch's jvp on the 16 TF parameters. The adjoint is checked
-// against central differences of the float64 reference; the forward lanes against the adjoint.
+// planner.cpp — the planner suite, the crossover between the modes it chooses from: forward mode
+// (P tangent lanes through one march) against the adjoint (one reverse pass, any number of
+// parameters) for the TF and background parameters, by P; the measured crossover beside the
+// device's cost model's; and forward mode against JAX's jacfwd, Dr.Jit's dr.forward and PyTorch's
+// jvp on the 16 TF parameters. The adjoint is checked against central differences of the float64
+// reference; the forward lanes against the adjoint.
 #include <cmath>
 #include <functional>
 #include <iostream>
@@ -36,7 +37,7 @@ double adjoint_value(const AdjointGradient& g, const Parameter& p) {
 
 }  // namespace
 
-void crossover_suite(Context& ctx) {
+void planner_suite(Context& ctx) {
   const int n = ctx.quick ? 32 : 64, image = ctx.quick ? 64 : 128;
   const double step = 0.5;
   const std::string case_base = "v" + std::to_string(n) + "_i" + std::to_string(image);
@@ -85,7 +86,7 @@ void crossover_suite(Context& ctx) {
           return adj.kernel_seconds;
         },
         [&] { return worst <= kFdTolerance; });
-    Record r{ctx.device_key, "crossover", case_base + "_adjoint", "ivr-adjoint", params};
+    Record r{ctx.device_key, "planner", case_base + "_adjoint", "ivr-adjoint", params};
     r.params["parameters"] = pool.size();
     add_timing(r, am);
     r.metrics["peak_device_bytes"] = adj.device_bytes;
@@ -132,7 +133,7 @@ void crossover_suite(Context& ctx) {
           return worst <= kLaneRtol * adjoint_ref_max;
         });
     const OperationStats stats = session.last_stats();
-    Record r{ctx.device_key, "crossover", case_name, implementation, record_params};
+    Record r{ctx.device_key, "planner", case_name, implementation, record_params};
     add_timing(r, m);
     r.metrics["peak_device_bytes"] = stats.device_bytes;
     r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
@@ -176,7 +177,7 @@ void crossover_suite(Context& ctx) {
                                              adjoint_value(adj, ps[std::size_t(i)])));
           return worst <= kLaneRtol * adjoint_ref_max;
         });
-    Record r{ctx.device_key, "crossover", case_base + "_lanes_" + std::to_string(P), "ivr-forward",
+    Record r{ctx.device_key, "planner", case_base + "_lanes_" + std::to_string(P), "ivr-forward",
              params};
     r.params["lanes"] = P;
     add_timing(r, m);
@@ -199,7 +200,7 @@ void crossover_suite(Context& ctx) {
   // The measured crossover: where forward mode's time (linear in P between measured points)
   // reaches the adjoint's; the cost model's prediction beside it.
   {
-    Record r{ctx.device_key, "crossover", case_base + "_summary", "ivr", params};
+    Record r{ctx.device_key, "planner", case_base + "_summary", "ivr", params};
     double crossover = INFINITY;
     for (std::size_t i = 0; i < curve.size(); ++i) {
       if (curve[i].second < am.wall.median) continue;
@@ -248,7 +249,7 @@ void crossover_suite(Context& ctx) {
   const std::string name = case_base + "_tf" + std::to_string(tf_params.size());
   params["lanes"] = tf_params.size();
   {
-    Record r{ctx.device_key, "crossover", name, "ivr", params};
+    Record r{ctx.device_key, "planner", name, "ivr", params};
     add_timing(r, m);
     r.metrics["memory_bytes"] = operation_memory(ctx, m, t.device_bytes);
     record_checked(ctx, std::move(r), check);
@@ -256,8 +257,8 @@ void crossover_suite(Context& ctx) {
   record_resident(name, "ivr-resident", params, [&] { return session.forward(tf_params); },
                   adjoint_tf);
   if (!ctx.python_baselines) return;
-  const std::string dir = write_case(ctx.work_dir + "/crossover_" + name, scene, step, target);
-  run_python_baselines(ctx, "crossover", name, params, dir, "tf_forward", "tf_grad",
+  const std::string dir = write_case(ctx.work_dir + "/planner_" + name, scene, step, target);
+  run_python_baselines(ctx, "planner", name, params, dir, "tf_forward", "tf_grad",
                        [&](const BaselineRun& run, Record&) {
                          return check_max(difference(run.output, adjoint_tf),
                                           "ivr adjoint (checked against the reference)", 0,

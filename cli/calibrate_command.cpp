@@ -25,9 +25,12 @@ Runner add_calibrate_command(CLI::App& app) {
       "calibrate", "Measure forward- and adjoint-mode costs on a device for the mode planner");
   cmd->add_option("--device", args->device,
                   "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
-  cmd->add_option("--volume", args->options.volume, "Edge of the calibration volume (default 64)");
-  cmd->add_option("--image", args->options.image, "Edge of the calibration image (default 128)");
-  cmd->add_option("--repeats", args->options.repeats, "Timed runs per measurement (default 5)");
+  cmd->add_option("--volume", args->options.volume, "Edge of the calibration volume")
+      ->capture_default_str();
+  cmd->add_option("--image", args->options.image, "Edge of the calibration image")
+      ->capture_default_str();
+  cmd->add_option("--repeats", args->options.repeats, "Timed runs per measurement")
+      ->capture_default_str();
   cmd->add_option("-o,--output", args->output,
                   "Where to write the model (default: the device's file in the user's cache, "
                   "$IVR_COST_MODEL if set)");

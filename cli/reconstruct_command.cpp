@@ -34,9 +34,9 @@ struct ReconstructArgs {
   std::string scene, targets, prefix, wrt = "density", optimizer, schedule = "constant",
                                       loss = "mse", init = "scene", precision = "f32",
                                       mode = "auto", device, truth, held_out, held_out_targets;
-  int iterations = 300, batch = 0, levels = 0, checkpoint_every = 25;
-  double lr = 0, tv = 0, smoothness = 0, tf_smoothness = 0, step = 0;
-  std::uint64_t seed = 1;
+  ReconstructOptions options;  // the numeric options, bound at the library's defaults
+  int checkpoint_every = 25;
+  double lr = 0, step = 0;
   bool resume = false, json = false;
   CLI::Option* lr_option = nullptr;
   CLI::Option* step_option = nullptr;
@@ -52,7 +52,7 @@ std::string text(double x) {
 // The options as ReconstructOptions, every range checked under its command-line name first (the
 // library's own checks follow, for what only it knows).
 ReconstructOptions checked_options(const ReconstructArgs& a) {
-  ReconstructOptions o;
+  ReconstructOptions o = a.options;
   o.density = false;
   std::stringstream groups(a.wrt);
   for (std::string g; std::getline(groups, g, ',');) {
@@ -64,9 +64,8 @@ ReconstructOptions checked_options(const ReconstructArgs& a) {
       throw input_error("--wrt: unknown group '" + g + "' (known: density, tf, density,tf)");
   }
   if (!o.density && !o.tf) throw input_error("--wrt: give density, tf or density,tf");
-  if (a.iterations < 1)
-    throw input_error("--iterations must be >= 1, got " + std::to_string(a.iterations));
-  o.iterations = a.iterations;
+  if (a.options.iterations < 1)
+    throw input_error("--iterations must be >= 1, got " + std::to_string(a.options.iterations));
   if (a.lr_option->count() > 0 && !(a.lr > 0 && std::isfinite(a.lr)))
     throw input_error("--lr must be > 0, got " + text(a.lr));
   o.optimizer.lr = a.lr_option->count() > 0 ? a.lr : 0;  // 0: the library's automatic lr
@@ -78,18 +77,16 @@ ReconstructOptions checked_options(const ReconstructArgs& a) {
   if (a.loss != "mse" && a.loss != "l1")
     throw input_error("--loss: unknown loss '" + a.loss + "' (known: mse, l1)");
   o.loss = a.loss == "l1" ? Loss::l1 : Loss::mse;
-  const std::pair<const char*, double> weights[] = {
-      {"--tv", a.tv}, {"--smoothness", a.smoothness}, {"--tf-smoothness", a.tf_smoothness}};
+  const std::pair<const char*, double> weights[] = {{"--tv", a.options.tv},
+                                                    {"--smoothness", a.options.smoothness},
+                                                    {"--tf-smoothness", a.options.tf_smoothness}};
   for (const auto& [name, value] : weights)
     if (!(value >= 0 && std::isfinite(value)))
       throw input_error(std::string(name) + " must be >= 0, got " + text(value));
-  if ((a.tv > 0 || a.smoothness > 0) && !o.density)
+  if ((a.options.tv > 0 || a.options.smoothness > 0) && !o.density)
     throw input_error("--tv and --smoothness are priors on the density: add it to --wrt");
-  if (a.tf_smoothness > 0 && !o.tf)
+  if (a.options.tf_smoothness > 0 && !o.tf)
     throw input_error("--tf-smoothness is a prior on the TF: add tf to --wrt");
-  o.tv = a.tv;
-  o.smoothness = a.smoothness;
-  o.tf_smoothness = a.tf_smoothness;
 
   const std::string forms = "(known: scene, zeros, constant:X with X >= 0 the density)";
   if (a.init == "scene") {
@@ -115,13 +112,12 @@ ReconstructOptions checked_options(const ReconstructArgs& a) {
   if (a.init_option->count() > 0 && !o.density)
     throw input_error("--init sets the starting density: add density to --wrt");
 
-  if (a.batch < 0)
-    throw input_error("--batch must be >= 0 (0: every view), got " + std::to_string(a.batch));
-  if (a.levels < 0 || a.levels > 8)
-    throw input_error("--levels must be in 0 .. 8 (0: automatic), got " + std::to_string(a.levels));
-  o.batch = a.batch;
-  o.levels = a.levels;
-  o.seed = a.seed;
+  if (a.options.batch < 0)
+    throw input_error("--batch must be >= 0 (0: every view), got " +
+                      std::to_string(a.options.batch));
+  if (a.options.levels < 0 || a.options.levels > 8)
+    throw input_error("--levels must be in 0 .. 8 (0: automatic), got " +
+                      std::to_string(a.options.levels));
   if (a.precision != "f32" && a.precision != "f64")
     throw input_error("--precision: unknown precision '" + a.precision + "' (known: f32, f64)");
   o.precision = a.precision == "f64" ? Precision::f64 : Precision::f32;
@@ -290,22 +286,25 @@ Runner add_reconstruct_command(CLI::App& app) {
                   "PREFIX_loss.{csv,png}, PREFIX_{before,after,target}.png")
       ->required();
   cmd->add_option("--wrt", a.wrt, "What to optimise: density (default), tf or density,tf");
-  cmd->add_option("--iterations", a.iterations, "Iterations in total over every level (300)");
+  cmd->add_option("--iterations", a.options.iterations, "Iterations in total over every level")
+      ->capture_default_str();
   a.lr_option =
       cmd->add_option("--lr", a.lr, "Learning rate (default: automatic, 0.025 Adam, 0.05 L-BFGS)");
   cmd->add_option("--optimizer", a.optimizer,
                   "adam, sgd or lbfgs (default: adam, or lbfgs for the TF alone)");
   cmd->add_option("--schedule", a.schedule, "Learning-rate schedule: constant, step or cosine");
   cmd->add_option("--loss", a.loss, "Image loss: mse (default) or l1");
-  cmd->add_option("--tv", a.tv, "Weight of the densities' smoothed total variation (>= 0)");
-  cmd->add_option("--smoothness", a.smoothness, "Weight of the densities' mean |grad|^2 (>= 0)");
-  cmd->add_option("--tf-smoothness", a.tf_smoothness,
+  cmd->add_option("--tv", a.options.tv, "Weight of the densities' smoothed total variation (>= 0)");
+  cmd->add_option("--smoothness", a.options.smoothness,
+                  "Weight of the densities' mean |grad|^2 (>= 0)");
+  cmd->add_option("--tf-smoothness", a.options.tf_smoothness,
                   "Weight of the squared differences of consecutive TF rows (>= 0)");
   a.init_option =
       cmd->add_option("--init", a.init, "Starting density: scene (default), zeros or constant:X");
-  cmd->add_option("--batch", a.batch, "Views per iteration, drawn at random (0: every view)");
-  cmd->add_option("--levels", a.levels, "Coarse-to-fine levels, 0 .. 8 (0: up to 3)");
-  cmd->add_option("--seed", a.seed, "Seed of the view batches (1)");
+  cmd->add_option("--batch", a.options.batch,
+                  "Views per iteration, drawn at random (0: every view)");
+  cmd->add_option("--levels", a.options.levels, "Coarse-to-fine levels, 0 .. 8 (0: up to 3)");
+  cmd->add_option("--seed", a.options.seed, "Seed of the view batches")->capture_default_str();
   cmd->add_option("--precision", a.precision, "Arithmetic precision: f32 (default) or f64");
   a.step_option =
       cmd->add_option("--step", a.step, "Integrator step in voxel units (overrides the scene's)");

@@ -167,7 +167,8 @@ Runner add_backproject_command(CLI::App& app) {
   auto args = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand(
       "backproject", "Back-projection N^T p of line integrals onto the scene's grid (exact)");
-  add_common(cmd, args->common, "Output .npy: the volume's shape (Z, Y, X), float32 (float64 with --precision f64)");
+  add_common(cmd, args->common,
+             "Output .npy: the volume's shape (Z, Y, X), float32 (float64 with --precision f64)");
   cmd->add_option("--images", args->images,
                   "Line integrals, .npy float32/float64 of shape (views, H, W, 1) or (views, H, W)")
       ->required();
@@ -202,7 +203,8 @@ Runner add_tomo_command(CLI::App& app) {
       "tomo",
       "Reconstruct the volume from line integrals (or intensities) by least squares; Ctrl-C "
       "stops after the current iteration, writes the last iterate and exits with status 130");
-  add_common(cmd, args->common, "Output .npy: the volume's shape (Z, Y, X), float32 (float64 with --precision f64)");
+  add_common(cmd, args->common,
+             "Output .npy: the volume's shape (Z, Y, X), float32 (float64 with --precision f64)");
   TomoOptions& o = args->options;
   cmd->add_option("--projections", args->projections,
                   "Line integrals p = N v, .npy float32/float64 of shape (views, H, W, 1) or "
@@ -215,16 +217,18 @@ Runner add_tomo_command(CLI::App& app) {
                       "Raise intensities to at least c * I_in before the log (0 <= c < 1; default "
                       "0: an intensity <= 0 is an error)");
   cmd->add_option("--solver", args->solver, "cgls (default), sirt or lsqr");
-  cmd->add_option("--iterations", o.iterations, "Most iterations (default 50)");
+  cmd->add_option("--iterations", o.iterations, "Most iterations")->capture_default_str();
   cmd->add_flag("--nonneg", o.nonneg, "Keep every voxel >= 0");
   cmd->add_option("--tv", o.tv, "Weight of the smoothed total variation (>= 0)");
   cmd->add_option("--tikhonov", o.tikhonov, "Weight of lambda/2 |x|^2 (>= 0; not with --tv)");
-  cmd->add_option("--tv-epsilon", o.tv_epsilon, "Smoothing epsilon of the TV (default 1e-3)");
-  cmd->add_option("--tv-reweight", o.tv_reweight,
-                  "CGLS/LSQR iterations between TV re-weightings (default 10)");
-  cmd->add_option("--tolerance", o.tolerance,
-                  "Stop once |p - N x| / |p| <= this (default 0: run every iteration)");
-  cmd->add_option("--relaxation", o.relaxation, "SIRT's relaxation omega in (0, 2) (default 1)");
+  cmd->add_option("--tv-epsilon", o.tv_epsilon, "Smoothing epsilon of the TV")
+      ->capture_default_str();
+  cmd->add_option("--tv-reweight", o.tv_reweight, "CGLS/LSQR iterations between TV re-weightings")
+      ->capture_default_str();
+  cmd->add_option("--tolerance", o.tolerance, "Stop once |p - N x| / |p| <= this (0: never)")
+      ->capture_default_str();
+  cmd->add_option("--relaxation", o.relaxation, "SIRT's relaxation omega in (0, 2)")
+      ->capture_default_str();
   return [args] {
     const CommonArgs& c = args->common;
     args->options.precision = checked_common(c);

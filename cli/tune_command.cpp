@@ -1,5 +1,6 @@
 // tune_command.cpp — `ivr tune`: times work-group shapes per kernel on a device and prints the
-// launch database's rows for it (lib/runtime/device_params_db.inc), with a JSON record of every timing.
+// launch database's rows for it (lib/runtime/device_params_db.inc), with a JSON record of every
+// timing.
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -160,12 +161,13 @@ Runner add_tune_command(CLI::App& app) {
   TuneOptions& o = args->options;
   cmd->add_option("--device", args->device,
                   "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
-  cmd->add_option("--volume", o.volume, "Edge of the Marschner-Lobb volume (default 128)");
-  cmd->add_option("--image", o.image, "Edge of the image (default 256)");
-  cmd->add_option("--views", o.views, "Views around the volume (default 1)");
-  cmd->add_option("--step", o.step, "Integrator step in voxels (default 0.5)");
+  cmd->add_option("--volume", o.volume, "Edge of the Marschner-Lobb volume")->capture_default_str();
+  cmd->add_option("--image", o.image, "Edge of the image")->capture_default_str();
+  cmd->add_option("--views", o.views, "Views around the volume")->capture_default_str();
+  cmd->add_option("--step", o.step, "Integrator step in voxels")->capture_default_str();
   cmd->add_option("--repeats", o.repeats,
-                  "Timed rounds, each running every shape once, after warm-ups (default 5)");
+                  "Timed rounds, each running every shape once, after warm-ups")
+      ->capture_default_str();
   cmd->add_option("--kernels", args->kernels,
                   "Kernels to tune, comma-separated (default: all of render, render_packet, "
                   "adjoint, tangents, project, backproject that the device launches)")
@@ -178,8 +180,8 @@ Runner add_tune_command(CLI::App& app) {
                   "others share: load only adds time)")
       ->check(CLI::IsMember({"median", "min"}));
   cmd->add_option("--tie", o.tie,
-                  "Keep the shape in use unless the fastest beats it by more than this fraction "
-                  "(default 0.03)");
+                  "Keep the shape in use unless the fastest beats it by more than this fraction")
+      ->capture_default_str();
   cmd->add_flag("--quick", args->quick,
                 "Small case for tests: 16³ volume, 32² image, step 1, 2 repeats, shapes 0x0, "
                 "8x8 and 16x16 (options given explicitly still apply)");

@@ -25,7 +25,7 @@ namespace {
 
 struct ViewpointArgs {
   std::string scene, output, optimizer = "adam", precision = "f32", render, device;
-  int view = 0, iterations = 40;
+  ViewpointOptions options;  // --view and --iterations, at the library's defaults
   double lr = 0, step = 0;
   bool json = false;
   CLI::Option* lr_option = nullptr;
@@ -46,7 +46,7 @@ std::string lower_ext(const std::string& path) {
 
 // The options as ViewpointOptions, checked under their command-line names before any work.
 ViewpointOptions checked_options(const ViewpointArgs& a) {
-  ViewpointOptions o;
+  ViewpointOptions o = a.options;
   if (lower_ext(a.output) != ".json")
     throw input_error("-o: output '" + a.output + "' needs the extension .json");
   check_output_folder(a.output);
@@ -56,9 +56,8 @@ ViewpointOptions checked_options(const ViewpointArgs& a) {
       throw input_error("--render: '" + a.render + "' needs the extension .png, .exr or .tif");
     check_output_folder(a.render);
   }
-  if (a.iterations < 0)
-    throw input_error("--iterations must be >= 0, got " + std::to_string(a.iterations));
-  o.iterations = a.iterations;
+  if (a.options.iterations < 0)
+    throw input_error("--iterations must be >= 0, got " + std::to_string(a.options.iterations));
   if (a.lr_option->count() > 0 && !(a.lr > 0 && std::isfinite(a.lr)))
     throw input_error("--lr must be > 0, got " + text(a.lr));
   o.optimizer.lr = a.lr_option->count() > 0 ? a.lr : 0;  // 0: the library's 0.05 rad
@@ -69,7 +68,6 @@ ViewpointOptions checked_options(const ViewpointArgs& a) {
   if (a.step_option->count() > 0 && !(a.step > 0 && std::isfinite(a.step)))
     throw input_error("--step must be > 0, got " + text(a.step));
   o.step = a.step;
-  o.view = a.view;
   return o;
 }
 
@@ -86,9 +84,10 @@ Runner add_viewpoint_command(CLI::App& app) {
   cmd->add_option("-o,--output", a.output,
                   "Output CAMERA.json: the best camera as a scene file's camera object")
       ->required();
-  cmd->add_option("--view", a.view,
-                  "The camera to start from (default 0); its distance to its target is kept");
-  cmd->add_option("--iterations", a.iterations, "Ascent steps (default 40)");
+  cmd->add_option("--view", a.options.view,
+                  "The camera to start from; its distance to its target is kept")
+      ->capture_default_str();
+  cmd->add_option("--iterations", a.options.iterations, "Ascent steps")->capture_default_str();
   a.lr_option = cmd->add_option("--lr", a.lr, "Step size in radians (default 0.05)");
   cmd->add_option("--optimizer", a.optimizer, "adam (default), sgd or lbfgs");
   cmd->add_option("--precision", a.precision, "Arithmetic precision: f32 (default) or f64");
@@ -104,10 +103,10 @@ Runner add_viewpoint_command(CLI::App& app) {
     const ViewpointOptions options = checked_options(a);
     const Scene scene = load_scene(a.scene);
     const int cameras = int(scene.cameras.size());
-    if (a.view < 0 || a.view >= cameras)
-      throw input_error("--view " + std::to_string(a.view) + " does not exist: the scene has " +
-                        std::to_string(cameras) + " camera(s), 0 .. " +
-                        std::to_string(cameras - 1));
+    if (a.options.view < 0 || a.options.view >= cameras)
+      throw input_error("--view " + std::to_string(a.options.view) +
+                        " does not exist: the scene has " + std::to_string(cameras) +
+                        " camera(s), 0 .. " + std::to_string(cameras - 1));
 
     Device device(a.device);
     const int total = options.iterations;

@@ -6,6 +6,7 @@
 #define IVR_ADJOINT_SCATTER_CL
 #include "atomics.cl"
 #include "config.cl"
+#include "ivr_constants.h"
 #include "scatter_cache.cl"
 
 #ifndef IVR_GRAD_DENSITY
@@ -25,8 +26,7 @@
 // contributions) over the cap: the bound failed, the host runs again at a smaller S, [3] the
 // largest |contribution| and [4] the largest ray's Σ |contribution|, as float bits
 // (order-independent atomic_max: the bits S left, and the scale of a second pass), and voxel i at
-// [IVR_FIXED_HEADER + i].
-#define IVR_FIXED_HEADER 5
+// [IVR_FIXED_HEADER + i] (kernels/ivr_constants.h).
 inline void fixed_max(volatile __global long* slot, const real value) {
   volatile __global uint* largest = (volatile __global uint*)slot;
   const uint bits = as_uint((float)value);

@@ -28,6 +28,11 @@
 #define IVR_LANE_CAMERA 3     /* a = view, b = component (0..6) */
 #define IVR_LANE_VOXEL 4      /* (a, b, c) = (x, y, z) */
 #define IVR_LANE_STEP 5       /* the step enters only through the sample count: derivative 0 */
+/* Longs before the voxels in the deterministic (fixed-point) density gradient's buffer: the scale
+ * exponent, the per-ray cap, the over-cap count, the largest contribution and the largest ray
+ * (kernels/adjoint_scatter.cl). */
+#define IVR_FIXED_HEADER 5
+
 /* Tangent lanes of one forward-mode pass at most (more parameters run in several passes). */
 #define IVR_MAX_LANES 32
 

@@ -13,12 +13,13 @@
 #include "scene/scene.hpp"
 #include "session/session.hpp"
 #include "adjoint/adjoint.hpp"
+#include "ivr_constants.h"
 
 namespace ivr {
 
 namespace {
 
-constexpr std::size_t kFixedHeader = 5;  // IVR_FIXED_HEADER (kernels/adjoint_scatter.cl)
+constexpr std::size_t kFixedHeader = IVR_FIXED_HEADER;  // the longs before the voxels
 
 bool has_int64_atomics(Device::Impl& dev) {
   return dev.device.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_khr_int64_base_atomics") !=

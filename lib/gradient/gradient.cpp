@@ -1,4 +1,4 @@
-// differentiate.cpp — gradients by named group on a session: the parameters each group stands
+// gradient.cpp — gradients by named group on a session: the parameters each group stands
 // for, the planner's choice of mode, the run in that mode (lib/jacobian/jacobian.cpp or lib/adjoint/adjoint.cpp)
 // and each group's array; and the one-shot gradient().
 #include "ivr/gradient.hpp"

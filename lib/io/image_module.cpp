@@ -58,7 +58,8 @@ Module load(const std::string& what) {
       tried += (tried.empty() ? "" : ", ") + path;
       continue;
     }
-    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    // Lazy binding: OpenImageIO and its ~260 libraries resolve only the symbols a write uses.
+    void* handle = dlopen(path.c_str(), RTLD_LAZY | RTLD_LOCAL);
     const char* reason = handle ? nullptr : dlerror();
     auto abi = handle ? reinterpret_cast<ivr_image_module_abi_fn>(dlsym(handle, "ivr_image_module_abi"))
                       : nullptr;

@@ -1,4 +1,4 @@
-// tangents.cpp — forward-mode differentiation: parameters by group, passes of up to 32 tangent
+// jacobian.cpp — forward-mode differentiation: parameters by group, passes of up to 32 tangent
 // lanes of kernels/jacobian.cl on the session's device copies, the Jacobian's columns and the
 // loss gradient (the work-groups' partial sums reduced) assembled on the device; and the
 // one-shot tangents().

@@ -1,4 +1,4 @@
-// optimizer.cpp — Adam and SGD with momentum on the device (kernels/optimize.cl): options and
+// optimize.cpp — Adam and SGD with momentum on the device (kernels/optimize.cl): options and
 // schedules, the moments' buffers, one step per call, and the state for checkpoints.
 #include "reconstruct/optimize.hpp"
 

@@ -1,4 +1,4 @@
-// optimizer.hpp — the optimiser's device state (kernels/optimize.cl) and its step on device
+// optimize.hpp — the optimiser's device state (kernels/optimize.cl) and its step on device
 // buffers, for the reconstruction loops that keep parameters and gradients on the device.
 #pragma once
 #include "ivr/optimize.hpp"

@@ -1,4 +1,4 @@
-// reconstruct_impl.hpp — the state of a reconstruction (ivr::Reconstruction), shared by the loop
+// reconstruct.hpp — the state of a reconstruction (ivr::Reconstruction), shared by the loop
 // (lib/reconstruct/reconstruct.cpp) and its checkpoints (lib/reconstruct/reconstruct_checkpoint.cpp).
 #pragma once
 #include <memory>

@@ -1,4 +1,4 @@
-// scene_checks.hpp — scene validation with an integrator that overrides the scene's own.
+// scene.hpp — scene validation with an integrator that overrides the scene's own.
 #pragma once
 #include "ivr/error.hpp"
 #include "ivr/render.hpp"

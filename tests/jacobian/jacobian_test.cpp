@@ -1,4 +1,4 @@
-// tangents_test.cpp — forward-mode derivatives: every parameter group against central differences
+// jacobian_test.cpp — forward-mode derivatives: every parameter group against central differences
 // of the float64 loss, forward against adjoint on the parameters both compute, and the Jacobian
 // contracted with d loss / d pixel against the gradient reduced on the device.
 #include "ivr/jacobian.hpp"

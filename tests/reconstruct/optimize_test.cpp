@@ -1,4 +1,4 @@
-// optimizer_test.cpp — the device optimisers against a double-precision host implementation of
+// optimize_test.cpp — the device optimisers against a double-precision host implementation of
 // Adam and SGD with momentum (schedules, bias correction, box projection), convergence on a
 // bounded quadratic, bit-for-bit resumption from a saved state, and the option errors.
 #include <gtest/gtest.h>

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """accuracy_tables.py — the README's tables from ivr_accuracy_bench's JSON (the time at the
 target error per look, volume and integrator with the best against midpoint; the exact scheme's
-error in both precisions; the tolerance section's worst cases) or from ivr_stability_bench's (per
-hard case and integrator: forward error, float32-vs-float64 gradient error, non-finite values).
+error in both precisions; the tolerance section's worst cases) or from `ivr-bench --suite
+stability` (per hard case and integrator: forward error, float32-vs-float64 gradient error,
+non-finite values; the earlier stability program's JSON too).
 Prints Markdown.
 
 Usage: /usr/bin/python3 bench/accuracy_tables.py RESULTS.json
@@ -93,11 +94,33 @@ def stability_table(doc):
         print(f"| {case} | " + " | ".join(cells) + " |")
 
 
+def stability_rows(doc):
+    """The stability suite's records of an ivr-bench results file as the earlier program's rows."""
+    records = {r["case"]: r for r in doc["results"] if r["suite"] == "stability"}
+    rows = []
+    for name, r in records.items():
+        if name.endswith("_gradient"):
+            continue
+        g = records.get(name + "_gradient", {"metrics": {}, "check": {}})
+        p, m, gm = r["params"], r["metrics"], g["metrics"]
+        bad = int(r.get("check", {}).get("error", 0)) + int(g.get("check", {}).get("error", 0))
+        rows.append({"case": p["case"], "model": p["model"], "integrator": p["integrator"],
+                     "forward_relative_rms": m.get("forward_relative_rms", float("nan")),
+                     "gradient_f32_vs_f64": {
+                         "density": gm.get("gradient_f32_vs_f64_density", float("nan")),
+                         "tf": gm.get("gradient_f32_vs_f64_tf", float("nan"))},
+                     "nonfinite_pixels": bad, "nonfinite_gradient": 0})
+    return rows
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
     with open(sys.argv[1]) as f:
         doc = json.load(f)
+    if doc.get("schema", "").startswith("ivr-bench/"):
+        stability_table({"rows": stability_rows(doc)})
+        return
     if doc.get("benchmark") == "stability":
         stability_table(doc)
         return

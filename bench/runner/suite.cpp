@@ -11,11 +11,16 @@ const std::vector<Suite>& all_suites() {
       {"compile", "kernel compile time, cold and from the program cache", compile_suite},
       {"render", "forward render vs the native C++ marcher and the Python baselines", render_suite},
       {"gradient", "density gradient (adjoint) vs native, JAX, Dr.Jit, PyTorch", gradient_suite},
-      {"planner", "forward mode vs adjoint by parameter count (TF lanes): the crossover", planner_suite},
+      {"planner", "forward mode vs adjoint by parameter count (TF lanes): the crossover",
+       planner_suite},
       {"integrators", "every integrator's speed against its error", integrators_suite},
       {"tomo", "absorption projector and back-projector throughput", tomo_suite},
       {"reconstruct", "reconstruction iterations per second", reconstruct_suite},
       {"scaling", "time and memory as volume, image and step grow", scaling_suite},
+      {"empty_space", "empty-space skipping on against off: render and gradient",
+       empty_space_suite},
+      {"stability", "the hard cases: errors against float64, f32 gradients, no NaN/Inf",
+       stability_suite},
   };
   return suites;
 }
@@ -118,8 +123,8 @@ void run_python_baselines(Context& ctx, const std::string& suite, const std::str
   if (!ctx.python_baselines) return;
   for (const std::string& fw : ctx.baselines.frameworks) {
     if (!baseline_does(fw, task)) continue;  // e.g. astra in the march suites
-    Record r{ctx.baseline_device == "gpu" ? kGpuBaselineDevice : kHostDevice, suite, case_name,
-             fw, params};
+    Record r{ctx.baseline_device == "gpu" ? kGpuBaselineDevice : kHostDevice, suite, case_name, fw,
+             params};
     if (!ctx.baselines.usable) {
       r.note = "skipped: " + ctx.baselines.note;
       ctx.results.add(std::move(r));

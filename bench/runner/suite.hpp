@@ -83,5 +83,7 @@ void tomo_suite(Context& ctx);
 void reconstruct_suite(Context& ctx);
 void scaling_suite(Context& ctx);
 void compile_suite(Context& ctx);
+void empty_space_suite(Context& ctx);
+void stability_suite(Context& ctx);
 
 }  // namespace ivr::bench

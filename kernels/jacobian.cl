@@ -30,7 +30,7 @@
 #define IVR_LOSS_GRADIENT 1
 #endif
 
-__kernel void tangents(__global const real* restrict volume, const int4 dims, const real4 box_min,
+__kernel void jacobian(__global const real* restrict volume, const int4 dims, const real4 box_min,
                        const real4 box_max, const real4 inv_voxel,
                        __global const real* restrict cameras, const int width, const int height,
                        __global const real* restrict tf, const int tf_count, const real4 tf_scalars,

@@ -1,7 +1,7 @@
 // jacobian.cpp — forward-mode differentiation: parameters by group, passes of up to 32 tangent
 // lanes of kernels/jacobian.cl on the session's device copies, the Jacobian's columns and the
 // loss gradient (the work-groups' partial sums reduced) assembled on the device; and the
-// one-shot tangents().
+// one-shot jacobian().
 #include "ivr/jacobian.hpp"
 
 #include <algorithm>
@@ -165,7 +165,7 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
   const cl::Buffer& target_buf =
       loss ? buffer_of(*target) : s.scratch("no target", real, "the target");
 
-  KernelConfig base = variant.config("jacobian.cl", "tangents");
+  KernelConfig base = variant.config("jacobian.cl", "jacobian");
   base.set(Switch::lanes, pass_lanes)
       .set(Switch::jacobian, jacobian)
       .set(Switch::loss_gradient, loss)
@@ -194,7 +194,7 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
       cl::Kernel& k = s.kernels.get(config, &build);
       op.stats.build_seconds += build;
       const PixelLaunch launch =
-          pixel_launch(dev, k, "tangents", cam0.width, cam0.height, views, true);
+          pixel_launch(dev, k, "jacobian", cam0.width, cam0.height, views, true);
       const std::size_t groups = launch.groups_per_view * std::size_t(views);
       const cl::Buffer& partial =
           s.scratch("tangent partials", groups * row * real, "the partial sums");
@@ -292,7 +292,7 @@ Jacobian jacobian(Device& device, const Scene& scene, const std::vector<Paramete
   if (target) session.set_target(*target);
   const std::vector<cl_int4> lanes = lanes_of(s.scene, parameters);
   const JacobianResult r = enqueue_jacobian(s, lanes, target ? &s.target : nullptr,
-                                           options.jacobian, options.loss, s.begin("tangents"));
+                                           options.jacobian, options.loss, s.begin("jacobian"));
   Jacobian out;
   out.image = image_of(r.image);
   if (options.jacobian) download_kept(r.jacobian, &out.jacobian, &out.jacobian_f64);

@@ -66,7 +66,7 @@ std::vector<Operation> operations(const DeviceArray& lines) {
          return std::vector<Output>{{"loss", g.loss, true},
                                     {"density gradient", g["density"], false}};
        }},
-      {"tangents", "jacobian (forward mode, every TF parameter)", true, "jacobian bit-identical",
+      {"jacobian", "jacobian (forward mode, every TF parameter)", true, "jacobian bit-identical",
        [](Session& s) {
          return std::vector<Output>{{"jacobian", s.jacobian({"tf"}), true}};
        }},
@@ -313,7 +313,7 @@ std::vector<std::pair<int, int>> tune_candidates() {
 }
 
 std::vector<std::string> tune_kernels() {
-  return {"render", "render_packet", "adjoint", "tangents", "project", "backproject"};
+  return {"render", "render_packet", "adjoint", "jacobian", "project", "backproject"};
 }
 
 TuneResult tune(Device& device, const TuneOptions& options) {

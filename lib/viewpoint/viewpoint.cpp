@@ -122,7 +122,7 @@ Viewpoint select_viewpoint(Device& device, const Scene& scene, const ViewpointOp
   auto objective = [&](const std::vector<double>& at, std::vector<double>& grad) {
     one.cameras[0].eye = f.eye(at[0], at[1]);
     s.upload_cameras(one.cameras);
-    const JacobianResult t = enqueue_jacobian(s, lanes, nullptr, true, Loss::mse, s.begin("tangents"));
+    const JacobianResult t = enqueue_jacobian(s, lanes, nullptr, true, Loss::mse, s.begin("jacobian"));
     const std::vector<std::int64_t> shape = t.image.shape();
     const Image image{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3]),
                       t.image.to_floats()};

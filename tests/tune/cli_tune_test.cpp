@@ -82,7 +82,7 @@ TEST_F(CliTune, QuickRecordsAWinnerAmongTheCandidatesPerKernel) {
     EXPECT_FALSE(k["check"].get<std::string>().empty());
     EXPECT_TRUE(k["current"].contains("source"));
   }
-  for (const char* k : {"render", "adjoint", "tangents", "project", "backproject"})
+  for (const char* k : {"render", "adjoint", "jacobian", "project", "backproject"})
     EXPECT_EQ(measured.count(k), 1u) << k;
   if (device().info().type == "cpu") EXPECT_EQ(measured.count("render_packet"), 1u);
   // The rows in the record are the ones --emit-entries prints: one per measured kernel.

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""plot_reconstruct.py — the density-reconstruction plot from ivr_reconstruct_bench's JSON:
+"""plot_reconstruct.py — the density-reconstruction plot from `ivr-bench --suite reconstruct`'s
+results (its v*_to_*db cases; the earlier ivr_reconstruct_bench's JSON too):
 held-out PSNR and relative volume error against wall time for each phantom size (default
 settings: coarse to fine, Adam, 8 random views of 128² per iteration), the target PSNR dashed.
 
@@ -19,6 +20,18 @@ def main(path, out):
     with open(path) as f:
         doc = json.load(f)
     runs = doc["results"]
+    device = doc.get("device", "")
+    if doc.get("schema", "").startswith("ivr-bench/"):
+        device = next((r["device"] for r in runs if r["suite"] == "reconstruct"), "")
+        its = {r["params"]["volume"]: r["metrics"].get("iterations_per_s", float("nan"))
+               for r in runs if r["suite"] == "reconstruct" and "_to_" not in r["case"]}
+        runs = [{"n": r["params"]["volume"], "target_db": r["params"]["target_db"],
+                 "views": r["params"]["views"], "batch": r["params"]["batch"],
+                 "image": r["params"]["image"],
+                 "iterations_per_second": its.get(r["params"]["volume"], float("nan")),
+                 "curve": [[c["iteration"], c["seconds"], c["psnr_db"], c["volume_error"]]
+                           for c in r.get("series", [])]}
+                for r in runs if r["suite"] == "reconstruct" and "_to_" in r["case"]]
     if not runs:
         sys.exit("plot_reconstruct: the results hold no runs")
     fig, (psnr, error) = plt.subplots(1, 2, figsize=(10, 4))
@@ -39,7 +52,7 @@ def main(path, out):
         ax.grid(True, alpha=0.3)
         ax.legend()
     fig.suptitle(f"Shepp–Logan density from {runs[0]['views']} views, batches of "
-                 f"{runs[0]['batch']} × {runs[0]['image']}² — {doc['device']}", fontsize=9)
+                 f"{runs[0]['batch']} × {runs[0]['image']}² — {device}", fontsize=9)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
 

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""plot_tomo.py — the convergence plot from ivr_tomo_bench's JSON: relative residual
+"""plot_tomo.py — the convergence plot from `ivr-bench --suite tomo`'s results (its convergence_*
+cases; the earlier ivr_tomo_bench's JSON too): relative residual
 ‖p − N x‖/‖p‖ of CGLS, LSQR and SIRT on the 64³ Shepp–Logan from 90 parallel views, against the
 iteration and against wall time (log scale), with each solver's final volume error in the legend.
 
@@ -20,7 +21,16 @@ STYLES = {"cgls": "tab:blue", "lsqr": "tab:orange", "sirt": "tab:green"}
 def main(path, out):
     with open(path) as f:
         doc = json.load(f)
-    runs = doc["convergence"]
+    device = doc.get("device", "")
+    if "results" in doc:  # ivr-bench: the tomo suite's convergence cases
+        runs = [{"solver": r["params"]["solver"], "volume": r["params"]["volume"],
+                 "views": r["params"]["views"], "history": r.get("series", []),
+                 "volume_error": r["metrics"].get("volume_error", float("nan"))}
+                for r in doc["results"]
+                if r["suite"] == "tomo" and r["case"].startswith("convergence_")]
+        device = next((r["device"] for r in doc["results"] if r["suite"] == "tomo"), "")
+    else:
+        runs = doc["convergence"]
     if not runs:
         sys.exit("plot_tomo: the results hold no convergence histories")
     fig, (by_iter, by_time) = plt.subplots(1, 2, figsize=(10, 4))
@@ -39,7 +49,7 @@ def main(path, out):
         ax.set_ylabel("relative residual ‖p − N x‖ / ‖p‖")
         ax.grid(True, which="both", alpha=0.3)
     by_iter.legend()
-    fig.suptitle(f"{n}³ Shepp–Logan, {views} parallel views — {doc['device']}")
+    fig.suptitle(f"{n}³ Shepp–Logan, {views} parallel views — {device}")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     print(f"wrote {out}")

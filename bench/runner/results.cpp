@@ -141,6 +141,7 @@ json Results::to_json() const {
                     {"error", r.check.error},
                     {"tolerance", r.check.tolerance}};
     if (!r.note.empty()) j["note"] = r.note;
+    if (!r.series.is_null()) j["series"] = r.series;
     rs.push_back(j);
   }
   doc["results"] = rs;

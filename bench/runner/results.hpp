@@ -29,6 +29,8 @@ struct Record {
   bool has_check = false;
   Check check;
   std::string note;  // why it was skipped or failed; empty when it ran
+  // Curves for plots (e.g. a solver's residual per iteration): JSON only, not in the CSV.
+  nlohmann::json series;
 };
 
 // Fills a record's metrics from a measurement: median_s, min_s, max_s, runs, device_*_s,

@@ -2,7 +2,8 @@
 // against the native hand-written adjoint and the Python baselines' reverse mode (JAX jax.grad,
 // Dr.Jit dr.backward, PyTorch autograd) on the same scene and step. ivr's gradient is checked
 // first against central differences of the independent float64 reference's loss along a smooth
-// direction; every other implementation must then agree with ivr's gradient entry by entry.
+// direction; every other implementation must then agree with ivr's gradient entry by entry. Beside
+// ivr's: its time over a render's and its memory at step 0.1 over step 0.5's (issue 3's targets).
 #include <cmath>
 #include <iostream>
 
@@ -99,6 +100,18 @@ void gradient_suite(Context& ctx) {
     return k;
   };
 
+  // Issue 3's measures beside the gradient: its kernel time over a render's of the same scene and
+  // step, and its peak device memory at step 0.1 over step 0.5's (the adjoint stores nothing per
+  // sample, so it should not grow as the step shrinks).
+  RenderStats render_stats;
+  const Measurement render_m = measure(ctx.budget, [&] {
+    render(ctx.device, scene, {Precision::f32, c.step}, &render_stats);
+    return render_stats.kernel_seconds;
+  });
+  AdjointOptions fine;
+  fine.step = 0.1;
+  const AdjointGradient fine_gradient = adjoint(ctx.device, scene, target, fine);
+
   std::vector<float> ivr_gradient;
   for (const bool deterministic : {false, true}) {
     AdjointOptions o;
@@ -127,7 +140,15 @@ void gradient_suite(Context& ctx) {
     r.metrics["samples_per_s"] = double(g.samples) / m.wall.median;
     r.metrics["peak_device_bytes"] = g.device_bytes;
     r.metrics["memory_bytes"] = operation_memory(ctx, m, g.device_bytes);
-    if (!deterministic && m.timed) ivr_gradient = g.density;
+    if (!deterministic && m.timed) {
+      ivr_gradient = g.density;
+      if (m.device && render_m.device && render_m.device->median > 0)
+        r.metrics["gradient_over_render"] = m.device->median / render_m.device->median;
+      r.metrics["peak_device_bytes_step_0.1"] = fine_gradient.device_bytes;
+      if (g.device_bytes > 0)
+        r.metrics["memory_step_0.1_over_step_0.5"] =
+            double(fine_gradient.device_bytes) / double(g.device_bytes);
+    }
     record_checked(ctx, std::move(r), check);
   }
   // Resident: the scene and the target already on the device in a session, the loss and the

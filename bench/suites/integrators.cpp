@@ -3,10 +3,15 @@
 // volume and the shared real volumes, under a smooth TF, a narrow-band TF and the absorption
 // model. The error is against the float64 continuous integral (reference/); before timing,
 // midpoint is checked against the reference's same-step midpoint rule and pre-integration against
-// its same-step linear-segment definition, the others for a bounded error.
+// its same-step linear-segment definition, the others for a bounded error. Per scene: each
+// integrator's time at a relative error of 1e-3 (the best against midpoint's), the exact scheme's
+// error in float64 too, and the tolerance section (the step choose_step picks for 1e-2, 1e-3,
+// 1e-4, checked to meet it, beside the largest step that would have).
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <map>
+#include <sstream>
 
 #include "../accuracy_suite.hpp"
 #include "../runner/suite.hpp"
@@ -24,11 +29,78 @@ constexpr double kSameStep = 1e-3;
 // L2 against the continuous integral below 1/2; a wrong image is off by order 1), and its error is
 // what the suite reports.
 constexpr double kSanity = 0.5;
+// The relative error at which the integrators' times are compared.
+constexpr double kTargetError = 1e-3;
 
 std::string step_text(double s) {
   std::string t = std::to_string(s);
   while (t.size() > 1 && t.back() == '0') t.pop_back();
   return t;
+}
+
+// The time at which the (time, error) curve reaches `target`, interpolated log-log between the
+// two points around it, taking the points in order of time; NaN when none reaches it.
+double time_at(std::vector<std::pair<double, double>> curve, double target) {
+  std::sort(curve.begin(), curve.end());
+  for (std::size_t i = 0; i < curve.size(); ++i) {
+    if (curve[i].second > target) continue;
+    if (i == 0) return curve[0].first;
+    const auto [t0, e0] = curve[i - 1];
+    const auto [t1, e1] = curve[i];
+    const double w = (std::log(target) - std::log(e0)) / (std::log(e1) - std::log(e0));
+    return std::exp(std::log(t0) + w * (std::log(t1) - std::log(t0)));
+  }
+  return NAN;
+}
+
+// The tolerance section: the step choose_step picks for a tolerance, the error it gives, and the
+// largest step that would have met it (a 1.25× ladder, then bisection). Checked: the error of the
+// chosen step is within the tolerance.
+void tolerance_case(Context& ctx, const Scene& base, const std::vector<double>& truth,
+                    const std::string& scene_name, const nlohmann::json& params, Scheme scheme,
+                    double tolerance) {
+  Scene scene = base;
+  scene.integrator.scheme = scheme;
+  StepChoice c;
+  const Measurement m = measure(ctx.budget, [&] {
+    c = choose_step(ctx.device, scene, tolerance);
+    return -1.0;
+  });
+  const auto error_at = [&](double step) {
+    return difference(render(ctx.device, scene, {Precision::f32, step}).pixels, truth).relative_l2;
+  };
+  const double error = error_at(c.step);
+  double good = c.step, bad = NAN;
+  if (error <= tolerance) {
+    while (good < 4 * kToleranceMaxStep) {
+      if (error_at(good * 1.25) > tolerance) {
+        bad = good * 1.25;
+        break;
+      }
+      good *= 1.25;
+    }
+    for (int i = 0; std::isfinite(bad) && i < 4; ++i) {
+      const double mid = std::sqrt(good * bad);
+      (error_at(mid) <= tolerance ? good : bad) = mid;
+    }
+  }
+  std::ostringstream name;
+  name << scene_name << "_" << scheme_name(scheme) << "_tolerance_" << tolerance;
+  nlohmann::json p = params;
+  p["scheme"] = scheme_name(scheme);
+  p["tolerance"] = tolerance;
+  Record r{ctx.device_key, "integrators", name.str(), "ivr", p};
+  add_timing(r, m);  // the time choosing takes (its pilot renders)
+  r.metrics["chosen_step"] = c.step;
+  r.metrics["estimated_error"] = c.estimated_error;
+  r.metrics["pilots"] = c.pilots;
+  if (error <= tolerance) {
+    r.metrics["needed_step"] = good;
+    r.metrics["needed_over_chosen"] = good / c.step;
+  }
+  record_checked(
+      ctx, std::move(r),
+      {error <= tolerance, "reference f64 continuous integral", "relative_l2", error, tolerance});
 }
 
 }  // namespace
@@ -59,6 +131,7 @@ void integrators_suite(Context& ctx) {
       }
       const std::vector<double>& truth = continuous[scene_name];
       const double h = reference::min_voxel_edge(base);
+      std::map<std::string, std::vector<std::pair<double, double>>> curves;  // (s, error)
       for (Scheme scheme :
            {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact}) {
         if (scheme == Scheme::exact && look.model != Model::absorption) continue;
@@ -110,9 +183,41 @@ void integrators_suite(Context& ctx) {
           const Difference e = difference(img.pixels, truth);
           r.metrics["error_relative_l2"] = e.relative_l2;
           r.metrics["error_relative_max"] = e.ref_max > 0 ? e.max_abs / e.ref_max : e.max_abs;
+          if (m.timed)
+            curves[scheme_name(scheme)].emplace_back(m.device ? m.device->median : m.wall.median,
+                                                     e.relative_l2);
+          if (scheme == Scheme::exact) {  // float64 too (the step changes nothing)
+            const RenderOptions o64{Precision::f64, step, EmptySpace::off};
+            const Difference e64 = difference(render(ctx.device, scene, o64).pixels_f64, truth);
+            r.metrics["error_relative_l2_f64"] = e64.relative_l2;
+          }
           record_checked(ctx, std::move(r), k);
         }
       }
+      const nlohmann::json scene_params = {
+          {"volume", volume.name}, {"look", look.name}, {"image", image}};
+      // Speed against error as one number per integrator: its time at a relative error of
+      // kTargetError (log-log between the steps around it), and the best against midpoint's.
+      {
+        Record r{ctx.device_key, "integrators", scene_name + "_time_at_target", "ivr",
+                 scene_params};
+        r.params["target_relative_l2"] = kTargetError;
+        double best = NAN;
+        for (const auto& [scheme, curve] : curves) {
+          const double t = time_at(curve, kTargetError);
+          if (std::isfinite(t)) {
+            r.metrics[scheme + "_s_at_target"] = t;
+            if (!(t >= best)) best = t;
+          }
+        }
+        if (r.metrics.contains("midpoint_s_at_target") && std::isfinite(best))
+          r.metrics["midpoint_over_best"] = r.metrics["midpoint_s_at_target"].get<double>() / best;
+        ctx.results.add(std::move(r));
+      }
+      for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated})
+        for (double tolerance :
+             ctx.quick ? std::vector<double>{1e-2} : std::vector<double>{1e-2, 1e-3, 1e-4})
+          tolerance_case(ctx, base, truth, scene_name, scene_params, scheme, tolerance);
     }
 }
 

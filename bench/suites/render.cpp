@@ -6,9 +6,9 @@
 #include <map>
 
 #include "../bench_scene.hpp"
-#include "reference/native_marcher.hpp"
 #include "../runner/resident.hpp"
 #include "../runner/suite.hpp"
+#include "reference/native_marcher.hpp"
 #include "reference/reference.hpp"
 
 namespace ivr::bench {

@@ -20,6 +20,7 @@
 #include "reference/reference.hpp"
 
 using ivr::bench::median;
+using ivr::bench::time_at;
 using ivr::bench::wall_seconds;
 using nlohmann::json;
 
@@ -40,21 +41,6 @@ std::vector<Integrator> integrators_for(ivr::Model model) {
     out.push_back({std::string(ivr::scheme_name(s)) + "+skip", s, ivr::EmptySpace::on});
   }
   return out;
-}
-
-// The time at which the (time, error) curve reaches `target`, interpolated log-log between the
-// two points around it, taking the points in order of time; NaN when none reaches it.
-double time_at(std::vector<std::pair<double, double>> curve, double target) {
-  std::sort(curve.begin(), curve.end());
-  for (std::size_t i = 0; i < curve.size(); ++i) {
-    if (curve[i].second > target) continue;
-    if (i == 0) return curve[0].first;
-    const auto [t0, e0] = curve[i - 1];
-    const auto [t1, e1] = curve[i];
-    const double w = (std::log(target) - std::log(e0)) / (std::log(e1) - std::log(e0));
-    return std::exp(std::log(t0) + w * (std::log(t1) - std::log(t0)));
-  }
-  return NAN;
 }
 
 std::vector<double> parse_list(const std::string& text) {

@@ -113,4 +113,17 @@ RelativeError relative_error(const std::vector<float>& a, const std::vector<doub
   return {std::sqrt(d2 / std::max(r2, 1e-300)), dmax / std::max(rmax, 1e-300)};
 }
 
+double time_at(std::vector<std::pair<double, double>> curve, double target) {
+  std::sort(curve.begin(), curve.end());
+  for (std::size_t i = 0; i < curve.size(); ++i) {
+    if (curve[i].second > target) continue;
+    if (i == 0) return curve[0].first;
+    const auto [t0, e0] = curve[i - 1];
+    const auto [t1, e1] = curve[i];
+    const double w = (std::log(target) - std::log(e0)) / (std::log(e1) - std::log(e0));
+    return std::exp(std::log(t0) + w * (std::log(t1) - std::log(t0)));
+  }
+  return NAN;
+}
+
 }  // namespace ivr::bench

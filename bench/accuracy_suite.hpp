@@ -3,6 +3,7 @@
 // C60, MNI152 from ../shared/data), each under the suite's transfer functions and models.
 #pragma once
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ivr/core.hpp"
@@ -41,5 +42,9 @@ struct RelativeError {
   double rms = 0, max = 0;
 };
 RelativeError relative_error(const std::vector<float>& a, const std::vector<double>& r);
+
+// The time at which the (time, error) curve reaches `target`, interpolated log-log between the
+// two points around it, taking the points in order of time; NaN when none reaches it.
+double time_at(std::vector<std::pair<double, double>> curve, double target);
 
 }  // namespace ivr::bench

@@ -38,21 +38,6 @@ std::string step_text(double s) {
   return t;
 }
 
-// The time at which the (time, error) curve reaches `target`, interpolated log-log between the
-// two points around it, taking the points in order of time; NaN when none reaches it.
-double time_at(std::vector<std::pair<double, double>> curve, double target) {
-  std::sort(curve.begin(), curve.end());
-  for (std::size_t i = 0; i < curve.size(); ++i) {
-    if (curve[i].second > target) continue;
-    if (i == 0) return curve[0].first;
-    const auto [t0, e0] = curve[i - 1];
-    const auto [t1, e1] = curve[i];
-    const double w = (std::log(target) - std::log(e0)) / (std::log(e1) - std::log(e0));
-    return std::exp(std::log(t0) + w * (std::log(t1) - std::log(t0)));
-  }
-  return NAN;
-}
-
 // The tolerance section: the step choose_step picks for a tolerance, the error it gives, and the
 // largest step that would have met it (a 1.25× ladder, then bisection). Checked: the error of the
 // chosen step is within the tolerance.

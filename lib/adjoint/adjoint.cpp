@@ -1,19 +1,20 @@
 // adjoint.cpp — the gradient operation in reverse mode: one launch of kernels/adjoint.cl (primal
 // march, loss, and the constant-memory adjoint march) on the session's device copies, then the
 // per-pixel terms and per-group camera sums reduced on the device; and the one-shot gradient().
+#include "ivr/adjoint.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 
+#include "adjoint/adjoint.hpp"
 #include "adjoint/adjoint_bound.hpp"
-#include "ivr/adjoint.hpp"
-#include "runtime/real_args.hpp"
-#include "render/render.hpp"
 #include "adjoint/scatter_cache.hpp"
+#include "ivr_constants.h"
+#include "render/render.hpp"
+#include "runtime/real_args.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
-#include "adjoint/adjoint.hpp"
-#include "ivr_constants.h"
 
 namespace ivr {
 
@@ -34,8 +35,8 @@ double largest_magnitude(Session::Impl& s, const cl::Buffer& values, std::uint64
   return std::max(std::abs(lo), std::abs(hi));
 }
 
-// The a-priori bound on one ray's density-gradient contributions (lib/adjoint/adjoint_bound.hpp) for
-// this scene, these densities and this target: every input it reads is a function of the
+// The a-priori bound on one ray's density-gradient contributions (lib/adjoint/adjoint_bound.hpp)
+// for this scene, these densities and this target: every input it reads is a function of the
 // operation's inputs alone — the densities' exact range (measured again after an optimiser step,
 // which only knows its bounds) and the target's largest element (cached with the session's target,
 // measured for any other) — so the scale, and with it every bit of the result, is too.
@@ -49,18 +50,16 @@ double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss) {
     s.volume_range_exact = true;
   }
   const bool session_target = target.impl() == s.target.impl() && s.target_abs_max >= 0;
-  const double target_max = session_target
-                                ? s.target_abs_max
-                                : largest_magnitude(s, buffer_of(target), target.size());
+  const double target_max =
+      session_target ? s.target_abs_max : largest_magnitude(s, buffer_of(target), target.size());
   const double bound =
-      ray_gradient_bound(s.scene, tf_extremes(s.scene.tf, s.volume_min, s.volume_max),
-                         target_max, loss, s.pixels() * std::size_t(s.scene.channels()));
+      ray_gradient_bound(s.scene, tf_extremes(s.scene.tf, s.volume_min, s.volume_max), target_max,
+                         loss, s.pixels() * std::size_t(s.scene.channels()));
   return std::ldexp(bound, fixed_bound_shift());
 }
 
 KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std::size_t tf_rows,
-                            bool fixed, bool primal_given, AtomicAdd atomics,
-                            bool scatter_cache) {
+                            bool fixed, bool primal_given, AtomicAdd atomics, bool scatter_cache) {
   KernelConfig c = v.config("adjoint.cl", "adjoint");
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/adjoint_tf.cl; normalised).
   c.set(Switch::tf_rows, int(std::min<std::size_t>(tf_rows, 1 << 20)))
@@ -92,11 +91,11 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   const bool fixed = r.density && r.deterministic && has_int64_atomics(dev);
   const AtomicAdd atomics = atomic_add_for(dev.info, s.f64);
   // The density gradient's adds summed per work-group in local memory first where that pays
-  // (lib/adjoint/scatter_cache.hpp; the fixed-point adds bypass it), beside the TF accumulator and the
-  // camera's per-item scratch.
-  const std::size_t other_local =
-      (std::max<std::size_t>(tf_size, 1) +
-       (r.camera ? expected_group_items(dev.info, "adjoint") * 7 : 1)) * real;
+  // (lib/adjoint/scatter_cache.hpp; the fixed-point adds bypass it), beside the TF accumulator and
+  // the camera's per-item scratch.
+  const std::size_t other_local = (std::max<std::size_t>(tf_size, 1) +
+                                   (r.camera ? expected_group_items(dev.info, "adjoint") * 7 : 1)) *
+                                  real;
   const bool scatter_cache = r.density && !fixed && scatter_cache_for(dev, real, other_local);
   RenderVariant variant = s.variant_of(integrator);
   // The fixed-point scale's bound, before the march (it may measure the densities' range again,
@@ -119,12 +118,12 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
       fixed ? (voxels + kFixedHeader) * sizeof(cl_long) : (r.density ? voxels : 1) * real;
   // The density gradient: its own array, or the fixed-point sums converted into one.
   if (r.density)
-    out.density = s.output("density gradient", s.volume_shape(), real_dtype(s.f64),
-                           "the density gradient");
+    out.density =
+        s.output("density gradient", s.volume_shape(), real_dtype(s.f64), "the density gradient");
   const cl::Buffer& grad_volume =
-      r.density && !fixed ? buffer_of(out.density)
-                          : s.scratch(fixed ? "fixed density" : "no density", grad_bytes,
-                                      "the density gradient");
+      r.density && !fixed
+          ? buffer_of(out.density)
+          : s.scratch(fixed ? "fixed density" : "no density", grad_bytes, "the density gradient");
   if (r.tf)
     out.tf = s.output("tf gradient", {std::int64_t(tf_shape[0]), std::int64_t(tf_shape[1])},
                       real_dtype(s.f64), "the transfer-function gradient");
@@ -133,21 +132,19 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   const DType acc = s.arrays.acc_dtype();
   const cl::Buffer& sums = s.scratch("adjoint sums", 4 * 8, "the loss and background sums");
 
-  op.stats.variant =
-      adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache).label();
+  const KernelConfig config =
+      adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache);
+  op.stats.variant = config.label();
   op.stats.skipped_empty = variant.empty_space;
   op.stats.step = integrator.step;
   op.stats.deterministic = fixed;
   op.stats.mode = Mode::adjoint;
   op.stats.device_bytes = s.scene_bytes() + target.bytes() + out.image.bytes() +
                           pixels * (4 * real + sizeof(cl_uint)) + grad_bytes +
-                          std::max<std::size_t>(tf_size, 1) * real +
-                          (fixed ? voxels * real : 0);
+                          std::max<std::size_t>(tf_size, 1) * real + (fixed ? voxels * real : 0);
   cl_call("running the adjoint kernel on " + dev.info.name, [&] {
     double build = 0;
-    cl::Kernel& k = s.kernels.get(
-        adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache),
-        &build);
+    cl::Kernel& k = s.kernels.get(config, &build);
     op.stats.build_seconds += build;
     cl::Kernel* primal = nullptr;
     if (primal_given) {
@@ -180,8 +177,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     op.stats.device_bytes += partials * real;
     k.setArg(a++, s.camera_params);
     k.setArg(a++, camera_partial);
-    k.setArg(a++, cl::Local(
-                      (r.camera ? std::size_t(launch.group_x) * launch.group_y * 7 : 1) * real));
+    k.setArg(a++,
+             cl::Local((r.camera ? std::size_t(launch.group_x) * launch.group_y * 7 : 1) * real));
     k.setArg(a++, occupied);
     k.setArg(a++, s.brick_counts());
     // Fixed point: no ray's scaled Σ |contribution| above 2^62 / rays, so no voxel's sum leaves
@@ -210,8 +207,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     if (!fixed) {
       run_pass(0);
     } else {
-      // One pass at the scale the a-priori bound sets (lib/adjoint/adjoint_bound.hpp). The pass counts
-      // rays over the cap and records the largest contribution and ray sum (all
+      // One pass at the scale the a-priori bound sets (lib/adjoint/adjoint_bound.hpp). The pass
+      // counts rays over the cap and records the largest contribution and ray sum (all
       // order-independent); where the bound was violated or far too loose, one more pass runs at
       // the scale the largest ray calls for. Each step is a function of the inputs alone, so the
       // bits are too, whatever the session did before.
@@ -240,9 +237,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
       op.stats.fixed_bound = fixed_bound;
       op.stats.fixed_largest = largest;
       op.stats.fixed_largest_ray = largest_ray;
-      cl::Kernel& convert = s.kernels.get(
-          adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache)
-              .with_entry("fixed_to_real"));
+      cl::Kernel& convert = s.kernels.get(config.with_entry("fixed_to_real"));
       convert.setArg(0, cl_int(voxels));
       convert.setArg(1, grad_volume);
       convert.setArg(2, buffer_of(out.density));
@@ -258,8 +253,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
                                 &op.events.back());
     mark_written(out.loss, op.events.back());
     if (r.background) {
-      out.background = s.output("background gradient", {channels == 4 ? 3 : 1}, acc,
-                                "the background gradient");
+      out.background =
+          s.output("background gradient", {channels == 4 ? 3 : 1}, acc, "the background gradient");
       op.events.push_back(cl::Event());
       dev.queue.enqueueCopyBuffer(sums, buffer_of(out.background), dtype_size(acc), 0,
                                   out.background.bytes(), nullptr, &op.events.back());
@@ -293,10 +288,10 @@ double image_loss(const Image& image, const Image& target, Loss loss) {
 }
 
 AdjointGradient adjoint(Device& device, const Scene& scene, const Image& target,
-                  const AdjointOptions& options) {
+                        const AdjointOptions& options) {
   Session session = one_shot_session(
-      device, scene, {options.precision, options.step, options.empty_space, 0.05,
-                      options.brick_size});
+      device, scene,
+      {options.precision, options.step, options.empty_space, 0.05, options.brick_size});
   Session::Impl& s = session.impl();
   session.set_target(target);
   AdjointRequest r;

@@ -218,6 +218,11 @@ def _choice(table, value, what):
     return table[value]
 
 
+def _optional_choice(table, value, what):
+    """_choice, or None (the library's default) for None."""
+    return None if value is None else _choice(table, value, what)
+
+
 class Context(_Owned):
     """A device and its compiled kernels. Use one context per thread; contexts on different
     threads run concurrently."""
@@ -417,7 +422,7 @@ class Context(_Owned):
         the library's defaults (ivr_tomo_options_init: cgls, 50 iterations, no regulariser)."""
         o = _capi.filled(
             _capi.TomoOptions, self._lib.ivr_tomo_options_init, _check,
-            solver=None if solver is None else _choice(_SOLVERS, solver, "solver"),
+            solver=_optional_choice(_SOLVERS, solver, "solver"),
             precision=_PRECISIONS[self.precision], iterations=iterations,
             nonneg=None if nonneg is None else bool(nonneg), tv_reweight=tv_reweight,
             tolerance=tolerance, tikhonov=tikhonov, tv=tv, tv_epsilon=tv_epsilon,

@@ -56,7 +56,8 @@ TOMO_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(TomoIteration), ct
 
 class ReconstructOptions(ctypes.Structure):
     """ivr_reconstruct_options"""
-    _fields_ = [("size", ctypes.c_size_t), ("density", ctypes.c_int), ("tf", ctypes.c_int), ("iterations", ctypes.c_int),
+    _fields_ = [("size", ctypes.c_size_t), ("density", ctypes.c_int), ("tf", ctypes.c_int),
+                ("iterations", ctypes.c_int),
                 ("optimizer", ctypes.c_int), ("lr", ctypes.c_double),
                 ("schedule", ctypes.c_int), ("step_every", ctypes.c_int),
                 ("step_gamma", ctypes.c_double), ("min_lr", ctypes.c_double),

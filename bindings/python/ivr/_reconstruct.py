@@ -5,7 +5,8 @@ import os
 
 import numpy as np
 
-from . import Error, _capi, _check, _choice, _FLOAT_P, _LOSSES, _MODES, _PRECISIONS
+from . import (Error, _capi, _check, _choice, _optional_choice, _FLOAT_P, _LOSSES, _MODES,
+               _PRECISIONS)
 
 _OPTIMIZERS = {"auto": 0, "adam": 1, "sgd": 2, "lbfgs": 3}
 _OPTIMIZER_NAMES = {v: k for k, v in _OPTIMIZERS.items()}
@@ -50,18 +51,16 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
                 mode, base_dir):
     density, tf = _groups(wrt)
     lib = ctx._lib
-    def pick(table, value, what):
-        return None if value is None else _choice(table, value, what)
-
     o = _capi.filled(
         _capi.ReconstructOptions, lib.ivr_reconstruct_options_init, _check, density=density,
-        tf=tf, iterations=iterations, optimizer=pick(_OPTIMIZERS, optimizer, "optimizer"),
-        schedule=pick(_SCHEDULES, schedule, "schedule"), loss=pick(_LOSSES, loss, "loss"),
-        init=pick(_INITS, init, "init"), mode=pick(_MODES, mode, "mode"), lr=lr, tv=tv,
-        smoothness=smoothness, tf_smoothness=tf_smoothness, batch=batch, levels=levels,
-        seed=seed, init_value=init_value, step=step, tv_epsilon=tv_epsilon,
-        step_every=step_every, step_gamma=step_gamma, min_lr=min_lr,
-        precision=_PRECISIONS[ctx.precision])
+        tf=tf, iterations=iterations,
+        optimizer=_optional_choice(_OPTIMIZERS, optimizer, "optimizer"),
+        schedule=_optional_choice(_SCHEDULES, schedule, "schedule"),
+        loss=_optional_choice(_LOSSES, loss, "loss"), init=_optional_choice(_INITS, init, "init"),
+        mode=_optional_choice(_MODES, mode, "mode"), lr=lr, tv=tv, smoothness=smoothness,
+        tf_smoothness=tf_smoothness, batch=batch, levels=levels, seed=seed,
+        init_value=init_value, step=step, tv_epsilon=tv_epsilon, step_every=step_every,
+        step_gamma=step_gamma, min_lr=min_lr, precision=_PRECISIONS[ctx.precision])
     if resume and checkpoint is None:
         raise Error("IVR_ERROR_INVALID_ARGUMENT",
                     "reconstruct: resume=True needs checkpoint= (the prefix it was saved under)")
@@ -138,7 +137,7 @@ def viewpoint(ctx, scene, volume, view, iterations, lr, optimizer, step, progres
     o = _capi.filled(
         _capi.ViewpointOptions, lib.ivr_viewpoint_options_init, _check, view=view,
         iterations=iterations, lr=lr, step=step,
-        optimizer=None if optimizer is None else _choice(_OPTIMIZERS, optimizer, "optimizer"),
+        optimizer=_optional_choice(_OPTIMIZERS, optimizer, "optimizer"),
         precision=_PRECISIONS[ctx.precision])
     failure = []
 

@@ -5,8 +5,8 @@ import json
 
 import numpy as np
 
-from . import (Context, Error, _Owned, _capi, _check, _choice, _library, _volume_array, _DTYPES,
-               _FLOAT_P, _LOSSES, _MODE_NAMES, _MODES, _PRECISIONS)
+from . import (Context, Error, _Owned, _capi, _check, _choice, _library, _optional_choice,
+               _volume_array, _DTYPES, _FLOAT_P, _LOSSES, _MODE_NAMES, _MODES, _PRECISIONS)
 
 _ARRAY_DTYPES = {np.dtype(np.float32): 0, np.dtype(np.float64): 1}  # ivr_dtype of device arrays
 _ARRAY_NUMPY = {0: np.dtype(np.float32), 1: np.dtype(np.float64)}
@@ -190,8 +190,7 @@ class Session(_Owned):
         options = _capi.filled(
             _capi.SessionOptions, self._lib.ivr_session_options_init, _check,
             precision=_choice(_PRECISIONS, self.precision, "precision"), step=step,
-            empty_space=None if empty_space is None else _choice(_EMPTY_SPACE, empty_space,
-                                                                  "empty_space"),
+            empty_space=_optional_choice(_EMPTY_SPACE, empty_space, "empty_space"),
             min_empty_fraction=min_empty_fraction, brick_size=brick_size)
         on_device = isinstance(volume, DeviceArray)
         if volume is not None and not on_device:

@@ -1,4 +1,4 @@
-// accuracy_suite.hpp — the scenes of the speed-against-error suite (bench/accuracy_bench.cpp):
+// accuracy_suite.hpp — the scenes of the speed-against-error suite (ivr-bench's integrators suite):
 // synthetic (smooth blob, sharp shell, Marschner–Lobb) and real volumes (headsq, neghip, tooth,
 // C60, MNI152 from ../shared/data), each under the suite's transfer functions and models.
 #pragma once

@@ -1,15 +1,18 @@
 #!/usr/bin/env python3
-"""accuracy_tables.py — the README's tables from ivr_accuracy_bench's JSON (the time at the
+"""accuracy_tables.py — the README's tables from `ivr-bench --suite integrators` (the time at the
 target error per look, volume and integrator with the best against midpoint; the exact scheme's
-error in both precisions; the tolerance section's worst cases) or from `ivr-bench --suite
+error in both precisions; the tolerance section's worst cases) and from `ivr-bench --suite
 stability` (per hard case and integrator: forward error, float32-vs-float64 gradient error,
-non-finite values; the earlier stability program's JSON too).
+non-finite values); the earlier accuracy and stability programs' JSON too.
 Prints Markdown.
 
-Usage: /usr/bin/python3 bench/accuracy_tables.py RESULTS.json
+Usage: /usr/bin/python3 bench/accuracy_tables.py RESULTS.json [--device SUBSTRING]
+(the first device with integrators records unless --device names another)
 """
+import argparse
 import json
-import sys
+
+from accuracy_records import accuracy_doc, devices
 
 
 def fmt(v, spec=".1f"):
@@ -114,16 +117,21 @@ def stability_rows(doc):
 
 
 def main():
-    if len(sys.argv) < 2:
-        sys.exit(__doc__)
-    with open(sys.argv[1]) as f:
+    parser = argparse.ArgumentParser(description="speed-against-error and stability tables")
+    parser.add_argument("results")
+    parser.add_argument("--device", help="a substring of the device's name")
+    args = parser.parse_args()
+    with open(args.results) as f:
         doc = json.load(f)
     if doc.get("schema", "").startswith("ivr-bench/"):
-        stability_table({"rows": stability_rows(doc)})
-        return
-    if doc.get("benchmark") == "stability":
+        if any(r["suite"] == "stability" for r in doc["results"]):
+            stability_table({"rows": stability_rows(doc)})
+        if not devices(doc):
+            return
+    elif doc.get("benchmark") == "stability":
         stability_table(doc)
         return
+    doc = accuracy_doc(doc, args.device)
     time_tables(doc)
     exact_table(doc)
     tolerance_table(doc)

@@ -1,20 +1,25 @@
 #!/usr/bin/env python3
-"""plot_accuracy.py — the speed-against-error Pareto plots from ivr_accuracy_bench's JSON: one
-panel per volume and look (transfer function and model), relative RMS error against time
-(log-log), one curve per integrator (with and without empty-space skipping), the target error as
-a dashed line. Writes one PNG per look: OUT_<look>.png.
+"""plot_accuracy.py — the speed-against-error Pareto plots from `ivr-bench --suite integrators`
+(or the earlier ivr_accuracy_bench's JSON): one panel per volume and look (transfer function and
+model), relative RMS error against time (log-log), one curve per integrator (with and without
+empty-space skipping), the target error as a dashed line. Writes one PNG per look:
+OUT_<look>.png.
 
-Usage: /usr/bin/python3 bench/plot_accuracy.py RESULTS.json [OUT]
-(Debian's python3-matplotlib, installed by scripts/install-deps.sh.)
+Usage: /usr/bin/python3 bench/plot_accuracy.py RESULTS.json [OUT] [--device SUBSTRING]
+(the first device with integrators records unless --device names another; Debian's
+python3-matplotlib, installed by scripts/install-deps.sh.)
 """
+import argparse
 import json
 import math
-import sys
+import textwrap
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+from accuracy_records import accuracy_doc  # noqa: E402
 
 STYLES = {"midpoint": ("tab:blue", "o"), "trapezoid": ("tab:green", "s"),
           "preintegrated": ("tab:red", "^"), "exact": ("tab:purple", "D")}
@@ -52,21 +57,26 @@ def plot_look(doc, look, out):
     for ax in list(axes.flat)[len(volumes):]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=6)
-    fig.suptitle(f'speed against error on {doc["device"]} — look "{look}" ({doc["views"]} views '
-                 f'of {doc["image"]}², reference: {doc["reference"]}; labels: midpoint steps)',
-                 fontsize=9)
+    title = (f'speed against error on {doc["device"]} — look "{look}" ({doc["views"]} views of '
+             f'{doc["image"]}², reference: {doc["reference"]}; time: median kernel (+ grid); '
+             'labels: midpoint steps)')
+    fig.suptitle(textwrap.fill(title, 45 * cols), fontsize=9)
     fig.tight_layout()
     fig.savefig(out, dpi=100)
     print(out)
 
 
 def main():
-    if len(sys.argv) < 2:
-        sys.exit(__doc__)
-    path = sys.argv[1]
-    stem = sys.argv[2] if len(sys.argv) > 2 else path.rsplit(".", 1)[0]
-    with open(path) as f:
-        doc = json.load(f)
+    parser = argparse.ArgumentParser(description="speed-against-error Pareto plots")
+    parser.add_argument("results")
+    parser.add_argument("out", nargs="?", help="file stem (default: RESULTS without .json)")
+    parser.add_argument("--device", help="a substring of the device's name")
+    args = parser.parse_args()
+    stem = args.out or args.results.rsplit(".", 1)[0]
+    with open(args.results) as f:
+        doc = accuracy_doc(json.load(f), args.device)
+    if not doc["rows"]:
+        raise SystemExit(f"{args.results}: no timed speed-against-error points")
     for look in dict.fromkeys(r["look"] for r in doc["rows"]):
         plot_look(doc, look, f"{stem}_{look}.png")
 

@@ -38,8 +38,9 @@ inline AdjointSample adjoint_sample(__global const real* volume, int4 dims, cons
   a.s.uy = m->u0y + a.t * m->duy;
   a.s.uz = m->u0z + a.t * m->duz;
   a.s.d = trilinear_at(volume, dims, a.s.ux, a.s.uy, a.s.uz);
+  TfPoint unused;
   a.s.sigma = tf_sample_slope(a.s.d, tf, tf_count, tf_scalars, cursor, &a.s.er, &a.s.eg, &a.s.eb,
-                              &a.dsigma, &a.der, &a.deg, &a.deb);
+                              &a.dsigma, &a.der, &a.deg, &a.deb, &unused);
 #else
   a.s = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, cursor);
 #endif
@@ -90,7 +91,7 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
   for (uint i = 0; i < ar->end;) {
 #if IVR_EMPTY_SPACE
     {
-      const uint k = endpoint_skip(i, ar->end, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks);
+      const uint k = endpoint_skip(i, ar->end, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks, vtrue);
       if (k > i) {  // the segments in between add nothing, nor does their gradient
         finish_sample(&a, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
                       &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);

@@ -37,8 +37,9 @@ inline void adjoint_march_midpoint(__global const real* volume, int4 dims, const
     cell_enter(&cell, ix, iy, iz, volume, dims, grad_volume);
     const real d = cell_density(&cell, fx, fy, fz);
     real er, eg, eb, dsigma, der, deg, deb;
+    TfPoint unused;
     const real sigma = tf_sample_slope(d, tf, tf_count, tf_scalars, &seg_value, &er, &eg, &eb,
-                                       &dsigma, &der, &deg, &deb);
+                                       &dsigma, &der, &deg, &deb, &unused);
     const real dt = m->dt, tau = sigma * dt;
     real fraction;
     const real decay = decay_and_fraction(tau, &fraction);

@@ -26,6 +26,7 @@ inline __global const real* tf_rgbs(__global const real* tf, int row) {
 #endif
 }
 
+#if IVR_RAYS == 1
 // The one or two rows holding density d, their weights, and the slope of the weights in d.
 typedef struct {
   int row0, row1;
@@ -65,23 +66,27 @@ inline TfSegment tf_segment(real d, __global const real* tf, int count, real4 sc
 #endif
   return s;
 }
+#endif
 
-// d sigma / d d and d emission / d d at density d.
-__attribute__((always_inline)) inline real tf_slope(real d, __global const real* tf, int count,
-                                                    real4 scalars, int* cursor, real* der,
-                                                    real* deg, real* deb) {
-  *der = *deg = *deb = (real)0;
+// d sigma / d d and d emission / d d at density d, for the TF kinds that are not linear pieces
+// (identity, Gaussians); tf_sample_slope() takes the others.
+__attribute__((always_inline)) inline vreal tf_slope(vreal d, __global const real* tf, int count,
+                                                     real4 scalars, vreal* der, vreal* deg,
+                                                     vreal* deb) {
+  *der = *deg = *deb = (vreal)(real)0;
 #if IVR_TF == IVR_TF_IDENTITY
+  (void)tf, (void)count;
 #if IVR_EMISSION
   *der = *deg = *deb = (real)2 * scalars.x * scalars.y * d;  // E = a·b·d²
 #endif
-  return scalars.x;
+  return (vreal)scalars.x;
 #elif IVR_TF == IVR_TF_GAUSSIAN
-  real slope = (real)0;
+  (void)scalars;
+  vreal slope = (vreal)(real)0;
   for (int k = 0; k < count; ++k) {
     __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
-    const real z = (d - p[0]) / p[1];
-    const real ds = -p[5] * exp((real)-0.5 * z * z) * z / p[1];
+    const vreal z = (d - p[0]) / p[1];
+    const vreal ds = -p[5] * vexp((real)-0.5 * z * z) * z / p[1];
     slope += ds;
 #if IVR_EMISSION
     *der += ds * p[2];
@@ -91,80 +96,125 @@ __attribute__((always_inline)) inline real tf_slope(real d, __global const real*
   }
   return slope;
 #else
-  const TfSegment s = tf_segment(d, tf, count, scalars, cursor);
-  __global const real* a = tf_rgbs(tf, s.row0);  // r, g, b, sigma
-  __global const real* b = tf_rgbs(tf, s.row1);
-  const real sigma = lerp(a[3], b[3], s.w1);
-  const real dsigma = (b[3] - a[3]) * s.dw1_dd;
-#if IVR_EMISSION
-  // E = sigma·c: E' = sigma'·c + sigma·c'
-  *der = dsigma * lerp(a[0], b[0], s.w1) + sigma * (b[0] - a[0]) * s.dw1_dd;
-  *deg = dsigma * lerp(a[1], b[1], s.w1) + sigma * (b[1] - a[1]) * s.dw1_dd;
-  *deb = dsigma * lerp(a[2], b[2], s.w1) + sigma * (b[2] - a[2]) * s.dw1_dd;
-#endif
-  return dsigma;
+  (void)d, (void)tf, (void)count, (void)scalars;
+  return (vreal)(real)0;  // not called: tf_sample_slope() differentiates linear pieces itself
 #endif
 }
 
+// Where a density lies in the TF, as forward mode's TF partials need it (jacobian_tf.cl): the one
+// or two rows blended there (row0 = row1 beyond the ends) with row1's weight w1, and the colour
+// (not premultiplied). Filled by tf_sample_slope() for piecewise-linear and table TFs.
+typedef struct {
+  vint row0, row1;
+  vreal w1;
+  vreal cr, cg, cb;
+} TfPoint;
+
 // tf_sample() and tf_slope() in one: sigma and the premultiplied emission, computed exactly as
 // tf_sample() computes them (so that the adjoint march recovers what the primal march rendered),
-// with their density derivatives in *dsigma and (*der, *deg, *deb), from one segment search.
-__attribute__((always_inline)) inline real tf_sample_slope(real d, __global const real* tf,
-                                                           int count, real4 scalars, int* cursor,
-                                                           real* er, real* eg, real* eb,
-                                                           real* dsigma, real* der, real* deg,
-                                                           real* deb) {
+// with their density derivatives in *dsigma and (*der, *deg, *deb), from one segment search; and
+// where d lies in the TF in *point. One ray or every ray of a packet (kernels/rays.cl).
+__attribute__((always_inline)) inline vreal tf_sample_slope(vreal d, __global const real* tf,
+                                                            int count, real4 scalars, vint* cursor,
+                                                            vreal* er, vreal* eg, vreal* eb,
+                                                            vreal* dsigma, vreal* der, vreal* deg,
+                                                            vreal* deb, TfPoint* point) {
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+  // The rows around d: [r, g, b, sigma] of row0 in a*, of row1 in b*; w the weight of row1 and
+  // dw its slope in d.
+  vreal a0, a1, a2, a3, b0, b1, b2, b3, w, dw;
+  vint row0, row1;
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  __global const real* a = tf + 1;  // r, g, b, sigma of the rows around d
-  __global const real* b = tf + 1;
-  real w = (real)0, dw = (real)0;  // weight of b, and its slope in d
-  if (d >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
-    a = b = tf + (count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+  (void)scalars;
+  const int last = count - 1;
+#if IVR_RAYS == 1
+  int k0 = 0, k1 = 0;
+  w = (real)0, dw = (real)0;
+  if (d >= tf[last * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
+    k0 = k1 = last;
   } else if (d > tf[0]) {
     int k = *cursor;
     while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
     while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
     *cursor = k;
-    a = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
-    b = a + IVR_TF_STRIDE_PIECEWISE_LINEAR;
-    const real width = b[-1] - a[-1];
-    w = (d - a[-1]) / width;
+    k0 = k, k1 = k + 1;
+    const real width = tf[k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR] - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+    w = (d - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR]) / width;
     dw = (real)1 / width;
   }
+  __global const real* a = tf + k0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
+  __global const real* b = tf + k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+  a0 = a[0], a1 = a[1], a2 = a[2], a3 = a[3], b0 = b[0], b1 = b[1], b2 = b[2], b3 = b[3];
+  row0 = k0, row1 = k1;
 #else
-  const real q = (d - scalars.x) / (scalars.y - scalars.x);
-  const real u = clamp(q, (real)0, (real)1) * (real)(count - 1);
-  const int i0 = min((int)u, count - 1);
-  const int i1 = min(i0 + 1, count - 1);
-  const real w = u - (real)i0;
-  const real dw =
-      (q >= (real)0 && q < (real)1) ? (real)(count - 1) / (scalars.y - scalars.x) : (real)0;
-  __global const real* a = tf + i0 * IVR_TF_STRIDE_TABLE;
-  __global const real* b = tf + i1 * IVR_TF_STRIDE_TABLE;
+  // Every segment blended in (as tf_sample() does for a packet): the rows are the same for every
+  // ray, so their values are broadcasts, not gathers.
+  (void)cursor;
+  a0 = b0 = (vreal)tf[1], a1 = b1 = (vreal)tf[2], a2 = b2 = (vreal)tf[3], a3 = b3 = (vreal)tf[4];
+  w = dw = (vreal)(real)0;
+  row0 = row1 = (vint)0;
+  for (int k = 0; k < last; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    __global const real* q = p + IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    const vint in = vmask_of(d >= p[0]) && vmask_of(d < q[0]) && vmask_of(d > tf[0]);
+    if (!vany(in)) continue;
+    const real width = q[0] - p[0];
+    w = vsel(w, (d - p[0]) / width, in);
+    dw = vsel(dw, (vreal)((real)1 / width), in);
+    a0 = vsel(a0, (vreal)p[1], in), a1 = vsel(a1, (vreal)p[2], in);
+    a2 = vsel(a2, (vreal)p[3], in), a3 = vsel(a3, (vreal)p[4], in);
+    b0 = vsel(b0, (vreal)q[1], in), b1 = vsel(b1, (vreal)q[2], in);
+    b2 = vsel(b2, (vreal)q[3], in), b3 = vsel(b3, (vreal)q[4], in);
+    row0 = vseli(row0, (vint)k, in), row1 = vseli(row1, (vint)(k + 1), in);
+  }
+  __global const real* z = tf + last * IVR_TF_STRIDE_PIECEWISE_LINEAR;
+  const vint beyond = vmask_of(d >= z[0]);
+  a0 = vsel(a0, (vreal)z[1], beyond), a1 = vsel(a1, (vreal)z[2], beyond);
+  a2 = vsel(a2, (vreal)z[3], beyond), a3 = vsel(a3, (vreal)z[4], beyond);
+  b0 = vsel(b0, (vreal)z[1], beyond), b1 = vsel(b1, (vreal)z[2], beyond);
+  b2 = vsel(b2, (vreal)z[3], beyond), b3 = vsel(b3, (vreal)z[4], beyond);
+  row0 = vseli(row0, (vint)last, beyond), row1 = vseli(row1, (vint)last, beyond);
 #endif
-  const real sigma = lerp(a[3], b[3], w);
-  *dsigma = (b[3] - a[3]) * dw;
+#else
+  (void)cursor;
+  const vreal q = (d - scalars.x) / (scalars.y - scalars.x);
+  const vreal u = clamp(q, (real)0, (real)1) * (real)(count - 1);
+  row0 = min(vto_int(u), count - 1);
+  row1 = min(row0 + 1, count - 1);
+  w = u - vto_real(row0);
+  dw = vsel((vreal)(real)0, (vreal)((real)(count - 1) / (scalars.y - scalars.x)),
+            vmask_of(q >= (real)0) && vmask_of(q < (real)1));
+  const vint ia = row0 * IVR_TF_STRIDE_TABLE, ib = row1 * IVR_TF_STRIDE_TABLE;
+  a0 = vgather(tf, ia), a1 = vgather(tf, ia + 1), a2 = vgather(tf, ia + 2), a3 = vgather(tf, ia + 3);
+  b0 = vgather(tf, ib), b1 = vgather(tf, ib + 1), b2 = vgather(tf, ib + 2), b3 = vgather(tf, ib + 3);
+#endif
+  const vreal sigma = vlerp(a3, b3, w);
+  *dsigma = (b3 - a3) * dw;
+  const vreal cr = vlerp(a0, b0, w), cg = vlerp(a1, b1, w), cb = vlerp(a2, b2, w);
 #if IVR_EMISSION
-  const real cr = lerp(a[0], b[0], w), cg = lerp(a[1], b[1], w), cb = lerp(a[2], b[2], w);
   *er = sigma * cr;
   *eg = sigma * cg;
   *eb = sigma * cb;
   // E = sigma·c: E' = sigma'·c + sigma·c'
-  *der = *dsigma * cr + sigma * (b[0] - a[0]) * dw;
-  *deg = *dsigma * cg + sigma * (b[1] - a[1]) * dw;
-  *deb = *dsigma * cb + sigma * (b[2] - a[2]) * dw;
+  *der = *dsigma * cr + sigma * (b0 - a0) * dw;
+  *deg = *dsigma * cg + sigma * (b1 - a1) * dw;
+  *deb = *dsigma * cb + sigma * (b2 - a2) * dw;
 #else
-  *der = *deg = *deb = (real)0;
+  *der = *deg = *deb = (vreal)(real)0;
 #endif
+  point->row0 = row0, point->row1 = row1, point->w1 = w;
+  point->cr = cr, point->cg = cg, point->cb = cb;
   return sigma;
 #else
-  const real sigma = tf_sample(d, tf, count, scalars, cursor, er, eg, eb);
-  *dsigma = tf_slope(d, tf, count, scalars, cursor, der, deg, deb);
+  const vreal sigma = tf_sample(d, tf, count, scalars, cursor, er, eg, eb);
+  *dsigma = tf_slope(d, tf, count, scalars, der, deg, deb);
+  point->row0 = point->row1 = (vint)0;
+  point->w1 = point->cr = point->cg = point->cb = (vreal)(real)0;
   return sigma;
 #endif
 }
 
+#if IVR_RAYS == 1  // the adjoint's TF gradient: one ray per work-item
 // A ray's private TF-gradient accumulator: the rows its samples currently touch, each value summed
 // with compensation (accumulate), flushed into the work-group's local accumulator when the rows
 // change and when the ray ends. A ray of 1e5 samples in one TF segment would otherwise add 1e5
@@ -306,5 +356,7 @@ inline void tf_scatter_piece(const TfPiece* p, real x, real gs, real gr, real gg
   (void)p, (void)x, (void)gs, (void)gr, (void)gg, (void)gb, (void)cache, (void)acc;
 #endif
 }
+
+#endif  // IVR_RAYS == 1
 
 #endif

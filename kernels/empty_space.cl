@@ -5,55 +5,60 @@
 #include "config.cl"
 #include "march.cl"
 
+// Each function takes one ray or every ray of a packet (kernels/rays.cl), lane by lane the same.
+
 // The brick of the cell that trilinear_at() reads at u (clamped as there).
-__attribute__((always_inline)) inline int brick_axis(real u, int n) {
-  return (int)fmin(fmax(u, (real)0), (real)(n - 1)) / IVR_BRICK_SIZE;
+__attribute__((always_inline)) inline vint brick_axis(vreal u, int n) {
+  return vto_int(fmin(fmax(u, (vreal)(real)0), (vreal)(real)(n - 1))) / IVR_BRICK_SIZE;
 }
 
 // The ray parameter at which u = u0 + t·du leaves brick b of `bricks` along this axis; +inf
 // where it never does (parallel, or the brick is the last one the ray meets on this axis).
-__attribute__((always_inline)) inline real brick_exit(real u0, real du, int b, int bricks) {
-  if (du > (real)0 && b + 1 < bricks) return ((real)((b + 1) * IVR_BRICK_SIZE) - u0) / du;
-  if (du < (real)0 && b > 0) return ((real)(b * IVR_BRICK_SIZE) - u0) / du;
-  return (real)INFINITY;
+__attribute__((always_inline)) inline vreal brick_exit(vreal u0, vreal du, vint b, int bricks) {
+  const vint up = vmask_of(du > (real)0) && (b + 1 < bricks);
+  const vint down = vmask_of(du < (real)0) && (b > 0);
+  const vreal face = vto_real(vseli(b, b + 1, up) * IVR_BRICK_SIZE);
+  return vsel((vreal)(real)INFINITY, (face - u0) / du, up || down);
 }
 
 // The ray parameter at which the ray leaves brick (bx, by, bz).
-__attribute__((always_inline)) inline real brick_leave(real u0x, real u0y, real u0z, real dux,
-                                                       real duy, real duz, int bx, int by, int bz,
-                                                       int4 bricks) {
-  return fmin(brick_exit(u0x, dux, bx, bricks.x),
-              fmin(brick_exit(u0y, duy, by, bricks.y), brick_exit(u0z, duz, bz, bricks.z)));
+__attribute__((always_inline)) inline vreal brick_leave(const March* m, vint bx, vint by, vint bz,
+                                                        int4 bricks) {
+  return fmin(brick_exit(m->u0x, m->dux, bx, bricks.x),
+              fmin(brick_exit(m->u0y, m->duy, by, bricks.y), brick_exit(m->u0z, m->duz, bz, bricks.z)));
 }
 
 // Where voxel coordinates u lie in an empty brick, the ray parameter at which the ray leaves
 // that brick (+inf where it never does); -1 where the brick is occupied.
-__attribute__((always_inline)) inline real empty_brick_exit(real ux, real uy, real uz,
-                                                            const March* m, int4 dims,
-                                                            __global const uchar* occupied,
-                                                            int4 bricks) {
-  const int bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y), bz = brick_axis(uz, dims.z);
-  if (occupied[(bz * bricks.y + by) * bricks.x + bx]) return (real)-1;
-  return brick_leave(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, bx, by, bz, bricks);
+__attribute__((always_inline)) inline vreal empty_brick_exit(vreal ux, vreal uy, vreal uz,
+                                                             const March* m, int4 dims,
+                                                             __global const uchar* occupied,
+                                                             int4 bricks) {
+  const vint bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y), bz = brick_axis(uz, dims.z);
+  const vint full = vgather_flag(occupied, (bz * bricks.y + by) * bricks.x + bx);
+#if IVR_RAYS == 1
+  if (full) return (real)-1;  // the exit only where it is needed
+#endif
+  return vsel(brick_leave(m, bx, by, bz, bricks), (vreal)(real)-1, full);
 }
 
 // Midpoint samples t0 + (i + 1/2)·dt: the first one at or past `exit`, where the ray leaves the
 // empty brick that sample i is in; at least i + 1, at most n. Rounding may move a sample on the
 // brick's face to either side: the grid's one-voxel margin keeps both sides' densities in the
 // brick's range.
-__attribute__((always_inline)) inline uint skip_to(uint i, uint n, real t0, real dt, real exit) {
-  const real k = ceil((exit - t0) / dt - (real)0.5);
-  return k >= (real)n ? n : max(i + 1, (uint)fmax(k, (real)0));
+__attribute__((always_inline)) inline vint skip_to(vint i, vint n, vreal t0, vreal dt, vreal exit) {
+  const vreal k = ceil((exit - t0) / dt - (real)0.5);
+  return vseli(max(i + 1, vto_int(fmax(k, (vreal)(real)0))), n, vmask_of(k >= vto_real(n)));
 }
 
 // End samples t0 + i·dt: the last one before `exit`, where the ray leaves the empty brick that
 // sample i is in (at least i, at most n). Every segment between sample i and it has both ends in
 // that brick, so its densities, and any density between them, lie in the brick's range, where
 // σ = 0: the segments add nothing, whatever the integrator does between its ends.
-__attribute__((always_inline)) inline uint last_sample_before(uint i, uint n, real t0, real dt,
-                                                              real exit) {
-  const real k = ceil((exit - t0) / dt) - (real)1;
-  return k >= (real)n ? n : max(i, (uint)fmax(k, (real)0));
+__attribute__((always_inline)) inline vint last_sample_before(vint i, vint n, vreal t0, vreal dt,
+                                                              vreal exit) {
+  const vreal k = ceil((exit - t0) / dt) - (real)1;
+  return vseli(max(i, vto_int(fmax(k, (vreal)(real)0))), n, vmask_of(k >= vto_real(n)));
 }
 
 // End-sample schemes: where sample i (at voxel coordinates u) lies in an empty brick, the last
@@ -61,27 +66,30 @@ __attribute__((always_inline)) inline uint last_sample_before(uint i, uint n, re
 // where sample k + 1 past the exit lies in an empty brick that touches the current one (face, edge
 // or corner), the segment [k, k + 1] adds nothing either — both bricks' ranges hold their shared
 // margin voxels, so they overlap and σ = 0 on every density between the two ends, whatever the
-// integrator does between them. i where sample i's brick is occupied.
-__attribute__((always_inline)) inline uint endpoint_skip(uint i, uint n, real ux, real uy, real uz,
-                                                         const March* m, int4 dims,
+// integrator does between them. i where sample i's brick is occupied, and for the rays where
+// `active` is false.
+__attribute__((always_inline)) inline vint endpoint_skip(vint i, vint n, vreal ux, vreal uy,
+                                                         vreal uz, const March* m, int4 dims,
                                                          __global const uchar* occupied,
-                                                         int4 bricks) {
-  const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
-  if (exit < (real)0) return i;
-  uint k = last_sample_before(i, n, m->t0, m->dt, exit);
-  int bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y), bz = brick_axis(uz, dims.z);
-  while (k < n) {
-    const real t = m->t0 + (real)(k + 1) * m->dt;
-    const int cx = brick_axis(m->u0x + t * m->dux, dims.x),
-              cy = brick_axis(m->u0y + t * m->duy, dims.y),
-              cz = brick_axis(m->u0z + t * m->duz, dims.z);
-    if (abs(cx - bx) > 1 || abs(cy - by) > 1 || abs(cz - bz) > 1 ||
-        occupied[(cz * bricks.y + cy) * bricks.x + cx])
-      break;
-    const real leave = brick_leave(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, cx, cy, cz,
-                                   bricks);
-    k = last_sample_before(k + 1, n, m->t0, m->dt, leave);
-    bx = cx, by = cy, bz = cz;
+                                                         int4 bricks, vint active) {
+  const vreal exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
+  vint go = active && vmask_of(exit >= (real)0);
+  if (!vany(go)) return i;
+  vint k = vseli(i, last_sample_before(i, n, m->t0, m->dt, exit), go);
+  vint bx = brick_axis(ux, dims.x), by = brick_axis(uy, dims.y), bz = brick_axis(uz, dims.z);
+  go = go && (k < n);
+  while (vany(go)) {
+    const vreal t = m->t0 + vto_real(k + 1) * m->dt;
+    const vint cx = brick_axis(m->u0x + t * m->dux, dims.x),
+               cy = brick_axis(m->u0y + t * m->duy, dims.y),
+               cz = brick_axis(m->u0z + t * m->duz, dims.z);
+    go = go && !(abs(cx - bx) > 1u || abs(cy - by) > 1u || abs(cz - bz) > 1u ||
+                 vgather_flag(occupied, (cz * bricks.y + cy) * bricks.x + cx));
+    if (!vany(go)) break;
+    const vreal leave = brick_leave(m, cx, cy, cz, bricks);
+    k = vseli(k, last_sample_before(k + 1, n, m->t0, m->dt, leave), go);
+    bx = vseli(bx, cx, go), by = vseli(by, cy, go), bz = vseli(bz, cz, go);
+    go = go && (k < n);
   }
   return k;
 }

@@ -9,6 +9,9 @@
 #include "empty_space.cl"
 #include "march.cl"
 #include "tf.cl"
+#include "rays.cl"
+
+#if IVR_RAYS == 1  // one ray per work-item (kernels/rays.cl)
 
 // --- Pieces: the ray between consecutive centre-plane crossings --------------------------------
 
@@ -307,5 +310,7 @@ inline real piece_optical_depth(const Cubic* c, real L, __global const real* tf,
   return tau;
 #endif
 }
+
+#endif  // IVR_RAYS == 1
 
 #endif

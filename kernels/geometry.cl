@@ -3,6 +3,7 @@
 #ifndef IVR_GEOMETRY_CL
 #define IVR_GEOMETRY_CL
 #include "config.cl"
+#include "rays.cl"
 #include "rounded.cl"
 
 typedef struct {
@@ -69,33 +70,35 @@ inline bool clip_box(Ray r, real3 bmin, real3 bmax, real* t0, real* t1) {
 }
 
 // The cell of continuous voxel coordinate u along an axis of n voxels, clamped to the edge centres
-// as trilinear_at() clamps it: returns the index i, and the fraction in [0, 1] in *f.
-__attribute__((always_inline)) inline int cell_axis(real u, int n, real* f) {
-  const real c = fmin(fmax(u, (real)0), (real)(n - 1));
-  const int i = (int)c;  // c >= 0, so truncation is floor
-  *f = c - (real)i;
+// as trilinear_at() clamps it: returns the index i, and the fraction in [0, 1] in *f (every ray of
+// a packet: kernels/rays.cl).
+__attribute__((always_inline)) inline vint cell_axis(vreal u, int n, vreal* f) {
+  const vreal c = fmin(fmax(u, (vreal)(real)0), (vreal)(real)(n - 1));
+  const vint i = vto_int(c);  // c >= 0, so truncation is floor
+  *f = c - vto_real(i);
   return i;
 }
 
 // Trilinear density at continuous voxel coordinates (ux, uy, uz) (voxel centre i at u = i),
-// clamped to the edge centres: the value is constant in the outer half-voxel. Scalar on purpose:
-// PoCL compiles float3 arithmetic into 4-wide vectors plus lane shuffles.
-__attribute__((always_inline)) inline real trilinear_at(__global const real* vol, int4 dims,
-                                                        real ux, real uy, real uz) {
-  real fx, fy, fz;
-  const int ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
-            iz = cell_axis(uz, dims.z, &fz);
+// clamped to the edge centres: the value is constant in the outer half-voxel. Scalar (or one value
+// per ray of a packet) on purpose: PoCL compiles float3 arithmetic into 4-wide vectors plus lane
+// shuffles.
+__attribute__((always_inline)) inline vreal trilinear_at(__global const real* vol, int4 dims,
+                                                         vreal ux, vreal uy, vreal uz) {
+  vreal fx, fy, fz;
+  const vint ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
+             iz = cell_axis(uz, dims.z, &fz);
   const int sx = dims.x, sxy = dims.x * dims.y;
-  // One base address and the neighbours' offsets (0 on the clamped upper edge).
-  const int ox = ix + 1 < dims.x ? 1 : 0;
-  const int oy = iy + 1 < dims.y ? sx : 0;
-  const int oz = iz + 1 < dims.z ? sxy : 0;
-  __global const real* p = vol + (iz * sxy + iy * sx + ix);
-  const real c00 = lerp(p[0], p[ox], fx);
-  const real c10 = lerp(p[oy], p[oy + ox], fx);
-  const real c01 = lerp(p[oz], p[oz + ox], fx);
-  const real c11 = lerp(p[oz + oy], p[oz + oy + ox], fx);
-  return lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz);
+  // One base index and the neighbours' offsets (0 on the clamped upper edge).
+  const vint ox = vseli((vint)0, (vint)1, ix + 1 < dims.x);
+  const vint oy = vseli((vint)0, (vint)sx, iy + 1 < dims.y);
+  const vint oz = vseli((vint)0, (vint)sxy, iz + 1 < dims.z);
+  const vint p = iz * sxy + iy * sx + ix;
+  const vreal c00 = vlerp(vgather_off(vol, p, 0), vgather_off(vol, p, ox), fx);
+  const vreal c10 = vlerp(vgather_off(vol, p, oy), vgather_off(vol, p, oy + ox), fx);
+  const vreal c01 = vlerp(vgather_off(vol, p, oz), vgather_off(vol, p, oz + ox), fx);
+  const vreal c11 = vlerp(vgather_off(vol, p, oz + oy), vgather_off(vol, p, oz + oy + ox), fx);
+  return vlerp(vlerp(c00, c10, fy), vlerp(c01, c11, fy), fz);
 }
 
 // d density / d u of the trilinear interpolant in a cell with corner values v[k] (bit 0: +x,
@@ -114,9 +117,11 @@ inline void trilinear_gradient(const real* v, real fx, real fy, real fz, real ux
             : (real)0;
 }
 
+#if IVR_RAYS == 1
 // Trilinear density at continuous voxel coordinates u.
 inline real trilinear(__global const real* vol, int4 dims, real3 u) {
   return trilinear_at(vol, dims, u.x, u.y, u.z);
 }
+#endif
 
 #endif

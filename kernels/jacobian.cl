@@ -1,14 +1,17 @@
-// jacobian.cl — forward-mode derivatives, one work-item per pixel: the scene's integrator's march
-// carrying IVR_LANES tangent lanes (tangent_<scheme>.cl), each the derivative of every quantity
-// with respect to one parameter (a TF parameter, a camera component, a background channel, a
-// voxel), through ray generation, clipping, sampling, the TF and compositing. Writes the Jacobian
-// of the pixel (IVR_JACOBIAN) and/or this work-group's share of the loss and its gradient
-// (IVR_LOSS_GRADIENT), reduced in local memory without writing the Jacobian.
+// jacobian.cl — forward-mode derivatives, one work-item per pixel (or per packet of IVR_RAYS
+// neighbouring pixels in vector lanes on CPUs, kernels/rays.cl: TF and background lanes, midpoint
+// and trapezoid): the scene's integrator's march carrying IVR_LANES tangent lanes
+// (jacobian_<scheme>.cl), each the derivative of every quantity with respect to one parameter (a
+// TF parameter, a camera component, a background channel, a voxel), through ray generation,
+// clipping, sampling, the TF and compositing. Writes the Jacobian of the pixel (IVR_JACOBIAN)
+// and/or this work-group's share of the loss and its gradient (IVR_LOSS_GRADIENT), reduced in
+// local memory without writing the Jacobian.
 #include "config.cl"
 #include "geometry.cl"
 #include "loss.cl"
 #include "march.cl"
 #include "primal.cl"
+#include "rays.cl"
 #include "jacobian_ray.cl"
 // Every scheme's march (the files' own include lines are resolved once, wherever they first
 // appear, so none is included under a condition); the scheme's is called.
@@ -41,63 +44,90 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
                        __global real* restrict image, __global real* restrict jacobian,
                        __global real* restrict partial, __local real* scratch,
                        __global const uchar* restrict occupied, const int4 bricks) {
-  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
-  const bool active = x < width && y < height;  // padding items still meet the barrier
+  const int x0 = get_global_id(0) * IVR_RAYS, y = get_global_id(1), view = get_global_id(2);
+  const bool active = x0 < width && y < height;  // padding items still meet the barrier
   real loss = (real)0, dloss[IVR_LANES];
   IVR_FOR_LANES(p) dloss[p] = (real)0;
 
   if (active) {
-    const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
+    __global const real* cam = cameras + view * IVR_CAMERA_STRIDE;
     March m;
-    const bool hit = march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min,
-                                 box_max, inv_voxel, step, &m);
+#if IVR_RAYS == 1
+    const Ray ray = camera_ray(cam, x0, y, width, height);
+    const bool hit =
+        march_begin(ray, cam, x0, y, width, height, box_min, box_max, inv_voxel, step, &m);
+#else
+    // A packet carries no camera lanes: the rays' own geometry is in their marches.
+    const Ray ray = {(real3)(real)0, (real3)(real)0};
+    const bool hit =
+        march_begin_rays(cam, x0, y, width, height, box_min, box_max, inv_voxel, step, &m);
+#endif
     TangentRay tr;
-    tangent_ray_begin(&tr, lanes, camera_params, view, x, y, width, height, ray,
+    tangent_ray_begin(&tr, lanes, camera_params, view, x0, y, width, height, ray,
                       hit ? &m : (const March*)0, box_min, box_max);
     Radiance r = radiance_begin();
     if (hit)
       tangent_march(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, min_transmittance,
                     occupied, bricks, &tr, &r);
-    const real transmittance = r.transmittance;
-    const real cr = r.cr, cg = r.cg, cb = r.cb;
 
-    // The pixel and its tangents; the background's own lanes.
-    const size_t pixel = ((size_t)view * height + y) * width + x;
-    real value[IVR_CHANNELS];
-#if IVR_EMISSION
-    value[0] = cr + transmittance * background.x;
-    value[1] = cg + transmittance * background.y;
-    value[2] = cb + transmittance * background.z;
-    value[3] = (real)1 - transmittance;
-#else
-    value[0] = background.x * transmittance;
-#endif
-    for (int c = 0; c < IVR_CHANNELS; ++c) image[pixel * IVR_CHANNELS + c] = value[c];
+    // Each ray's pixel and its loss terms; then the tangents, lane by lane.
+    real transmittance[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS];
+    IVR_STORE_RAYS(r.transmittance, transmittance);
+    IVR_STORE_RAYS(r.cr, cr);
+    IVR_STORE_RAYS(r.cg, cg);
+    IVR_STORE_RAYS(r.cb, cb);
+    const int rays = min(IVR_RAYS, width - x0);
 #if IVR_LOSS_GRADIENT
-    real g[IVR_CHANNELS];
-    for (int c = 0; c < IVR_CHANNELS; ++c)
-      g[c] = loss_term(value[c], target[pixel * IVR_CHANNELS + c], norm, &loss);
+    real g[IVR_RAYS][IVR_CHANNELS];
 #endif
+    for (int l = 0; l < rays; ++l) {
+      const size_t pixel = ((size_t)view * height + y) * width + x0 + l;
+      real value[IVR_CHANNELS];
+#if IVR_EMISSION
+      value[0] = cr[l] + transmittance[l] * background.x;
+      value[1] = cg[l] + transmittance[l] * background.y;
+      value[2] = cb[l] + transmittance[l] * background.z;
+      value[3] = (real)1 - transmittance[l];
+#else
+      value[0] = background.x * transmittance[l];
+#endif
+      for (int c = 0; c < IVR_CHANNELS; ++c) image[pixel * IVR_CHANNELS + c] = value[c];
+#if IVR_LOSS_GRADIENT
+      for (int c = 0; c < IVR_CHANNELS; ++c)
+        g[l][c] = loss_term(value[c], target[pixel * IVR_CHANNELS + c], norm, &loss);
+#endif
+    }
+    // The pixels' tangents; the background's own lanes.
     IVR_FOR_LANES(p) {
       const int4 lane = tr.lane[p];
-      real dv[IVR_CHANNELS];
+      real dT[IVR_RAYS], dcr[IVR_RAYS], dcg[IVR_RAYS], dcb[IVR_RAYS];
+      IVR_STORE_RAYS(tr.dT[p], dT);
+      IVR_STORE_RAYS(tr.dcr[p], dcr);
+      IVR_STORE_RAYS(tr.dcg[p], dcg);
+      IVR_STORE_RAYS(tr.dcb[p], dcb);
+      for (int l = 0; l < rays; ++l) {
+        const size_t pixel = ((size_t)view * height + y) * width + x0 + l;
+        real dv[IVR_CHANNELS];
 #if IVR_EMISSION
-      const real bg[3] = {background.x, background.y, background.z};
-      const real dc[3] = {tr.dcr[p], tr.dcg[p], tr.dcb[p]};
-      for (int c = 0; c < 3; ++c)
-        dv[c] = dc[c] + tr.dT[p] * bg[c] +
-                (lane.x == IVR_LANE_BACKGROUND && lane.y == c ? transmittance : (real)0);
-      dv[3] = -tr.dT[p];
+        const real bg[3] = {background.x, background.y, background.z};
+        const real dc[3] = {dcr[l], dcg[l], dcb[l]};
+        for (int c = 0; c < 3; ++c)
+          dv[c] = dc[c] + dT[l] * bg[c] +
+                  (lane.x == IVR_LANE_BACKGROUND && lane.y == c ? transmittance[l] : (real)0);
+        dv[3] = -dT[l];
 #else
-      dv[0] = background.x * tr.dT[p] + (lane.x == IVR_LANE_BACKGROUND ? transmittance : (real)0);
+        (void)dcr, (void)dcg, (void)dcb;
+        dv[0] = background.x * dT[l] +
+                (lane.x == IVR_LANE_BACKGROUND ? transmittance[l] : (real)0);
 #endif
 #if IVR_JACOBIAN
-      for (int c = 0; c < IVR_CHANNELS; ++c)
-        jacobian[(pixel * IVR_CHANNELS + c) * IVR_LANES + p] = dv[c];
+        for (int c = 0; c < IVR_CHANNELS; ++c)
+          jacobian[(pixel * IVR_CHANNELS + c) * IVR_LANES + p] = dv[c];
 #endif
 #if IVR_LOSS_GRADIENT
-      for (int c = 0; c < IVR_CHANNELS; ++c) dloss[p] += g[c] * dv[c];
+        for (int c = 0; c < IVR_CHANNELS; ++c) dloss[p] += g[l][c] * dv[c];
 #endif
+      }
     }
   }
 

@@ -14,104 +14,120 @@
 #include "adjoint_tf.cl"
 #include "jacobian_tf.cl"
 
-// An end sample and the tangents of its density (and, trapezoid, of its σ and emission).
+// An end sample and the tangents of its density (and, trapezoid, of its σ and emission); one ray
+// or every ray of a packet (kernels/rays.cl).
 typedef struct {
   EndSample s;
-  real dd[IVR_LANES];
-  real dsig[IVR_LANES], der[IVR_LANES], deg[IVR_LANES], deb[IVR_LANES];
+  vreal dd[IVR_LANES];
+  vreal dsig[IVR_LANES], der[IVR_LANES], deg[IVR_LANES], deb[IVR_LANES];
 } TangentSample;
 
 inline void tangent_sample(TangentSample* a, __global const real* volume, int4 dims, const March* m,
-                           uint i, Ray ray, real4 inv_voxel, __global const real* tf, int tf_count,
-                           real4 tf_scalars, int* cursor, int* tf_cursor, const TangentRay* tr) {
-  const real t = sample_t(m, i);
+                           vint i, Ray ray, real4 inv_voxel, __global const real* tf, int tf_count,
+                           real4 tf_scalars, vint* cursor, const TangentRay* tr) {
+  const vreal t = sample_t(m, i);
   a->s.ux = m->u0x + t * m->dux;
   a->s.uy = m->u0y + t * m->duy;
   a->s.uz = m->u0z + t * m->duz;
   a->s.d = trilinear_at(volume, dims, a->s.ux, a->s.uy, a->s.uz);
-  real fx, fy, fz, gx, gy, gz;
-  const int ix = cell_axis(a->s.ux, dims.x, &fx), iy = cell_axis(a->s.uy, dims.y, &fy),
-            iz = cell_axis(a->s.uz, dims.z, &fz);
+  vreal fx, fy, fz, gx, gy, gz;
+  const vint ix = cell_axis(a->s.ux, dims.x, &fx), iy = cell_axis(a->s.uy, dims.y, &fy),
+             iz = cell_axis(a->s.uz, dims.z, &fz);
   sample_gradient(volume, dims, ix, iy, iz, fx, fy, fz, a->s.ux, a->s.uy, a->s.uz, &gx, &gy, &gz);
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
-  real dsigma_dd, der_dd, deg_dd, deb_dd;
+  vreal dsigma_dd, der_dd, deg_dd, deb_dd;
+  TfPoint point;
   a->s.sigma = tf_sample_slope(a->s.d, tf, tf_count, tf_scalars, cursor, &a->s.er, &a->s.eg,
-                               &a->s.eb, &dsigma_dd, &der_dd, &deg_dd, &deb_dd);
-#if IVR_TANGENT_TF
-  const TfPoint point = tf_point(a->s.d, tf, tf_count, tf_scalars, tf_cursor);
-#endif
+                               &a->s.eb, &dsigma_dd, &der_dd, &deg_dd, &deb_dd, &point);
 #else
   (void)cursor;
-  a->s.sigma = a->s.er = a->s.eg = a->s.eb = (real)0;
+  a->s.sigma = a->s.er = a->s.eg = a->s.eb = (vreal)(real)0;
 #endif
   IVR_FOR_LANES(p) {
-    const real ddt = (tr->dt1[p] - tr->dt0[p]) / (real)m->n;
-    a->dd[p] = density_tangent(tr, p, ray, t, tr->dt0[p] + (real)i * ddt, gx, gy, gz, ix, iy, iz,
-                               fx, fy, fz, dims, inv_voxel);
+    const real ddt = IVR_DDT(tr, p, m);
+    a->dd[p] = density_tangent(tr, p, ray, t, tr->dt0[p] + vto_real(i) * ddt, gx, gy, gz, ix, iy,
+                               iz, fx, fy, fz, dims, inv_voxel);
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
     a->dsig[p] = dsigma_dd * a->dd[p];
     a->der[p] = der_dd * a->dd[p], a->deg[p] = deg_dd * a->dd[p], a->deb[p] = deb_dd * a->dd[p];
 #if IVR_TANGENT_TF
     if (tr->lane[p].x == IVR_LANE_TF) {
-      real pr, pg, pb;
-      a->dsig[p] += tf_param_partial(a->s.d, a->s.sigma, point, tf, tf_count, tf_scalars,
-                                     tr->lane[p].y, tr->lane[p].z, &pr, &pg, &pb);
+      vreal pr, pg, pb;
+      a->dsig[p] += tf_param_partial(a->s.d, a->s.sigma, &point, dsigma_dd, der_dd, deg_dd, deb_dd,
+                                     tf, tf_count, tf_scalars, tr->lane[p].y, tr->lane[p].z, &pr,
+                                     &pg, &pb);
       a->der[p] += pr, a->deg[p] += pg, a->deb[p] += pb;
     }
-#else
-    (void)tf_cursor;
 #endif
 #endif
+  }
+}
+
+// *a = *b for the rays where m is true.
+inline void tangent_sample_where(TangentSample* a, const TangentSample* b, vint m) {
+  end_sample_where(&a->s, &b->s, m);
+  IVR_FOR_LANES(p) {
+    a->dd[p] = vsel(a->dd[p], b->dd[p], m), a->dsig[p] = vsel(a->dsig[p], b->dsig[p], m);
+    a->der[p] = vsel(a->der[p], b->der[p], m), a->deg[p] = vsel(a->deg[p], b->deg[p], m);
+    a->deb[p] = vsel(a->deb[p], b->deb[p], m);
   }
 }
 
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
-// One segment: τ = dt (σa + σb)/2, emission dt·fraction(τ)·(Ea + Eb)/2 (primal.cl, composite()).
+// One segment: τ = dt (σa + σb)/2, emission dt·fraction(τ)·(Ea + Eb)/2 (primal.cl, composite()),
+// for the rays where `take` is true.
 inline void tangent_segment(const TangentSample* a, const TangentSample* b, const March* m,
-                            __global const real* tf, int tf_count, real4 tf_scalars, int* cursor,
-                            TangentRay* tr, Radiance* r) {
+                            __global const real* tf, int tf_count, real4 tf_scalars, vint* cursor,
+                            TangentRay* tr, Radiance* r, vint take) {
   (void)tf, (void)tf_count, (void)tf_scalars, (void)cursor;
-  const real dt = m->dt;
-  const real sigma = (real)0.5 * (a->s.sigma + b->s.sigma), tau = sigma * dt;
-  const real er = (real)0.5 * (a->s.er + b->s.er), eg = (real)0.5 * (a->s.eg + b->s.eg),
-             eb = (real)0.5 * (a->s.eb + b->s.eb);
+  const vreal dt = m->dt;
+  const vreal sigma = (real)0.5 * (a->s.sigma + b->s.sigma), tau = sigma * dt;
+  const vreal er = (real)0.5 * (a->s.er + b->s.er), eg = (real)0.5 * (a->s.eg + b->s.eg),
+              eb = (real)0.5 * (a->s.eb + b->s.eb);
 #if IVR_EMISSION
-  real fraction;
-  const real decay = decay_and_fraction(tau, &fraction);
-  const real weight = r->transmittance * dt * fraction;
-  const real fslope = fraction_slope(tau, decay, fraction);
-  const real next = attenuate(r->transmittance, tau, fraction, decay);
+  vreal fraction;
+  const vreal decay = decay_and_fraction(tau, &fraction);
+  const vreal weight = r->transmittance * dt * fraction;
+  const vreal fslope = fraction_slope(tau, decay, fraction);
+  const vreal next = attenuate(r->transmittance, tau, fraction, decay);
 #else
   (void)er, (void)eg, (void)eb;
 #endif
   IVR_FOR_LANES(p) {
-    const real ddt = (tr->dt1[p] - tr->dt0[p]) / (real)m->n;
-    const real dtau = (real)0.5 * (a->dsig[p] + b->dsig[p]) * dt + sigma * ddt;
+    const real ddt = IVR_DDT(tr, p, m);
+    const vreal dtau = (real)0.5 * (a->dsig[p] + b->dsig[p]) * dt + sigma * ddt;
 #if IVR_EMISSION
-    const real dweight = (tr->dT[p] * dt + r->transmittance * ddt) * fraction +
-                         r->transmittance * dt * fslope * dtau;
-    tr->dcr[p] += dweight * er + weight * (real)0.5 * (a->der[p] + b->der[p]);
-    tr->dcg[p] += dweight * eg + weight * (real)0.5 * (a->deg[p] + b->deg[p]);
-    tr->dcb[p] += dweight * eb + weight * (real)0.5 * (a->deb[p] + b->deb[p]);
-    tr->dT[p] = tr->dT[p] * decay - next * dtau;
+    const vreal dweight = (tr->dT[p] * dt + r->transmittance * ddt) * fraction +
+                          r->transmittance * dt * fslope * dtau;
+    tr->dcr[p] = vsel(tr->dcr[p],
+                      tr->dcr[p] + (dweight * er + weight * (real)0.5 * (a->der[p] + b->der[p])),
+                      take);
+    tr->dcg[p] = vsel(tr->dcg[p],
+                      tr->dcg[p] + (dweight * eg + weight * (real)0.5 * (a->deg[p] + b->deg[p])),
+                      take);
+    tr->dcb[p] = vsel(tr->dcb[p],
+                      tr->dcb[p] + (dweight * eb + weight * (real)0.5 * (a->deb[p] + b->deb[p])),
+                      take);
+    tr->dT[p] = vsel(tr->dT[p], tr->dT[p] * decay - next * dtau, take);
 #else
-    tr->dT[p] += dtau;  // absorption: dτ (tangent_finish)
+    tr->dT[p] = vsel(tr->dT[p], tr->dT[p] + dtau, take);  // absorption: dτ (tangent_finish)
 #endif
   }
 #if IVR_EMISSION
-  radiance_emit(r, weight, er, eg, eb, next);
+  radiance_emit_where(r, weight, er, eg, eb, next, take);
 #else
-  accumulate(&r->tau, &r->ktau, tau);
+  accumulate_where(&r->tau, &r->ktau, tau, take);
 #endif
 }
 
-#else
+#elif IVR_RAYS == 1
 // One segment through its sub-segments (preintegrated.cl). The tangents of a sub-segment's ends:
 // a sample end moves with its density, a knot stays at its density (unless the lane is that
 // control point's density) but moves along the segment, φ = (knot − da)/(db − da).
 inline void tangent_segment(const TangentSample* a, const TangentSample* b, const March* m,
                             __global const real* tf, int tf_count, real4 tf_scalars, int* cursor,
-                            TangentRay* tr, Radiance* r) {
+                            TangentRay* tr, Radiance* r, vint take) {
+  (void)take;  // one ray: always true
   const real dt = m->dt;
   Attenuation at = {(real)0, (real)1, (real)0};
   real er = (real)0, eg = (real)0, eb = (real)0;
@@ -205,41 +221,55 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
 }
 #endif
 
+#if IVR_RAYS == 1 || IVR_SCHEME == IVR_SCHEME_TRAPEZOID  // packets: trapezoid only
 inline void tangent_march_endpoints(__global const real* volume, int4 dims, const March* m, Ray ray,
                                     real4 inv_voxel, __global const real* tf, int tf_count,
                                     real4 tf_scalars, real min_transmittance,
                                     __global const uchar* occupied, int4 bricks, TangentRay* tr,
                                     Radiance* r) {
-  int cursor = 0, tf_cursor = 0;
+  vint cursor = (vint)0;
   const real threshold = march_threshold(min_transmittance);
+  const vint n = (vint)m->n;
+  vint i = (vint)0;
+  vint live = (vint)0 < n;
   TangentSample a, b;
-  tangent_sample(&a, volume, dims, m, 0, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor,
-                 &tf_cursor, tr);
-  ++r->samples;
-  for (uint i = 0; i < m->n;) {
+  tangent_sample(&a, volume, dims, m, i, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor, tr);
+  r->samples += vcount(live);
+  while (vany(live)) {
 #if IVR_EMPTY_SPACE
     {
-      const uint k = endpoint_skip(i, m->n, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks);
-      if (k > i) {
-        i = k;
-        if (i >= m->n) break;
-        tangent_sample(&a, volume, dims, m, i, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor,
-                       &tf_cursor, tr);
-        ++r->samples;
+      const vint k = endpoint_skip(i, n, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks, live);
+      const vint moved = live && (k > i);
+      if (vany(moved)) {
+        i = vseli(i, k, moved);
+        live = live && (i < n);
+        const vint again = moved && live;  // the sample the march goes on from
+        if (vany(again)) {
+          tangent_sample(&b, volume, dims, m, i, ray, inv_voxel, tf, tf_count, tf_scalars,
+                         &cursor, tr);
+          tangent_sample_where(&a, &b, again);
+          r->samples += vcount(again);
+        }
+        if (!vany(live)) break;
       }
     }
+#else
+    (void)occupied, (void)bricks;
 #endif
+    const vint take = IVR_RAYS == 1 ? vtrue : live;  // one ray: it is live in the loop
     tangent_sample(&b, volume, dims, m, i + 1, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor,
-                   &tf_cursor, tr);
-    ++r->samples;
-    tangent_segment(&a, &b, m, tf, tf_count, tf_scalars, &cursor, tr, r);
+                   tr);
+    r->samples += vcount(take);
+    tangent_segment(&a, &b, m, tf, tf_count, tf_scalars, &cursor, tr, r, take);
     a = b;
-    ++i;
+    i += vcount(take);
+    live = live && (i < n);
 #if IVR_EARLY_TERMINATION
-    if (march_stopped(r, threshold)) break;
+    live = live && !march_stopped(r, threshold);
 #endif
   }
   tangent_finish(tr, r);
 }
+#endif
 
 #endif

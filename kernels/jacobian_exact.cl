@@ -11,6 +11,9 @@
 #include "primal.cl"
 #include "jacobian_ray.cl"
 #include "jacobian_tf.cl"
+#include "rays.cl"
+
+#if IVR_RAYS == 1  // one ray per work-item (kernels/rays.cl)
 
 inline void tangent_march_exact(__global const real* volume, int4 dims, const March* m, Ray ray,
                                 real4 inv_voxel, __global const real* tf, int tf_count,
@@ -96,5 +99,7 @@ inline void tangent_march_exact(__global const real* volume, int4 dims, const Ma
 #endif
   IVR_FOR_LANES(p) tr->dT[p] = -r->transmittance * dtau[p];
 }
+
+#endif  // IVR_RAYS == 1
 
 #endif

@@ -26,14 +26,28 @@
 
 #define IVR_FOR_LANES(p) for (int p = 0; p < IVR_LANES; ++p)
 
+// A packet of rays (kernels/rays.cl) carries TF and background lanes: each lane is then the same
+// parameter for every ray, a vector of IVR_RAYS tangents. Camera and voxel lanes, whose geometry
+// is per ray, take one ray per work-item.
+#if IVR_RAYS > 1 && (IVR_TANGENT_CAMERA || IVR_TANGENT_VOXEL)
+#error "camera and voxel tangent lanes take one ray per work-item (IVR_RAYS 1)"
+#endif
+
 typedef struct {
   int4 lane[IVR_LANES];
   real dox[IVR_LANES], doy[IVR_LANES], doz[IVR_LANES];  // d origin
   real ddx[IVR_LANES], ddy[IVR_LANES], ddz[IVR_LANES];  // d direction
   real dt0[IVR_LANES], dt1[IVR_LANES];  // d t0, d t1: the box's entry and exit move with the ray
-  // The march's results: d transmittance, d emitted colour.
-  real dT[IVR_LANES], dcr[IVR_LANES], dcg[IVR_LANES], dcb[IVR_LANES];
+  // The march's results: d transmittance, d emitted colour (per ray of a packet).
+  vreal dT[IVR_LANES], dcr[IVR_LANES], dcg[IVR_LANES], dcb[IVR_LANES];
 } TangentRay;
+
+// d segment length of lane p (camera lanes move the ray's ends; 0 for every other lane).
+#if IVR_TANGENT_CAMERA
+#define IVR_DDT(tr, p, m) (((tr)->dt1[p] - (tr)->dt0[p]) / (real)(m)->n)
+#else
+#define IVR_DDT(tr, p, m) ((real)0)
+#endif
 
 // d t of the point where the ray meets a plane of `axis` (t = (plane − o_a)/dir_a); 0 for -1.
 inline real plane_t_tangent(const TangentRay* tr, int p, Ray ray, int axis, real t) {
@@ -52,7 +66,7 @@ inline void tangent_ray_begin(TangentRay* tr, __global const int4* lanes,
     tr->lane[p] = lanes[p];
     tr->dox[p] = tr->doy[p] = tr->doz[p] = tr->ddx[p] = tr->ddy[p] = tr->ddz[p] = (real)0;
     tr->dt0[p] = tr->dt1[p] = (real)0;
-    tr->dT[p] = tr->dcr[p] = tr->dcg[p] = tr->dcb[p] = (real)0;
+    tr->dT[p] = tr->dcr[p] = tr->dcg[p] = tr->dcb[p] = (vreal)(real)0;
 #if IVR_TANGENT_CAMERA
     if (tr->lane[p].x == IVR_LANE_CAMERA && tr->lane[p].y == view) {
       const real sx = (real)2 * ((real)x + (real)0.5) / (real)width - (real)1;
@@ -87,10 +101,11 @@ inline real axis_weight(int j, int i, real f, int n) {
 // The tangent of a sample's density in lane p: through its position (camera lanes; the sample
 // sits at ray parameter t, which moves by dts; (gx, gy, gz) = d density / d u) or the voxel's own
 // value (voxel lanes: its trilinear weight in cell (ix, iy, iz) at fractions f).
-inline real density_tangent(const TangentRay* tr, int p, Ray ray, real t, real dts, real gx,
-                            real gy, real gz, int ix, int iy, int iz, real fx, real fy, real fz,
-                            int4 dims, real4 inv_voxel) {
-  real dd = (real)0;
+inline vreal density_tangent(const TangentRay* tr, int p, Ray ray, vreal t, vreal dts, vreal gx,
+                             vreal gy, vreal gz, vint ix, vint iy, vint iz, vreal fx, vreal fy,
+                             vreal fz, int4 dims, real4 inv_voxel) {
+  vreal dd = (vreal)(real)0;
+  (void)tr, (void)p;
 #if IVR_TANGENT_CAMERA
   dd = gx * (tr->dox[p] + t * tr->ddx[p] + dts * ray.dir.x) * inv_voxel.x +
        gy * (tr->doy[p] + t * tr->ddy[p] + dts * ray.dir.y) * inv_voxel.y +
@@ -111,9 +126,9 @@ inline real density_tangent(const TangentRay* tr, int p, Ray ray, real t, real d
 
 // The gradient d density / d u at a sample (camera lanes), from the cell's corners; 0 along an
 // axis where the position is clamped to the edge centres.
-inline void sample_gradient(__global const real* volume, int4 dims, int ix, int iy, int iz, real fx,
-                            real fy, real fz, real ux, real uy, real uz, real* gx, real* gy,
-                            real* gz) {
+inline void sample_gradient(__global const real* volume, int4 dims, vint ix, vint iy, vint iz,
+                            vreal fx, vreal fy, vreal fz, vreal ux, vreal uy, vreal uz, vreal* gx,
+                            vreal* gy, vreal* gz) {
 #if IVR_TANGENT_CAMERA
   const int ox = ix + 1 < dims.x ? 1 : 0, oy = iy + 1 < dims.y ? dims.x : 0,
             oz = iz + 1 < dims.z ? dims.x * dims.y : 0;
@@ -124,7 +139,7 @@ inline void sample_gradient(__global const real* volume, int4 dims, int ix, int 
 #else
   (void)volume, (void)dims, (void)ix, (void)iy, (void)iz, (void)fx, (void)fy, (void)fz;
   (void)ux, (void)uy, (void)uz;
-  *gx = *gy = *gz = (real)0;
+  *gx = *gy = *gz = (vreal)(real)0;
 #endif
 }
 

@@ -6,34 +6,20 @@
 #define IVR_TF_TANGENT_CL
 #include "adjoint_tf.cl"
 
-// The per-sample part shared by every lane: the segment holding d (piecewise linear, table), and
-// the colour there.
-typedef struct {
-  TfSegment s;
-  real cr, cg, cb;  // colour(d) (not premultiplied)
-} TfPoint;
-
-inline TfPoint tf_point(real d, __global const real* tf, int count, real4 scalars, int* cursor) {
-  TfPoint p;
-  p.s = tf_segment(d, tf, count, scalars, cursor);
-  p.cr = p.cg = p.cb = (real)0;
-#if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
-  __global const real* a = tf_rgbs(tf, p.s.row0);  // r, g, b, sigma
-  __global const real* b = tf_rgbs(tf, p.s.row1);
-  p.cr = lerp(a[0], b[0], p.s.w1);
-  p.cg = lerp(a[1], b[1], p.s.w1);
-  p.cb = lerp(a[2], b[2], p.s.w1);
-#endif
-  return p;
-}
-
 // d sigma / d theta, and the premultiplied emission's in (*der, *deg, *deb), for theta = TF
-// parameter (row, column), at density d with sigma = sigma(d) and the point found by tf_point().
-inline real tf_param_partial(real d, real sigma, TfPoint pt, __global const real* tf, int count,
-                             real4 scalars, int row, int column, real* der, real* deg, real* deb) {
-  real ds = (real)0, dr = (real)0, dg = (real)0, db = (real)0;
+// parameter (row, column), at density d with sigma = sigma(d), its slopes in d (dsigma, der_dd,
+// deg_dd, deb_dd) and where d lies in the TF (tf_sample_slope()'s point). One ray or every ray of
+// a packet (kernels/rays.cl): a lane's parameter is the same for every ray.
+inline vreal tf_param_partial(vreal d, vreal sigma, const TfPoint* pt, vreal dsigma, vreal der_dd,
+                              vreal deg_dd, vreal deb_dd, __global const real* tf, int count,
+                              real4 scalars, int row, int column, vreal* der, vreal* deg,
+                              vreal* deb) {
+  const vreal zero = (vreal)(real)0;
+  vreal ds = zero, dr = zero, dg = zero, db = zero;
+  (void)dsigma, (void)der_dd, (void)deg_dd, (void)deb_dd, (void)count;
 #if IVR_TF == IVR_TF_IDENTITY
   // sigma = a·d, E = a·b·d² (grey)
+  (void)sigma, (void)pt, (void)tf, (void)row;
   if (column == 0) {
     ds = d;
     dr = dg = db = scalars.y * d * d;
@@ -41,49 +27,50 @@ inline real tf_param_partial(real d, real sigma, TfPoint pt, __global const real
     dr = dg = db = scalars.x * d * d;
   }
 #elif IVR_TF == IVR_TF_GAUSSIAN
+  (void)sigma, (void)pt, (void)scalars;
   __global const real* p = tf + row * IVR_TF_STRIDE_GAUSSIAN;  // mean, width, r, g, b, e
-  const real z = (d - p[0]) / p[1];
-  const real g = exp((real)-0.5 * z * z);
-  real dgs = (real)0;  // d (e·G) / d theta, for the extinction and the emission through it
+  const vreal z = (d - p[0]) / p[1];
+  const vreal g = vexp((real)-0.5 * z * z);
   if (column < 3) {
-    const real v = p[5] * g;
-    dr = column == 0 ? v : (real)0;
-    dg = column == 1 ? v : (real)0;
-    db = column == 2 ? v : (real)0;
+    const vreal v = p[5] * g;
+    if (column == 0) dr = v;
+    if (column == 1) dg = v;
+    if (column == 2) db = v;
   } else {
-    dgs = column == 3 ? g : (column == 4 ? p[5] * g * z / p[1] : p[5] * g * z * z / p[1]);
+    // d (e·G) / d theta, for the extinction and the emission through it
+    const vreal dgs = column == 3 ? g : (column == 4 ? p[5] * g * z / p[1] : p[5] * g * z * z / p[1]);
     ds = dgs;
     dr = dgs * p[2];
     dg = dgs * p[3];
     db = dgs * p[4];
   }
 #else
-  const TfSegment s = pt.s;
+  (void)d, (void)tf, (void)scalars;
   // Weight of this row in the sample (beyond the ends the one row has weight 1).
-  const real weight = s.row0 == s.row1
-                          ? (row == s.row0 ? (real)1 : (real)0)
-                          : (row == s.row0 ? (real)1 - s.w1 : (row == s.row1 ? s.w1 : (real)0));
-  __global const real* a = tf_rgbs(tf, s.row0);  // r, g, b, sigma
-  __global const real* b = tf_rgbs(tf, s.row1);
+  const vint flat = pt->row0 == pt->row1;
+  const vint at0 = pt->row0 == row, at1 = pt->row1 == row;
+  const vreal weight =
+      vsel(vsel(vsel(zero, pt->w1, at1), (real)1 - pt->w1, at0), vsel(zero, (vreal)(real)1, at0), flat);
   if (column < 3) {  // colour channel: E_c = sigma·c
-    const real v = sigma * weight;
-    dr = column == 0 ? v : (real)0;
-    dg = column == 1 ? v : (real)0;
-    db = column == 2 ? v : (real)0;
+    const vreal v = sigma * weight;
+    if (column == 0) dr = v;
+    if (column == 1) dg = v;
+    if (column == 2) db = v;
   } else if (column == 3) {  // extinction
     ds = weight;
-    dr = weight * pt.cr;
-    dg = weight * pt.cg;
-    db = weight * pt.cb;
+    dr = weight * pt->cr;
+    dg = weight * pt->cg;
+    db = weight * pt->cb;
   }
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  else if (s.row0 != s.row1 && (row == s.row0 || row == s.row1)) {
-    // Control-point density: w = (d - d_k) / (d_k+1 - d_k) moves with both ends.
-    const real dw = row == s.row0 ? (s.w1 - (real)1) * s.dw1_dd : -s.w1 * s.dw1_dd;
-    ds = (b[3] - a[3]) * dw;
-    dr = ds * pt.cr + sigma * (b[0] - a[0]) * dw;
-    dg = ds * pt.cg + sigma * (b[1] - a[1]) * dw;
-    db = ds * pt.cb + sigma * (b[2] - a[2]) * dw;
+  else {
+    // Control-point density: w = (d − d_k)/(d_k+1 − d_k) moves with both ends as d would, scaled
+    // by k = w − 1 (row k) or −w (row k + 1): the partials are k times the slopes in d.
+    const vreal k = vsel(vsel(vsel(zero, -pt->w1, at1), pt->w1 - (real)1, at0), zero, flat);
+    ds = k * dsigma;
+    dr = k * der_dd;
+    dg = k * deg_dd;
+    db = k * deb_dd;
   }
 #endif
 #endif

@@ -5,15 +5,29 @@
 #define IVR_MARCH_CL
 #include "config.cl"
 #include "geometry.cl"
+#include "rays.cl"
 #include "sample_count.cl"
 
-// Scalars rather than real3: PoCL compiles real3 into padded 4-wide vectors and lane shuffles.
+// One ray's march. Scalars rather than real3: PoCL compiles real3 into padded 4-wide vectors and
+// lane shuffles.
 typedef struct {
   real t0, t1;  // the ray inside the box, t0 >= 0
   real dt;      // segment length
   uint n;       // segments
   real u0x, u0y, u0z, dux, duy, duz;
+} RayMarch;
+
+// The march the integrators take: one ray's, or every ray's of a packet (kernels/rays.cl) in
+// vector lanes, a ray that misses (or lies past the image's edge) with n = 0.
+#if IVR_RAYS == 1
+typedef RayMarch March;
+#else
+typedef struct {
+  vreal t0, t1, dt;
+  vint n;
+  vreal u0x, u0y, u0z, dux, duy, duz;
 } March;
+#endif
 
 // Sets *m for `ray`, the ray of pixel (x, y) of camera `cam`; false where it misses the box
 // (then *m is unset). Whether it meets the box and its segment count n come from
@@ -21,7 +35,7 @@ typedef struct {
 // positions are this precision's. Where the two disagree on a grazing ray (a hit here, an empty
 // interval in this precision), the n samples lie at t0 with dt = 0 and add nothing.
 inline bool march_begin(Ray ray, __global const real* cam, int x, int y, int width, int height,
-                        real4 box_min, real4 box_max, real4 inv_voxel, real step, March* m) {
+                        real4 box_min, real4 box_max, real4 inv_voxel, real step, RayMarch* m) {
   m->n = sample_count(cam, x, y, width, height, box_min, box_max, step);
   if (m->n == 0u) return false;
   clip_box(ray, box_min.xyz, box_max.xyz, &m->t0, &m->t1);
@@ -37,12 +51,43 @@ inline bool march_begin(Ray ray, __global const real* cam, int x, int y, int wid
   return true;
 }
 
+#if IVR_RAYS > 1
+// The marches of the IVR_RAYS pixels (x0 + l, y) of camera `cam`, each as march_begin() sets it;
+// false where none meets the box.
+inline bool march_begin_rays(__global const real* cam, int x0, int y, int width, int height,
+                             real4 box_min, real4 box_max, real4 inv_voxel, real step, March* m) {
+  real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], u0x[IVR_RAYS], u0y[IVR_RAYS], u0z[IVR_RAYS],
+      dux[IVR_RAYS], duy[IVR_RAYS], duz[IVR_RAYS];
+  int n[IVR_RAYS];
+  bool any_hit = false;
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    RayMarch r;
+    if (x0 + l < width &&
+        march_begin(camera_ray(cam, x0 + l, y, width, height), cam, x0 + l, y, width, height,
+                    box_min, box_max, inv_voxel, step, &r)) {
+      t0[l] = r.t0, t1[l] = r.t1, dt[l] = r.dt, n[l] = (int)r.n;
+      u0x[l] = r.u0x, u0y[l] = r.u0y, u0z[l] = r.u0z, dux[l] = r.dux, duy[l] = r.duy,
+      duz[l] = r.duz;
+      any_hit = true;
+    } else {
+      t0[l] = t1[l] = dt[l] = u0x[l] = u0y[l] = u0z[l] = dux[l] = duy[l] = duz[l] = (real)0;
+      n[l] = 0;
+    }
+  }
+  m->t0 = IVR_VLOAD(0, t0), m->t1 = IVR_VLOAD(0, t1), m->dt = IVR_VLOAD(0, dt);
+  m->n = IVR_VLOAD(0, n);
+  m->u0x = IVR_VLOAD(0, u0x), m->u0y = IVR_VLOAD(0, u0y), m->u0z = IVR_VLOAD(0, u0z);
+  m->dux = IVR_VLOAD(0, dux), m->duy = IVR_VLOAD(0, duy), m->duz = IVR_VLOAD(0, duz);
+  return any_hit;
+}
+#endif
+
 // Ray parameter of sample i: segment midpoints (midpoint) or segment ends (i = 0..n).
-inline real sample_t(const March* m, uint i) {
+inline vreal sample_t(const March* m, vint i) {
 #if IVR_ENDPOINT_SAMPLES
-  return m->t0 + (real)i * m->dt;
+  return m->t0 + vto_real(i) * m->dt;
 #else
-  return m->t0 + ((real)i + (real)0.5) * m->dt;
+  return m->t0 + (vto_real(i) + (real)0.5) * m->dt;
 #endif
 }
 

@@ -12,6 +12,9 @@
 #include "end_sample.cl"
 #include "linear_segment.cl"
 #include "tf.cl"
+#include "rays.cl"
+
+#if IVR_RAYS == 1  // one ray per work-item (kernels/rays.cl)
 
 // Below this density change the segment is not cut at a knot between its ends: the knot's
 // position moves as 1/(db − da) with the densities, and its derivative would come from a difference
@@ -129,5 +132,7 @@ inline void preintegrated_segment(const EndSample* a, const EndSample* b, real d
   *cursor = c.cursor;
   *er = r, *eg = g, *eb = bl;
 }
+
+#endif  // IVR_RAYS == 1
 
 #endif

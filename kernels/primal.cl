@@ -6,32 +6,37 @@
 #include "config.cl"
 #include "empty_space.cl"
 #include "end_sample.cl"
-#include "exact.cl"
 #include "geometry.cl"
 #include "march.cl"
-#include "preintegrated.cl"
+#include "rays.cl"
 #include "tf.cl"
+#include "exact.cl"          // (their contents: one ray per work-item only)
+#include "preintegrated.cl"
+#if IVR_RAYS > 1 && (IVR_SCHEME == IVR_SCHEME_EXACT || IVR_SCHEME == IVR_SCHEME_PREINTEGRATED)
+#error "the exact and preintegrated marches take one ray per work-item (IVR_RAYS 1)"
+#endif
 
-// What a march hands back: the transmittance left, the emitted colour, the samples taken, and
-// where it stopped (early termination) for the gradient kernels' second march: one past the last
-// segment taken (midpoint, trapezoid, preintegrated) or the pieces walked (exact).
+// What a march hands back, for one ray or every ray of a packet (kernels/rays.cl): the
+// transmittance left, the emitted colour, the samples taken, and where it stopped (early
+// termination) for the gradient kernels' second march: one past the last segment taken (midpoint,
+// trapezoid, preintegrated) or the pieces walked (exact).
 // The absorption model needs the transmittance at the end only: its marches sum the optical
 // depth instead (compensated, so that 1e5-sample rays keep float32's precision: the product of
 // 1e5 factors would not) and take T = e^−τ once (march_finish).
 typedef struct {
-  real transmittance;
-  real cr, cg, cb;
-  real kr, kg, kb;  // compensation (accumulate)
-  real tau, ktau;   // absorption: the optical depth so far, and its compensation
-  uint samples;
-  uint end;
+  vreal transmittance;
+  vreal cr, cg, cb;
+  vreal kr, kg, kb;  // compensation (accumulate)
+  vreal tau, ktau;   // absorption: the optical depth so far, and its compensation
+  vint samples;
+  vint end;
 } Radiance;
 
 inline Radiance radiance_begin(void) {
   Radiance r;
-  r.transmittance = (real)1;
-  r.cr = r.cg = r.cb = r.kr = r.kg = r.kb = r.tau = r.ktau = (real)0;
-  r.samples = r.end = 0;
+  r.transmittance = (vreal)(real)1;
+  r.cr = r.cg = r.cb = r.kr = r.kg = r.kb = r.tau = r.ktau = (vreal)(real)0;
+  r.samples = r.end = (vint)0;
   return r;
 }
 
@@ -45,18 +50,19 @@ inline real march_threshold(real min_transmittance) {
 #endif
 }
 
-inline bool march_stopped(const Radiance* r, real threshold) {
+// Where the march has stopped (a mask, kernels/rays.cl).
+inline vint march_stopped(const Radiance* r, real threshold) {
 #if IVR_EMISSION
-  return r->transmittance < threshold;
+  return vmask_of(r->transmittance < threshold);
 #else
-  return r->tau > threshold;
+  return vmask_of(r->tau > threshold);
 #endif
 }
 
 // The end of a march: absorption's transmittance from its optical depth.
 inline void march_finish(Radiance* r) {
 #if !IVR_EMISSION
-  r->transmittance = exp(-r->tau);
+  r->transmittance = vexp(-r->tau);
 #else
   (void)r;
 #endif
@@ -64,28 +70,43 @@ inline void march_finish(Radiance* r) {
 
 #if IVR_EMISSION
 // Adds a segment's emitted colour, weighted, to the ray's (compensated) sums; the transmittance
-// behind the segment becomes `next`.
-inline void radiance_emit(Radiance* r, real weight, real er, real eg, real eb, real next) {
-  accumulate(&r->cr, &r->kr, weight * er);
-  accumulate(&r->cg, &r->kg, weight * eg);
-  accumulate(&r->cb, &r->kb, weight * eb);
-  r->transmittance = next;
+// behind the segment becomes `next`. Only where m is true.
+inline void radiance_emit_where(Radiance* r, vreal weight, vreal er, vreal eg, vreal eb,
+                                vreal next, vint m) {
+  accumulate_where(&r->cr, &r->kr, weight * er, m);
+  accumulate_where(&r->cg, &r->kg, weight * eg, m);
+  accumulate_where(&r->cb, &r->kb, weight * eb, m);
+  r->transmittance = vsel(r->transmittance, next, m);
+}
+
+inline void radiance_emit(Radiance* r, vreal weight, vreal er, vreal eg, vreal eb, vreal next) {
+  radiance_emit_where(r, weight, er, eg, eb, next, vtrue);
 }
 #endif
 
 // Adds one segment of optical depth tau emitting (er, eg, eb)·dt·fraction(tau) per unit
-// transmittance: the midpoint and trapezoid rules' compositing.
-inline void composite(Radiance* r, real tau, real dt, real er, real eg, real eb) {
+// transmittance: the midpoint and trapezoid rules' compositing. Only where m is true.
+inline void composite_where(Radiance* r, vreal tau, vreal dt, vreal er, vreal eg, vreal eb,
+                            vint m) {
 #if IVR_EMISSION
-  real fraction;
-  const real decay = decay_and_fraction(tau, &fraction);
-  radiance_emit(r, r->transmittance * dt * fraction, er, eg, eb,
-                attenuate(r->transmittance, tau, fraction, decay));
+  vreal fraction;
+  const vreal decay = decay_and_fraction(tau, &fraction);
+  radiance_emit_where(r, r->transmittance * dt * fraction, er, eg, eb,
+                      attenuate(r->transmittance, tau, fraction, decay), m);
 #else
   (void)dt, (void)er, (void)eg, (void)eb;
-  accumulate(&r->tau, &r->ktau, tau);
+  accumulate_where(&r->tau, &r->ktau, tau, m);
 #endif
 }
+
+inline void composite(Radiance* r, vreal tau, vreal dt, vreal er, vreal eg, vreal eb) {
+  composite_where(r, tau, dt, er, eg, eb, vtrue);
+}
+
+// The fixed-step marches below are written once for one ray and for a packet: `live` holds the
+// rays still marching, `take` those that take a sample in this round (a packet's rays skip empty
+// space each on its own). One ray that skips goes round the loop again instead, so its `take` is
+// the constant true: the masked updates compile to a scalar loop's plain ones.
 
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT
 // One sample at the middle of each segment.
@@ -93,28 +114,39 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
                          __global const real* tf, int tf_count, real4 tf_scalars,
                          real min_transmittance, __global const uchar* occupied, int4 bricks,
                          Radiance* r) {
-  int segment = 0;  // the transfer function's search cursor (tf_sample)
+  vint segment = (vint)0;  // the transfer function's search cursor (tf_sample)
   const real threshold = march_threshold(min_transmittance);
-  for (uint i = 0; i < m->n;) {
-    const real t = sample_t(m, i);
-    const real ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
+  const vint n = (vint)m->n;
+  vint i = (vint)0;
+  vint live = (vint)0 < n;
+  while (vany(live)) {
+    const vreal t = sample_t(m, i);
+    const vreal ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
 #if IVR_EMPTY_SPACE
     // (Reading the grid at every sample measured faster on PoCL than tracking where the ray
-    // leaves each occupied brick: bench/empty_space_bench.cpp.)
-    const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {
-      i = skip_to(i, m->n, m->t0, m->dt, exit);
-      continue;
+    // leaves each occupied brick.)
+    const vreal exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
+    const vint skip = live && vmask_of(exit >= (real)0);
+    if (vany(skip)) {
+      i = vseli(i, skip_to(i, n, m->t0, m->dt, exit), skip);
+      live = live && (i < n);
+      if (vall(skip || !live)) continue;
     }
+    const vint take = IVR_RAYS == 1 ? vtrue : live && !skip;  // one ray: skipped by `continue`
+#else
+    (void)occupied, (void)bricks;
+    const vint take = IVR_RAYS == 1 ? vtrue : live;
 #endif
-    const real d = trilinear_at(volume, dims, ux, uy, uz);
-    real er, eg, eb;
-    const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);
-    composite(r, sigma * m->dt, m->dt, er, eg, eb);
-    ++r->samples;
-    r->end = ++i;
+    const vreal d = trilinear_at(volume, dims, ux, uy, uz);
+    vreal er, eg, eb;
+    const vreal sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);
+    composite_where(r, sigma * m->dt, m->dt, er, eg, eb, take);
+    r->samples += vcount(take);
+    i += vcount(take);
+    r->end = vseli(r->end, i, take);
+    live = live && (i < n);
 #if IVR_EARLY_TERMINATION
-    if (march_stopped(r, threshold)) break;
+    live = live && !march_stopped(r, threshold);
 #endif
   }
   march_finish(r);
@@ -122,32 +154,44 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
 
 #elif IVR_ENDPOINT_SAMPLES
 // Samples at the segment ends; each segment from its two ends (trapezoid: their average;
-// preintegrated: the density linear between them, through the TF exactly).
+// preintegrated, one ray only: the density linear between them, through the TF exactly).
 inline void primal_march(__global const real* volume, int4 dims, const March* m,
                          __global const real* tf, int tf_count, real4 tf_scalars,
                          real min_transmittance, __global const uchar* occupied, int4 bricks,
                          Radiance* r) {
-  int segment = 0;
+  vint segment = (vint)0;
   const real threshold = march_threshold(min_transmittance);
-  EndSample a = end_sample(volume, dims, m, 0, tf, tf_count, tf_scalars, &segment);
-  ++r->samples;
-  for (uint i = 0; i < m->n;) {
+  const vint n = (vint)m->n;
+  vint i = (vint)0;
+  vint live = (vint)0 < n;
+  EndSample a = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &segment);
+  r->samples += vcount(live);
+  while (vany(live)) {
 #if IVR_EMPTY_SPACE
     {
-      const uint k = endpoint_skip(i, m->n, a.ux, a.uy, a.uz, m, dims, occupied, bricks);
-      if (k > i) {
-        i = k;
-        if (i >= m->n) break;
-        a = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &segment);
-        ++r->samples;
+      const vint k = endpoint_skip(i, n, a.ux, a.uy, a.uz, m, dims, occupied, bricks, live);
+      const vint moved = live && (k > i);
+      if (vany(moved)) {
+        i = vseli(i, k, moved);
+        live = live && (i < n);
+        const vint again = moved && live;  // the sample the march goes on from
+        if (vany(again)) {
+          const EndSample s = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &segment);
+          end_sample_where(&a, &s, again);
+          r->samples += vcount(again);
+        }
+        if (!vany(live)) break;
       }
     }
+#else
+    (void)occupied, (void)bricks;
 #endif
+    const vint take = IVR_RAYS == 1 ? vtrue : live;  // one ray: it is live in the loop
     const EndSample b = end_sample(volume, dims, m, i + 1, tf, tf_count, tf_scalars, &segment);
-    ++r->samples;
+    r->samples += vcount(take);
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
-    composite(r, (real)0.5 * (a.sigma + b.sigma) * m->dt, m->dt, (real)0.5 * (a.er + b.er),
-              (real)0.5 * (a.eg + b.eg), (real)0.5 * (a.eb + b.eb));
+    composite_where(r, (real)0.5 * (a.sigma + b.sigma) * m->dt, m->dt, (real)0.5 * (a.er + b.er),
+                    (real)0.5 * (a.eg + b.eg), (real)0.5 * (a.eb + b.eb), take);
 #else
     Attenuation at;
     real er, eg, eb;
@@ -159,9 +203,11 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
 #endif
 #endif
     a = b;
-    r->end = ++i;
+    i += vcount(take);
+    r->end = vseli(r->end, i, take);
+    live = live && (i < n);
 #if IVR_EARLY_TERMINATION
-    if (march_stopped(r, threshold)) break;
+    live = live && !march_stopped(r, threshold);
 #endif
   }
   march_finish(r);

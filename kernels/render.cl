@@ -1,10 +1,19 @@
-// render.cl — the forward renderer: one work-item per pixel and view, the scene's integrator on the
-// exactly clipped ray (kernels/primal.cl), early termination, empty-space skipping, both optical
-// models.
+// render.cl — the forward renderer: one work-item per IVR_RAYS neighbouring pixels of a row and
+// view (1 on GPUs; a packet of 8 or 16 in vector lanes on CPUs, kernels/rays.cl), the scene's
+// integrator on the exactly clipped ray (kernels/primal.cl), early termination, empty-space
+// skipping, both optical models. A packet's image is the one-ray kernel's bit for bit.
 #include "config.cl"
 #include "geometry.cl"
 #include "march.cl"
 #include "primal.cl"
+#include "rays.cl"
+
+// IVR_PACKET_PRIMAL: the adjoint's primal march (lib/adjoint/adjoint.cpp; emission–absorption):
+// each pixel's emitted colour C and transmittance T into `image` (not C + T·background, 1 − T),
+// for kernels/adjoint.cl to read.
+#ifndef IVR_PACKET_PRIMAL
+#define IVR_PACKET_PRIMAL 0
+#endif
 
 __kernel void render(__global const real* restrict volume, const int4 dims, const real4 box_min,
                      const real4 box_max, const real4 inv_voxel,
@@ -13,26 +22,53 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
                      const real4 background, const real step, const real min_transmittance,
                      __global const uchar* restrict occupied, const int4 bricks,
                      __global real* restrict image, __global uint* restrict samples) {
-  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
-  if (x >= width || y >= height) return;
+  const int x0 = get_global_id(0) * IVR_RAYS, y = get_global_id(1), view = get_global_id(2);
+  if (x0 >= width || y >= height) return;
+  __global const real* cam = cameras + view * IVR_CAMERA_STRIDE;
 
-  const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
   Radiance r = radiance_begin();
   March m;
-  if (march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min, box_max,
-                  inv_voxel, step, &m))
+#if IVR_RAYS == 1
+  const bool hit = march_begin(camera_ray(cam, x0, y, width, height), cam, x0, y, width, height,
+                               box_min, box_max, inv_voxel, step, &m);
+#else
+  const bool hit =
+      march_begin_rays(cam, x0, y, width, height, box_min, box_max, inv_voxel, step, &m);
+#endif
+  if (hit)
     primal_march(volume, dims, &m, tf, tf_count, tf_scalars, min_transmittance, occupied, bricks,
                  &r);
 
-  const size_t pixel = ((size_t)view * height + y) * width + x;
-  samples[pixel] = r.samples;
+  real o0[IVR_RAYS], o1[IVR_RAYS], o2[IVR_RAYS], o3[IVR_RAYS];
+  int taken[IVR_RAYS];
+  IVR_STORE_RAYS(r.samples, taken);
 #if IVR_EMISSION
-  __global real* out = image + pixel * 4;  // the image in the precision it was computed in
-  out[0] = r.cr + r.transmittance * background.x;
-  out[1] = r.cg + r.transmittance * background.y;
-  out[2] = r.cb + r.transmittance * background.z;
-  out[3] = (real)1 - r.transmittance;
+#if IVR_PACKET_PRIMAL
+  IVR_STORE_RAYS(r.cr, o0);
+  IVR_STORE_RAYS(r.cg, o1);
+  IVR_STORE_RAYS(r.cb, o2);
+  IVR_STORE_RAYS(r.transmittance, o3);
 #else
-  image[pixel] = background.x * r.transmittance;
+  IVR_STORE_RAYS(r.cr + r.transmittance * background.x, o0);
+  IVR_STORE_RAYS(r.cg + r.transmittance * background.y, o1);
+  IVR_STORE_RAYS(r.cb + r.transmittance * background.z, o2);
+  IVR_STORE_RAYS((real)1 - r.transmittance, o3);
 #endif
+#else
+  IVR_STORE_RAYS(background.x * r.transmittance, o0);
+  (void)o1, (void)o2, (void)o3;
+#endif
+  for (int l = 0; l < IVR_RAYS && x0 + l < width; ++l) {
+    const size_t pixel = ((size_t)view * height + y) * width + x0 + l;
+    samples[pixel] = (uint)taken[l];
+#if IVR_EMISSION
+    __global real* out = image + pixel * 4;  // the image in the precision it was computed in
+    out[0] = o0[l];
+    out[1] = o1[l];
+    out[2] = o2[l];
+    out[3] = o3[l];
+#else
+    image[pixel] = o0[l];
+#endif
+  }
 }

@@ -3,6 +3,7 @@
 #ifndef IVR_TF_CL
 #define IVR_TF_CL
 #include "config.cl"
+#include "rays.cl"
 
 // Packed parameters per kind (the host writes them in this layout):
 //   identity:          none; scalars = (extinction_scale, color_scale)
@@ -11,23 +12,29 @@
 //   gaussian:          rows [mean, width, r, g, b, extinction]
 #include "ivr_constants.h"  // IVR_TF_STRIDE_*: the row widths above
 
-// sigma(d), and with IVR_EMISSION the premultiplied emission in (*er, *eg, *eb). Scalars rather
-// than real3 because PoCL compiles real3 into padded 4-wide vectors with lane shuffles around them.
+// sigma(d), and with IVR_EMISSION the premultiplied emission in (*er, *eg, *eb), for one ray or
+// every ray of a packet (kernels/rays.cl). Scalars rather than real3 because PoCL compiles real3
+// into padded 4-wide vectors with lane shuffles around them.
 // *segment is the piecewise-linear search's cursor: a marching loop starts it at 0 and passes it
 // from one sample to the next; densities along a ray are continuous, so the search mostly stays
 // put or moves one segment instead of scanning from the first point. The segment found, and so
-// the value, is the same from any start. Other kinds ignore it.
-__attribute__((always_inline)) inline real tf_sample(real d, __global const real* tf, int count,
-                                                     real4 scalars, int* segment, real* er,
-                                                     real* eg, real* eb) {
+// the value, is the same from any start. A packet, whose rays would each move their own cursor
+// through gathers, blends every segment instead (the TF's rows are the same for every ray:
+// broadcasts), to the same value. Other kinds ignore it.
+__attribute__((always_inline)) inline vreal tf_sample(vreal d, __global const real* tf, int count,
+                                                      real4 scalars, vint* segment, vreal* er,
+                                                      vreal* eg, vreal* eb) {
 #if IVR_TF == IVR_TF_IDENTITY
-  const real sigma = scalars.x * d;
+  (void)tf, (void)count, (void)segment;
+  const vreal sigma = scalars.x * d;
 #if IVR_EMISSION
   *er = *eg = *eb = sigma * scalars.y * d;
 #endif
   return sigma;
 
 #elif IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  (void)scalars;
+#if IVR_RAYS == 1
   // Constant beyond the ends; in between, linear on the segment [d_k, d_k+1) holding d.
   __global const real* a = tf;
   __global const real* b = tf;
@@ -50,33 +57,60 @@ __attribute__((always_inline)) inline real tf_sample(real d, __global const real
   *eb = sigma * lerp(a[3], b[3], w);
 #endif
   return sigma;
+#else
+  // The first point's values below it, the segment [d_k, d_k+1) holding d, the last point's
+  // values from it on: lerp(a, a, 0) = a, so each is the one-ray search's value bit for bit.
+  (void)segment;
+  const int last = (count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR;
+  vreal sigma = (vreal)tf[4], r = (vreal)tf[1], g = (vreal)tf[2], b = (vreal)tf[3];
+  for (int k = 0; k + 1 < count; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    __global const real* q = p + IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    const vint in = vmask_of(d >= p[0]) && vmask_of(d < q[0]) && vmask_of(d > tf[0]);
+    if (!vany(in)) continue;
+    const vreal w = (d - p[0]) / (q[0] - p[0]);
+    sigma = vsel(sigma, vlerp((vreal)p[4], (vreal)q[4], w), in);
+    r = vsel(r, vlerp((vreal)p[1], (vreal)q[1], w), in);
+    g = vsel(g, vlerp((vreal)p[2], (vreal)q[2], w), in);
+    b = vsel(b, vlerp((vreal)p[3], (vreal)q[3], w), in);
+  }
+  const vint beyond = vmask_of(d >= tf[last]);
+  sigma = vsel(sigma, (vreal)tf[last + 4], beyond);
+#if IVR_EMISSION
+  *er = sigma * vsel(r, (vreal)tf[last + 1], beyond);
+  *eg = sigma * vsel(g, (vreal)tf[last + 2], beyond);
+  *eb = sigma * vsel(b, (vreal)tf[last + 3], beyond);
+#endif
+  return sigma;
+#endif
 
 #elif IVR_TF == IVR_TF_TABLE
   // R entries at evenly spaced densities lo..hi, linear in between, constant beyond.
-  const real u =
+  (void)segment;
+  const vreal u =
       clamp((d - scalars.x) / (scalars.y - scalars.x), (real)0, (real)1) * (real)(count - 1);
-  const int i0 = min((int)u, count - 1);
-  const int i1 = min(i0 + 1, count - 1);
-  const real w = u - (real)i0;
-  __global const real* a = tf + i0 * IVR_TF_STRIDE_TABLE;
-  __global const real* b = tf + i1 * IVR_TF_STRIDE_TABLE;
-  const real sigma = lerp(a[3], b[3], w);
+  const vint i0 = min(vto_int(u), count - 1);
+  const vint i1 = min(i0 + 1, count - 1);
+  const vreal w = u - vto_real(i0);
+  const vint a = i0 * IVR_TF_STRIDE_TABLE, b = i1 * IVR_TF_STRIDE_TABLE;
+  const vreal sigma = vlerp(vgather(tf, a + 3), vgather(tf, b + 3), w);
 #if IVR_EMISSION
-  *er = sigma * lerp(a[0], b[0], w);
-  *eg = sigma * lerp(a[1], b[1], w);
-  *eb = sigma * lerp(a[2], b[2], w);
+  *er = sigma * vlerp(vgather(tf, a), vgather(tf, b), w);
+  *eg = sigma * vlerp(vgather(tf, a + 1), vgather(tf, b + 1), w);
+  *eb = sigma * vlerp(vgather(tf, a + 2), vgather(tf, b + 2), w);
 #endif
   return sigma;
 
 #elif IVR_TF == IVR_TF_GAUSSIAN
-  real sigma = (real)0;
+  (void)scalars, (void)segment;
+  vreal sigma = (vreal)(real)0;
 #if IVR_EMISSION
-  real r = (real)0, g = (real)0, bl = (real)0;
+  vreal r = sigma, g = sigma, bl = sigma;
 #endif
   for (int k = 0; k < count; ++k) {
     __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
-    const real z = (d - p[0]) / p[1];
-    const real s = p[5] * exp((real)-0.5 * z * z);
+    const vreal z = (d - p[0]) / p[1];
+    const vreal s = p[5] * vexp((real)-0.5 * z * z);
     sigma += s;
 #if IVR_EMISSION
     r += s * p[2];
@@ -95,6 +129,7 @@ __attribute__((always_inline)) inline real tf_sample(real d, __global const real
 #endif
 }
 
+#if IVR_RAYS == 1
 // sigma(d), and with IVR_EMISSION the premultiplied emission in *emission (absorption: untouched).
 inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, real3* emission) {
   int segment = 0;
@@ -105,6 +140,7 @@ inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, r
 #endif
   return sigma;
 }
+#endif
 
 // --- The TF as linear pieces in density (identity, piecewise-linear and table TFs) ---------------
 // `exact` and `preintegrated` integrate through the TF exactly, so they cut the density range at

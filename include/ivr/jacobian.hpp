@@ -57,6 +57,7 @@ struct Jacobian {
   int passes = 0, lanes = 0;       // kernel launches, and tangent lanes per launch
   std::uint64_t device_bytes = 0;  // peak device memory of one pass
   bool skipped_empty = false;      // empty-space skipping ran
+  std::string variant;             // the kernel configuration of the last pass (as RenderStats)
   double step = 0;                 // the integrator step used (voxel units)
 };
 

@@ -107,7 +107,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   // On CPU devices the packet render (16 rays per work-item in vector lanes) marches the primal
   // several times faster than the adjoint kernel's own one-ray march; it leaves each pixel's C,
   // T and samples in the image and sample buffers, where the adjoint kernel reads them.
-  const bool primal_given = use_packet(dev, scene, variant);
+  const bool primal_given = use_packet_primal(dev, variant);
 
   AdjointResult out;
   out.atomics = atomic_add_name(atomics);
@@ -201,7 +201,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
         dev.queue.enqueueFillBuffer(grad_tf, cl_uchar(0), 0, tf_size * real, nullptr,
                                     &op.events.back());
       }
-      if (primal) op.events.push_back(enqueue(dev, *primal, packet_launch(dev, *primal, scene)));
+      if (primal) op.events.push_back(enqueue(dev, *primal, packet_launch(dev, *primal, scene, variant.precision)));
       op.events.push_back(enqueue(dev, k, launch));
     };
     if (!fixed) {

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "ivr/error.hpp"
+#include "render/render.hpp"
 #include "runtime/real_args.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
@@ -189,12 +190,19 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
     config.set(Switch::tangent_tf, pass_tf)
         .set(Switch::tangent_camera, pass_camera)
         .set(Switch::tangent_voxel, pass_voxel);
+    // On CPUs a pass of TF and background lanes marches packets of rays in vector lanes (each
+    // lane a vector of the rays' tangents); camera and voxel lanes, whose geometry is per ray,
+    // one ray per work-item.
+    const int rays =
+        use_packet(dev, variant) && !pass_camera && !pass_voxel ? packet_lanes(variant.precision) : 1;
+    if (rays > 1) config.set(Switch::rays, rays);
+    op.stats.variant = config.label();
     cl_call("running the tangent kernel on " + dev.info.name, [&] {
       double build = 0;
       cl::Kernel& k = s.kernels.get(config, &build);
       op.stats.build_seconds += build;
-      const PixelLaunch launch =
-          pixel_launch(dev, k, "jacobian", cam0.width, cam0.height, views, true);
+      const PixelLaunch launch = pixel_launch(dev, k, "jacobian", (cam0.width + rays - 1) / rays,
+                                              cam0.height, views, true);
       const std::size_t groups = launch.groups_per_view * std::size_t(views);
       const cl::Buffer& partial =
           s.scratch("tangent partials", groups * row * real, "the partial sums");
@@ -306,6 +314,7 @@ Jacobian jacobian(Device& device, const Scene& scene, const std::vector<Paramete
   out.lanes = st.lanes;
   out.device_bytes = st.device_bytes;
   out.skipped_empty = st.skipped_empty;
+  out.variant = st.variant;
   out.step = st.step;
   return out;
 }

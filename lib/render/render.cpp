@@ -11,43 +11,52 @@
 
 namespace ivr {
 
-// Rays per work-item of the packet kernel: 16 (128³ into 256² on PoCL, 2 Skylake-AVX512 cores:
-// 16 lanes ~40 ms, 8 lanes ~60 ms, one ray per work-item ~200 ms, measured beside a build);
-// $IVR_PACKET_LANES=8 takes 8.
-int packet_lanes() {
+// Rays per work-item of a packet (kernels/rays.cl): 16 float32 or 8 float64 lanes, one AVX-512
+// register (128³ into 256² on PoCL, 2 Skylake-AVX512 cores: 16 lanes ~40 ms, 8 lanes ~60 ms, one
+// ray per work-item ~200 ms, measured beside a build); $IVR_PACKET_LANES=8 takes 8 for float32.
+int packet_lanes(Precision precision) {
+  if (precision == Precision::f64) return 8;
   const char* env = std::getenv("IVR_PACKET_LANES");
   return env && std::string(env) == "8" ? 8 : 16;
 }
 
-// Whether a render takes kernels/render_packet.cl: on CPU devices (PoCL runs a work-item's march
-// as scalar code; the packet kernel marches 16 rays in vector lanes) for the case it covers.
-// $IVR_PACKET=0 turns it off (tests compare both), and so does the tuner while it times the
-// one-ray-per-work-item kernel.
-bool use_packet(const Device::Impl& dev, const Scene& scene, const RenderVariant& v) {
+// Whether a render marches packets of rays in vector lanes: on CPU devices (PoCL runs a
+// work-item's march as scalar code and cannot vectorise across work-items), for the fixed-step
+// integrators the packet march covers (midpoint and trapezoid: every TF kind, both models, both
+// precisions, with or without skipping). $IVR_PACKET=0 turns it off (tests compare both), and so
+// does the tuner while it times the one-ray-per-work-item kernel.
+bool use_packet(const Device::Impl& dev, const RenderVariant& v) {
   if (const char* env = std::getenv("IVR_PACKET"); env && std::string(env) == "0") return false;
   if (const TuningProbe* probe = tuning_probe(); probe && !probe->packet) return false;  // ivr tune
-  return dev.info.type == "cpu" && v.precision == Precision::f32 && v.scheme == Scheme::midpoint &&
-         v.model == Model::emission_absorption && v.tf == TfKind::piecewise_linear &&
-         !v.empty_space && scene.tf.points.size() >= 1;
+  return dev.info.type == "cpu" && (v.scheme == Scheme::midpoint || v.scheme == Scheme::trapezoid);
+}
+
+// Whether the adjoint takes its primal march from a packet render: what kernels/adjoint.cl reads
+// back (C, T and a midpoint march's samples, which are its end without skipping).
+bool use_packet_primal(const Device::Impl& dev, const RenderVariant& v) {
+  return use_packet(dev, v) && v.scheme == Scheme::midpoint &&
+         v.model == Model::emission_absorption && !v.empty_space;
 }
 
 KernelConfig packet_config(const RenderVariant& variant, bool primal) {
-  return variant.config("render_packet.cl", "render_packet")
-      .set(Switch::lanes, packet_lanes())
+  return variant.config("render.cl", "render")
+      .set(Switch::rays, packet_lanes(variant.precision))
       .set(Switch::packet_primal, primal);
 }
 
-PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene) {
+PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene,
+                          Precision precision) {
   const Camera& c = scene.cameras.front();
-  return pixel_launch(dev, kernel, "render_packet", (c.width + packet_lanes() - 1) / packet_lanes(),
-                      c.height, int(scene.cameras.size()), false);
+  const int lanes = packet_lanes(precision);
+  return pixel_launch(dev, kernel, "render_packet", (c.width + lanes - 1) / lanes, c.height,
+                      int(scene.cameras.size()), false);
 }
 
 DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op) {
   const Integrator& integrator = s.integrator();
   RenderVariant variant = s.variant_of(integrator);
   const cl::Buffer& occupied = s.plan_skipping(true, variant, op.stats);
-  const bool packet = use_packet(s.dev, s.scene, variant);
+  const bool packet = use_packet(s.dev, variant);
   const KernelConfig config =
       packet ? packet_config(variant, false) : variant.config("render.cl", "render");
   const std::size_t pixels = s.pixels();
@@ -63,7 +72,7 @@ DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op) {
     k.setArg(a++, buffer_of(image));
     k.setArg(a++, samples);
     const Camera& c = s.scene.cameras.front();
-    const PixelLaunch launch = packet ? packet_launch(s.dev, k, s.scene)
+    const PixelLaunch launch = packet ? packet_launch(s.dev, k, s.scene, variant.precision)
                                       : pixel_launch(s.dev, k, "render", c.width, c.height,
                                                      int(s.scene.cameras.size()), false);
     op.events.push_back(enqueue(s.dev, k, launch));

@@ -1,6 +1,7 @@
 // render.hpp — internal: the render operation of a session, the one-shot session behind the
-// one-shot functions, images downloaded from the device, and the CPU packet render
-// (kernels/render_packet.cl), which renders and also marches the adjoint kernel's primal.
+// one-shot functions, images downloaded from the device, and the CPU packet render (render.cl with
+// IVR_RAYS rays per work-item in vector lanes), which renders and also marches the adjoint
+// kernel's primal.
 #pragma once
 #include "ivr/scene.hpp"
 #include "runtime/launch.hpp"
@@ -10,14 +11,17 @@
 
 namespace ivr {
 
-// Rays per work-item; whether a scene's variant takes the packet kernel (CPU device,
-// emission–absorption, midpoint, piecewise-linear TF, float32, no skipping; $IVR_PACKET=0:
-// never); its configuration (primal: each pixel's emitted C and transmittance T into the image
-// buffer, for the adjoint kernel, instead of the composited pixel); its launch.
-int packet_lanes();
-bool use_packet(const Device::Impl& dev, const Scene& scene, const RenderVariant& v);
+// Rays per work-item; whether a scene's variant renders in packets (CPU device, midpoint or
+// trapezoid; $IVR_PACKET=0: never) and whether the adjoint takes its primal from one
+// (emission–absorption, midpoint, no skipping); the packet configuration (primal: each pixel's
+// emitted C and transmittance T into the image buffer, for the adjoint kernel, instead of the
+// composited pixel); its launch.
+int packet_lanes(Precision precision);
+bool use_packet(const Device::Impl& dev, const RenderVariant& v);
+bool use_packet_primal(const Device::Impl& dev, const RenderVariant& v);
 KernelConfig packet_config(const RenderVariant& variant, bool primal);
-PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene);
+PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene,
+                          Precision precision);
 
 // The image (in the session's precision) and, where `samples` is set, the per-pixel sample
 // counts into it.

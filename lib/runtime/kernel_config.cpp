@@ -32,6 +32,7 @@ constexpr SwitchInfo kInfo[kSwitches] = {
     {"IVR_EMPTY_SPACE", "empty_space", Shown::on_off, true},
     {"IVR_BRICK_SIZE", "brick", Shown::value, false},
     {"IVR_LANES", "lanes", Shown::value, false},
+    {"IVR_RAYS", "packet", Shown::value, false},
     {"IVR_PACKET_PRIMAL", "primal", Shown::flag, true},
     {"IVR_TANGENT_TF", "tangent_tf", Shown::flag, false},
     {"IVR_TANGENT_CAMERA", "tangent_camera", Shown::flag, false},

@@ -23,8 +23,9 @@ enum class Switch : int {
   early_termination,  // IVR_EARLY_TERMINATION
   empty_space,        // IVR_EMPTY_SPACE: skip empty bricks (kernels/empty_space.cl)
   brick_size,         // IVR_BRICK_SIZE: cells per brick edge
-  lanes,              // IVR_LANES: tangent lanes (jacobian.cl) or rays per work-item (packet)
-  packet_primal,      // IVR_PACKET_PRIMAL: the packet render writes (C, T) for the adjoint
+  lanes,              // IVR_LANES: tangent lanes (jacobian.cl)
+  rays,               // IVR_RAYS: rays per work-item in vector lanes (kernels/rays.cl: 1, 8, 16)
+  packet_primal,      // IVR_PACKET_PRIMAL: the render writes (C, T) for the adjoint
   tangent_tf,         // IVR_TANGENT_TF: some lane is a TF parameter
   tangent_camera,     // IVR_TANGENT_CAMERA
   tangent_voxel,      // IVR_TANGENT_VOXEL

@@ -1,10 +1,11 @@
-// render_packet_test.cpp — the CPU packet render (kernels/render_packet.cl: 16 or 8 rays per
-// work-item in vector lanes) against the one-ray-per-work-item kernel (render.cl,
-// $IVR_PACKET=0): the same image bit for bit and the same sample counts, over edge cases of the
-// packet (image widths not a multiple of the lanes, rays that miss, early termination, cameras
-// inside the volume, orthographic views, one- and two-point TFs, densities exactly on the TF's
-// points); and gradients whose primal march it made (lib/adjoint/adjoint.cpp) bit for bit those of the
-// adjoint kernel's own march — its remaining radiance, C minus the prefix, needs that.
+// render_packet_test.cpp — the CPU packet render (render.cl with 16 or 8 rays per work-item in
+// vector lanes, kernels/rays.cl) against one ray per work-item ($IVR_PACKET=0): the same image bit
+// for bit and the same sample counts, for every TF kind, both models, midpoint and trapezoid, both
+// precisions, with and without empty-space skipping, and over edge cases of the packet (image
+// widths not a multiple of the lanes, rays that miss, early termination, cameras inside the
+// volume, orthographic views, one- and two-point TFs, densities exactly on the TF's points); and
+// gradients whose primal march it made (lib/adjoint/adjoint.cpp) bit for bit those of the adjoint
+// kernel's own march — its remaining radiance, C minus the prefix, needs that.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -19,27 +20,44 @@ struct Rendered {
   RenderStats stats;
 };
 
-Rendered render_with(const Scene& scene, bool packet, double step) {
+Rendered render_with(const Scene& scene, bool packet, double step,
+                     Precision precision = Precision::f32, EmptySpace skip = EmptySpace::automatic,
+                     int brick_size = 0) {
   const ScopedEnv env("IVR_PACKET", packet ? "1" : "0");
+  RenderOptions o;
+  o.precision = precision;
+  o.step = step;
+  o.empty_space = skip;
+  if (brick_size) o.brick_size = brick_size;
   Rendered r;
-  r.image = render_at(scene, Precision::f32, step, &r.stats);
+  r.image = render(device(), scene, o, &r.stats);
   return r;
 }
 
-void expect_same(const Scene& scene, double step, const std::string& what) {
-  const Rendered a = render_with(scene, true, step), b = render_with(scene, false, step);
+template <class T>
+void expect_bitwise(const std::vector<T>& a, const std::vector<T>& b, const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  double worst = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(a[i])) << what << " element " << i;
+    worst = std::max(worst, double(std::abs(a[i] - b[i])));
+  }
+  EXPECT_EQ(worst, 0.0) << what;  // bit for bit (the scalar exp in every lane)
+}
+
+void expect_same(const Scene& scene, double step, const std::string& what,
+                 Precision precision = Precision::f32, EmptySpace skip = EmptySpace::automatic,
+                 int brick_size = 0) {
+  const Rendered a = render_with(scene, true, step, precision, skip, brick_size),
+                 b = render_with(scene, false, step, precision, skip, brick_size);
   if (device().info().type == "cpu") {
     EXPECT_NE(a.stats.variant.find("packet"), std::string::npos) << what << ": " << a.stats.variant;
   }
   EXPECT_EQ(b.stats.variant.find("packet"), std::string::npos) << what;
+  EXPECT_EQ(a.stats.skipped_empty, b.stats.skipped_empty) << what;
   EXPECT_EQ(a.stats.samples, b.stats.samples) << what;
-  ASSERT_EQ(a.image.pixels.size(), b.image.pixels.size()) << what;
-  double worst = 0;
-  for (std::size_t i = 0; i < a.image.pixels.size(); ++i) {
-    ASSERT_TRUE(std::isfinite(a.image.pixels[i])) << what << " element " << i;
-    worst = std::max(worst, double(std::abs(a.image.pixels[i] - b.image.pixels[i])));
-  }
-  EXPECT_EQ(worst, 0.0) << what;  // bit for bit (render.cl's scalar exp in every lane)
+  expect_bitwise(a.image.pixels, b.image.pixels, what);
+  if (precision == Precision::f64) expect_bitwise(a.image.pixels_f64, b.image.pixels_f64, what);
 }
 
 TEST(RenderPacket, SameImageAsOneRayPerWorkItem) {
@@ -80,6 +98,82 @@ TEST(RenderPacket, TransferFunctionEdgeCases) {
   Scene one = s;
   one.tf.points = {{0.5, {0.3, 0.6, 0.9}, 3}};
   expect_same(one, 0.5, "one point");
+}
+
+// The four TF kinds, each with σ = 0 over the low densities (the Gaussians: nowhere exactly).
+std::vector<std::pair<std::string, TransferFunction>> every_tf_kind() {
+  TransferFunction identity;
+  identity.kind = TfKind::identity;
+  identity.extinction_scale = 9;
+  identity.color_scale = 0.8;
+  TransferFunction pwl;
+  pwl.kind = TfKind::piecewise_linear;
+  pwl.points = {{0.1, {0.2, 0.4, 1}, 0}, {0.5, {1, 0.5, 0.25}, 8}, {1.0, {0.2, 0.4, 1}, 14}};
+  TransferFunction table;
+  table.kind = TfKind::table;
+  table.range = {0.2, 1.0};
+  table.entries = {{0, 0, 0, 0}, {1, 0, 0, 4}, {0, 1, 0.5, 6}, {0.3, 0.3, 1, 1}, {1, 1, 1, 10}};
+  TransferFunction gauss;
+  gauss.kind = TfKind::gaussian;
+  gauss.gaussians = {{0.3, 0.1, {1, 0.2, 0.1}, 5}, {0.7, 0.2, {0.1, 0.6, 1}, 3}};
+  return {{"identity", identity}, {"piecewise_linear", pwl}, {"table", table}, {"gaussian", gauss}};
+}
+
+struct Case {
+  std::string tf;
+  Model model;
+  Scheme scheme;
+  Precision precision;
+  EmptySpace skip;
+};
+
+// A volume half empty (zeros in its lower z half), bricks of 4 cells, so that packets hold rays
+// that skip and rays that sample; two views, 19 × 11 pixels.
+void expect_cases_same(const std::vector<Case>& cases) {
+  Scene s = calibration_scene(16, 8);
+  for (int z = 0; z < 8; ++z)
+    for (int i = 0; i < 16 * 16; ++i) s.volume.data[std::size_t(z) * 256 + i] = 0;
+  s.cameras[0].width = 19;
+  s.cameras[0].height = 11;
+  Camera side = s.cameras[0];
+  side.eye = {0.3, -1.3, -0.9};
+  s.cameras.push_back(side);
+  for (const Case& c : cases)
+    for (const auto& [tf_name, tf] : every_tf_kind()) {
+      if (tf_name != c.tf) continue;
+      Scene scene = s;
+      scene.tf = tf;
+      scene.model = c.model;
+      scene.integrator.scheme = c.scheme;
+      const std::string what = tf_name + (c.model == Model::absorption ? " absorption " : " ea ") +
+                               scheme_name(c.scheme) +
+                               (c.precision == Precision::f64 ? " f64" : "") +
+                               (c.skip == EmptySpace::on ? " skipping" : "");
+      expect_same(scene, 0.5, what, c.precision, c.skip, 4);
+    }
+}
+
+// Each TF kind once, the models, schemes and skipping in turn, one in float64.
+TEST(RenderPacket, EveryTfKindIsTheSame) {
+  const Precision f32 = Precision::f32;
+  expect_cases_same(
+      {{"identity", Model::emission_absorption, Scheme::trapezoid, f32, EmptySpace::on},
+       {"piecewise_linear", Model::absorption, Scheme::midpoint, f32, EmptySpace::on},
+       {"table", Model::emission_absorption, Scheme::midpoint, f32, EmptySpace::off},
+       {"gaussian", Model::absorption, Scheme::trapezoid, f32, EmptySpace::off},
+       {"table", Model::emission_absorption, Scheme::trapezoid, Precision::f64, EmptySpace::on}});
+}
+
+// The whole matrix (ctest -L extended): every TF kind × model × scheme × precision × skipping.
+TEST(RenderPacket, EveryTfKindModelSchemeAndSkippingIsTheSameExtended) {
+  std::vector<Case> cases;
+  for (const char* tf : {"identity", "piecewise_linear", "table", "gaussian"})
+    for (Model model : {Model::emission_absorption, Model::absorption})
+      for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid})
+        for (Precision precision : {Precision::f32, Precision::f64})
+          for (EmptySpace skip : {EmptySpace::off, EmptySpace::on})
+            cases.push_back({tf, model, scheme, precision, skip});
+  expect_cases_same(cases);
 }
 
 AdjointGradient gradient_with(const Scene& scene, const Image& target, bool packet) {

@@ -1,0 +1,129 @@
+// rays.cl — IVR_RAYS rays marched together in vector lanes: the types and operations the marches
+// are written in, so that one march serves one ray per work-item (IVR_RAYS 1: GPUs, where
+// work-items are SIMD lanes already, and every gradient kernel) and a packet of neighbouring rays
+// per work-item (IVR_RAYS 8 or 16: CPUs, where PoCL runs a work-item's loop as scalar code and
+// cannot vectorise across work-items whose loops differ in length).
+//
+// vreal and vint hold one value per ray; a mask is a vint, nonzero where true (1 for one ray, −1
+// for vectors, as OpenCL C's comparisons give): combine masks with && || ! (defined on vectors
+// too, without short-circuit) and choose with vsel/vseli. Every operation is the scalar one lane
+// by lane — +, −, ×, ÷, fma, fmin, fmax, conversions and the per-lane scalar exp (vexp) — so a
+// packet's image is the one-ray kernel's bit for bit.
+#ifndef IVR_RAYS_CL
+#define IVR_RAYS_CL
+#include "config.cl"
+
+#ifndef IVR_RAYS
+#define IVR_RAYS 1
+#endif
+
+#if IVR_RAYS == 1
+typedef real vreal;
+typedef int vint;
+#define vany(m) ((m) != 0)
+#define vall(m) ((m) != 0)
+#define vsel(a, b, m) ((m) ? (b) : (a))
+#define vseli(a, b, m) ((m) ? (b) : (a))
+#define vmask_of(c) ((vint)((c) ? 1 : 0))  // a comparison of vreal as a mask
+#define vto_int(x) ((int)(x))              // truncation (x >= 0 where used: floor)
+#define vto_real(i) ((real)(i))
+#define vgather(p, i) ((p)[i])
+#define vgather_off(p, base, off) (((p) + (base))[off])  // one base address, as a scalar loop has
+#define vgather_flag(p, i) ((vint)((p)[i] ? 1 : 0))
+#define vexp(x) exp(x)
+#define vexpm1(x) expm1(x)
+#define vlog(x) log(x)
+#else
+
+#if IVR_RAYS == 16
+#define IVR_VN(t) t##16
+#define IVR_VLOAD vload16
+#define IVR_VSTORE vstore16
+#define vto_int(x) convert_int16_rtz(x)
+#elif IVR_RAYS == 8
+#define IVR_VN(t) t##8
+#define IVR_VLOAD vload8
+#define IVR_VSTORE vstore8
+#define vto_int(x) convert_int8_rtz(x)
+#else
+#error "IVR_RAYS must be 1, 8 or 16"
+#endif
+
+#if IVR_F64
+typedef IVR_VN(double) vreal;
+#define IVR_TO_INT(x) IVR_VN(convert_int)(x)
+#define vmask_of(c) IVR_TO_INT(c)
+#define vsel(a, b, m) select(a, b, IVR_VN(convert_long)(m))
+#define vto_real(i) IVR_VN(convert_double)(i)
+#else
+typedef IVR_VN(float) vreal;
+#define vmask_of(c) (c)
+#define vsel(a, b, m) select(a, b, m)
+#define vto_real(i) IVR_VN(convert_float)(i)
+#endif
+typedef IVR_VN(int) vint;
+#define vany(m) any(m)
+#define vall(m) all(m)
+#define vseli(a, b, m) select(a, b, m)
+
+// The lanes' values of p[i] (OpenCL C has no gather): one vector built from the lanes' loads, as
+// the compiler turns into inserts (through a private array it would go through the stack).
+#if IVR_RAYS == 16
+#define IVR_GATHER_LANES(p, i, f)                                                                  \
+  f(p[i.s0]), f(p[i.s1]), f(p[i.s2]), f(p[i.s3]), f(p[i.s4]), f(p[i.s5]), f(p[i.s6]), f(p[i.s7]), \
+      f(p[i.s8]), f(p[i.s9]), f(p[i.sa]), f(p[i.sb]), f(p[i.sc]), f(p[i.sd]), f(p[i.se]),          \
+      f(p[i.sf])
+#else
+#define IVR_GATHER_LANES(p, i, f) \
+  f(p[i.s0]), f(p[i.s1]), f(p[i.s2]), f(p[i.s3]), f(p[i.s4]), f(p[i.s5]), f(p[i.s6]), f(p[i.s7])
+#endif
+#define IVR_AS_IS(x) (x)
+#define IVR_AS_FLAG(x) ((x) ? -1 : 0)
+inline vreal vgather(__global const real* restrict p, vint i) {
+  return (vreal)(IVR_GATHER_LANES(p, i, IVR_AS_IS));
+}
+#define vgather_off(p, base, off) vgather(p, (base) + (off))
+// The same of a byte array, as a mask (the occupancy grid: nonzero where occupied).
+inline vint vgather_flag(__global const uchar* restrict p, vint i) {
+  return (vint)(IVR_GATHER_LANES(p, i, IVR_AS_FLAG));
+}
+
+// A scalar function of every lane. The scalar exp, not the vector one: that may round differently
+// in the last bit, and the adjoint's remaining radiance (C minus the prefix) needs the packet's C
+// bit for bit.
+#define IVR_PER_LANE(name, f)                 \
+  inline vreal name(vreal x) {                \
+    real v[IVR_RAYS];                         \
+    IVR_VSTORE(x, 0, v);                      \
+    for (int l = 0; l < IVR_RAYS; ++l) v[l] = f(v[l]); \
+    return IVR_VLOAD(0, v);                   \
+  }
+IVR_PER_LANE(vexp, exp)
+IVR_PER_LANE(vexpm1, expm1)
+IVR_PER_LANE(vlog, log)
+#undef IVR_PER_LANE
+#endif
+
+// A value per ray into the array v[0 .. IVR_RAYS).
+#if IVR_RAYS == 1
+#define IVR_STORE_RAYS(x, v) ((v)[0] = (x))
+#else
+#define IVR_STORE_RAYS(x, v) IVR_VSTORE(x, 0, v)
+#endif
+
+// A mask true in every lane.
+#if IVR_RAYS == 1
+#define vtrue ((vint)1)
+#else
+#define vtrue ((vint)-1)
+#endif
+
+// 1 where a mask is true, else 0: what a lane adds to a count.
+#define vcount(m) vseli((vint)0, (vint)1, (m))
+
+// lerp() of config.cl in every lane.
+inline vreal vlerp(vreal a, vreal b, vreal t) {
+  return a + (b - a) * t;
+}
+
+#endif

@@ -31,6 +31,24 @@ TEST(Planner, DefaultModelPicksForwardForFewTfParametersAndAdjointForVolumes) {
   EXPECT_EQ(volume.model, "default");
 }
 
+// The built-in CPU model (forward mode in packets): forward for up to 32 TF parameters (one pass of
+// 32 lanes), the adjoint for a volume; other devices keep CostModel's defaults.
+TEST(Planner, CpuDefaultPicksForwardUpToThirtyTwoLanes) {
+  DeviceInfo cpu = device().info(), gpu = device().info();
+  cpu.type = "cpu";
+  gpu.type = "gpu";
+  const CostModel model = default_cost_model(cpu);
+  EXPECT_EQ(model.source, "default");
+  EXPECT_LT(model.forward_base + 32 * model.forward_per_lane, model.adjoint);
+  const Scene s = planner_scene(64);
+  for (std::size_t p : {1, 8, 16, 20, 32})
+    EXPECT_EQ(plan_gradient(model, s, p, true, true).mode, Mode::forward) << p << " parameters";
+  EXPECT_EQ(plan_gradient(model, s, s.volume.voxel_count(), true, true).mode, Mode::adjoint);
+  const CostModel other = default_cost_model(gpu);
+  EXPECT_EQ(other.adjoint, CostModel{}.adjoint);
+  EXPECT_EQ(other.forward_per_lane, CostModel{}.forward_per_lane);
+}
+
 TEST(Planner, PassesAndLanes) {
   const CostModel model;
   std::size_t passes = 0, lanes = 0;

@@ -7,11 +7,13 @@
 // vreal and vint hold one value per ray; a mask is a vint, nonzero where true (1 for one ray, −1
 // for vectors, as OpenCL C's comparisons give): combine masks with && || ! (defined on vectors
 // too, without short-circuit) and choose with vsel/vseli. Every operation is the scalar one lane
-// by lane — +, −, ×, ÷, fma, fmin, fmax, conversions and the per-lane scalar exp (vexp) — so a
-// packet's image is the one-ray kernel's bit for bit.
+// by lane — +, −, ×, ÷, fma, fmin, fmax, conversions, and an exp of fused multiply-adds
+// (kernels/exp.cl; float64: the scalar builtin lane by lane) — so a packet's image is the one-ray
+// kernel's bit for bit.
 #ifndef IVR_RAYS_CL
 #define IVR_RAYS_CL
 #include "config.cl"
+#include "exp.cl"
 
 #ifndef IVR_RAYS
 #define IVR_RAYS 1
@@ -30,9 +32,12 @@ typedef int vint;
 #define vgather(p, i) ((p)[i])
 #define vgather_off(p, base, off) (((p) + (base))[off])  // one base address, as a scalar loop has
 #define vgather_flag(p, i) ((vint)((p)[i] ? 1 : 0))
+#if IVR_F64
 #define vexp(x) exp(x)
+#else
+#define vexp(x) ivr_expf(x)  // the packets' exp (kernels/exp.cl), so that both render alike
+#endif
 #define vexpm1(x) expm1(x)
-#define vlog(x) log(x)
 #else
 
 #if IVR_RAYS == 16
@@ -88,19 +93,24 @@ inline vint vgather_flag(__global const uchar* restrict p, vint i) {
   return (vint)(IVR_GATHER_LANES(p, i, IVR_AS_FLAG));
 }
 
-// A scalar function of every lane. The scalar exp, not the vector one: that may round differently
-// in the last bit, and the adjoint's remaining radiance (C minus the prefix) needs the packet's C
-// bit for bit.
-#define IVR_PER_LANE(name, f)                 \
-  inline vreal name(vreal x) {                \
-    real v[IVR_RAYS];                         \
-    IVR_VSTORE(x, 0, v);                      \
-    for (int l = 0; l < IVR_RAYS; ++l) v[l] = f(v[l]); \
-    return IVR_VLOAD(0, v);                   \
+// A scalar function of every lane: float64's exp and expm1 (the one-ray kernels' builtins, whose
+// vector forms may round differently in the last bit; float64 packets are rare). float32's exp is
+// kernels/exp.cl's, the same bits in every width.
+#define IVR_PER_LANE(name, f)                            \
+  inline vreal name(vreal x) {                           \
+    real v[IVR_RAYS];                                    \
+    IVR_VSTORE(x, 0, v);                                 \
+    for (int l = 0; l < IVR_RAYS; ++l) v[l] = f(v[l]);   \
+    return IVR_VLOAD(0, v);                              \
   }
+#if IVR_F64
 IVR_PER_LANE(vexp, exp)
+#elif IVR_RAYS == 16
+#define vexp(x) ivr_expf16(x)
+#else
+#define vexp(x) ivr_expf8(x)
+#endif
 IVR_PER_LANE(vexpm1, expm1)
-IVR_PER_LANE(vlog, log)
 #undef IVR_PER_LANE
 #endif
 

@@ -46,18 +46,24 @@ Runner add_calibrate_command(CLI::App& app) {
                                   {"path", path},
                                   {"forward_base", c.model.forward_base},
                                   {"forward_per_lane", c.model.forward_per_lane},
+                                  {"forward_ray_base", c.model.forward_ray_base},
+                                  {"forward_ray_per_lane", c.model.forward_ray_per_lane},
                                   {"adjoint", c.model.adjoint},
                                   {"seconds_per_sample", c.model.seconds_per_sample},
                                   {"render_seconds", c.render_seconds},
                                   {"adjoint_seconds", c.adjoint_seconds},
                                   {"lanes", c.lanes},
-                                  {"forward_seconds", c.forward_seconds}}
+                                  {"forward_seconds", c.forward_seconds},
+                                  {"ray_lanes", c.ray_lanes},
+                                  {"forward_ray_seconds", c.forward_ray_seconds}}
                        .dump()
                 << "\n";
     } else {
       std::cout << "render " << c.render_seconds * 1e3 << " ms, adjoint " << c.model.adjoint
                 << "x, forward " << c.model.forward_base << " + " << c.model.forward_per_lane
-                << " x lanes renders on " << device.info().name << " -> " << path << "\n";
+                << " x lanes renders (camera and voxel lanes " << c.model.forward_ray_base << " + "
+                << c.model.forward_ray_per_lane << " x lanes) on " << device.info().name << " -> "
+                << path << "\n";
     }
     return 0;
   };

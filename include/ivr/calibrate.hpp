@@ -23,6 +23,8 @@ struct Calibration {
   double render_seconds = 0, adjoint_seconds = 0;  // kernel time, medians
   std::vector<int> lanes;                          // 1, 2, 4, ..., 32
   std::vector<double> forward_seconds;             // one forward pass with that many lanes
+  std::vector<int> ray_lanes;                      // 1, 4, 16 voxel lanes (one ray per item)
+  std::vector<double> forward_ray_seconds;         // one forward pass with that many
   std::uint64_t samples = 0;                       // of the render
 };
 
@@ -30,8 +32,9 @@ struct Calibration {
 // one perspective image² view from a corner.
 IVR_API Scene calibration_scene(int volume, int image);
 
-// Times a render, an adjoint gradient (d mse / d density) and forward passes of 1..32 lanes on
-// the calibration scene and fits the cost model (forward: least squares in the lane count).
+// Times a render, an adjoint gradient (d mse / d density), forward passes of 1..32 TF and
+// background lanes and of 1, 4, 16 voxel lanes on the calibration scene and fits the cost model
+// (each forward cost: least squares in the lane count).
 IVR_API Calibration calibrate(Device& device, const CalibrateOptions& options = {});
 
 }  // namespace ivr

@@ -18,9 +18,14 @@ enum class Mode { automatic, forward, adjoint };
 // (forward_base + forward_per_lane · L) renders, an adjoint gradient `adjoint` renders; a render
 // costs seconds_per_sample per density sample (to predict seconds). The defaults are `ivr
 // calibrate` on a 2-core AMD EPYC with PoCL 3.1 (rounded): forward wins up to 8 lanes there.
+// Forward passes whose lanes include camera or voxel parameters (per-ray geometry) cost
+// forward_ray_base + forward_ray_per_lane · L: on CPUs TF and background lanes march packets of
+// rays in vector lanes and those lanes one ray per work-item; elsewhere the two are the same.
 struct CostModel {
   double forward_base = 1.5;
   double forward_per_lane = 0.16;
+  double forward_ray_base = 1.5;
+  double forward_ray_per_lane = 0.16;
   double adjoint = 3.0;
   double seconds_per_sample = 1.2e-8;
   std::string source = "default";  // "default", or the file it was read from
@@ -30,15 +35,18 @@ struct CostModel {
 // (<cache>: $XDG_CACHE_HOME or ~/.cache); the name is derived from platform, device and driver.
 IVR_API std::string cost_model_path(const DeviceInfo& device);
 
-// The built-in model of a device without a calibration file. CPU devices: measured by `ivr
-// calibrate` with PoCL 3.1 on a 2-core Skylake-AVX512 Xeon (64³ → 128² and 128³ → 256²), where
-// forward mode marches packets of rays in vector lanes: forward 1.15 + 0.08 · L renders, adjoint
-// 6 renders, 3.2e-9 s per sample. Other devices: CostModel's defaults (forward 1.5 + 0.16 · L,
-// adjoint 3), the figures of the one-ray-per-work-item kernels on a 2-core EPYC.
+// The built-in model of a device without a calibration file. CPU devices: measured with PoCL 3.1
+// on a 2-core Skylake-AVX512 Xeon, where forward mode marches TF and background lanes in packets
+// of rays: forward 1.15 + 0.08 · L renders (`ivr calibrate`, 64³ → 128² and 128³ → 256²), with
+// camera or voxel lanes 4.1 + 0.78 · L (ivr-bench's planner suite, voxel lanes 1–32 at 128³ →
+// 256²), adjoint 6 renders, 3.2e-9 s per sample. Other devices: CostModel's defaults (forward
+// 1.5 + 0.16 · L whatever the lanes, adjoint 3), the one-ray-per-work-item kernels' figures on a
+// 2-core EPYC.
 IVR_API CostModel default_cost_model(const DeviceInfo& device);
 
 // The device's model: its calibration file where one exists, else default_cost_model(). A file that
-// exists but cannot be read or lacks a field is an error naming the file and the field.
+// exists but cannot be read or lacks a field is an error naming the file and the field (a file
+// without the forward_ray_* fields, from before them, takes forward_*'s values for them).
 IVR_API CostModel load_cost_model(const DeviceInfo& device);
 IVR_API CostModel read_cost_model(const std::string& path);
 IVR_API void save_cost_model(const std::string& path, const CostModel& model,
@@ -51,18 +59,21 @@ struct Plan {
   std::string model;                                // the cost model's source
 };
 
-// The passes and lanes forward mode needs for P parameters, and its cost in renders.
+// The passes and lanes forward mode needs for P parameters, and its cost in renders (per_ray:
+// some lane is a camera or voxel parameter).
 IVR_API double forward_cost(const CostModel& model, std::size_t parameters,
-                            std::size_t* passes = nullptr, std::size_t* lanes = nullptr);
+                            std::size_t* passes = nullptr, std::size_t* lanes = nullptr,
+                            bool per_ray = false);
 
 // Picks the cheaper mode for `forward_parameters` parameters (what forward mode would carry) of
 // `scene` at `step` (voxel units; 0: the scene's). `requested` other than automatic is kept (and
 // checked against what is possible); forward_possible / adjoint_possible say whether the
-// parameter groups are available in each mode.
+// parameter groups are available in each mode; per_ray that some of them are camera or voxel
+// parameters (forward_cost).
 IVR_API Plan plan_gradient(const CostModel& model, const Scene& scene,
                            std::size_t forward_parameters, bool forward_possible,
                            bool adjoint_possible, Mode requested = Mode::automatic,
-                           double step = 0);
+                           double step = 0, bool per_ray = false);
 
 IVR_API const char* mode_name(Mode mode);
 

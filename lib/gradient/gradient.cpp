@@ -105,11 +105,13 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
     throw bad_group("unknown mode " + std::to_string(int(request.mode)));
   std::vector<GroupPlan> plans;
   std::size_t forward_parameters = 0;
-  bool adjoint_possible = true;
+  bool adjoint_possible = true, per_ray = false;
   for (const std::string& g : request.wrt) {
     plans.push_back(plan_group(s.scene, g));
     forward_parameters += plans.back().count;
     adjoint_possible = adjoint_possible && plans.back().adjoint;
+    // Camera and voxel lanes march one ray per work-item (forward_cost).
+    per_ray = per_ray || plans.back().name == "camera" || plans.back().name == "voxels";
   }
   if (plans.empty()) throw bad_group("no group asked for");
   if (request.mode == Mode::adjoint)
@@ -122,7 +124,7 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
   if (!s.cost) s.cost = load_cost_model(s.dev.info);
   SessionGradient out;
   out.plan = plan_gradient(*s.cost, s.scene, forward_parameters, true, adjoint_possible,
-                           request.mode, step);
+                           request.mode, step, per_ray);
   OperationRecord& op = s.begin("gradient");
   cl_call("splitting the gradient into its groups", [&] {
     if (out.plan.mode == Mode::forward) {

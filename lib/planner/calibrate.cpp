@@ -1,6 +1,7 @@
 // calibrate.cpp — measures a device's cost model for the planner: a render, an adjoint gradient
-// and forward passes of 1..32 lanes of one scene, medians of repeated runs, the forward costs fit
-// by least squares as base + per_lane · lanes renders.
+// and forward passes of 1..32 TF and background lanes and of 1, 4, 16 voxel lanes (camera and voxel
+// lanes march one ray per work-item where the others march packets) of one scene, medians of
+// repeated runs, each forward cost fit by least squares as base + per_lane · lanes renders.
 #include "ivr/calibrate.hpp"
 
 #include <algorithm>
@@ -19,6 +20,22 @@ double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Least squares of forward / render = base + per_lane · L (both kept positive).
+void fit_lanes(const std::vector<int>& lanes, const std::vector<double>& renders, double* base,
+               double* per_lane) {
+  double sl = 0, sll = 0, sf = 0, slf = 0;
+  const double n = double(lanes.size());
+  for (std::size_t k = 0; k < lanes.size(); ++k) {
+    const double l = double(lanes[k]), f = renders[k];
+    sl += l;
+    sll += l * l;
+    sf += f;
+    slf += l * f;
+  }
+  *per_lane = std::max((n * slf - sl * sf) / (n * sll - sl * sl), 1e-3);
+  *base = std::max((sf - *per_lane * sl) / n, 1e-3);
 }
 
 }  // namespace
@@ -54,9 +71,18 @@ Calibration calibrate(Device& device, const CalibrateOptions& o) {
   for (const Parameter& p : parameters_of(scene, "tf_points")) pool.push_back(p);
   for (const Parameter& p : parameters_of(scene, "background")) pool.push_back(p);
 
+  // Voxels from the middle of the volume (where the view sees them): camera-like, per-ray lanes.
+  std::vector<Parameter> voxels;
+  for (int k = 0; k < 16; ++k) {
+    const std::int64_t n = o.volume, x = n / 4 + (k * 7) % (n / 2), y = n / 4 + (k * 5) % (n / 2),
+                       z = n / 4 + (k * 3) % (n / 2);
+    voxels.push_back({ParameterGroup::voxel, (z * n + y) * n + x, 0});
+  }
+  const std::vector<int> ray_lanes = {1, 4, 16};
+
   Calibration c;
   std::vector<double> render_s, adjoint_s;
-  std::vector<std::vector<double>> forward_s(6);
+  std::vector<std::vector<double>> forward_s(6), ray_s(ray_lanes.size());
   RenderStats stats;
   for (int r = 0; r < o.repeats + 1; ++r) {  // the first round compiles and warms up
     render(device, scene, {o.precision}, &stats);
@@ -71,6 +97,13 @@ Calibration calibrate(Device& device, const CalibrateOptions& o) {
       const Jacobian t = jacobian(device, scene, params, &target, to);
       if (r > 0) forward_s[std::size_t(k)].push_back(t.kernel_seconds);
     }
+    for (std::size_t k = 0; k < ray_lanes.size(); ++k) {
+      JacobianOptions to;
+      to.precision = o.precision;
+      const std::vector<Parameter> params(voxels.begin(), voxels.begin() + ray_lanes[k]);
+      const Jacobian t = jacobian(device, scene, params, &target, to);
+      if (r > 0) ray_s[k].push_back(t.kernel_seconds);
+    }
     if (r > 0) {
       render_s.push_back(stats.kernel_seconds);
       adjoint_s.push_back(g.kernel_seconds);
@@ -79,20 +112,21 @@ Calibration calibrate(Device& device, const CalibrateOptions& o) {
   c.render_seconds = median(render_s);
   c.adjoint_seconds = median(adjoint_s);
   c.samples = stats.samples;
-  // Least squares of forward / render = base + per_lane · L over L = 1, 2, 4, ..., 32.
-  double sl = 0, sll = 0, sf = 0, slf = 0;
+  std::vector<double> renders;
   for (int k = 0; k < 6; ++k) {
-    const double l = double(1 << k), f = median(forward_s[std::size_t(k)]) / c.render_seconds;
+    const double f = median(forward_s[std::size_t(k)]);
     c.lanes.push_back(1 << k);
-    c.forward_seconds.push_back(f * c.render_seconds);
-    sl += l;
-    sll += l * l;
-    sf += f;
-    slf += l * f;
+    c.forward_seconds.push_back(f);
+    renders.push_back(f / c.render_seconds);
   }
-  const double n = 6, per_lane = (n * slf - sl * sf) / (n * sll - sl * sl);
-  c.model.forward_per_lane = std::max(per_lane, 1e-3);
-  c.model.forward_base = std::max((sf - c.model.forward_per_lane * sl) / n, 1e-3);
+  fit_lanes(c.lanes, renders, &c.model.forward_base, &c.model.forward_per_lane);
+  renders.clear();
+  for (std::size_t k = 0; k < ray_lanes.size(); ++k) {
+    c.ray_lanes.push_back(ray_lanes[k]);
+    c.forward_ray_seconds.push_back(median(ray_s[k]));
+    renders.push_back(c.forward_ray_seconds.back() / c.render_seconds);
+  }
+  fit_lanes(c.ray_lanes, renders, &c.model.forward_ray_base, &c.model.forward_ray_per_lane);
   c.model.adjoint = c.adjoint_seconds / c.render_seconds;
   c.model.seconds_per_sample = c.render_seconds / double(std::max<std::uint64_t>(c.samples, 1));
   c.model.source = "calibration";

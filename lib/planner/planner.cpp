@@ -77,6 +77,12 @@ CostModel read_cost_model(const std::string& path) {
   CostModel m;
   m.forward_base = number(j, "forward_base", path);
   m.forward_per_lane = number(j, "forward_per_lane", path);
+  // Optional (files written before them): the same as the other forward lanes.
+  m.forward_ray_base = j.contains("forward_ray_base") ? number(j, "forward_ray_base", path)
+                                                      : m.forward_base;
+  m.forward_ray_per_lane = j.contains("forward_ray_per_lane")
+                               ? number(j, "forward_ray_per_lane", path)
+                               : m.forward_per_lane;
   m.adjoint = number(j, "adjoint", path);
   m.seconds_per_sample = number(j, "seconds_per_sample", path);
   m.source = path;
@@ -90,6 +96,10 @@ CostModel default_cost_model(const DeviceInfo& device) {
     // 0.072–0.087, adjoint 5.97–6.24 renders, 3.0–3.3e-9 s per sample (64³ → 128², 128³ → 256²).
     m.forward_base = 1.15;
     m.forward_per_lane = 0.08;
+    // Camera and voxel lanes: one ray per work-item (ivr-bench --suite planner, voxel lanes
+    // 1–32 at 128³ → 256², against the packet render: least squares 4.10 + 0.78 · L).
+    m.forward_ray_base = 4.1;
+    m.forward_ray_per_lane = 0.78;
     m.adjoint = 6.0;
     m.seconds_per_sample = 3.2e-9;
   }
@@ -109,6 +119,8 @@ void save_cost_model(const std::string& path, const CostModel& m, const DeviceIn
                             {"driver", device.driver},
                             {"forward_base", m.forward_base},
                             {"forward_per_lane", m.forward_per_lane},
+                            {"forward_ray_base", m.forward_ray_base},
+                            {"forward_ray_per_lane", m.forward_ray_per_lane},
                             {"adjoint", m.adjoint},
                             {"seconds_per_sample", m.seconds_per_sample}};
   std::error_code ec;
@@ -125,14 +137,16 @@ void save_cost_model(const std::string& path, const CostModel& m, const DeviceIn
 }
 
 double forward_cost(const CostModel& model, std::size_t parameters, std::size_t* passes,
-                    std::size_t* lanes) {
+                    std::size_t* lanes, bool per_ray) {
+  const double base = per_ray ? model.forward_ray_base : model.forward_base;
+  const double per_lane = per_ray ? model.forward_ray_per_lane : model.forward_per_lane;
   std::size_t n = 0, widest = 0;
   double cost = 0;
   for (std::size_t left = std::max<std::size_t>(parameters, 1); left > 0;) {
     const std::size_t count = std::min(left, kMaxLanes);
     std::size_t l = 1;
     while (l < count) l *= 2;
-    cost += model.forward_base + model.forward_per_lane * double(l);
+    cost += base + per_lane * double(l);
     widest = std::max(widest, l);
     left -= count;
     ++n;
@@ -143,7 +157,8 @@ double forward_cost(const CostModel& model, std::size_t parameters, std::size_t*
 }
 
 Plan plan_gradient(const CostModel& model, const Scene& scene, std::size_t forward_parameters,
-                   bool forward_possible, bool adjoint_possible, Mode requested, double step) {
+                   bool forward_possible, bool adjoint_possible, Mode requested, double step,
+                   bool per_ray) {
   if (!forward_possible && !adjoint_possible)
     throw Error(Status::invalid_argument, "no mode computes every group asked for");
   // Samples of one render, roughly: every pixel marches the box's diagonal at the step.
@@ -158,7 +173,8 @@ Plan plan_gradient(const CostModel& model, const Scene& scene, std::size_t forwa
   p.model = model.source;
   const double inf = std::numeric_limits<double>::infinity();
   p.forward_seconds = forward_possible
-                          ? render * forward_cost(model, forward_parameters, &p.passes, &p.lanes)
+                          ? render * forward_cost(model, forward_parameters, &p.passes, &p.lanes,
+                                                  per_ray)
                           : inf;
   p.adjoint_seconds = adjoint_possible ? render * model.adjoint : inf;
   if (requested == Mode::forward && !forward_possible)

@@ -44,9 +44,17 @@ TEST(Planner, CpuDefaultPicksForwardUpToThirtyTwoLanes) {
   for (std::size_t p : {1, 8, 16, 20, 32})
     EXPECT_EQ(plan_gradient(model, s, p, true, true).mode, Mode::forward) << p << " parameters";
   EXPECT_EQ(plan_gradient(model, s, s.volume.voxel_count(), true, true).mode, Mode::adjoint);
+  // Camera and voxel lanes march one ray per work-item: forward for one or two, then the adjoint.
+  for (std::size_t p : {1, 2})
+    EXPECT_EQ(plan_gradient(model, s, p, true, true, Mode::automatic, 0, true).mode, Mode::forward)
+        << p << " voxel parameters";
+  for (std::size_t p : {4, 16, 32})
+    EXPECT_EQ(plan_gradient(model, s, p, true, true, Mode::automatic, 0, true).mode, Mode::adjoint)
+        << p << " voxel parameters";
   const CostModel other = default_cost_model(gpu);
   EXPECT_EQ(other.adjoint, CostModel{}.adjoint);
   EXPECT_EQ(other.forward_per_lane, CostModel{}.forward_per_lane);
+  EXPECT_EQ(other.forward_ray_per_lane, other.forward_per_lane);
 }
 
 TEST(Planner, PassesAndLanes) {
@@ -86,10 +94,14 @@ TEST(Planner, FollowsACalibrationFile) {
   CostModel dear;
   dear.forward_base = 5;
   dear.forward_per_lane = 2;
+  dear.forward_ray_base = 7;
+  dear.forward_ray_per_lane = 3;
   save_cost_model(path, dear, info);
   const CostModel read = load_cost_model(info);
   EXPECT_EQ(read.source, path);
   EXPECT_DOUBLE_EQ(read.forward_per_lane, 2);
+  EXPECT_DOUBLE_EQ(read.forward_ray_base, 7);
+  EXPECT_DOUBLE_EQ(read.forward_ray_per_lane, 3);
   EXPECT_EQ(plan_gradient(read, s, 1, true, true).mode, Mode::adjoint);
 
   CostModel cheap;
@@ -122,6 +134,20 @@ TEST(Planner, BadCalibrationFilesNameTheFileAndField) {
   write_file(path, R"({"forward_base": 1, "forward_per_lane": -2, "adjoint": 3,
       "seconds_per_sample": 1e-8})");
   EXPECT_THROW(read_cost_model(path), Error);
+  // A file from before the per-ray lanes: they take the other lanes' figures; a bad one is named.
+  write_file(path, R"({"forward_base": 1, "forward_per_lane": 0.5, "adjoint": 3,
+      "seconds_per_sample": 1e-8})");
+  const CostModel old = read_cost_model(path);
+  EXPECT_EQ(old.forward_ray_base, 1);
+  EXPECT_EQ(old.forward_ray_per_lane, 0.5);
+  write_file(path, R"({"forward_base": 1, "forward_per_lane": 0.5, "forward_ray_base": "x",
+      "adjoint": 3, "seconds_per_sample": 1e-8})");
+  try {
+    read_cost_model(path);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("forward_ray_base"), std::string::npos) << e.what();
+  }
 }
 
 // Both modes through gradient(): the same numbers for the groups both compute.

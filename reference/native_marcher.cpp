@@ -59,6 +59,9 @@ struct View {
 
 // The scene as the marches read it: float32, the step in world units.
 struct Prepared {
+  bool absorption = false;  // the absorption model (render only)
+  bool identity = false;    // the identity TF σ = a·d, colour b·d (render only)
+  float id_a = 0, id_b = 0;
   std::vector<Point> tf;
   std::vector<View> views;
   const float* vol;
@@ -69,12 +72,19 @@ struct Prepared {
   std::vector<reference::PackedCamera> packed;  // for ivr's sample count (README.md, Integrators)
 };
 
-Prepared prepare(const Scene& scene, double step_voxels) {
-  if (scene.model != Model::emission_absorption || scene.tf.kind != TfKind::piecewise_linear ||
-      scene.tf.points.empty())
+// The gradient takes emission–absorption through a piecewise-linear TF; the render also the
+// absorption model and the identity TF.
+Prepared prepare(const Scene& scene, double step_voxels, bool render_only) {
+  const bool pwl = scene.tf.kind == TfKind::piecewise_linear && !scene.tf.points.empty();
+  if (!render_only && (scene.model != Model::emission_absorption || !pwl))
     throw std::runtime_error(
-        "the native baseline renders emission_absorption with piecewise_linear only");
+        "the native baseline's gradient takes emission_absorption with piecewise_linear only");
+  if (!pwl && scene.tf.kind != TfKind::identity)
+    throw std::runtime_error("the native baseline renders piecewise_linear and identity TFs only");
   Prepared p;
+  p.absorption = scene.model == Model::absorption;
+  p.identity = scene.tf.kind == TfKind::identity;
+  p.id_a = float(scene.tf.extinction_scale), p.id_b = float(scene.tf.color_scale);
   for (const TfPoint& q : scene.tf.points)
     p.tf.push_back({float(q.density), float(q.color.x), float(q.color.y), float(q.color.z),
                     float(q.extinction)});
@@ -239,6 +249,14 @@ inline float attenuate(float T, float x, float fraction, float decay) {
   return x < 0.1f ? std::fma(-T, x * fraction, T) : T * decay;
 }
 
+// A sample's optics at density d: the piecewise-linear TF (tf_at, carrying the cursor) or the
+// identity TF (tf.cl: σ = a·d, E = σ·b·d).
+inline Optics sample_optics(const Prepared& p, float d, int& cursor) {
+  if (!p.identity) return optics(tf_at(p.tf, d, cursor));
+  const float sigma = p.id_a * d, e = sigma * p.id_b * d;
+  return {sigma, e, e, e};
+}
+
 // What a primal march leaves: the transmittance, the emitted colour (compensated sums), and one
 // past the last sample taken.
 struct Radiance {
@@ -247,16 +265,33 @@ struct Radiance {
 };
 
 // kernels/primal.cl's midpoint march: stops after the sample that takes T below min_t.
+// The absorption model sums the optical depth (compensated) and stops once it passes
+// −log(min_t), then T = e^−τ (primal.cl's march_threshold and march_finish).
 inline Radiance primal_march(const Prepared& p, const Ray& ray) {
   Radiance r;
   float kr = 0, kg = 0, kb = 0;
   int cursor = 0;
+  if (p.absorption) {
+    float tau = 0, k = 0;
+    const float stop = p.min_t > 0 ? -std::log(p.min_t) : INFINITY;
+    for (unsigned i = 0; i < ray.n; ++i) {
+      const float t = ray.t0 + (float(i) + 0.5f) * ray.dt;
+      const Cell c = cell_at(p, ray.u0 + t * ray.du);
+      float v[8];
+      load_corners(p.vol, c, v);
+      kahan(tau, k, sample_optics(p, interpolate(v, c), cursor).sigma * ray.dt);
+      r.end = i + 1;
+      if (tau > stop) break;
+    }
+    r.T = std::exp(-tau);
+    return r;
+  }
   for (unsigned i = 0; i < ray.n; ++i) {
     const float t = ray.t0 + (float(i) + 0.5f) * ray.dt;
     const Cell c = cell_at(p, ray.u0 + t * ray.du);
     float v[8];
     load_corners(p.vol, c, v);
-    const Optics o = optics(tf_at(p.tf, interpolate(v, c), cursor));
+    const Optics o = sample_optics(p, interpolate(v, c), cursor);
     const float tau = o.sigma * ray.dt;
     float fraction;
     const float decay = decay_and_fraction(tau, fraction);
@@ -356,9 +391,10 @@ unsigned adjoint_march(const Prepared& p, const Ray& ray, const PixelAdjoint& ar
 }  // namespace
 
 std::size_t native_render(const Scene& scene, double step_voxels, std::vector<float>& image) {
-  const Prepared p = prepare(scene, step_voxels);
+  const Prepared p = prepare(scene, step_voxels, true);
   const int rows = int(p.views.size()) * p.H;
-  image.assign(std::size_t(rows) * p.W * 4, 0.f);
+  const int channels = p.absorption ? 1 : 4;
+  image.assign(std::size_t(rows) * p.W * channels, 0.f);
   std::size_t total = 0;
 #pragma omp parallel for schedule(dynamic, 4) reduction(+ : total)
   for (int row = 0; row < rows; ++row) {
@@ -368,7 +404,11 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
       Radiance r;
       if (ray_at(p, view, x, y, ray)) r = primal_march(p, ray);
       total += r.end;
-      float* out = &image[(std::size_t(row) * p.W + x) * 4];
+      float* out = &image[(std::size_t(row) * p.W + x) * channels];
+      if (p.absorption) {
+        out[0] = p.bg.x * r.T;
+        continue;
+      }
       out[0] = r.cr + r.T * p.bg.x;
       out[1] = r.cg + r.T * p.bg.y;
       out[2] = r.cb + r.T * p.bg.z;
@@ -381,7 +421,7 @@ std::size_t native_render(const Scene& scene, double step_voxels, std::vector<fl
 std::size_t native_gradient(const Scene& scene, double step_voxels,
                             const std::vector<float>& target, std::vector<float>& grad,
                             double& loss) {
-  const Prepared p = prepare(scene, step_voxels);
+  const Prepared p = prepare(scene, step_voxels, false);
   const int rows = int(p.views.size()) * p.H;
   const std::size_t elements = std::size_t(rows) * p.W * 4;
   if (target.size() != elements)

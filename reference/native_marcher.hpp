@@ -8,9 +8,9 @@
 
 namespace ivr::bench {
 
-// Renders (views, H, W, 4) emission–absorption with a piecewise_linear TF, midpoint rule with
-// `step` voxel units, early termination at scene.integrator.min_transmittance; returns the
-// number of samples taken.
+// Renders (views, H, W, 4) emission–absorption, or (views, H, W, 1) absorption, with a
+// piecewise_linear or identity TF, midpoint rule with `step` voxel units, early termination at
+// scene.integrator.min_transmittance; returns the number of samples taken.
 std::size_t native_render(const Scene& scene, double step, std::vector<float>& image);
 
 // d loss / d voxel density, shape (nz, ny, nx), of loss = the mean over every element of

@@ -1,7 +1,8 @@
 // render.cpp — the render suite: ivr's forward render against the native C++/OpenMP marcher (the
-// full run: 128³/256³ volumes into 256²/512² images at steps 0.5/0.25) and the Python baselines
-// on the benchmark scene, each checked against the independent float64 reference at the same step
-// before its times count; the error against a fine-step reference is reported beside every time.
+// full run: 128³/256³ volumes into 256²/512² images at steps 0.5/0.25, and 128³ → 256² at step
+// 0.5 through the identity TF and in the absorption model) and the Python baselines on the
+// benchmark scene, each checked against the independent float64 reference at the same step before
+// its times count; the error against a fine-step reference is reported beside every time.
 #include <iostream>
 #include <map>
 
@@ -19,8 +20,26 @@ struct RenderCase {
   int volume, image;
   double step;
   bool python_baselines = true;  // the grid's larger cases: ivr and the native marcher only
-  std::string name() const { return scene_case(volume, image, step); }
+  std::string look;              // "": the benchmark scene; "identity", "absorption"
+  std::string name() const { return scene_case(volume, image, step) + (look.empty() ? "" : "_" + look); }
 };
+
+// The benchmark scene, or the same volume and view through the identity TF (σ = 20·d, colour d)
+// or in the absorption model (the scene's TF at a quarter of its extinction: optical depths of a
+// few per ray).
+Scene case_scene(const RenderCase& c) {
+  Scene s = bench_scene(c.volume, c.image);
+  if (c.look == "identity") {
+    s.tf.kind = TfKind::identity;
+    s.tf.extinction_scale = 20;
+    s.tf.color_scale = 1;
+  } else if (c.look == "absorption") {
+    s.model = Model::absorption;
+    s.background.reset();
+    for (TfPoint& p : s.tf.points) p.extinction *= 0.25;
+  }
+  return s;
+}
 
 // References are the same for every device: computed once per run.
 struct References {
@@ -46,18 +65,21 @@ void render_suite(Context& ctx) {
       for (int image : {256, 512})
         for (double step : {0.5, 0.25})
           if (volume != 128 || image != 256) cases.push_back({volume, image, step, false});
+    for (const char* look : {"identity", "absorption"}) cases.push_back({128, 256, 0.5, false, look});
   }
   for (const RenderCase& c : cases) {
-    const Scene scene = bench_scene(c.volume, c.image);
+    const Scene scene = case_scene(c);
     const double h = reference::min_voxel_edge(scene);
-    const nlohmann::json params = {{"volume", c.volume},
-                                   {"image", c.image},
-                                   {"step", c.step},
-                                   {"scene", "calibration (Marschner–Lobb, 4-point TF)"}};
+    nlohmann::json params = {{"volume", c.volume},
+                             {"image", c.image},
+                             {"step", c.step},
+                             {"scene", "calibration (Marschner–Lobb, 4-point TF)"}};
+    if (!c.look.empty()) params["look"] = c.look;
     // The same-step reference per case, the fine one per scene (shared by its steps).
     References& ref = reference_cache()[c.name()];
-    std::vector<double>& fine =
-        reference_cache()["fine_" + std::to_string(c.volume) + "_" + std::to_string(c.image)].fine;
+    std::vector<double>& fine = reference_cache()["fine_" + std::to_string(c.volume) + "_" +
+                                                  std::to_string(c.image) + c.look]
+                                    .fine;
     if (ref.same_step.empty()) {
       std::cerr << "ivr-bench: render/" << c.name() << ": float64 references...\n";
       ref.same_step = reference::render_midpoint(scene, c.step * h, true);

@@ -279,7 +279,7 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
   for (int k = 0; k < count; ++k) {
     __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
     const real z = (d - p[0]) / p[1];
-    const real g = exp((real)-0.5 * z * z);
+    const real g = vexp((real)-0.5 * z * z);  // the primal's exp (tf_sample)
     // sigma += e·G, E += e·G·c: d/de = G·(gs + gE·c), d/dc = e·G·gE, d/dmean = e·(gs + gE·c)·G·z/w,
     // d/dwidth = e·(gs + gE·c)·G·z²/w.
     const real through = gs + gr * p[2] + gg * p[3] + gb * p[4];

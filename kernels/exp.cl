@@ -3,7 +3,9 @@
 // scalar and vector forms, and a packet of rays (kernels/rays.cl) must render bit for bit what one
 // ray per work-item renders, with a vector exp (PoCL's scalar one, called lane by lane, took a
 // fifth of a packet render). Within 1 ulp of e^x (tests/render/exp_test.cpp, against the host's
-// copy, reference/exp.hpp, which runs the same steps).
+// copy, reference/expf_steps.hpp, which runs the same steps). Subnormal results assume the
+// device keeps subnormals (OpenCL's default for float32 on CPUs; a device or -cl-denorms-are-zero
+// that flushes them returns 0 there instead).
 #ifndef IVR_EXP_CL
 #define IVR_EXP_CL
 #include "config.cl"
@@ -29,7 +31,8 @@
   const T second = select(select((T)1.0f, (T)7.88860905e-31f, low), (T)2.0f, high);            \
   T e = p * AS_T(biased << 23) * second; /* 2^k as 2^(k+100)·2^-100 or 2^(k-1)·2 at the ends */ \
   e = select(e, (T)0.0f, x < (T)-104.0f);                                                      \
-  return select(e, (T)INFINITY, x > (T)88.72283905206835f);
+  e = select(e, (T)INFINITY, x > (T)88.72283905206835f);                                       \
+  return select(e, x + x, isnan(x)); /* NaN stays NaN (fmin/fmax above would drop it) */
 
 inline float ivr_expf(float x) {
   // (select() of scalars takes the third operand's truth as C does.)

@@ -31,6 +31,7 @@ inline float expf_steps(float x) {
   float e = first * second;
   if (x < -104.0f) e = 0.0f;
   if (x > 88.72283905206835f) e = std::numeric_limits<float>::infinity();
+  if (std::isnan(x)) e = x + x;
   return e;
 }
 

@@ -18,7 +18,7 @@ enum class Mode { automatic, forward, adjoint };
 // (forward_base + forward_per_lane · L) renders, an adjoint gradient `adjoint` renders; a render
 // costs seconds_per_sample per density sample (to predict seconds). The defaults are `ivr
 // calibrate` on a 2-core AMD EPYC with PoCL 3.1 (rounded): forward wins up to 8 lanes there.
-// Forward passes whose lanes include camera or voxel parameters (per-ray geometry) cost
+// Forward passes whose lanes include camera or voxel (density) parameters (per-ray geometry) cost
 // forward_ray_base + forward_ray_per_lane · L: on CPUs TF and background lanes march packets of
 // rays in vector lanes and those lanes one ray per work-item; elsewhere the two are the same.
 struct CostModel {

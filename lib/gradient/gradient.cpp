@@ -110,8 +110,10 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
     plans.push_back(plan_group(s.scene, g));
     forward_parameters += plans.back().count;
     adjoint_possible = adjoint_possible && plans.back().adjoint;
-    // Camera and voxel lanes march one ray per work-item (forward_cost).
-    per_ray = per_ray || plans.back().name == "camera" || plans.back().name == "voxels";
+    // Camera and voxel lanes (density's too, in forward mode) march one ray per work-item
+    // (forward_cost).
+    per_ray = per_ray || plans.back().name == "camera" || plans.back().name == "voxels" ||
+              plans.back().name == "density";
   }
   if (plans.empty()) throw bad_group("no group asked for");
   if (request.mode == Mode::adjoint)

@@ -120,89 +120,23 @@ __attribute__((always_inline)) inline vreal tf_sample_slope(vreal d, __global co
                                                             vreal* dsigma, vreal* der, vreal* deg,
                                                             vreal* deb, TfPoint* point) {
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
-  // The rows around d: [r, g, b, sigma] of row0 in a*, of row1 in b*; w the weight of row1 and
-  // dw its slope in d.
-  vreal a0, a1, a2, a3, b0, b1, b2, b3, w, dw;
-  vint row0, row1;
-#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  (void)scalars;
-  const int last = count - 1;
-#if IVR_RAYS == 1
-  int k0 = 0, k1 = 0;
-  w = (real)0, dw = (real)0;
-  if (d >= tf[last * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
-    k0 = k1 = last;
-  } else if (d > tf[0]) {
-    int k = *cursor;
-    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
-    while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
-    *cursor = k;
-    k0 = k, k1 = k + 1;
-    const real width = tf[k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR] - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
-    w = (d - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR]) / width;
-    dw = (real)1 / width;
-  }
-  __global const real* a = tf + k0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
-  __global const real* b = tf + k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
-  a0 = a[0], a1 = a[1], a2 = a[2], a3 = a[3], b0 = b[0], b1 = b[1], b2 = b[2], b3 = b[3];
-  row0 = k0, row1 = k1;
-#else
-  // Every segment blended in (as tf_sample() does for a packet): the rows are the same for every
-  // ray, so their values are broadcasts, not gathers.
-  (void)cursor;
-  a0 = b0 = (vreal)tf[1], a1 = b1 = (vreal)tf[2], a2 = b2 = (vreal)tf[3], a3 = b3 = (vreal)tf[4];
-  w = dw = (vreal)(real)0;
-  row0 = row1 = (vint)0;
-  for (int k = 0; k < last; ++k) {
-    __global const real* p = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
-    __global const real* q = p + IVR_TF_STRIDE_PIECEWISE_LINEAR;
-    const vint in = vmask_of(d >= p[0]) && vmask_of(d < q[0]) && vmask_of(d > tf[0]);
-    if (!vany(in)) continue;
-    const real width = q[0] - p[0];
-    w = vsel(w, (d - p[0]) / width, in);
-    dw = vsel(dw, (vreal)((real)1 / width), in);
-    a0 = vsel(a0, (vreal)p[1], in), a1 = vsel(a1, (vreal)p[2], in);
-    a2 = vsel(a2, (vreal)p[3], in), a3 = vsel(a3, (vreal)p[4], in);
-    b0 = vsel(b0, (vreal)q[1], in), b1 = vsel(b1, (vreal)q[2], in);
-    b2 = vsel(b2, (vreal)q[3], in), b3 = vsel(b3, (vreal)q[4], in);
-    row0 = vseli(row0, (vint)k, in), row1 = vseli(row1, (vint)(k + 1), in);
-  }
-  __global const real* z = tf + last * IVR_TF_STRIDE_PIECEWISE_LINEAR;
-  const vint beyond = vmask_of(d >= z[0]);
-  a0 = vsel(a0, (vreal)z[1], beyond), a1 = vsel(a1, (vreal)z[2], beyond);
-  a2 = vsel(a2, (vreal)z[3], beyond), a3 = vsel(a3, (vreal)z[4], beyond);
-  b0 = vsel(b0, (vreal)z[1], beyond), b1 = vsel(b1, (vreal)z[2], beyond);
-  b2 = vsel(b2, (vreal)z[3], beyond), b3 = vsel(b3, (vreal)z[4], beyond);
-  row0 = vseli(row0, (vint)last, beyond), row1 = vseli(row1, (vint)last, beyond);
-#endif
-#else
-  (void)cursor;
-  const vreal q = (d - scalars.x) / (scalars.y - scalars.x);
-  const vreal u = clamp(q, (real)0, (real)1) * (real)(count - 1);
-  row0 = min(vto_int(u), count - 1);
-  row1 = min(row0 + 1, count - 1);
-  w = u - vto_real(row0);
-  dw = vsel((vreal)(real)0, (vreal)((real)(count - 1) / (scalars.y - scalars.x)),
-            vmask_of(q >= (real)0) && vmask_of(q < (real)1));
-  const vint ia = row0 * IVR_TF_STRIDE_TABLE, ib = row1 * IVR_TF_STRIDE_TABLE;
-  a0 = vgather(tf, ia), a1 = vgather(tf, ia + 1), a2 = vgather(tf, ia + 2), a3 = vgather(tf, ia + 3);
-  b0 = vgather(tf, ib), b1 = vgather(tf, ib + 1), b2 = vgather(tf, ib + 2), b3 = vgather(tf, ib + 3);
-#endif
-  const vreal sigma = vlerp(a3, b3, w);
-  *dsigma = (b3 - a3) * dw;
-  const vreal cr = vlerp(a0, b0, w), cg = vlerp(a1, b1, w), cb = vlerp(a2, b2, w);
+  // The rows around d, as tf_sample() finds them.
+  const TfRows t = tf_rows(d, tf, count, scalars, cursor);
+  const vreal sigma = vlerp(t.a3, t.b3, t.w);
+  *dsigma = (t.b3 - t.a3) * t.dw;
+  const vreal cr = vlerp(t.a0, t.b0, t.w), cg = vlerp(t.a1, t.b1, t.w), cb = vlerp(t.a2, t.b2, t.w);
 #if IVR_EMISSION
   *er = sigma * cr;
   *eg = sigma * cg;
   *eb = sigma * cb;
   // E = sigma·c: E' = sigma'·c + sigma·c'
-  *der = *dsigma * cr + sigma * (b0 - a0) * dw;
-  *deg = *dsigma * cg + sigma * (b1 - a1) * dw;
-  *deb = *dsigma * cb + sigma * (b2 - a2) * dw;
+  *der = *dsigma * cr + sigma * (t.b0 - t.a0) * t.dw;
+  *deg = *dsigma * cg + sigma * (t.b1 - t.a1) * t.dw;
+  *deb = *dsigma * cb + sigma * (t.b2 - t.a2) * t.dw;
 #else
   *der = *deg = *deb = (vreal)(real)0;
 #endif
-  point->row0 = row0, point->row1 = row1, point->w1 = w;
+  point->row0 = t.row0, point->row1 = t.row1, point->w1 = t.w;
   point->cr = cr, point->cg = cg, point->cb = cb;
   return sigma;
 #else

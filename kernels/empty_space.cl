@@ -94,6 +94,38 @@ __attribute__((always_inline)) inline vint endpoint_skip(vint i, vint n, vreal u
   return k;
 }
 
+// The midpoint marches' skipping step at sample i (voxel coordinates u): the live rays whose
+// sample lies in an empty brick move i past it (skip_to), and those now past their last sample
+// stop. Returns the rays that sample in this round (none: the march goes round again).
+__attribute__((always_inline)) inline vint midpoint_skip(vint* i, vint n, vint* live, vreal ux,
+                                                         vreal uy, vreal uz, const March* m,
+                                                         int4 dims, __global const uchar* occupied,
+                                                         int4 bricks) {
+  const vreal exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
+  const vint skip = *live && vmask_of(exit >= (real)0);
+  if (vany(skip)) {
+    *i = vseli(*i, skip_to(*i, n, m->t0, m->dt, exit), skip);
+    *live = *live && (*i < n);
+  }
+  return *live && !skip;
+}
+
+// The end-sample marches' skipping step from sample i (voxel coordinates u): the live rays move i
+// to endpoint_skip()'s sample, and those now at their last stop. Returns the rays that moved and
+// go on, whose sample i the march takes again.
+__attribute__((always_inline)) inline vint endpoint_skip_step(vint* i, vint n, vint* live,
+                                                              vreal ux, vreal uy, vreal uz,
+                                                              const March* m, int4 dims,
+                                                              __global const uchar* occupied,
+                                                              int4 bricks) {
+  const vint k = endpoint_skip(*i, n, ux, uy, uz, m, dims, occupied, bricks, *live);
+  const vint moved = *live && (k > *i);
+  if (!vany(moved)) return moved;
+  *i = vseli(*i, k, moved);
+  *live = *live && (*i < n);
+  return moved && *live;
+}
+
 // Per brick (one work-item each): the min and max density over the voxels its samples read,
 // [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space/empty_space.hpp), as float pairs.
 __kernel void brick_ranges(__global const real* restrict volume, const int4 dims, const int4 bricks,

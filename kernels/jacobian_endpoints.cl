@@ -238,20 +238,15 @@ inline void tangent_march_endpoints(__global const real* volume, int4 dims, cons
   while (vany(live)) {
 #if IVR_EMPTY_SPACE
     {
-      const vint k = endpoint_skip(i, n, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks, live);
-      const vint moved = live && (k > i);
-      if (vany(moved)) {
-        i = vseli(i, k, moved);
-        live = live && (i < n);
-        const vint again = moved && live;  // the sample the march goes on from
-        if (vany(again)) {
-          tangent_sample(&b, volume, dims, m, i, ray, inv_voxel, tf, tf_count, tf_scalars,
-                         &cursor, tr);
-          tangent_sample_where(&a, &b, again);
-          r->samples += vcount(again);
-        }
-        if (!vany(live)) break;
+      const vint again = endpoint_skip_step(&i, n, &live, a.s.ux, a.s.uy, a.s.uz, m, dims,
+                                            occupied, bricks);
+      if (vany(again)) {  // the sample the march goes on from
+        tangent_sample(&b, volume, dims, m, i, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor,
+                       tr);
+        tangent_sample_where(&a, &b, again);
+        r->samples += vcount(again);
       }
+      if (!vany(live)) break;
     }
 #else
     (void)occupied, (void)bricks;

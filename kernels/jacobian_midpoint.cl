@@ -29,14 +29,8 @@ inline void tangent_march_midpoint(__global const real* volume, int4 dims, const
 #if IVR_EMPTY_SPACE
     // Only where nothing differentiated can come from (lib/empty_space/empty_space.hpp,
     // gradient_may_skip).
-    const vreal exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
-    const vint skip = live && vmask_of(exit >= (real)0);
-    if (vany(skip)) {
-      i = vseli(i, skip_to(i, n, m->t0, m->dt, exit), skip);
-      live = live && (i < n);
-      if (vall(skip || !live)) continue;
-    }
-    const vint take = IVR_RAYS == 1 ? vtrue : live && !skip;
+    const vint take = midpoint_skip(&i, n, &live, ux, uy, uz, m, dims, occupied, bricks);
+    if (!vany(take)) continue;
 #else
     (void)occupied, (void)bricks;
     const vint take = IVR_RAYS == 1 ? vtrue : live;

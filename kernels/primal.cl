@@ -106,7 +106,8 @@ inline void composite(Radiance* r, vreal tau, vreal dt, vreal er, vreal eg, vrea
 // The fixed-step marches below are written once for one ray and for a packet: `live` holds the
 // rays still marching, `take` those that take a sample in this round (a packet's rays skip empty
 // space each on its own). One ray that skips goes round the loop again instead, so its `take` is
-// the constant true: the masked updates compile to a scalar loop's plain ones.
+// true wherever it is used (the constant true without skipping): the masked updates compile to a
+// scalar loop's plain ones.
 
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT
 // One sample at the middle of each segment.
@@ -125,14 +126,8 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
 #if IVR_EMPTY_SPACE
     // (Reading the grid at every sample measured faster on PoCL than tracking where the ray
     // leaves each occupied brick.)
-    const vreal exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
-    const vint skip = live && vmask_of(exit >= (real)0);
-    if (vany(skip)) {
-      i = vseli(i, skip_to(i, n, m->t0, m->dt, exit), skip);
-      live = live && (i < n);
-      if (vall(skip || !live)) continue;
-    }
-    const vint take = IVR_RAYS == 1 ? vtrue : live && !skip;  // one ray: skipped by `continue`
+    const vint take = midpoint_skip(&i, n, &live, ux, uy, uz, m, dims, occupied, bricks);
+    if (!vany(take)) continue;
 #else
     (void)occupied, (void)bricks;
     const vint take = IVR_RAYS == 1 ? vtrue : live;
@@ -169,19 +164,14 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
   while (vany(live)) {
 #if IVR_EMPTY_SPACE
     {
-      const vint k = endpoint_skip(i, n, a.ux, a.uy, a.uz, m, dims, occupied, bricks, live);
-      const vint moved = live && (k > i);
-      if (vany(moved)) {
-        i = vseli(i, k, moved);
-        live = live && (i < n);
-        const vint again = moved && live;  // the sample the march goes on from
-        if (vany(again)) {
-          const EndSample s = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &segment);
-          end_sample_where(&a, &s, again);
-          r->samples += vcount(again);
-        }
-        if (!vany(live)) break;
+      const vint again = endpoint_skip_step(&i, n, &live, a.ux, a.uy, a.uz, m, dims, occupied,
+                                            bricks);
+      if (vany(again)) {  // the sample the march goes on from
+        const EndSample s = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &segment);
+        end_sample_where(&a, &s, again);
+        r->samples += vcount(again);
       }
+      if (!vany(live)) break;
     }
 #else
     (void)occupied, (void)bricks;

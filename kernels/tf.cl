@@ -12,15 +12,100 @@
 //   gaussian:          rows [mean, width, r, g, b, extinction]
 #include "ivr_constants.h"  // IVR_TF_STRIDE_*: the row widths above
 
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+// The one or two TF rows a density d blends, for one ray or every ray of a packet
+// (kernels/rays.cl): their [r, g, b, sigma] (row0's in a*, row1's in b*), row1's weight w and its
+// slope dw in d, and the rows' indices (row0 = row1, w = dw = 0, beyond the ends).
+// Piecewise linear: the segment [d_k, d_k+1) holding d. *cursor is the one-ray search's start: a
+// marching loop starts it at 0 and passes it from one sample to the next; densities along a ray
+// are continuous, so the search mostly stays put or moves one segment instead of scanning from
+// the first point. The segment found is the same from any start. A packet, whose rays would each
+// move their own cursor through gathers, blends every segment in by masks instead (the rows are
+// the same for every ray: broadcasts, not gathers). Table: R entries at evenly spaced densities
+// lo..hi, linear in between, constant beyond.
+typedef struct {
+  vreal a0, a1, a2, a3, b0, b1, b2, b3;
+  vreal w, dw;
+  vint row0, row1;
+} TfRows;
+
+__attribute__((always_inline)) inline TfRows tf_rows(vreal d, __global const real* tf, int count,
+                                                     real4 scalars, vint* cursor) {
+  TfRows t;
+#if IVR_TF == IVR_TF_PIECEWISE_LINEAR
+  (void)scalars;
+  const int last = count - 1;
+#if IVR_RAYS == 1
+  int k0 = 0, k1 = 0;
+  t.w = (real)0, t.dw = (real)0;
+  if (d >= tf[last * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
+    k0 = k1 = last;
+  } else if (d > tf[0]) {  // so count >= 2, and the k with d_k <= d < d_k+1 exists
+    int k = *cursor;
+    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
+    while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
+    *cursor = k;
+    k0 = k, k1 = k + 1;
+    const real width = tf[k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR] - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+    t.w = (d - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR]) / width;  // never a zero width
+    t.dw = (real)1 / width;
+  }
+  __global const real* a = tf + k0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
+  __global const real* b = tf + k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+  t.a0 = a[0], t.a1 = a[1], t.a2 = a[2], t.a3 = a[3], t.b0 = b[0], t.b1 = b[1], t.b2 = b[2];
+  t.b3 = b[3];
+  t.row0 = k0, t.row1 = k1;
+#else
+  (void)cursor;
+  t.a0 = t.b0 = (vreal)tf[1], t.a1 = t.b1 = (vreal)tf[2], t.a2 = t.b2 = (vreal)tf[3];
+  t.a3 = t.b3 = (vreal)tf[4];
+  t.w = t.dw = (vreal)(real)0;
+  t.row0 = t.row1 = (vint)0;
+  for (int k = 0; k < last; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    __global const real* q = p + IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    const vint in = vmask_of(d >= p[0]) && vmask_of(d < q[0]) && vmask_of(d > tf[0]);
+    if (!vany(in)) continue;
+    const real width = q[0] - p[0];
+    t.w = vsel(t.w, (d - p[0]) / width, in);
+    t.dw = vsel(t.dw, (vreal)((real)1 / width), in);
+    t.a0 = vsel(t.a0, (vreal)p[1], in), t.a1 = vsel(t.a1, (vreal)p[2], in);
+    t.a2 = vsel(t.a2, (vreal)p[3], in), t.a3 = vsel(t.a3, (vreal)p[4], in);
+    t.b0 = vsel(t.b0, (vreal)q[1], in), t.b1 = vsel(t.b1, (vreal)q[2], in);
+    t.b2 = vsel(t.b2, (vreal)q[3], in), t.b3 = vsel(t.b3, (vreal)q[4], in);
+    t.row0 = vseli(t.row0, (vint)k, in), t.row1 = vseli(t.row1, (vint)(k + 1), in);
+  }
+  __global const real* z = tf + last * IVR_TF_STRIDE_PIECEWISE_LINEAR;
+  const vint beyond = vmask_of(d >= z[0]);
+  t.a0 = vsel(t.a0, (vreal)z[1], beyond), t.a1 = vsel(t.a1, (vreal)z[2], beyond);
+  t.a2 = vsel(t.a2, (vreal)z[3], beyond), t.a3 = vsel(t.a3, (vreal)z[4], beyond);
+  t.b0 = vsel(t.b0, (vreal)z[1], beyond), t.b1 = vsel(t.b1, (vreal)z[2], beyond);
+  t.b2 = vsel(t.b2, (vreal)z[3], beyond), t.b3 = vsel(t.b3, (vreal)z[4], beyond);
+  t.row0 = vseli(t.row0, (vint)last, beyond), t.row1 = vseli(t.row1, (vint)last, beyond);
+#endif
+#else
+  (void)cursor;
+  const vreal q = (d - scalars.x) / (scalars.y - scalars.x);
+  const vreal u = clamp(q, (real)0, (real)1) * (real)(count - 1);
+  t.row0 = min(vto_int(u), count - 1);
+  t.row1 = min(t.row0 + 1, count - 1);
+  t.w = u - vto_real(t.row0);
+  t.dw = vsel((vreal)(real)0, (vreal)((real)(count - 1) / (scalars.y - scalars.x)),
+              vmask_of(q >= (real)0) && vmask_of(q < (real)1));
+  const vint ia = t.row0 * IVR_TF_STRIDE_TABLE, ib = t.row1 * IVR_TF_STRIDE_TABLE;
+  t.a0 = vgather(tf, ia), t.a1 = vgather(tf, ia + 1), t.a2 = vgather(tf, ia + 2);
+  t.a3 = vgather(tf, ia + 3);
+  t.b0 = vgather(tf, ib), t.b1 = vgather(tf, ib + 1), t.b2 = vgather(tf, ib + 2);
+  t.b3 = vgather(tf, ib + 3);
+#endif
+  return t;
+}
+#endif
+
 // sigma(d), and with IVR_EMISSION the premultiplied emission in (*er, *eg, *eb), for one ray or
 // every ray of a packet (kernels/rays.cl). Scalars rather than real3 because PoCL compiles real3
-// into padded 4-wide vectors with lane shuffles around them.
-// *segment is the piecewise-linear search's cursor: a marching loop starts it at 0 and passes it
-// from one sample to the next; densities along a ray are continuous, so the search mostly stays
-// put or moves one segment instead of scanning from the first point. The segment found, and so
-// the value, is the same from any start. A packet, whose rays would each move their own cursor
-// through gathers, blends every segment instead (the TF's rows are the same for every ray:
-// broadcasts), to the same value. Other kinds ignore it.
+// into padded 4-wide vectors with lane shuffles around them. *segment: tf_rows()'s search cursor
+// (piecewise linear); other kinds ignore it.
 __attribute__((always_inline)) inline vreal tf_sample(vreal d, __global const real* tf, int count,
                                                       real4 scalars, vint* segment, vreal* er,
                                                       vreal* eg, vreal* eb) {
@@ -32,72 +117,14 @@ __attribute__((always_inline)) inline vreal tf_sample(vreal d, __global const re
 #endif
   return sigma;
 
-#elif IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  (void)scalars;
-#if IVR_RAYS == 1
-  // Constant beyond the ends; in between, linear on the segment [d_k, d_k+1) holding d.
-  __global const real* a = tf;
-  __global const real* b = tf;
-  real w = (real)0;
-  if (d >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) {
-    a = b = tf + (count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR;
-  } else if (d > tf[0]) {  // so count >= 2, and the k with d_k <= d < d_k+1 exists
-    int k = *segment;
-    while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > d) --k;
-    while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
-    *segment = k;
-    a = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
-    b = a + IVR_TF_STRIDE_PIECEWISE_LINEAR;
-    w = (d - a[0]) / (b[0] - a[0]);  // b[0] > d >= a[0], never zero
-  }
-  const real sigma = lerp(a[4], b[4], w);
+#elif IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+  // Constant beyond the ends (lerp(a, a, 0) = a); in between, linear between the two rows.
+  const TfRows t = tf_rows(d, tf, count, scalars, segment);
+  const vreal sigma = vlerp(t.a3, t.b3, t.w);
 #if IVR_EMISSION
-  *er = sigma * lerp(a[1], b[1], w);
-  *eg = sigma * lerp(a[2], b[2], w);
-  *eb = sigma * lerp(a[3], b[3], w);
-#endif
-  return sigma;
-#else
-  // The first point's values below it, the segment [d_k, d_k+1) holding d, the last point's
-  // values from it on: lerp(a, a, 0) = a, so each is the one-ray search's value bit for bit.
-  (void)segment;
-  const int last = (count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR;
-  vreal sigma = (vreal)tf[4], r = (vreal)tf[1], g = (vreal)tf[2], b = (vreal)tf[3];
-  for (int k = 0; k + 1 < count; ++k) {
-    __global const real* p = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
-    __global const real* q = p + IVR_TF_STRIDE_PIECEWISE_LINEAR;
-    const vint in = vmask_of(d >= p[0]) && vmask_of(d < q[0]) && vmask_of(d > tf[0]);
-    if (!vany(in)) continue;
-    const vreal w = (d - p[0]) / (q[0] - p[0]);
-    sigma = vsel(sigma, vlerp((vreal)p[4], (vreal)q[4], w), in);
-    r = vsel(r, vlerp((vreal)p[1], (vreal)q[1], w), in);
-    g = vsel(g, vlerp((vreal)p[2], (vreal)q[2], w), in);
-    b = vsel(b, vlerp((vreal)p[3], (vreal)q[3], w), in);
-  }
-  const vint beyond = vmask_of(d >= tf[last]);
-  sigma = vsel(sigma, (vreal)tf[last + 4], beyond);
-#if IVR_EMISSION
-  *er = sigma * vsel(r, (vreal)tf[last + 1], beyond);
-  *eg = sigma * vsel(g, (vreal)tf[last + 2], beyond);
-  *eb = sigma * vsel(b, (vreal)tf[last + 3], beyond);
-#endif
-  return sigma;
-#endif
-
-#elif IVR_TF == IVR_TF_TABLE
-  // R entries at evenly spaced densities lo..hi, linear in between, constant beyond.
-  (void)segment;
-  const vreal u =
-      clamp((d - scalars.x) / (scalars.y - scalars.x), (real)0, (real)1) * (real)(count - 1);
-  const vint i0 = min(vto_int(u), count - 1);
-  const vint i1 = min(i0 + 1, count - 1);
-  const vreal w = u - vto_real(i0);
-  const vint a = i0 * IVR_TF_STRIDE_TABLE, b = i1 * IVR_TF_STRIDE_TABLE;
-  const vreal sigma = vlerp(vgather(tf, a + 3), vgather(tf, b + 3), w);
-#if IVR_EMISSION
-  *er = sigma * vlerp(vgather(tf, a), vgather(tf, b), w);
-  *eg = sigma * vlerp(vgather(tf, a + 1), vgather(tf, b + 1), w);
-  *eb = sigma * vlerp(vgather(tf, a + 2), vgather(tf, b + 2), w);
+  *er = sigma * vlerp(t.a0, t.b0, t.w);
+  *eg = sigma * vlerp(t.a1, t.b1, t.w);
+  *eb = sigma * vlerp(t.a2, t.b2, t.w);
 #endif
   return sigma;
 

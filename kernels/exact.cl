@@ -11,101 +11,131 @@
 #include "tf.cl"
 #include "rays.cl"
 
-#if IVR_RAYS == 1  // one ray per work-item (kernels/rays.cl)
+// Every function below takes one ray or a packet of rays in vector lanes (kernels/rays.cl): each
+// ray of a packet walks its own planes, cells, knots and roots by masked loops, and every lane
+// computes what one ray computes.
 
 // --- Pieces: the ray between consecutive centre-plane crossings --------------------------------
 
 // The plane of axis index k (u = k) is crossed at t = (k − u0) / du.
 typedef struct {
-  real t, t1;       // start of the next piece; the ray's end in the box
-  real tx, ty, tz;  // next crossing per axis (+inf: none left)
-  int kx, ky, kz;   // its plane index
-  int sx, sy, sz;   // direction of travel in u (+1, -1, 0)
-  int axis;         // axis of the plane that ended the last piece, -1: the box (or none)
+  vreal t, t1;       // start of the next piece; the ray's end in the box
+  vreal tx, ty, tz;  // next crossing per axis (+inf: none left)
+  vint kx, ky, kz;   // its plane index
+  vint sx, sy, sz;   // direction of travel in u (+1, -1, 0)
+  vint axis;         // axis of the plane that ended the last piece, -1: the box (or none)
 } Pieces;
 
 // The first plane crossed after u (moving with sign s) on an axis of n voxels, its index in *k.
-inline real first_plane(real u0, real du, real u, int n, int* k, int* s) {
-  *s = du > (real)0 ? 1 : (du < (real)0 ? -1 : 0);
-  if (*s > 0) {
-    *k = u < (real)0 ? 0 : (int)floor(u) + 1;
-    if (*k <= n - 1) return ((real)*k - u0) / du;
-  } else if (*s < 0) {
-    *k = u > (real)(n - 1) ? n - 1 : (int)ceil(u) - 1;
-    if (*k >= 0) return ((real)*k - u0) / du;
-  }
-  return (real)INFINITY;
+// (u is clamped to [-1, n] before its conversion: a plane beyond either end is none all the same.)
+inline vreal first_plane(vreal u0, vreal du, vreal u, int n, vint* k, vint* s) {
+  const vint up = vmask_of(du > (real)0), down = vmask_of(du < (real)0);
+  *s = vseli(vseli((vint)0, (vint)-1, down), (vint)1, up);
+  const vint k_up = vseli(vto_int(floor(fmin(u, (real)n))) + 1, (vint)0, vmask_of(u < (real)0));
+  const vint k_down = vseli(vto_int(ceil(fmax(u, (real)-1))) - 1, (vint)(n - 1),
+                            vmask_of(u > (real)(n - 1)));
+  *k = vseli(k_down, k_up, up);
+  const vint inside = (up && *k <= n - 1) || (down && *k >= 0);
+  return vsel((vreal)(real)INFINITY, (vto_real(*k) - u0) / du, inside);
 }
 
-inline real next_plane(real u0, real du, int n, int* k, int s) {
-  *k += s;
-  return *k >= 0 && *k <= n - 1 ? ((real)*k - u0) / du : (real)INFINITY;
+// The plane after *k, where m is true.
+inline vreal next_plane(vreal u0, vreal du, int n, vint* k, vint s, vint m) {
+  *k = vseli(*k, *k + s, m);
+  return vsel((vreal)(real)INFINITY, (vto_real(*k) - u0) / du, *k >= 0 && *k <= n - 1);
 }
 
 // Starts the pieces at ray parameter t (t0, or where a jump over empty space lands).
-inline void pieces_begin(Pieces* p, const March* m, int4 dims, real t) {
+inline void pieces_begin(Pieces* p, const March* m, int4 dims, vreal t) {
   p->t = t;
   p->t1 = m->t1;
-  p->axis = -1;
+  p->axis = (vint)-1;
   p->tx = first_plane(m->u0x, m->dux, m->u0x + t * m->dux, dims.x, &p->kx, &p->sx);
   p->ty = first_plane(m->u0y, m->duy, m->u0y + t * m->duy, dims.y, &p->ky, &p->sy);
   p->tz = first_plane(m->u0z, m->duz, m->u0z + t * m->duz, dims.z, &p->kz, &p->sz);
 }
 
-// The next piece [*ta, *tb] (possibly of length 0 where planes meet); false past the ray's end.
-inline bool pieces_next(Pieces* p, const March* m, int4 dims, real* ta, real* tb) {
-  if (!(p->t < p->t1)) return false;
-  const real end = fmin(fmin(p->tx, p->ty), fmin(p->tz, p->t1));
+// The next piece [*ta, *tb] (possibly of length 0 where planes meet) of the rays where `live` is
+// true and some ray is left; returns those rays.
+inline vint pieces_next_where(Pieces* p, const March* m, int4 dims, vint live, vreal* ta,
+                              vreal* tb) {
+  const vint go = live && vmask_of(p->t < p->t1);
+  if (!vany(go)) return go;
+  const vreal end = fmin(fmin(p->tx, p->ty), fmin(p->tz, p->t1));
   *ta = p->t;
   *tb = end;
-  p->axis = end == p->t1 ? -1 : (end == p->tx ? 0 : (end == p->ty ? 1 : 2));
+  p->axis = vseli(p->axis,
+                  vseli(vseli(vseli((vint)2, (vint)1, vmask_of(end == p->ty)), (vint)0,
+                              vmask_of(end == p->tx)),
+                        (vint)-1, vmask_of(end == p->t1)),
+                  go);
   // Every plane crossed at `end` (a ray through a line or a node crosses two or three at once).
-  while (p->tx <= end) p->tx = next_plane(m->u0x, m->dux, dims.x, &p->kx, p->sx);
-  while (p->ty <= end) p->ty = next_plane(m->u0y, m->duy, dims.y, &p->ky, p->sy);
-  while (p->tz <= end) p->tz = next_plane(m->u0z, m->duz, dims.z, &p->kz, p->sz);
-  p->t = end;
-  return true;
+  vint c;
+  while (vany(c = go && vmask_of(p->tx <= end)))
+    p->tx = vsel(p->tx, next_plane(m->u0x, m->dux, dims.x, &p->kx, p->sx, c), c);
+  while (vany(c = go && vmask_of(p->ty <= end)))
+    p->ty = vsel(p->ty, next_plane(m->u0y, m->duy, dims.y, &p->ky, p->sy, c), c);
+  while (vany(c = go && vmask_of(p->tz <= end)))
+    p->tz = vsel(p->tz, next_plane(m->u0z, m->duz, dims.z, &p->kz, p->sz, c), c);
+  p->t = vsel(p->t, end, go);
+  return go;
 }
 
-// Empty-space skipping for the pieces: where piece [ta, tb] lies in an empty brick, restarts the
-// walk where the ray leaves that brick (brick faces are centre planes: a piece starts there; or,
-// where rounding counts a sliver on the face as the brick's, where this piece ends) and returns
-// true. The skipped pieces add nothing: σ = 0 there.
-inline bool pieces_skip_empty(Pieces* p, const March* m, int4 dims, real ta, real tb,
+inline vint pieces_next(Pieces* p, const March* m, int4 dims, vreal* ta, vreal* tb) {
+  return pieces_next_where(p, m, dims, vtrue, ta, tb);
+}
+
+// Empty-space skipping for the pieces: where piece [ta, tb] of an `active` ray lies in an empty
+// brick, restarts the ray's walk where it leaves that brick (brick faces are centre planes: a piece
+// starts there; or, where rounding counts a sliver on the face as the brick's, where this piece
+// ends); returns those rays. The skipped pieces add nothing: σ = 0 there.
+inline vint pieces_skip_empty_where(Pieces* p, const March* m, int4 dims, vint active, vreal ta,
+                                    vreal tb, __global const uchar* occupied, int4 bricks) {
+  const vreal tm = (real)0.5 * (ta + tb);
+  const vreal exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
+                                      m->u0z + tm * m->duz, m, dims, occupied, bricks);
+  const vint skip = active && vmask_of(exit >= (real)0);
+  if (!vany(skip)) return skip;
+  Pieces q;
+  pieces_begin(&q, m, dims, fmin(fmax(exit, tb), m->t1));
+  p->t = vsel(p->t, q.t, skip), p->axis = vseli(p->axis, q.axis, skip);
+  p->tx = vsel(p->tx, q.tx, skip), p->ty = vsel(p->ty, q.ty, skip), p->tz = vsel(p->tz, q.tz, skip);
+  p->kx = vseli(p->kx, q.kx, skip), p->ky = vseli(p->ky, q.ky, skip);
+  p->kz = vseli(p->kz, q.kz, skip);
+  p->sx = vseli(p->sx, q.sx, skip), p->sy = vseli(p->sy, q.sy, skip);
+  p->sz = vseli(p->sz, q.sz, skip);
+  return skip;
+}
+
+inline vint pieces_skip_empty(Pieces* p, const March* m, int4 dims, vreal ta, vreal tb,
                               __global const uchar* occupied, int4 bricks) {
-  const real tm = (real)0.5 * (ta + tb);
-  const real exit = empty_brick_exit(m->u0x + tm * m->dux, m->u0y + tm * m->duy,
-                                     m->u0z + tm * m->duz, m, dims, occupied, bricks);
-  if (exit < (real)0) return false;
-  pieces_begin(p, m, dims, fmin(fmax(exit, tb), m->t1));
-  return true;
+  return pieces_skip_empty_where(p, m, dims, vtrue, ta, tb, occupied, bricks);
 }
 
 // --- The density inside one piece: one cell, fractions linear in s ∈ [0, 1] ---------------------
 
 typedef struct {
-  int ix, iy, iz;   // the cell (lower corner voxel), clamped as trilinear_at() clamps
-  real fx, fy, fz;  // fractions at s = 0
-  real gx, gy, gz;  // their change over the piece (0 along clamped axes)
-  bool cx, cy, cz;  // clamped along the axis: the density does not change with u there
+  vint ix, iy, iz;   // the cell (lower corner voxel), clamped as trilinear_at() clamps
+  vreal fx, fy, fz;  // fractions at s = 0
+  vreal gx, gy, gz;  // their change over the piece (0 along clamped axes)
+  vint cx, cy, cz;   // clamped along the axis: the density does not change with u there
 } PieceCell;
 
-inline void piece_axis(real ua, real ub, int n, int* i, real* f, real* g, bool* clamped) {
-  const real mid = (real)0.5 * (ua + ub);
-  *clamped = true;
-  if (!(mid > (real)0) || n == 1) {  // the border half-voxel below the first centre
-    *i = 0, *f = (real)0, *g = (real)0;
-  } else if (mid >= (real)(n - 1)) {  // ... above the last
-    *i = n - 1, *f = (real)0, *g = (real)0;
-  } else {
-    *i = min((int)mid, n - 2);
-    *f = ua - (real)*i;
-    *g = ub - ua;
-    *clamped = false;
-  }
+// (The cell index is in range for any u, NaN included: the gathers of a packet's idle rays read
+// inside the volume.)
+inline void piece_axis(vreal ua, vreal ub, int n, vint* i, vreal* f, vreal* g, vint* clamped) {
+  const vreal mid = (real)0.5 * (ua + ub);
+  const vint below = !vmask_of(mid > (real)0) || n == 1;  // the border half-voxel below the first
+  const vint above = !below && vmask_of(mid >= (real)(n - 1));  // ... above the last centre
+  const vint inner = !below && !above;
+  const vint k = min(vto_int(fmin(fmax(mid, (real)0), (real)(n - 1))), n - 2);
+  *i = vseli(vseli(k, (vint)(n - 1), above), (vint)0, below);
+  *f = vsel((vreal)(real)0, ua - vto_real(*i), inner);
+  *g = vsel((vreal)(real)0, ub - ua, inner);
+  *clamped = !inner;
 }
 
-inline PieceCell piece_cell(const March* m, int4 dims, real ta, real tb) {
+inline PieceCell piece_cell(const March* m, int4 dims, vreal ta, vreal tb) {
   PieceCell c;
   piece_axis(m->u0x + ta * m->dux, m->u0x + tb * m->dux, dims.x, &c.ix, &c.fx, &c.gx, &c.cx);
   piece_axis(m->u0y + ta * m->duy, m->u0y + tb * m->duy, dims.y, &c.iy, &c.fy, &c.gy, &c.cy);
@@ -115,57 +145,60 @@ inline PieceCell piece_cell(const March* m, int4 dims, real ta, real tb) {
 
 // d density / d u at s inside the piece from the corners v (0 along clamped axes: one-sided at
 // the piece's own ends, unlike trilinear_gradient() at a point on a centre plane).
-inline void piece_gradient(const real* v, PieceCell c, real s, real* gx, real* gy, real* gz) {
-  const real fx = c.fx + s * c.gx, fy = c.fy + s * c.gy, fz = c.fz + s * c.gz;
-  *gx = c.cx ? (real)0
-             : lerp(lerp(v[1] - v[0], v[3] - v[2], fy), lerp(v[5] - v[4], v[7] - v[6], fy), fz);
-  *gy = c.cy ? (real)0
-             : lerp(lerp(v[2] - v[0], v[3] - v[1], fx), lerp(v[6] - v[4], v[7] - v[5], fx), fz);
-  *gz = c.cz ? (real)0
-             : lerp(lerp(v[4] - v[0], v[5] - v[1], fx), lerp(v[6] - v[2], v[7] - v[3], fx), fy);
+inline void piece_gradient(const vreal* v, PieceCell c, vreal s, vreal* gx, vreal* gy, vreal* gz) {
+  const vreal fx = c.fx + s * c.gx, fy = c.fy + s * c.gy, fz = c.fz + s * c.gz;
+  const vreal zero = (vreal)(real)0;
+  *gx = vsel(vlerp(vlerp(v[1] - v[0], v[3] - v[2], fy), vlerp(v[5] - v[4], v[7] - v[6], fy), fz),
+             zero, c.cx);
+  *gy = vsel(vlerp(vlerp(v[2] - v[0], v[3] - v[1], fx), vlerp(v[6] - v[4], v[7] - v[5], fx), fz),
+             zero, c.cy);
+  *gz = vsel(vlerp(vlerp(v[4] - v[0], v[5] - v[1], fx), vlerp(v[6] - v[2], v[7] - v[3], fx), fy),
+             zero, c.cz);
 }
 
 // The cell's 8 corner densities v[k] (bit 0: +x, bit 1: +y, bit 2: +z; the upper neighbour is the
 // voxel itself on the clamped upper edge, as in trilinear_at()).
-inline void piece_corners(__global const real* volume, int4 dims, PieceCell c, real* v) {
-  const int ox = c.ix + 1 < dims.x ? 1 : 0;
-  const int oy = c.iy + 1 < dims.y ? dims.x : 0;
-  const int oz = c.iz + 1 < dims.z ? dims.x * dims.y : 0;
-  __global const real* q = volume + ((c.iz * dims.y + c.iy) * dims.x + c.ix);
-  v[0] = q[0], v[1] = q[ox], v[2] = q[oy], v[3] = q[oy + ox];
-  v[4] = q[oz], v[5] = q[oz + ox], v[6] = q[oz + oy], v[7] = q[oz + oy + ox];
+inline void piece_corners(__global const real* volume, int4 dims, PieceCell c, vreal* v) {
+  const vint ox = vseli((vint)0, (vint)1, c.ix + 1 < dims.x);
+  const vint oy = vseli((vint)0, (vint)dims.x, c.iy + 1 < dims.y);
+  const vint oz = vseli((vint)0, (vint)(dims.x * dims.y), c.iz + 1 < dims.z);
+  const vint q = (c.iz * dims.y + c.iy) * dims.x + c.ix;
+  v[0] = vgather_off(volume, q, 0), v[1] = vgather_off(volume, q, ox);
+  v[2] = vgather_off(volume, q, oy), v[3] = vgather_off(volume, q, oy + ox);
+  v[4] = vgather_off(volume, q, oz), v[5] = vgather_off(volume, q, oz + ox);
+  v[6] = vgather_off(volume, q, oz + oy), v[7] = vgather_off(volume, q, oz + oy + ox);
 }
 
 // d(s) = q0 + s·(q1 + s·(q2 + s·q3)) over the piece.
 typedef struct {
-  real q0, q1, q2, q3;
+  vreal q0, q1, q2, q3;
 } Cubic;
 
-inline real cubic_at(const Cubic* c, real s) {
+inline vreal cubic_at(const Cubic* c, vreal s) {
   return c->q0 + s * (c->q1 + s * (c->q2 + s * c->q3));
 }
 
-inline real cubic_slope(const Cubic* c, real s) {
+inline vreal cubic_slope(const Cubic* c, vreal s) {
   return c->q1 + s * ((real)2 * c->q2 + s * (real)3 * c->q3);
 }
 
 // The trilinear interpolant along the piece, multiplied out one axis at a time: linear along x,
 // quadratic after y, cubic after z.
-inline Cubic piece_cubic(const real* v, PieceCell c) {
-  real a0[4], a1[4];
+inline Cubic piece_cubic(const vreal* v, PieceCell c) {
+  vreal a0[4], a1[4];
   for (int k = 0; k < 4; ++k) {
-    const real dv = v[2 * k + 1] - v[2 * k];
+    const vreal dv = v[2 * k + 1] - v[2 * k];
     a0[k] = v[2 * k] + dv * c.fx;
     a1[k] = dv * c.gx;
   }
-  real b0[2], b1[2], b2[2];
+  vreal b0[2], b1[2], b2[2];
   for (int j = 0; j < 2; ++j) {
-    const real d0 = a0[2 * j + 1] - a0[2 * j], d1 = a1[2 * j + 1] - a1[2 * j];
+    const vreal d0 = a0[2 * j + 1] - a0[2 * j], d1 = a1[2 * j + 1] - a1[2 * j];
     b0[j] = a0[2 * j] + d0 * c.fy;
     b1[j] = a1[2 * j] + d0 * c.gy + d1 * c.fy;
     b2[j] = d1 * c.gy;
   }
-  const real e0 = b0[1] - b0[0], e1 = b1[1] - b1[0], e2 = b2[1] - b2[0];
+  const vreal e0 = b0[1] - b0[0], e1 = b1[1] - b1[0], e2 = b2[1] - b2[0];
   Cubic q;
   q.q0 = b0[0] + e0 * c.fz;
   q.q1 = b1[0] + e0 * c.gz + e1 * c.fz;
@@ -177,24 +210,32 @@ inline Cubic piece_cubic(const real* v, PieceCell c) {
 // --- Sub-pieces: where the cubic crosses TF knots
 // -------------------------------------------------
 
-// The root of d(s) = target in [lo, hi], where d is monotone and target lies strictly between
-// d(lo) and d(hi): Newton's method kept inside a shrinking bracket (bisection where a step would
-// leave it). σ is continuous at a knot, so the integral is insensitive to the root to first order.
-inline real cubic_root(const Cubic* c, real target, real lo, real hi) {
-  const real flo = cubic_at(c, lo) - target, fhi = cubic_at(c, hi) - target;
-  real s = lo + (hi - lo) * flo / (flo - fhi);
+// The root of d(s) = target in [lo, hi] for the rays where `live` is true, where d is monotone and
+// target lies strictly between d(lo) and d(hi): Newton's method kept inside a shrinking bracket
+// (bisection where a step would leave it). σ is continuous at a knot, so the integral is
+// insensitive to the root to first order.
+#if IVR_F64
+#define IVR_EPSILON DBL_EPSILON
+#else
+#define IVR_EPSILON FLT_EPSILON
+#endif
+inline vreal cubic_root(const Cubic* c, vreal target, vreal lo, vreal hi, vint live) {
+  const vreal flo = cubic_at(c, lo) - target, fhi = cubic_at(c, hi) - target;
+  vreal s = lo + (hi - lo) * flo / (flo - fhi);
+  const vint lo_negative = vmask_of(flo < (real)0);
+  vint run = live;
   for (int it = 0; it < 40; ++it) {
-    const real f = cubic_at(c, s) - target;
-    if (f == (real)0) break;
-    if ((f < (real)0) == (flo < (real)0))
-      lo = s;
-    else
-      hi = s;
-    real next = s - f / cubic_slope(c, s);
-    if (!(next > lo && next < hi)) next = (real)0.5 * (lo + hi);
-    const bool done = fabs(next - s) <= (real)4 * (IVR_F64 ? DBL_EPSILON : FLT_EPSILON);
-    s = next;
-    if (done) break;
+    const vreal f = cubic_at(c, s) - target;
+    run = run && vmask_of(f != (real)0);
+    if (!vany(run)) break;
+    const vint below = vmask_of(f < (real)0) == lo_negative;
+    lo = vsel(lo, s, run && below);
+    hi = vsel(hi, s, run && !below);
+    vreal next = s - f / cubic_slope(c, s);
+    next = vsel((real)0.5 * (lo + hi), next, vmask_of(next > lo) && vmask_of(next < hi));
+    const vint done = vmask_of(fabs(next - s) <= (real)4 * IVR_EPSILON);
+    s = vsel(s, next, run);
+    run = run && !done;
   }
   return s;
 }
@@ -203,114 +244,137 @@ inline real cubic_root(const Cubic* c, real target, real lo, real hi) {
 // sub-pieces at every knot crossing. A sub-piece may span a turning point: only knots split.
 typedef struct {
   Cubic c;
-  real r[4];  // part boundaries: r[0] = 0 < … < r[parts] = 1
-  int parts, part;
-  real s, ds;  // start of the next sub-piece, and its density (a knot's exact value after a cut)
+  vreal r[4];  // part boundaries: r[0] = 0 < … < r[parts] = 1 (1 beyond)
+  vint parts, part;
+  vreal s, ds;  // start of the next sub-piece, and its density (a knot's exact value after a cut)
 } SubPieces;
+
+// Part boundary i (0 ≤ i ≤ 3) of every ray.
+inline vreal sub_pieces_bound(const SubPieces* sp, vint i) {
+  return vsel(vsel(vsel(sp->r[3], sp->r[2], i == 2), sp->r[1], i == 1), sp->r[0], i == 0);
+}
 
 inline void sub_pieces_begin(SubPieces* sp, Cubic c) {
   sp->c = c;
-  sp->parts = 1;
-  sp->r[0] = (real)0;
   // Roots of d'(s) = 3 q3 s² + 2 q2 s + q1 in (0, 1), by the stable quadratic formula.
-  const real a = (real)3 * c.q3, b = (real)2 * c.q2, cc = c.q1;
-  real roots[2];
-  int found = 0;
-  if (a == (real)0) {
-    if (b != (real)0) roots[found++] = -cc / b;
-  } else {
-    const real disc = b * b - (real)4 * a * cc;
-    if (disc > (real)0) {
-      const real q = (real)-0.5 * (b + copysign(sqrt(disc), b));
-      roots[found++] = q / a;
-      if (q != (real)0) roots[found++] = cc / q;
-    }
-  }
-  if (found == 2 && roots[1] < roots[0]) {
-    const real t = roots[0];
-    roots[0] = roots[1], roots[1] = t;
-  }
-  for (int i = 0; i < found; ++i)
-    if (roots[i] > sp->r[sp->parts - 1] && roots[i] < (real)1) sp->r[sp->parts++] = roots[i];
-  sp->r[sp->parts] = (real)1;
-  sp->part = 0;
-  sp->s = (real)0;
+  const vreal a = (real)3 * c.q3, b = (real)2 * c.q2, cc = c.q1;
+  const vint linear = vmask_of(a == (real)0);
+  const vreal disc = b * b - (real)4 * a * cc;
+  const vint two = vmask_of(disc > (real)0);
+  const vreal q = (real)-0.5 * (b + copysign(sqrt(fmax(disc, (real)0)), b));
+  const vreal root0 = vsel(q / a, -cc / b, linear), root1 = cc / q;
+  const vint has0 = vseli(two, vmask_of(b != (real)0), linear);
+  const vint has1 = !linear && two && vmask_of(q != (real)0);
+  const vint swap = has0 && has1 && vmask_of(root1 < root0);
+  const vreal lo = vsel(root0, root1, swap), hi = vsel(root1, root0, swap);
+  const vint take0 = has0 && vmask_of(lo > (real)0) && vmask_of(lo < (real)1);
+  const vint take1 =
+      has1 && vmask_of(hi > vsel((vreal)(real)0, lo, take0)) && vmask_of(hi < (real)1);
+  const vreal one = (vreal)(real)1;
+  sp->r[0] = (vreal)(real)0;
+  sp->r[1] = vsel(vsel(one, hi, take1), lo, take0);
+  sp->r[2] = vsel(one, hi, take0 && take1);
+  sp->r[3] = one;
+  sp->parts = (vint)1 + vcount(take0) + vcount(take1);
+  sp->part = (vint)0;
+  sp->s = (vreal)(real)0;
   sp->ds = c.q0;
 }
 
-// The next sub-piece [*sa, *sb]; false once [0, 1] is covered.
-inline bool sub_pieces_next(SubPieces* sp, __global const real* tf, int count, real4 scalars,
-                            real* sa, real* sb) {
-  if (!(sp->s < (real)1)) return false;
+// The next sub-piece [*sa, *sb] of every ray with [0, 1] not yet covered; returns those rays.
+inline vint sub_pieces_next(SubPieces* sp, __global const real* tf, int count, real4 scalars,
+                            vreal* sa, vreal* sb) {
+  const vint go = vmask_of(sp->s < (real)1);
+  if (!vany(go)) return go;
   *sa = sp->s;
-  real x = sp->ds;  // density where the search stands
-  for (; sp->part < sp->parts; ++sp->part) {
-    const real end = sp->r[sp->part + 1], dend = cubic_at(&sp->c, end);
-    const int direction = dend > x ? 1 : (dend < x ? -1 : 0);
-    int cursor = 0;
-    real knot;
-    if (direction != 0 &&
-        tf_next_knot(x, tf_interval(x, tf, count, scalars, &cursor), direction, tf, count, scalars,
-                     &knot) &&
-        (direction > 0 ? knot < dend : knot > dend)) {
-      *sb = cubic_root(&sp->c, knot, fmax(sp->s, sp->r[sp->part]), end);
-      sp->s = *sb;
-      sp->ds = knot;
-      return true;
+  *sb = (vreal)(real)1;
+  vreal x = sp->ds;  // density where the search stands
+  vint found = (vint)0;
+  vint search = go && sp->part < sp->parts;
+  while (vany(search)) {
+    const vreal end = sub_pieces_bound(sp, sp->part + 1), dend = cubic_at(&sp->c, end);
+    const vint direction = vseli(vseli((vint)0, (vint)-1, vmask_of(dend < x)), (vint)1,
+                                 vmask_of(dend > x));
+    vint cursor = (vint)0;
+    vreal knot = x;
+    vint cut = search && direction != 0;
+    if (vany(cut))
+      cut = cut &&
+            tf_next_knot(x, tf_interval(x, tf, count, scalars, &cursor), direction, tf, count,
+                         scalars, &knot) &&
+            vseli(vmask_of(knot > dend), vmask_of(knot < dend), direction > 0);
+    if (vany(cut)) {
+      const vreal root =
+          cubic_root(&sp->c, knot, fmax(sp->s, sub_pieces_bound(sp, sp->part)), end, cut);
+      *sb = vsel(*sb, root, cut);
+      sp->s = vsel(sp->s, root, cut);
+      sp->ds = vsel(sp->ds, knot, cut);
+      found = found || cut;
     }
-    x = dend;  // no knot in this part: the search moves on, the sub-piece goes on
+    // No knot in this part: the search moves on, the sub-piece goes on.
+    const vint on = search && !cut;
+    x = vsel(x, dend, on);
+    sp->part += vcount(on);
+    search = on && sp->part < sp->parts;
   }
-  *sb = (real)1;
-  sp->s = (real)1;
-  return true;
+  sp->s = vsel(sp->s, (vreal)(real)1, go && !found);
+  return go;
 }
 
 // One sub-piece as Simpson's nodes: their positions s in the piece, densities, the TF piece that
 // holds them (σ linear in the density there) and the sub-piece's length along the ray.
 typedef struct {
-  real s[3], d[3];
-  real length;
+  vreal s[3], d[3];
+  vreal length;
   TfPiece tf;
 } SimpsonNodes;
 
-// The next sub-piece of a piece of length L as Simpson's nodes; false once [0, 1] is covered.
-inline bool simpson_nodes_next(SubPieces* sp, real L, __global const real* tf, int count,
-                               real4 scalars, int* cursor, SimpsonNodes* n) {
-  real sa, sb;
-  if (!sub_pieces_next(sp, tf, count, scalars, &sa, &sb)) return false;
+// The next sub-piece of a piece of length L as Simpson's nodes, for every ray with [0, 1] not
+// yet covered; returns those rays.
+inline vint simpson_nodes_next(SubPieces* sp, vreal L, __global const real* tf, int count,
+                               real4 scalars, vint* cursor, SimpsonNodes* n) {
+  vreal sa, sb;
+  const vint go = sub_pieces_next(sp, tf, count, scalars, &sa, &sb);
+  if (!vany(go)) return go;
   n->s[0] = sa, n->s[1] = (real)0.5 * (sa + sb), n->s[2] = sb;
   for (int k = 0; k < 3; ++k) n->d[k] = cubic_at(&sp->c, n->s[k]);
   n->tf = tf_piece(tf_interval(n->d[1], tf, count, scalars, cursor), tf, count, scalars);
   n->length = L * (sb - sa);
-  return true;
+  return go;
 }
 
 // Simpson's mean of the density over the sub-piece (exact for the cubic).
-inline real simpson_mean(const SimpsonNodes* n) {
+inline vreal simpson_mean(const SimpsonNodes* n) {
   return (n->d[0] + (real)4 * n->d[1] + n->d[2]) / (real)6;
 }
 
-// ∫ σ(d) along a piece of length L with density cubic c: Simpson's rule on each sub-piece, where
-// σ is linear in the density (exact). *subpieces counts the sub-pieces (the sample statistic).
-inline real piece_optical_depth(const Cubic* c, real L, __global const real* tf, int count,
-                                real4 scalars, uint* subpieces) {
+// ∫ σ(d) along a piece of length L with density cubic c, for the rays where `live` is true:
+// Simpson's rule on each sub-piece, where σ is linear in the density (exact). *subpieces counts
+// the sub-pieces (the sample statistic).
+inline vreal piece_optical_depth_where(const Cubic* c, vreal L, __global const real* tf, int count,
+                                       real4 scalars, vint live, vint* subpieces) {
 #if IVR_TF == IVR_TF_IDENTITY
-  ++*subpieces;
+  (void)tf, (void)count;
+  *subpieces += vcount(live);
   return L * scalars.x * (c->q0 + c->q1 / (real)2 + c->q2 / (real)3 + c->q3 / (real)4);
 #else
   SubPieces sp;
   sub_pieces_begin(&sp, *c);
-  real tau = (real)0;
-  int cursor = 0;
+  sp.s = vsel(sp.s, (vreal)(real)1, !live);  // (idle rays: nothing to cover)
+  vreal tau = (vreal)(real)0;
+  vint cursor = (vint)0, go;
   SimpsonNodes n;
-  while (simpson_nodes_next(&sp, L, tf, count, scalars, &cursor, &n)) {
-    tau += n.length * tf_piece_sigma(&n.tf, simpson_mean(&n));
-    ++*subpieces;
+  while (vany(go = simpson_nodes_next(&sp, L, tf, count, scalars, &cursor, &n))) {
+    tau = vsel(tau, tau + n.length * tf_piece_sigma(&n.tf, simpson_mean(&n)), go);
+    *subpieces += vcount(go);
   }
   return tau;
 #endif
 }
 
-#endif  // IVR_RAYS == 1
+inline vreal piece_optical_depth(const Cubic* c, vreal L, __global const real* tf, int count,
+                                 real4 scalars, vint* subpieces) {
+  return piece_optical_depth_where(c, L, tf, count, scalars, vtrue, subpieces);
+}
 
 #endif

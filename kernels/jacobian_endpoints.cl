@@ -120,108 +120,122 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
 #endif
 }
 
-#elif IVR_RAYS == 1
-// One segment through its sub-segments (preintegrated.cl). The tangents of a sub-segment's ends:
-// a sample end moves with its density, a knot stays at its density (unless the lane is that
-// control point's density) but moves along the segment, φ = (knot − da)/(db − da).
+#else
+// One segment through its sub-segments (preintegrated.cl), for the rays where `take` is true. The
+// tangents of a sub-segment's ends: a sample end moves with its density, a knot stays at its
+// density (unless the lane is that control point's density) but moves along the segment,
+// φ = (knot − da)/(db − da).
 inline void tangent_segment(const TangentSample* a, const TangentSample* b, const March* m,
-                            __global const real* tf, int tf_count, real4 tf_scalars, int* cursor,
+                            __global const real* tf, int tf_count, real4 tf_scalars, vint* cursor,
                             TangentRay* tr, Radiance* r, vint take) {
-  (void)take;  // one ray: always true
-  const real dt = m->dt;
-  Attenuation at = {(real)0, (real)1, (real)0};
-  real er = (real)0, eg = (real)0, eb = (real)0;
-  real dtrans[IVR_LANES], der[IVR_LANES], deg[IVR_LANES], deb[IVR_LANES];
-  IVR_FOR_LANES(p) dtrans[p] = der[p] = deg[p] = deb[p] = (real)0;  // absorption: dτ in dtrans
+  const vreal dt = m->dt, zero = (vreal)(real)0, one = (vreal)(real)1;
+  Attenuation at;
+  at.opacity = at.tau = zero;
+  at.transmittance = one;
+  vreal er = zero, eg = zero, eb = zero;
+  vreal dtrans[IVR_LANES], der[IVR_LANES], deg[IVR_LANES], deb[IVR_LANES];
+  IVR_FOR_LANES(p) dtrans[p] = der[p] = deg[p] = deb[p] = zero;  // absorption: dτ in dtrans
   Cuts c;
   cuts_begin(&c, a->s.d, b->s.d, *cursor);
+  c.done = !take;
   SubSegment s;
-  while (cuts_next(&c, b->s.d, tf, tf_count, tf_scalars, &s)) {
-    const real length = dt * (s.phie - s.phis);
-    const real sig_s = tf_piece_sigma(&s.piece, s.xs), sig_e = tf_piece_sigma(&s.piece, s.xe);
-    const LinearSegment ls = linear_segment(sig_s * length, sig_e * length);
-    real csr, csg, csb, cer, ceg, ceb;
+  vint go;
+  while (vany(go = cuts_next(&c, b->s.d, tf, tf_count, tf_scalars, &s))) {
+    const vreal length = dt * (s.phie - s.phis);
+    const vreal sig_s = tf_piece_sigma(&s.piece, s.xs), sig_e = tf_piece_sigma(&s.piece, s.xe);
+    const LinearSegment ls = linear_segment_where(sig_s * length, sig_e * length, go);
+    vreal csr, csg, csb, cer, ceg, ceb;
     tf_piece_color(&s.piece, s.xs, &csr, &csg, &csb);
     tf_piece_color(&s.piece, s.xe, &cer, &ceg, &ceb);
-    const real trans = at.transmittance, alpha = ls.p + ls.q;
-    const real tau = (real)0.5 * (sig_s + sig_e) * length;
-    const real decay = tau < (real)0.1 ? (real)1 - alpha : exp(-tau);  // e^{−τ}, as attenuation_add
+    const vreal trans = at.transmittance, alpha = ls.p + ls.q;
+    const vreal tau = (real)0.5 * (sig_s + sig_e) * length;
+    // e^{−τ}, as attenuation_add_where takes it
+    const vint small = vmask_of(tau < (real)0.1);
+    vreal decay = (real)1 - alpha;
+    if (!vall(small || !go)) decay = vsel(vexp(-tau), decay, small);
     // The control points at knot ends: the piece's own ends, in the density's direction.
-    const int row_s = c.direction > 0 ? s.piece.row0 : s.piece.row1;
-    const int row_e = c.direction > 0 ? s.piece.row1 : s.piece.row0;
+    const vint rising = c.direction > 0;
+    const vint row_s = vseli(s.piece.row1, s.piece.row0, rising);
+    const vint row_e = vseli(s.piece.row0, s.piece.row1, rising);
     IVR_FOR_LANES(p) {
       const int4 lane = tr->lane[p];
-      const real ddt = (tr->dt1[p] - tr->dt0[p]) / (real)m->n;
+      const real ddt = IVR_DDT(tr, p, m);
       // The ends' densities and positions.
-      real dxs = s.knot_s ? (real)0 : a->dd[p], dxe = s.knot_e ? (real)0 : b->dd[p];
-      real dphis = (real)0, dphie = (real)0;
+      vreal dxs = vsel(a->dd[p], zero, s.knot_s), dxe = vsel(b->dd[p], zero, s.knot_e);
+      vreal dphis = zero, dphie = zero;
       const bool point_lane = lane.x == IVR_LANE_TF && lane.z == 4;
-      if (s.knot_s) {
-        const real own = point_lane && lane.y == row_s ? (real)1 : (real)0;
-        dxs = own;
-        dphis = (own - ((real)1 - s.phis) * a->dd[p] - s.phis * b->dd[p]) / c.delta;
+      if (vany(s.knot_s)) {
+        const vreal own = point_lane ? vsel(zero, one, row_s == lane.y) : zero;
+        dxs = vsel(dxs, own, s.knot_s);
+        dphis = vsel(dphis, (own - ((real)1 - s.phis) * a->dd[p] - s.phis * b->dd[p]) / c.delta,
+                     s.knot_s);
       }
-      if (s.knot_e) {
-        const real own = point_lane && lane.y == row_e ? (real)1 : (real)0;
-        dxe = own;
-        dphie = (own - ((real)1 - s.phie) * a->dd[p] - s.phie * b->dd[p]) / c.delta;
+      if (vany(s.knot_e)) {
+        const vreal own = point_lane ? vsel(zero, one, row_e == lane.y) : zero;
+        dxe = vsel(dxe, own, s.knot_e);
+        dphie = vsel(dphie, (own - ((real)1 - s.phie) * a->dd[p] - s.phie * b->dd[p]) / c.delta,
+                     s.knot_e);
       }
-      const real dlength = ddt * (s.phie - s.phis) + dt * (dphie - dphis);
-      real dss = s.piece.s1 * dxs, dse = s.piece.s1 * dxe;
-      real dcsr = s.piece.c1r * dxs, dcsg = s.piece.c1g * dxs, dcsb = s.piece.c1b * dxs;
-      real dcer = s.piece.c1r * dxe, dceg = s.piece.c1g * dxe, dceb = s.piece.c1b * dxe;
+      const vreal dlength = ddt * (s.phie - s.phis) + dt * (dphie - dphis);
+      vreal dss = s.piece.s1 * dxs, dse = s.piece.s1 * dxe;
+      vreal dcsr = s.piece.c1r * dxs, dcsg = s.piece.c1g * dxs, dcsb = s.piece.c1b * dxs;
+      vreal dcer = s.piece.c1r * dxe, dceg = s.piece.c1g * dxe, dceb = s.piece.c1b * dxe;
 #if IVR_TANGENT_TF
       if (lane.x == IVR_LANE_TF) {
-        real ds, dr, dg, db;
+        vreal ds, dr, dg, db;
         tf_piece_partial(&s.piece, s.xs, lane.y, lane.z, &ds, &dr, &dg, &db);
         dss += ds, dcsr += dr, dcsg += dg, dcsb += db;
         tf_piece_partial(&s.piece, s.xe, lane.y, lane.z, &ds, &dr, &dg, &db);
         dse += ds, dcer += dr, dceg += dg, dceb += db;
       }
 #endif
-      const real da = dss * length + sig_s * dlength, db = dse * length + sig_e * dlength;
-      const real dp = ls.dp_da * da + ls.dp_db * db, dq = ls.dq_da * da + ls.dq_db * db;
+      const vreal da = dss * length + sig_s * dlength, db = dse * length + sig_e * dlength;
+      const vreal dp = ls.dp_da * da + ls.dp_db * db, dq = ls.dq_da * da + ls.dq_db * db;
 #if IVR_EMISSION
-      der[p] += dtrans[p] * (csr * ls.p + cer * ls.q) +
-                trans * (dcsr * ls.p + csr * dp + dcer * ls.q + cer * dq);
-      deg[p] += dtrans[p] * (csg * ls.p + ceg * ls.q) +
-                trans * (dcsg * ls.p + csg * dp + dceg * ls.q + ceg * dq);
-      deb[p] += dtrans[p] * (csb * ls.p + ceb * ls.q) +
-                trans * (dcsb * ls.p + csb * dp + dceb * ls.q + ceb * dq);
+      der[p] = vsel(der[p],
+                    der[p] + (dtrans[p] * (csr * ls.p + cer * ls.q) +
+                              trans * (dcsr * ls.p + csr * dp + dcer * ls.q + cer * dq)),
+                    go);
+      deg[p] = vsel(deg[p],
+                    deg[p] + (dtrans[p] * (csg * ls.p + ceg * ls.q) +
+                              trans * (dcsg * ls.p + csg * dp + dceg * ls.q + ceg * dq)),
+                    go);
+      deb[p] = vsel(deb[p],
+                    deb[p] + (dtrans[p] * (csb * ls.p + ceb * ls.q) +
+                              trans * (dcsb * ls.p + csb * dp + dceb * ls.q + ceb * dq)),
+                    go);
+      // dα = e^{−τ} dτ = dp + dq
+      dtrans[p] = vsel(dtrans[p], dtrans[p] * decay - trans * (dp + dq), go);
 #else
       (void)dcsr, (void)dcsg, (void)dcsb, (void)dcer, (void)dceg, (void)dceb;
-#endif
-#if IVR_EMISSION
-      dtrans[p] = dtrans[p] * decay - trans * (dp + dq);  // dα = e^{−τ} dτ = dp + dq
-#else
-      dtrans[p] += (real)0.5 * (da + db);  // absorption: dτ (tangent_finish)
+      dtrans[p] = vsel(dtrans[p], dtrans[p] + (real)0.5 * (da + db), go);  // absorption: dτ
 #endif
     }
 #if IVR_EMISSION
-    er += trans * (csr * ls.p + cer * ls.q);
-    eg += trans * (csg * ls.p + ceg * ls.q);
-    eb += trans * (csb * ls.p + ceb * ls.q);
+    er = vsel(er, er + trans * (csr * ls.p + cer * ls.q), go);
+    eg = vsel(eg, eg + trans * (csg * ls.p + ceg * ls.q), go);
+    eb = vsel(eb, eb + trans * (csb * ls.p + ceb * ls.q), go);
 #endif
-    attenuation_add(&at, tau, alpha);
+    attenuation_add_where(&at, tau, alpha, go);
   }
   *cursor = c.cursor;
   // Into the ray: C += T·e, T = T·(transmittance of the segment) (as primal.cl).
 #if IVR_EMISSION
   IVR_FOR_LANES(p) {
-    tr->dcr[p] += tr->dT[p] * er + r->transmittance * der[p];
-    tr->dcg[p] += tr->dT[p] * eg + r->transmittance * deg[p];
-    tr->dcb[p] += tr->dT[p] * eb + r->transmittance * deb[p];
-    tr->dT[p] = tr->dT[p] * at.transmittance + r->transmittance * dtrans[p];
+    tr->dcr[p] = vsel(tr->dcr[p], tr->dcr[p] + (tr->dT[p] * er + r->transmittance * der[p]), take);
+    tr->dcg[p] = vsel(tr->dcg[p], tr->dcg[p] + (tr->dT[p] * eg + r->transmittance * deg[p]), take);
+    tr->dcb[p] = vsel(tr->dcb[p], tr->dcb[p] + (tr->dT[p] * eb + r->transmittance * deb[p]), take);
+    tr->dT[p] = vsel(tr->dT[p], tr->dT[p] * at.transmittance + r->transmittance * dtrans[p], take);
   }
-  radiance_emit(r, r->transmittance, er, eg, eb, attenuation_apply(&at, r->transmittance));
+  radiance_emit_where(r, r->transmittance, er, eg, eb, attenuation_apply(&at, r->transmittance),
+                      take);
 #else
-  IVR_FOR_LANES(p) tr->dT[p] += dtrans[p];
-  accumulate(&r->tau, &r->ktau, at.tau);
+  IVR_FOR_LANES(p) tr->dT[p] = vsel(tr->dT[p], tr->dT[p] + dtrans[p], take);
+  accumulate_where(&r->tau, &r->ktau, at.tau, take);
 #endif
 }
 #endif
 
-#if IVR_RAYS == 1 || IVR_SCHEME == IVR_SCHEME_TRAPEZOID  // packets: trapezoid only
 inline void tangent_march_endpoints(__global const real* volume, int4 dims, const March* m, Ray ray,
                                     real4 inv_voxel, __global const real* tf, int tf_count,
                                     real4 tf_scalars, real min_transmittance,
@@ -265,6 +279,4 @@ inline void tangent_march_endpoints(__global const real* volume, int4 dims, cons
   }
   tangent_finish(tr, r);
 }
-#endif
-
 #endif

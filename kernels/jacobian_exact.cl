@@ -13,71 +13,83 @@
 #include "jacobian_tf.cl"
 #include "rays.cl"
 
-#if IVR_RAYS == 1  // one ray per work-item (kernels/rays.cl)
-
+// One ray, or a packet of rays in vector lanes (kernels/rays.cl; TF and background lanes only:
+// camera lanes take one ray per work-item).
 inline void tangent_march_exact(__global const real* volume, int4 dims, const March* m, Ray ray,
                                 real4 inv_voxel, __global const real* tf, int tf_count,
                                 real4 tf_scalars, real min_transmittance,
                                 __global const uchar* occupied, int4 bricks, TangentRay* tr,
                                 Radiance* r) {
-  real tau = (real)0, k = (real)0;
+  vreal tau = (vreal)(real)0, k = tau;
   const real tau_stop = min_transmittance > (real)0 ? -log(min_transmittance) : (real)INFINITY;
-  real dtau[IVR_LANES];
-  IVR_FOR_LANES(p) dtau[p] = (real)0;
+  vreal dtau[IVR_LANES];
+  IVR_FOR_LANES(p) dtau[p] = (vreal)(real)0;
   Pieces pieces;
   pieces_begin(&pieces, m, dims, m->t0);
-  real ta, tb, t_last = m->t0;
-  int last_axis = -1;
-  while (pieces_next(&pieces, m, dims, &ta, &tb)) {
-    t_last = tb;
-    last_axis = pieces.axis;
-    if (!(tb > ta)) continue;
+  vreal ta = m->t0, tb = m->t0, t_last = m->t0;
+  vint last_axis = (vint)-1, live = vtrue, go;
+  while (vany(go = pieces_next_where(&pieces, m, dims, live, &ta, &tb))) {
+    t_last = vsel(t_last, tb, go);
+    last_axis = vseli(last_axis, pieces.axis, go);
+    vint take = go && vmask_of(tb > ta);
 #if IVR_EMPTY_SPACE
-    if (pieces_skip_empty(&pieces, m, dims, ta, tb, occupied, bricks)) continue;
+    if (vany(take))
+      take = take && !pieces_skip_empty_where(&pieces, m, dims, take, ta, tb, occupied, bricks);
+#else
+    (void)occupied, (void)bricks;
 #endif
+    if (!vany(take)) continue;
     const PieceCell pc = piece_cell(m, dims, ta, tb);
-    real v[8];
+    vreal v[8];
     piece_corners(volume, dims, pc, v);
     const Cubic c = piece_cubic(v, pc);
-    const real length = tb - ta;
-    uint nodes = 0;
-    accumulate(&tau, &k, piece_optical_depth(&c, length, tf, tf_count, tf_scalars, &nodes));
+    const vreal length = tb - ta;
+    vint nodes = (vint)0;
+    accumulate_where(&tau, &k,
+                     piece_optical_depth_where(&c, length, tf, tf_count, tf_scalars, take, &nodes),
+                     take);
     r->samples += nodes;
     SubPieces sp;
     sub_pieces_begin(&sp, c);
-    int cursor = 0;
+    sp.s = vsel(sp.s, (vreal)(real)1, !take);  // (idle rays: nothing to cover)
+    vint cursor = (vint)0, here;
     SimpsonNodes n;
-    while (simpson_nodes_next(&sp, length, tf, tf_count, tf_scalars, &cursor, &n)) {
-      const real* s = n.s;
+    while (vany(here = simpson_nodes_next(&sp, length, tf, tf_count, tf_scalars, &cursor, &n))) {
+      const vreal* s = n.s;
       const TfPiece tp = n.tf;
-      const real sub = n.length;
+      const vreal sub = n.length;
       for (int j = 0; j < 3; ++j) {
-        const real w = sub * (j == 1 ? (real)4 : (real)1) / (real)6;  // Simpson's weights
-        real gx, gy, gz;
+        const vreal w = sub * (j == 1 ? (real)4 : (real)1) / (real)6;  // Simpson's weights
+        vreal gx, gy, gz;
         piece_gradient(v, pc, s[j], &gx, &gy, &gz);
-        const real t = ta + s[j] * length;
-        const real fx = pc.fx + s[j] * pc.gx, fy = pc.fy + s[j] * pc.gy, fz = pc.fz + s[j] * pc.gz;
+        const vreal t = ta + s[j] * length;
+        const vreal fx = pc.fx + s[j] * pc.gx, fy = pc.fy + s[j] * pc.gy,
+                    fz = pc.fz + s[j] * pc.gz;
         // At a fixed t the nodes are quadrature points of ∫σ(d(o + t·dir))dt: they do not slide.
         IVR_FOR_LANES(p)
-        dtau[p] += w * tp.s1 *
-                   density_tangent(tr, p, ray, t, (real)0, gx, gy, gz, pc.ix, pc.iy, pc.iz, fx, fy,
-                                   fz, dims, inv_voxel);
+        dtau[p] = vsel(dtau[p],
+                       dtau[p] + w * tp.s1 *
+                                     density_tangent(tr, p, ray, t, (vreal)(real)0, gx, gy, gz,
+                                                     pc.ix, pc.iy, pc.iz, fx, fy, fz, dims,
+                                                     inv_voxel),
+                       here);
       }
 #if IVR_TANGENT_TF
-      const real mean = simpson_mean(&n);
+      const vreal mean = simpson_mean(&n);
       IVR_FOR_LANES(p) {
         if (tr->lane[p].x != IVR_LANE_TF) continue;
-        real ds, dr, dg, db;
+        vreal ds, dr, dg, db;
         tf_piece_partial(&tp, mean, tr->lane[p].y, tr->lane[p].z, &ds, &dr, &dg, &db);
-        dtau[p] += sub * ds;  // ∂σ/∂θ is linear in the density inside the piece
+        // ∂σ/∂θ is linear in the density inside the piece
+        dtau[p] = vsel(dtau[p], dtau[p] + sub * ds, here);
       }
 #endif
     }
 #if IVR_EARLY_TERMINATION
-    if (tau > tau_stop) break;
+    live = live && !vmask_of(tau > tau_stop);
 #endif
   }
-  r->transmittance = exp(-tau);
+  r->transmittance = vexp(-tau);
 #if IVR_TANGENT_CAMERA
   // The ends: the box (or, stopped early, the centre plane that ended the last piece).
   const bool early = pieces.t < m->t1;
@@ -99,7 +111,5 @@ inline void tangent_march_exact(__global const real* volume, int4 dims, const Ma
 #endif
   IVR_FOR_LANES(p) tr->dT[p] = -r->transmittance * dtau[p];
 }
-
-#endif  // IVR_RAYS == 1
 
 #endif

@@ -82,35 +82,37 @@ inline vreal tf_param_partial(vreal d, vreal sigma, const TfPoint* pt, vreal dsi
 
 // d σ and d colour (not premultiplied) at density x inside TF piece pc (tf.cl, tf_piece) for TF
 // parameter (row, column): the integrators that integrate through the TF exactly. Column 4 of a
-// piecewise-linear TF, the control point's density, moves the piece's end.
-inline void tf_piece_partial(const TfPiece* pc, real x, int row, int column, real* ds, real* dcr,
-                             real* dcg, real* dcb) {
-  *ds = *dcr = *dcg = *dcb = (real)0;
+// piecewise-linear TF, the control point's density, moves the piece's end. One ray or a packet.
+inline void tf_piece_partial(const TfPiece* pc, vreal x, int row, int column, vreal* ds,
+                             vreal* dcr, vreal* dcg, vreal* dcb) {
+  const vreal zero = (vreal)(real)0, one = (vreal)(real)1;
+  *ds = *dcr = *dcg = *dcb = zero;
 #if IVR_TF == IVR_TF_IDENTITY
-  (void)pc, (void)row;
+  (void)pc, (void)row, (void)zero, (void)one;
   if (column == 0)
     *ds = x;  // σ = a·x
   else
     *dcr = *dcg = *dcb = x;  // colour = b·x
 #elif IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
-  const bool flat = pc->row0 == pc->row1;
-  const real w1 = (x - pc->x0) * pc->inv_width;
-  const real weight = flat ? (row == pc->row0 ? (real)1 : (real)0)
-                           : (row == pc->row0 ? (real)1 - w1 : (row == pc->row1 ? w1 : (real)0));
+  const vint flat = pc->row0 == pc->row1, at0 = pc->row0 == row, at1 = pc->row1 == row;
+  const vreal w1 = (x - pc->x0) * pc->inv_width;
+  const vreal weight = vsel(vsel(vsel(zero, w1, at1), one - w1, at0), vsel(zero, one, at0), flat);
   if (column < 3) {
-    *dcr = column == 0 ? weight : (real)0;
-    *dcg = column == 1 ? weight : (real)0;
-    *dcb = column == 2 ? weight : (real)0;
+    *dcr = column == 0 ? weight : zero;
+    *dcg = column == 1 ? weight : zero;
+    *dcb = column == 2 ? weight : zero;
   } else if (column == 3) {
     *ds = weight;
-  } else if (!flat && (row == pc->row0 || row == pc->row1)) {
+  } else {
     // σ = σ0 + s1·(x − x0) with s1 = (σ1 − σ0)/(x1 − x0): d/dx0 = −s1·(1 − w), d/dx1 = −s1·w.
-    const real k = row == pc->row0 ? w1 - (real)1 : -w1;
-    *ds = k * pc->s1;
-    *dcr = k * pc->c1r, *dcg = k * pc->c1g, *dcb = k * pc->c1b;
+    const vint moves = !flat && (at0 || at1);
+    const vreal k = vsel(-w1, w1 - (real)1, at0);
+    *ds = vsel(zero, k * pc->s1, moves);
+    *dcr = vsel(zero, k * pc->c1r, moves), *dcg = vsel(zero, k * pc->c1g, moves);
+    *dcb = vsel(zero, k * pc->c1b, moves);
   }
 #else
-  (void)pc, (void)x, (void)row, (void)column;
+  (void)pc, (void)x, (void)row, (void)column, (void)one;
 #endif
 }
 

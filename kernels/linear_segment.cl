@@ -3,6 +3,7 @@
 #ifndef IVR_LINEAR_SEGMENT_CL
 #define IVR_LINEAR_SEGMENT_CL
 #include "config.cl"
+#include "rays.cl"
 
 // A sub-segment of length L, extinction σ_s → σ_e and colour c_s → c_e linear along it, in
 // optical-depth units a = σ_s·L ≥ 0, b = σ_e·L ≥ 0. E(x) = a·x + (b − a)·x²/2 is the depth from the
@@ -48,9 +49,11 @@
 // Rounding (e.g. of E ≤ T inside exp) dominates f32; the truncation of rules and series is below
 // 5e-8 there.
 
+// One ray's values, or a packet's (kernels/rays.cl): each lane takes its own regime, so a packet
+// computes each regime some lane needs, and every lane gets what one ray gets.
 typedef struct {
-  real p, q;
-  real dp_da, dp_db, dq_da, dq_db;
+  vreal p, q;
+  vreal dp_da, dp_db, dq_da, dq_db;
 } LinearSegment;
 
 #if IVR_F64
@@ -125,17 +128,17 @@ __constant real ivr_gl_weights[31] = {
 // fused multiply-add per term, 3·(N + 1)(N + 2)/2 − 3 in all (PoCL's code has no division left;
 // a compiler that did not unroll would compute the same values, only slower).
 #define IVR_MOMENT_SERIES(NAME, N)                                                             \
-  inline void NAME(real tau, real d, real* m) {                                                \
+  inline void NAME(vreal tau, vreal d, vreal* m) {                                             \
     _Pragma("unroll") for (int p = 0; p <= 2; ++p) {                                           \
       const int q = 2 - p;                                                                     \
-      real g[N + 1];                                                                           \
+      vreal g[N + 1];                                                                          \
       real c0 = p == 1 ? (real)1 / 6 : (real)1 / 3;                                            \
       _Pragma("unroll") for (int j = 0; j <= N; ++j) {                                         \
         real c[N + 1];                                                                         \
         c[0] = c0;                                                                             \
         _Pragma("unroll") for (int i = 1; i <= N; ++i) c[i] =                                  \
             c[i - 1] * (-(real)(i + j + p) / (real)(i * (i + 2 * j + 3)));                     \
-        g[j] = c[N - j];                                                                       \
+        g[j] = (vreal)(c[N - j]);                                                              \
         _Pragma("unroll") for (int i = N - 1; i >= 0; --i) if (i < N - j) g[j] =               \
             g[j] * tau + c[i];                                                                 \
         c0 *= (real)((j + 1 + p) * (j + 1 + q)) / (real)((j + 1) * (2 * j + 4) * (2 * j + 5)); \
@@ -161,15 +164,16 @@ IVR_MOMENT_SERIES(ivr_moment_series, IVR_PI_DEGREE)
 // x in [0, 1] with E(x) = t, for 0 < t < τ: the root 2t / (a + √(a² + 2(b − a)t)), written without
 // cancellation and scaled by max(a, b) (a² overflows float above 1.8e19). The radicand is ≥ b²
 // for t ≤ τ; fmax and fmin keep its rounding from reaching a NaN or an x past 1.
-inline real ivr_depth_to_x(real a, real b, real t) {
-  const real m = fmax(a, b), as = a / m, ts = t / m;
+inline vreal ivr_depth_to_x(vreal a, vreal b, real t) {
+  const vreal m = fmax(a, b), as = a / m, ts = t / m;
   return fmin(2 * ts / (as + sqrt(fmax(as * as + 2 * (b / m - as) * ts, (real)0))), (real)1);
 }
 
 // One quadrature node: adds w·e^{−E(x)} times y², x·y, x² to the moment sums. E = x·(a·(1 + y)/2 +
-// b·x/2) sums nonnegative terms that cannot overflow (a·(1 + y) can, near FLT_MAX).
-inline void ivr_gl_add(real a, real b, real x, real y, real w, real* m) {
-  const real e = w * exp(-x * (a * (IVR_R(0.5) + IVR_R(0.5) * y) + b * (IVR_R(0.5) * x)));
+// b·x/2) sums nonnegative terms that cannot overflow (a·(1 + y) can, near FLT_MAX). The exp is
+// the marches' (kernels/rays.cl: float32's own, the same bits for one ray and a packet).
+inline void ivr_gl_add(vreal a, vreal b, vreal x, vreal y, real w, vreal* m) {
+  const vreal e = w * vexp(-x * (a * (IVR_R(0.5) + IVR_R(0.5) * y) + b * (IVR_R(0.5) * x)));
   m[0] += e * y * y;
   m[1] += e * x * y;
   m[2] += e * x * x;
@@ -179,10 +183,11 @@ inline void ivr_gl_add(real a, real b, real x, real y, real w, real* m) {
 // y = 1 − x, each formed without cancellation (y from the right end, 1 − x1 = 0 on the last
 // piece). The moments are scaled by the piece length h only inside a·h, b·h: for a, b near
 // FLT_MAX they lie near 1/a, a subnormal float, while a·h·M does not.
-inline void ivr_gl_piece(real a, real b, real x0, real x1, int k, real* p, real* q, real* dp_da,
-                         real* dp_db) {
-  const real h = x1 - x0, y1 = 1 - x1;
-  real m[3] = {0, 0, 0};  // M02, M11, M20 over the piece, in units of h
+inline void ivr_gl_piece(vreal a, vreal b, vreal x0, vreal x1, int k, vreal* p, vreal* q,
+                         vreal* dp_da, vreal* dp_db) {
+  const vreal h = x1 - x0, y1 = 1 - x1;
+  vreal m[3];  // M02, M11, M20 over the piece, in units of h
+  m[0] = m[1] = m[2] = (vreal)(real)0;
   for (int i = ivr_gl_first[k]; i < ivr_gl_first[k + 1]; ++i) {
     const real s = ivr_gl_nodes[i], w = ivr_gl_weights[i];
     ivr_gl_add(a, b, x0 + h * s, y1 + h * (1 - s), w, m);
@@ -194,60 +199,96 @@ inline void ivr_gl_piece(real a, real b, real x0, real x1, int k, real* p, real*
   *dp_db += h * (IVR_R(0.5) * m[2]);
 }
 
-// P, Q, ∂P/∂a, ∂P/∂b. One function for the render and the gradients, so that both get the same
-// P and Q bit for bit; what a caller does not use is dead code after inlining.
-inline void ivr_linear_segment(real a, real b, real* p, real* q, real* dp_da, real* dp_db) {
-  const real tau = IVR_R(0.5) * a + IVR_R(0.5) * b;  // (a + b)/2 overflows at FLT_MAX
-  *p = *q = *dp_da = *dp_db = 0;
-  if (tau <= IVR_PI_SERIES) {
-    const real d = IVR_R(0.5) * b - IVR_R(0.5) * a;
-    real m[3];  // M02, M11, M20
-    if (tau <= IVR_PI_LOW)
-      ivr_moment_series_low(tau, d, m);
-    else if (tau <= IVR_PI_MID)
-      ivr_moment_series_mid(tau, d, m);
-    else
-      ivr_moment_series(tau, d, m);
-    *p = a * m[0] + b * m[1];
-    *q = a * m[1] + b * m[2];
-    *dp_da = m[1] + IVR_R(0.5) * m[2];
-    *dp_db = IVR_R(0.5) * m[2];
-  } else if (tau <= IVR_PI_TOP) {
-    int k = IVR_PI_RULE0;
-    while (tau > ivr_gl_depth[k]) ++k;
-    ivr_gl_piece(a, b, 0, 1, k, p, q, dp_da, dp_db);
-  } else {  // the moments beyond depth T are negligible: stop there
-    const real x1 = ivr_depth_to_x(a, b, IVR_PI_TOP);
-    ivr_gl_piece(a, b, 0, x1, 4, p, q, dp_da, dp_db);
+// *to = from where m is true, for the four outputs.
+#define IVR_PI_TAKE(m, p, q, dp_da, dp_db, tp, tq, ta, tb) \
+  (*(p) = vsel(*(p), tp, m), *(q) = vsel(*(q), tq, m), *(dp_da) = vsel(*(dp_da), ta, m), \
+   *(dp_db) = vsel(*(dp_db), tb, m))
+
+// P, Q, ∂P/∂a, ∂P/∂b where `live` is true (elsewhere 0). One function for the render and
+// the gradients, so that both get the same P and Q bit for bit; what a caller does not use is
+// dead code after inlining.
+inline void ivr_linear_segment(vreal a, vreal b, vint live, vreal* p, vreal* q, vreal* dp_da,
+                               vreal* dp_db) {
+  const vreal tau = IVR_R(0.5) * a + IVR_R(0.5) * b;  // (a + b)/2 overflows at FLT_MAX
+  const vreal zero = (vreal)(real)0;
+  *p = *q = *dp_da = *dp_db = zero;
+  const vint series = live && vmask_of(tau <= IVR_PI_SERIES);
+  if (vany(series)) {
+    const vreal d = IVR_R(0.5) * b - IVR_R(0.5) * a;
+    const vint low = series && vmask_of(tau <= IVR_PI_LOW);
+    const vint mid = series && !low && vmask_of(tau <= IVR_PI_MID);
+    const vint high = series && !low && !mid;
+    vreal m[3], t[3];  // M02, M11, M20
+    m[0] = m[1] = m[2] = zero;
+    if (vany(low)) {
+      ivr_moment_series_low(tau, d, t);
+      for (int k = 0; k < 3; ++k) m[k] = vsel(m[k], t[k], low);
+    }
+    if (vany(mid)) {
+      ivr_moment_series_mid(tau, d, t);
+      for (int k = 0; k < 3; ++k) m[k] = vsel(m[k], t[k], mid);
+    }
+    if (vany(high)) {
+      ivr_moment_series(tau, d, t);
+      for (int k = 0; k < 3; ++k) m[k] = vsel(m[k], t[k], high);
+    }
+    IVR_PI_TAKE(series, p, q, dp_da, dp_db, a * m[0] + b * m[1], a * m[1] + b * m[2],
+                m[1] + IVR_R(0.5) * m[2], IVR_R(0.5) * m[2]);
+  }
+  // One rule over [0, 1]: the smallest whose depth covers τ.
+  vint left = live && !series && vmask_of(tau <= IVR_PI_TOP);
+  for (int k = IVR_PI_RULE0; k <= 4 && vany(left); ++k) {
+    const vint here = left && vmask_of(tau <= ivr_gl_depth[k]);
+    left = left && !here;
+    if (!vany(here)) continue;
+    vreal tp = zero, tq = zero, ta = zero, tb = zero;
+    ivr_gl_piece(a, b, zero, (vreal)(real)1, k, &tp, &tq, &ta, &tb);
+    IVR_PI_TAKE(here, p, q, dp_da, dp_db, tp, tq, ta, tb);
+  }
+  // Deeper: the moments beyond depth T are negligible, so stop there.
+  const vint top = live && !series && !vmask_of(tau <= IVR_PI_TOP);
+  if (vany(top)) {
+    vreal tp = zero, tq = zero, ta = zero, tb = zero;
+    const vreal x1 = ivr_depth_to_x(a, b, IVR_PI_TOP);
+    ivr_gl_piece(a, b, zero, x1, 4, &tp, &tq, &ta, &tb);
 #if IVR_F64  // a second 20-node piece from depth 13 to min(τ, 42)
-    ivr_gl_piece(a, b, x1, tau <= IVR_PI_CUT ? 1 : ivr_depth_to_x(a, b, IVR_PI_CUT), 4, p, q, dp_da,
-                 dp_db);
+    ivr_gl_piece(a, b, x1,
+                 vsel(ivr_depth_to_x(a, b, IVR_PI_CUT), (vreal)(real)1,
+                      vmask_of(tau <= IVR_PI_CUT)),
+                 4, &tp, &tq, &ta, &tb);
 #endif
+    IVR_PI_TAKE(top, p, q, dp_da, dp_db, tp, tq, ta, tb);
   }
 }
+#undef IVR_PI_TAKE
 
-// P and Q only (the render).
-inline void linear_segment_pq(real a, real b, real* p, real* q) {
-  real dp_da, dp_db;
-  ivr_linear_segment(a, b, p, q, &dp_da, &dp_db);
+// P and Q only (the render), where `live` is true.
+inline void linear_segment_pq(vreal a, vreal b, vint live, vreal* p, vreal* q) {
+  vreal dp_da, dp_db;
+  ivr_linear_segment(a, b, live, p, q, &dp_da, &dp_db);
 }
 
-// P, Q and their partials in a and b (the gradients).
-inline LinearSegment linear_segment(real a, real b) {
+// P, Q and their partials in a and b (the gradients), where `live` is true.
+inline LinearSegment linear_segment_where(vreal a, vreal b, vint live) {
   LinearSegment s;
-  ivr_linear_segment(a, b, &s.p, &s.q, &s.dp_da, &s.dp_db);
-  const real tau = IVR_R(0.5) * a + IVR_R(0.5) * b;
-  real decay;
-  if (tau <= IVR_PI_SERIES) {  // its Taylor polynomial: truncation < 1e-10 / 1e-20 relative
-    decay = 1;
+  ivr_linear_segment(a, b, live, &s.p, &s.q, &s.dp_da, &s.dp_db);
+  const vreal tau = IVR_R(0.5) * a + IVR_R(0.5) * b;
+  // e^{−τ}: its Taylor polynomial in the series regime (truncation < 1e-10 / 1e-20 relative),
+  // the exp above.
+  const vint series = vmask_of(tau <= IVR_PI_SERIES) || !live;
+  vreal decay = (vreal)(real)1;
+  if (vany(series)) {
 #pragma unroll
     for (int k = IVR_PI_DECAY; k >= 1; --k) decay = 1 - tau * ((real)1 / k) * decay;
-  } else {
-    decay = exp(-tau);
   }
+  if (!vall(series)) decay = vsel(vexp(-tau), decay, series);
   s.dq_da = IVR_R(0.5) * decay - s.dp_da;
   s.dq_db = IVR_R(0.5) * decay - s.dp_db;
   return s;
+}
+
+inline LinearSegment linear_segment(vreal a, vreal b) {
+  return linear_segment_where(a, b, vtrue);
 }
 
 #endif

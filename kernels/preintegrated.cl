@@ -14,7 +14,9 @@
 #include "tf.cl"
 #include "rays.cl"
 
-#if IVR_RAYS == 1  // one ray per work-item (kernels/rays.cl)
+// Every function below takes one ray or a packet of rays in vector lanes (kernels/rays.cl): a
+// packet's segments are cut each at its own knots, by masked loops that run as often as the segment
+// with most sub-segments, and every lane computes what one ray computes.
 
 // Below this density change the segment is not cut at a knot between its ends: the knot's
 // position moves as 1/(db − da) with the densities, and its derivative would come from a difference
@@ -27,112 +29,121 @@
 
 // The sub-segments of a segment from density da (position φ = 0) to db (φ = 1).
 typedef struct {
-  real da, delta;
-  int direction;  // of the density: +1, -1, 0 (no cuts)
-  real x, phi;    // where the next sub-segment starts
-  bool knot;      // ... and whether that is a knot (else the segment's start)
-  bool done;
-  int cursor;  // the TF search cursor (tf_interval), carried along the ray by the caller
+  vreal da, delta;
+  vint direction;  // of the density: +1, -1, 0 (no cuts)
+  vreal x, phi;    // where the next sub-segment starts
+  vint knot;       // ... and whether that is a knot (else the segment's start)
+  vint done;
+  vint cursor;  // the TF search cursor (tf_interval), carried along the ray by the caller
 } Cuts;
 
-inline void cuts_begin(Cuts* c, real da, real db, int cursor) {
+inline void cuts_begin(Cuts* c, vreal da, vreal db, vint cursor) {
   c->cursor = cursor;
   c->da = da;
   c->delta = db - da;
-  const bool cut = fabs(c->delta) > IVR_MIN_CUT_DELTA * fmax(fabs(da), fabs(db));
-  c->direction = !cut ? 0 : (c->delta > (real)0 ? 1 : -1);
+  const vint cut = vmask_of(fabs(c->delta) > IVR_MIN_CUT_DELTA * fmax(fabs(da), fabs(db)));
+  c->direction = vseli((vint)0, vseli((vint)-1, (vint)1, vmask_of(c->delta > (real)0)), cut);
   c->x = da;
-  c->phi = (real)0;
-  c->knot = false;
-  c->done = false;
+  c->phi = (vreal)(real)0;
+  c->knot = (vint)0;
+  c->done = (vint)0;
 }
 
 // One sub-segment: densities xs → xe at positions φs → φe, each end a knot or the segment's own,
 // and the TF piece it lies in.
 typedef struct {
-  real xs, xe, phis, phie;
-  bool knot_s, knot_e;
+  vreal xs, xe, phis, phie;
+  vint knot_s, knot_e;
   TfPiece piece;
 } SubSegment;
 
-inline bool cuts_next(Cuts* c, real db, __global const real* tf, int count, real4 scalars,
+// The next sub-segment of every ray whose segment has one left; returns those rays (a mask; the
+// others' *s is unspecified).
+inline vint cuts_next(Cuts* c, vreal db, __global const real* tf, int count, real4 scalars,
                       SubSegment* s) {
-  if (c->done) return false;
+  const vint go = !c->done;
+  if (!vany(go)) return go;
   s->xs = c->x;
   s->phis = c->phi;
   s->knot_s = c->knot;
-  real knot;
-  if (c->direction != 0 &&
-      tf_next_knot(c->x, tf_interval(c->x, tf, count, scalars, &c->cursor), c->direction, tf, count,
-                   scalars, &knot) &&
-      (c->direction > 0 ? knot < db : knot > db)) {
-    s->xe = knot;
-    s->phie = (knot - c->da) / c->delta;
-    s->knot_e = true;
-  } else {
-    s->xe = db;
-    s->phie = (real)1;
-    s->knot_e = false;
-    c->done = true;
+  vreal knot = c->x;
+  vint at_knot = go && c->direction != 0;
+  if (vany(at_knot)) {
+    const vint j = tf_interval(c->x, tf, count, scalars, &c->cursor);
+    at_knot = at_knot && tf_next_knot(c->x, j, c->direction, tf, count, scalars, &knot) &&
+              vseli(vmask_of(knot > db), vmask_of(knot < db), c->direction > 0);
   }
+  s->xe = vsel(db, knot, at_knot);
+  s->phie = vsel((vreal)(real)1, (knot - c->da) / c->delta, at_knot);
+  s->knot_e = at_knot;
+  c->done = c->done || !at_knot;
   c->x = s->xe;
   c->phi = s->phie;
   c->knot = s->knot_e;
   s->piece = tf_piece(tf_interval((real)0.5 * (s->xs + s->xe), tf, count, scalars, &c->cursor), tf,
                       count, scalars);
-  return true;
+  return go;
 }
 
 // A segment's opacity and transmittance, each accurate where it is small: the opacity summed from
 // the sub-segments' α = p + q, the transmittance multiplied from their e^{−τ} (1 − α below τ = 0.1,
 // where that keeps the precision; exp(−τ) above, where 1 − α would lose it to α ≈ 1).
 typedef struct {
-  real opacity, transmittance;
-  real tau;  // the segment's optical depth (absorption sums it along the ray)
+  vreal opacity, transmittance;
+  vreal tau;  // the segment's optical depth (absorption sums it along the ray)
 } Attenuation;
 
-inline void attenuation_add(Attenuation* at, real tau, real alpha) {
-  at->tau += tau;
-  at->opacity = fma(at->transmittance, alpha, at->opacity);
-  at->transmittance = tau < (real)0.1 ? fma(-at->transmittance, alpha, at->transmittance)
-                                      : at->transmittance * exp(-tau);
+// Adds a sub-segment of depth tau and opacity alpha, where m is true.
+inline void attenuation_add_where(Attenuation* at, vreal tau, vreal alpha, vint m) {
+  at->tau = vsel(at->tau, at->tau + tau, m);
+  at->opacity = vsel(at->opacity, fma(at->transmittance, alpha, at->opacity), m);
+  const vint small = vmask_of(tau < (real)0.1);
+  vreal next = fma(-at->transmittance, alpha, at->transmittance);
+  if (!vall(small || !m)) next = vsel(at->transmittance * vexp(-tau), next, small);
+  at->transmittance = vsel(at->transmittance, next, m);
+}
+
+inline void attenuation_add(Attenuation* at, vreal tau, vreal alpha) {
+  attenuation_add_where(at, tau, alpha, vtrue);
 }
 
 // The ray's transmittance t behind a segment of attenuation at.
-inline real attenuation_apply(const Attenuation* at, real t) {
-  return at->opacity < (real)0.5 ? fma(-t, at->opacity, t) : t * at->transmittance;
+inline vreal attenuation_apply(const Attenuation* at, vreal t) {
+  return vsel(t * at->transmittance, fma(-t, at->opacity, t), vmask_of(at->opacity < (real)0.5));
 }
 
-// The segment's emission per unit entering transmittance (er, eg, eb) and its attenuation.
-inline void preintegrated_segment(const EndSample* a, const EndSample* b, real dt,
-                                  __global const real* tf, int count, real4 scalars, int* cursor,
-                                  Attenuation* at, real* er, real* eg, real* eb) {
-  real r = (real)0, g = (real)0, bl = (real)0;
-  at->opacity = at->tau = (real)0;
-  at->transmittance = (real)1;
+// The segment's emission per unit entering transmittance (er, eg, eb) and its attenuation, for
+// the rays where `live` is true.
+inline void preintegrated_segment(const EndSample* a, const EndSample* b, vreal dt,
+                                  __global const real* tf, int count, real4 scalars, vint* cursor,
+                                  vint live, Attenuation* at, vreal* er, vreal* eg, vreal* eb) {
+  vreal r = (vreal)(real)0, g = r, bl = r;
+  at->opacity = at->tau = (vreal)(real)0;
+  at->transmittance = (vreal)(real)1;
   Cuts c;
   cuts_begin(&c, a->d, b->d, *cursor);
+  c.done = !live;
   SubSegment s;
-  while (cuts_next(&c, b->d, tf, count, scalars, &s)) {
-    const real length = dt * (s.phie - s.phis);
-    const real ea = tf_piece_sigma(&s.piece, s.xs) * length,
-               eb_ = tf_piece_sigma(&s.piece, s.xe) * length;
-    real p, q;
-    linear_segment_pq(ea, eb_, &p, &q);
+  vint go;
+  while (vany(go = cuts_next(&c, b->d, tf, count, scalars, &s))) {
+    const vreal length = dt * (s.phie - s.phis);
+    const vreal ea = tf_piece_sigma(&s.piece, s.xs) * length,
+                eb_ = tf_piece_sigma(&s.piece, s.xe) * length;
+    vreal p, q;
+    linear_segment_pq(ea, eb_, go, &p, &q);
 #if IVR_EMISSION
-    real csr, csg, csb, cer, ceg, ceb;
+    vreal csr, csg, csb, cer, ceg, ceb;
     tf_piece_color(&s.piece, s.xs, &csr, &csg, &csb);
     tf_piece_color(&s.piece, s.xe, &cer, &ceg, &ceb);
-    r += at->transmittance * (csr * p + cer * q);
-    g += at->transmittance * (csg * p + ceg * q);
-    bl += at->transmittance * (csb * p + ceb * q);
+    r = vsel(r, r + at->transmittance * (csr * p + cer * q), go);
+    g = vsel(g, g + at->transmittance * (csg * p + ceg * q), go);
+    bl = vsel(bl, bl + at->transmittance * (csb * p + ceb * q), go);
 #endif
-    attenuation_add(at, (real)0.5 * (ea + eb_), p + q);  // p + q: the sub-segment's 1 − e^{−τ}
+    // p + q: the sub-segment's 1 − e^{−τ}
+    attenuation_add_where(at, (real)0.5 * (ea + eb_), p + q, go);
   }
   *cursor = c.cursor;
   *er = r, *eg = g, *eb = bl;
 }
-
-#endif  // IVR_RAYS == 1
 
 #endif

@@ -10,11 +10,8 @@
 #include "march.cl"
 #include "rays.cl"
 #include "tf.cl"
-#include "exact.cl"          // (their contents: one ray per work-item only)
+#include "exact.cl"
 #include "preintegrated.cl"
-#if IVR_RAYS > 1 && (IVR_SCHEME == IVR_SCHEME_EXACT || IVR_SCHEME == IVR_SCHEME_PREINTEGRATED)
-#error "the exact and preintegrated marches take one ray per work-item (IVR_RAYS 1)"
-#endif
 
 // What a march hands back, for one ray or every ray of a packet (kernels/rays.cl): the
 // transmittance left, the emitted colour, the samples taken, and where it stopped (early
@@ -149,7 +146,7 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
 
 #elif IVR_ENDPOINT_SAMPLES
 // Samples at the segment ends; each segment from its two ends (trapezoid: their average;
-// preintegrated, one ray only: the density linear between them, through the TF exactly).
+// preintegrated: the density linear between them, through the TF exactly).
 inline void primal_march(__global const real* volume, int4 dims, const March* m,
                          __global const real* tf, int tf_count, real4 tf_scalars,
                          real min_transmittance, __global const uchar* occupied, int4 bricks,
@@ -184,12 +181,14 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
                     (real)0.5 * (a.eg + b.eg), (real)0.5 * (a.eb + b.eb), take);
 #else
     Attenuation at;
-    real er, eg, eb;
-    preintegrated_segment(&a, &b, m->dt, tf, tf_count, tf_scalars, &segment, &at, &er, &eg, &eb);
+    vreal er, eg, eb;
+    preintegrated_segment(&a, &b, m->dt, tf, tf_count, tf_scalars, &segment, take, &at, &er, &eg,
+                          &eb);
 #if IVR_EMISSION
-    radiance_emit(r, r->transmittance, er, eg, eb, attenuation_apply(&at, r->transmittance));
+    radiance_emit_where(r, r->transmittance, er, eg, eb, attenuation_apply(&at, r->transmittance),
+                        take);
 #else
-    accumulate(&r->tau, &r->ktau, at.tau);
+    accumulate_where(&r->tau, &r->ktau, at.tau, take);
 #endif
 #endif
     a = b;
@@ -209,29 +208,36 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
                          __global const real* tf, int tf_count, real4 tf_scalars,
                          real min_transmittance, __global const uchar* occupied, int4 bricks,
                          Radiance* r) {
-  real tau = (real)0, k = (real)0;
+  vreal tau = (vreal)(real)0, k = tau;
   const real tau_stop = min_transmittance > (real)0 ? -log(min_transmittance) : (real)INFINITY;
   Pieces p;
   pieces_begin(&p, m, dims, m->t0);
-  real ta, tb;
-  while (pieces_next(&p, m, dims, &ta, &tb)) {
-    ++r->end;
-    if (!(tb > ta)) continue;
+  vreal ta = m->t0, tb = m->t0;
+  vint live = vtrue, go;
+  while (vany(go = pieces_next_where(&p, m, dims, live, &ta, &tb))) {
+    r->end += vcount(go);
+    vint take = go && vmask_of(tb > ta);
 #if IVR_EMPTY_SPACE
-    if (pieces_skip_empty(&p, m, dims, ta, tb, occupied, bricks)) continue;
+    if (vany(take)) take = take && !pieces_skip_empty_where(&p, m, dims, take, ta, tb, occupied,
+                                                            bricks);
+#else
+    (void)occupied, (void)bricks;
 #endif
+    if (!vany(take)) continue;
     const PieceCell cell = piece_cell(m, dims, ta, tb);
-    real v[8];
+    vreal v[8];
     piece_corners(volume, dims, cell, v);
     const Cubic c = piece_cubic(v, cell);
-    uint nodes = 0;
-    accumulate(&tau, &k, piece_optical_depth(&c, tb - ta, tf, tf_count, tf_scalars, &nodes));
+    vint nodes = (vint)0;
+    accumulate_where(
+        &tau, &k,
+        piece_optical_depth_where(&c, tb - ta, tf, tf_count, tf_scalars, take, &nodes), take);
     r->samples += nodes;
 #if IVR_EARLY_TERMINATION
-    if (tau > tau_stop) break;
+    live = live && !vmask_of(tau > tau_stop);
 #endif
   }
-  r->transmittance = exp(-tau);
+  r->transmittance = vexp(-tau);
 }
 #endif
 

@@ -174,7 +174,9 @@ inline real tf_eval(real d, __global const real* tf, int count, real4 scalars, r
 // the TF's knots (control points, table entries): between consecutive knots σ and the colour are
 // linear in density. Interval j ∈ [-1, K - 1] holds the densities [knot_j, knot_j+1) (-1: below
 // the first knot, K - 1: at or above the last, where the TF is constant). The identity TF (σ = a·d,
-// colour = b·d) is one linear piece: K = 0, interval -1.
+// colour = b·d) is one linear piece: K = 0, interval -1. Every function below takes one ray's
+// values or a packet's (kernels/rays.cl); a packet's rays search each on its own (masked loops
+// that run as often as the ray that needs most steps), so each lane finds what one ray finds.
 
 inline int tf_knots(int count) {
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
@@ -184,115 +186,132 @@ inline int tf_knots(int count) {
 #endif
 }
 
-inline real tf_knot(int k, __global const real* tf, int count, real4 scalars) {
+// Knot k (0 <= k < tf_knots(count)).
+inline vreal tf_knot(vint k, __global const real* tf, int count, real4 scalars) {
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  return tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+  (void)count, (void)scalars;
+  return vgather(tf, k * IVR_TF_STRIDE_PIECEWISE_LINEAR);
 #elif IVR_TF == IVR_TF_TABLE
-  return count > 1 ? scalars.x + (scalars.y - scalars.x) * (real)k / (real)(count - 1) : scalars.x;
+  (void)tf;
+  if (count < 2) return (vreal)scalars.x;
+  return scalars.x + (scalars.y - scalars.x) * vto_real(k) / (real)(count - 1);
 #else
-  return (real)0;
+  (void)k, (void)tf, (void)count, (void)scalars;
+  return (vreal)(real)0;
 #endif
 }
 
-// The interval holding density x (knot_j <= x < knot_j+1). *cursor: as tf_sample's search cursor.
-inline int tf_interval(real x, __global const real* tf, int count, real4 scalars, int* cursor) {
+// The interval holding density x (knot_j <= x < knot_j+1). *cursor: as tf_rows' search cursor.
+inline vint tf_interval(vreal x, __global const real* tf, int count, real4 scalars,
+                        vint* cursor) {
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  if (x < tf[0]) return -1;
-  if (x >= tf[(count - 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR]) return count - 1;
-  int k = max(*cursor, 0);
-  while (k > 0 && tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR] > x) --k;
-  while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= x) ++k;
-  *cursor = k;
-  return k;
+  (void)scalars;
+  const int last = count - 1;
+  const vint below = vmask_of(x < tf[0]);
+  const vint above = vmask_of(x >= tf[last * IVR_TF_STRIDE_PIECEWISE_LINEAR]);
+  const vint inside = !below && !above;  // so count >= 2, and the k with d_k <= x < d_k+1 exists
+  vint k = max(*cursor, 0), step;
+  if (vany(inside)) {
+    while (vany(step = inside && k > 0 && vmask_of(tf_knot(k, tf, count, scalars) > x)))
+      k -= vcount(step);
+    while (vany(step = inside && vmask_of(tf_knot(min(k + 1, last), tf, count, scalars) <= x)))
+      k += vcount(step);
+    *cursor = vseli(*cursor, k, inside);
+  }
+  return vseli(vseli(k, (vint)last, above), (vint)-1, below);
 #elif IVR_TF == IVR_TF_TABLE
-  if (x < scalars.x) return -1;
-  if (x >= scalars.y || count < 2) return count - 1;
-  const int j = (int)((x - scalars.x) / (scalars.y - scalars.x) * (real)(count - 1));
+  (void)cursor;
+  const vint below = vmask_of(x < scalars.x);
+  const vint above = vmask_of(x >= scalars.y) || count < 2;
+  // The entry below x, clamped before the conversion (lanes outside the range are chosen away).
+  const vreal u = (x - scalars.x) / (scalars.y - scalars.x) * (real)(count - 1);
+  vint k = vto_int(fmin(fmax(u, (real)0), (real)max(count - 2, 0)));
   // Rounding may put x a knot off; the knots themselves decide.
-  int k = clamp(j, 0, count - 2);
-  if (tf_knot(k, tf, count, scalars) > x)
-    --k;
-  else if (tf_knot(k + 1, tf, count, scalars) <= x)
-    ++k;
-  return clamp(k, -1, count - 1);
+  const vint down = vmask_of(tf_knot(k, tf, count, scalars) > x);
+  const vint up = !down && vmask_of(tf_knot(min(k + 1, count - 1), tf, count, scalars) <= x);
+  k = clamp(k - vcount(down) + vcount(up), -1, count - 1);
+  return vseli(vseli(k, (vint)(count - 1), above), (vint)-1, below);
 #else
   (void)x, (void)tf, (void)count, (void)scalars, (void)cursor;
-  return -1;
+  return (vint)-1;
 #endif
 }
 
 // The linear piece of interval j: σ(x) = s0 + s1·(x − x0), colour(x) = c0 + c1·(x − x0) (not
 // premultiplied), and the TF rows it blends, with the weight of row1 w(x) = (x − x0)·inv_width.
 typedef struct {
-  int row0, row1;  // equal: a constant piece; -1: the identity TF
-  real x0, inv_width;
-  real s0, s1;
-  real c0r, c0g, c0b, c1r, c1g, c1b;
+  vint row0, row1;  // equal: a constant piece; -1: the identity TF
+  vreal x0, inv_width;
+  vreal s0, s1;
+  vreal c0r, c0g, c0b, c1r, c1g, c1b;
 } TfPiece;
 
-inline TfPiece tf_piece(int j, __global const real* tf, int count, real4 scalars) {
+inline TfPiece tf_piece(vint j, __global const real* tf, int count, real4 scalars) {
   TfPiece p;
-  p.x0 = (real)0;
-  p.inv_width = (real)0;
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
   p.row0 = max(j, 0);
-  p.row1 = j < 0 ? 0 : min(j + 1, count - 1);
+  p.row1 = vseli(min(j + 1, count - 1), (vint)0, j < 0);
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR
-  __global const real* a = tf + p.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
-  __global const real* b = tf + p.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
+  const vint ia = p.row0 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;  // r, g, b, sigma
+  const vint ib = p.row1 * IVR_TF_STRIDE_PIECEWISE_LINEAR + 1;
 #else
-  __global const real* a = tf + p.row0 * IVR_TF_STRIDE_TABLE;
-  __global const real* b = tf + p.row1 * IVR_TF_STRIDE_TABLE;
+  const vint ia = p.row0 * IVR_TF_STRIDE_TABLE, ib = p.row1 * IVR_TF_STRIDE_TABLE;
 #endif
   p.x0 = tf_knot(p.row0, tf, count, scalars);
-  const real width = tf_knot(p.row1, tf, count, scalars) - p.x0;
-  if (p.row0 != p.row1 && width > (real)0) p.inv_width = (real)1 / width;
-  p.s0 = a[3];
-  p.s1 = (b[3] - a[3]) * p.inv_width;
-  p.c0r = a[0], p.c0g = a[1], p.c0b = a[2];
-  p.c1r = (b[0] - a[0]) * p.inv_width;
-  p.c1g = (b[1] - a[1]) * p.inv_width;
-  p.c1b = (b[2] - a[2]) * p.inv_width;
+  const vreal width = tf_knot(p.row1, tf, count, scalars) - p.x0;
+  p.inv_width = vsel((vreal)(real)0, (real)1 / width,
+                     p.row0 != p.row1 && vmask_of(width > (real)0));
+  const vreal a0 = vgather(tf, ia), a1 = vgather(tf, ia + 1), a2 = vgather(tf, ia + 2),
+              a3 = vgather(tf, ia + 3);
+  const vreal b0 = vgather(tf, ib), b1 = vgather(tf, ib + 1), b2 = vgather(tf, ib + 2),
+              b3 = vgather(tf, ib + 3);
+  p.s0 = a3;
+  p.s1 = (b3 - a3) * p.inv_width;
+  p.c0r = a0, p.c0g = a1, p.c0b = a2;
+  p.c1r = (b0 - a0) * p.inv_width;
+  p.c1g = (b1 - a1) * p.inv_width;
+  p.c1b = (b2 - a2) * p.inv_width;
 #else
   // identity: σ = a·x, colour = b·x (grey)
   (void)j, (void)tf, (void)count;
-  p.row0 = p.row1 = -1;
-  p.s0 = (real)0;
-  p.s1 = scalars.x;
-  p.c0r = p.c0g = p.c0b = (real)0;
-  p.c1r = p.c1g = p.c1b = scalars.y;
+  p.row0 = p.row1 = (vint)-1;
+  p.x0 = p.inv_width = p.s0 = (vreal)(real)0;
+  p.s1 = (vreal)scalars.x;
+  p.c0r = p.c0g = p.c0b = (vreal)(real)0;
+  p.c1r = p.c1g = p.c1b = (vreal)scalars.y;
 #endif
   return p;
 }
 
-inline real tf_piece_sigma(const TfPiece* p, real x) {
+inline vreal tf_piece_sigma(const TfPiece* p, vreal x) {
   return p->s0 + p->s1 * (x - p->x0);
 }
 
-inline void tf_piece_color(const TfPiece* p, real x, real* r, real* g, real* b) {
-  const real dx = x - p->x0;
+inline void tf_piece_color(const TfPiece* p, vreal x, vreal* r, vreal* g, vreal* b) {
+  const vreal dx = x - p->x0;
   *r = p->c0r + p->c1r * dx;
   *g = p->c0g + p->c1g * dx;
   *b = p->c0b + p->c1b * dx;
 }
 
 // The first knot strictly above x (direction > 0) or strictly below it (< 0), given the interval
-// j of x; false when there is none.
-inline bool tf_next_knot(real x, int j, int direction, __global const real* tf, int count,
-                         real4 scalars, real* knot) {
+// j of x, in *knot; the rays that have one (direction 0: none).
+inline vint tf_next_knot(vreal x, vint j, vint direction, __global const real* tf, int count,
+                         real4 scalars, vreal* knot) {
   const int knots = tf_knots(count);
-  if (direction > 0) {
-    for (int k = j + 1; k < knots; ++k) {
-      *knot = tf_knot(k, tf, count, scalars);
-      if (*knot > x) return true;
-    }
-  } else {
-    for (int k = min(j, knots - 1); k >= 0; --k) {
-      *knot = tf_knot(k, tf, count, scalars);
-      if (*knot < x) return true;
-    }
+  const vint rising = direction > 0;
+  vint k = vseli(min(j, knots - 1), j + 1, rising);
+  vint found = (vint)0;
+  vint search = direction != 0 && k >= 0 && k < knots;
+  while (vany(search)) {
+    const vreal v = tf_knot(clamp(k, 0, knots - 1), tf, count, scalars);
+    const vint hit = search && vseli(vmask_of(v < x), vmask_of(v > x), rising);
+    *knot = vsel(*knot, v, hit);
+    found = found || hit;
+    k += vseli((vint)-1, (vint)1, rising);
+    search = search && !hit && k >= 0 && k < knots;
   }
-  return false;
+  return found;
 }
 
 #endif

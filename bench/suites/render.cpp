@@ -2,7 +2,12 @@
 // full run: 128³/256³ volumes into 256²/512² images at steps 0.5/0.25, and 128³ → 256² at step
 // 0.5 through the identity TF and in the absorption model) and the Python baselines on the
 // benchmark scene, each checked against the independent float64 reference at the same step before
-// its times count; the error against a fine-step reference is reported beside every time.
+// its times count; the error against a fine-step reference is reported beside every time. Both
+// runs also render with the `preintegrated` and `exact` integrators (128³ → 256², quick: 64³ →
+// 128²), and on CPU devices time the one-ray-per-work-item kernel ($IVR_PACKET=0,
+// "ivr-one-ray", checked equal to the packet image bit for bit) beside the packet render of
+// those cases and the others at step 0.5 of that size.
+#include <cstdlib>
 #include <iostream>
 #include <map>
 
@@ -20,7 +25,7 @@ struct RenderCase {
   int volume, image;
   double step;
   bool python_baselines = true;  // the grid's larger cases: ivr and the native marcher only
-  std::string look;              // "": the benchmark scene; "identity", "absorption"
+  std::string look;  // "": the benchmark scene; "identity", "absorption", "preintegrated", "exact"
   std::string name() const { return scene_case(volume, image, step) + (look.empty() ? "" : "_" + look); }
 };
 
@@ -33,13 +38,46 @@ Scene case_scene(const RenderCase& c) {
     s.tf.kind = TfKind::identity;
     s.tf.extinction_scale = 20;
     s.tf.color_scale = 1;
-  } else if (c.look == "absorption") {
+  } else if (c.look == "absorption" || c.look == "exact") {
     s.model = Model::absorption;
     s.background.reset();
     for (TfPoint& p : s.tf.points) p.extinction *= 0.25;
+    if (c.look == "exact") s.integrator.scheme = Scheme::exact;
+  } else if (c.look == "preintegrated") {
+    s.integrator.scheme = Scheme::preintegrated;
   }
   return s;
 }
+
+// The float64 reference of the case's own integrator at the same step: the midpoint rule's
+// discretisation, pre-integration's linear segments, or (exact) the continuous integral.
+std::vector<double> same_step_reference(const Scene& scene, double step_world) {
+  switch (scene.integrator.scheme) {
+    case Scheme::preintegrated:
+      return reference::render_linear_segments(scene, step_world);
+    case Scheme::exact:
+      return reference::render_continuous(scene, true);
+    default:
+      return reference::render_midpoint(scene, step_world, true);
+  }
+}
+
+// Sets an environment variable for a scope (the one-ray kernel: IVR_PACKET=0).
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const char* value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
+    setenv(name, value, 1);
+  }
+  ~ScopedEnv() { had_ ? (void)setenv(name_, old_.c_str(), 1) : (void)unsetenv(name_); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::string old_;
+  bool had_ = false;
+};
 
 // References are the same for every device: computed once per run.
 struct References {
@@ -58,14 +96,17 @@ constexpr double kAtol = 1e-4, kRtol = 1e-3;
 void render_suite(Context& ctx) {
   // The full run: 128³ and 256³ into 256² and 512² at steps 0.5 and 0.25 against the native
   // marcher, the Python baselines on the first two.
-  std::vector<RenderCase> cases{{64, 128, 0.5}};
+  // Quick: the benchmark scene and the two exact integrators at 64³ → 128².
+  std::vector<RenderCase> cases{{64, 128, 0.5}, {64, 128, 0.5, false, "preintegrated"},
+                                {64, 128, 0.5, false, "exact"}};
   if (!ctx.quick) {
     cases = {{128, 256, 0.5}, {128, 256, 0.25}};
     for (int volume : {128, 256})
       for (int image : {256, 512})
         for (double step : {0.5, 0.25})
           if (volume != 128 || image != 256) cases.push_back({volume, image, step, false});
-    for (const char* look : {"identity", "absorption"}) cases.push_back({128, 256, 0.5, false, look});
+    for (const char* look : {"identity", "absorption", "preintegrated", "exact"})
+      cases.push_back({128, 256, 0.5, false, look});
   }
   for (const RenderCase& c : cases) {
     const Scene scene = case_scene(c);
@@ -82,7 +123,7 @@ void render_suite(Context& ctx) {
                                     .fine;
     if (ref.same_step.empty()) {
       std::cerr << "ivr-bench: render/" << c.name() << ": float64 references...\n";
-      ref.same_step = reference::render_midpoint(scene, c.step * h, true);
+      ref.same_step = same_step_reference(scene, c.step * h);
       if (!ctx.quick && fine.empty()) fine = reference::render(scene, kFineStep * h, true);
       ref.fine = fine;
     }
@@ -119,6 +160,34 @@ void render_suite(Context& ctx) {
       r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
       with_error(r, image.pixels);
       record_checked(ctx, std::move(r), check);
+
+      // The same kernel with one ray per work-item, where packets are what runs (CPU devices):
+      // what the packets gain, in the same run. Its image must be the packet's bit for bit.
+      if ((ctx.quick || (c.volume == 128 && c.image == 256)) && c.step == 0.5 &&
+          ctx.device.info().type == "cpu") {
+        const ScopedEnv one_ray("IVR_PACKET", "0");
+        RenderStats one_stats;
+        Image one;
+        Check same;
+        const Measurement mo = measure(
+            ctx.budget,
+            [&] {
+              one = render(ctx.device, scene, options, &one_stats);
+              return one_stats.kernel_seconds;
+            },
+            [&] {
+              const std::vector<double> packet(image.pixels.begin(), image.pixels.end());
+              same = check_max(difference(one.pixels, packet), "the packet render, bit for bit", 0,
+                               0);
+              return same.passed;
+            });
+        Record ro{ctx.device_key, "render", c.name(), "ivr-one-ray", params};
+        add_timing(ro, mo);
+        ro.metrics["samples"] = one_stats.samples;
+        ro.metrics["samples_per_s"] = double(one_stats.samples) / mo.wall.median;
+        ro.params["variant"] = one_stats.variant;
+        record_checked(ctx, std::move(ro), same);
+      }
     }
 
     // ivr resident: the scene already on the device in a session, the image left there.

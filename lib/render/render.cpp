@@ -21,14 +21,15 @@ int packet_lanes(Precision precision) {
 }
 
 // Whether a render marches packets of rays in vector lanes: on CPU devices (PoCL runs a
-// work-item's march as scalar code and cannot vectorise across work-items), for the fixed-step
-// integrators the packet march covers (midpoint and trapezoid: every TF kind, both models, both
-// precisions, with or without skipping). $IVR_PACKET=0 turns it off (tests compare both), and so
-// does the tuner while it times the one-ray-per-work-item kernel.
+// work-item's march as scalar code and cannot vectorise across work-items), for every integrator,
+// TF kind, model and precision, with or without skipping (the variant does not matter any more;
+// it stays a parameter for the next kernel that has no packet form). $IVR_PACKET=0 turns it off
+// (tests compare both), and so does the tuner while it times the one-ray-per-work-item kernel.
 bool use_packet(const Device::Impl& dev, const RenderVariant& v) {
   if (const char* env = std::getenv("IVR_PACKET"); env && std::string(env) == "0") return false;
   if (const TuningProbe* probe = tuning_probe(); probe && !probe->packet) return false;  // ivr tune
-  return dev.info.type == "cpu" && (v.scheme == Scheme::midpoint || v.scheme == Scheme::trapezoid);
+  (void)v;
+  return dev.info.type == "cpu";
 }
 
 // Whether the adjoint takes its primal march from a packet render: what kernels/adjoint.cl reads

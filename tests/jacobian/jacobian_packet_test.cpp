@@ -2,7 +2,8 @@
 // in vector lanes, TF and background lanes, on CPU devices) against one ray per work-item
 // ($IVR_PACKET=0): the image and the Jacobian bit for bit, the loss and its gradient to their
 // summation order (a packet sums its rays before the work-group does), for every TF kind, both
-// models, midpoint and trapezoid, float32 and float64, with and without empty-space skipping.
+// models, every integrator (midpoint, trapezoid, preintegrated, exact), float32 and float64, with
+// and without empty-space skipping.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -102,7 +103,13 @@ TEST(JacobianPacket, EveryTfKindIsTheSame) {
        {TfKind::piecewise_linear, Model::emission_absorption, Scheme::midpoint, Precision::f32},
        {TfKind::table, Model::absorption, Scheme::midpoint, Precision::f32},
        {TfKind::gaussian, Model::absorption, Scheme::trapezoid, Precision::f32},
-       {TfKind::piecewise_linear, Model::absorption, Scheme::trapezoid, Precision::f64}});
+       {TfKind::piecewise_linear, Model::absorption, Scheme::trapezoid, Precision::f64},
+       {TfKind::piecewise_linear, Model::emission_absorption, Scheme::preintegrated,
+        Precision::f32},
+       {TfKind::table, Model::absorption, Scheme::preintegrated, Precision::f32},
+       {TfKind::identity, Model::emission_absorption, Scheme::preintegrated, Precision::f64},
+       {TfKind::piecewise_linear, Model::absorption, Scheme::exact, Precision::f32},
+       {TfKind::table, Model::absorption, Scheme::exact, Precision::f64}});
 }
 
 // The whole matrix (ctest -L extended): every TF kind × model × scheme × precision.
@@ -110,9 +117,14 @@ TEST(JacobianPacket, EveryTfKindModelSchemeAndPrecisionIsTheSameExtended) {
   std::vector<Case> cases;
   for (TfKind kind : {TfKind::identity, TfKind::piecewise_linear, TfKind::table, TfKind::gaussian})
     for (Model model : {Model::emission_absorption, Model::absorption})
-      for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid})
+      for (Scheme scheme :
+           {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact})
         for (Precision precision : {Precision::f32, Precision::f64})
-          cases.push_back({kind, model, scheme, precision});
+          // (exact: absorption; both exact schemes: TFs linear in density between knots)
+          if ((scheme != Scheme::exact || model == Model::absorption) &&
+              (scheme == Scheme::midpoint || scheme == Scheme::trapezoid ||
+               kind != TfKind::gaussian))
+            cases.push_back({kind, model, scheme, precision});
   expect_cases_same(cases);
 }
 
@@ -127,7 +139,7 @@ TEST(JacobianPacket, SkippingAndEarlyTerminationAreTheSame) {
     for (int i = 0; i < 256; ++i) s.volume.data[std::size_t(z) * 256 + i] = 0.3f + 0.002f * float(i);
   const Image target = perturbed_target(s);
   const std::vector<Parameter> params = parameters_of(s, "background");
-  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid}) {
+  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated}) {
     Scene sc = s;
     sc.integrator.scheme = scheme;
     const Forward a = forward_with(sc, params, target, true, Precision::f32, EmptySpace::on),

@@ -1,13 +1,16 @@
 // linear_segment_test.cpp — kernels/linear_segment.cl (emission–absorption over one sub-segment
 // with linear extinction and colour) against a long-double adaptive quadrature written here, closed
-// forms, central differences, and extreme inputs, in float32 and float64.
+// forms, central differences, and extreme inputs, in float32 and float64; and its packet form
+// (vector lanes) against its one-input form, bit for bit.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
+#include <random>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -33,23 +36,47 @@ __kernel void linear_segment_eval(__global const real* a, __global const real* b
   const size_t i = get_global_id(0);
   const LinearSegment s = linear_segment(a[i], b[i]);
   real p, q;
-  linear_segment_pq(a[i], b[i], &p, &q);
+  linear_segment_pq(a[i], b[i], vtrue, &p, &q);
   __global real* o = out + 8 * i;
   o[0] = s.p; o[1] = s.q; o[2] = s.dp_da; o[3] = s.dp_db; o[4] = s.dq_da; o[5] = s.dq_db;
   o[6] = p; o[7] = q;
 }
 )CL";
 
-// Runs both functions on the device at precision Real (inputs rounded to Real first).
+// The same for IVR_RAYS inputs at once, in vector lanes (kernels/rays.cl).
+const char* kEvalPacketKernel = R"CL(
+__kernel void linear_segment_eval(__global const real* a, __global const real* b,
+                                __global real* out) {
+  const size_t i = get_global_id(0);
+  const vreal va = IVR_VLOAD(i, a), vb = IVR_VLOAD(i, b);
+  const LinearSegment s = linear_segment(va, vb);
+  vreal p, q;
+  linear_segment_pq(va, vb, vtrue, &p, &q);
+  real o[8][IVR_RAYS];
+  IVR_STORE_RAYS(s.p, o[0]); IVR_STORE_RAYS(s.q, o[1]); IVR_STORE_RAYS(s.dp_da, o[2]);
+  IVR_STORE_RAYS(s.dp_db, o[3]); IVR_STORE_RAYS(s.dq_da, o[4]); IVR_STORE_RAYS(s.dq_db, o[5]);
+  IVR_STORE_RAYS(p, o[6]); IVR_STORE_RAYS(q, o[7]);
+  for (int l = 0; l < IVR_RAYS; ++l)
+    for (int k = 0; k < 8; ++k) out[8 * (i * IVR_RAYS + l) + k] = o[k][l];
+}
+)CL";
+
+// Runs both functions on the device at precision Real (inputs rounded to Real first), one input
+// per work-item or `lanes` (8, 16) per work-item in vector lanes.
 template <class Real>
-std::vector<Segment> evaluate(const std::vector<double>& a, const std::vector<double>& b) {
+std::vector<Segment> evaluate(std::vector<double> a, std::vector<double> b, int lanes = 1) {
   Device::Impl& dev = device().impl();
   const bool f64 = std::is_same<Real, double>::value;
+  const std::size_t given = a.size();
+  while (a.size() % std::size_t(lanes)) a.push_back(a.back()), b.push_back(b.back());
   const std::string source = std::string("#define IVR_F64 ") + (f64 ? "1" : "0") + "\n" +
-                             assemble_kernel("linear_segment.cl") + kEvalKernel;
-  cl::Program program =
-      dev.programs.get(dev.context, dev.device, dev.info, source, "",
-                       f64 ? "linear_segment test f64" : "linear_segment test f32");
+                             "#define IVR_RAYS " + std::to_string(lanes) + "\n" +
+                             assemble_kernel("linear_segment.cl") +
+                             (lanes > 1 ? kEvalPacketKernel : kEvalKernel);
+  cl::Program program = dev.programs.get(
+      dev.context, dev.device, dev.info, source, "",
+      std::string("linear_segment test ") + (f64 ? "f64" : "f32") + " lanes " +
+          std::to_string(lanes));
   const std::size_t n = a.size();
   std::vector<Real> ar(a.begin(), a.end()), br(b.begin(), b.end()), out(8 * n);
   cl::Buffer da(dev.context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, n * sizeof(Real), ar.data());
@@ -59,13 +86,14 @@ std::vector<Segment> evaluate(const std::vector<double>& a, const std::vector<do
   kernel.setArg(0, da);
   kernel.setArg(1, db);
   kernel.setArg(2, dout);
-  dev.queue.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(n));
+  dev.queue.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(n / std::size_t(lanes)));
   dev.queue.enqueueReadBuffer(dout, CL_TRUE, 0, out.size() * sizeof(Real), out.data());
   std::vector<Segment> s(n);
   for (std::size_t i = 0; i < n; ++i) {
     const Real* o = &out[8 * i];
     s[i] = {o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7]};
   }
+  s.resize(given);
   return s;
 }
 
@@ -382,6 +410,44 @@ TEST(LinearSegment, NoJumpsAtRegimeSwitchesF32) {
 TEST(LinearSegment, NoJumpsAtRegimeSwitchesF64) {
   if (!device().info().fp64) GTEST_SKIP() << "the device has no fp64";
   check_no_jumps<double>("f64");
+}
+
+// Packets of inputs in vector lanes (the packet marches of preintegrated.cl): every lane takes its
+// own regime, so each value is the one-input kernel's bit for bit, with neighbouring lanes in
+// other regimes (the dense grid shuffled, fixed seed).
+template <class Real>
+void check_packet_is_the_same(int lanes, const char* label) {
+  std::vector<double> a, b;
+  grid(&a, &b);
+  std::vector<std::size_t> order(a.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::mt19937 rng(2026);
+  std::shuffle(order.begin(), order.end(), rng);
+  std::vector<double> sa, sb;
+  for (std::size_t i : order) sa.push_back(a[i]), sb.push_back(b[i]);
+  const std::vector<Segment> one = evaluate<Real>(sa, sb), packet = evaluate<Real>(sa, sb, lanes);
+  ASSERT_EQ(one.size(), packet.size());
+  int differing = 0;
+  for (std::size_t i = 0; i < one.size(); ++i) {
+    const double x[8] = {one[i].p,     one[i].q,     one[i].dp_da, one[i].dp_db,
+                         one[i].dq_da, one[i].dq_db, one[i].pq_p,  one[i].pq_q};
+    const double y[8] = {packet[i].p,     packet[i].q,     packet[i].dp_da, packet[i].dp_db,
+                         packet[i].dq_da, packet[i].dq_db, packet[i].pq_p,  packet[i].pq_q};
+    for (int k = 0; k < 8; ++k)
+      if (std::memcmp(&x[k], &y[k], sizeof(double)) != 0 && differing++ < 5)
+        ADD_FAILURE() << label << " " << at(sa[i], sb[i]) << " output " << k << ": one " << x[k]
+                      << " packet " << y[k];
+  }
+  EXPECT_EQ(differing, 0) << label;
+}
+
+TEST(LinearSegment, PacketIsTheSameBitForBitF32) {
+  check_packet_is_the_same<float>(16, "f32 16 lanes");
+  check_packet_is_the_same<float>(8, "f32 8 lanes");
+}
+TEST(LinearSegment, PacketIsTheSameBitForBitF64) {
+  if (!device().info().fp64) GTEST_SKIP() << "the device has no fp64";
+  check_packet_is_the_same<double>(8, "f64 8 lanes");
 }
 
 // The f64 partials against central differences of the f64 values (step 1e-5 relative), on a

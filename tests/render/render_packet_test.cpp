@@ -1,11 +1,12 @@
 // render_packet_test.cpp — the CPU packet render (render.cl with 16 or 8 rays per work-item in
 // vector lanes, kernels/rays.cl) against one ray per work-item ($IVR_PACKET=0): the same image bit
-// for bit and the same sample counts, for every TF kind, both models, midpoint and trapezoid, both
-// precisions, with and without empty-space skipping, and over edge cases of the packet (image
-// widths not a multiple of the lanes, rays that miss, early termination, cameras inside the
-// volume, orthographic views, one- and two-point TFs, densities exactly on the TF's points); and
-// gradients whose primal march it made (lib/adjoint/adjoint.cpp) bit for bit those of the adjoint
-// kernel's own march — its remaining radiance, C minus the prefix, needs that.
+// for bit and the same sample counts, for every TF kind, both models, every integrator (midpoint,
+// trapezoid, preintegrated, exact), both precisions, with and without empty-space skipping, and
+// over edge cases of the packet (image widths not a multiple of the lanes, rays that miss, early
+// termination, cameras inside the volume, orthographic views, one- and two-point TFs, densities
+// exactly on the TF's points); and gradients whose primal march it made (lib/adjoint/adjoint.cpp)
+// bit for bit those of the adjoint kernel's own march — its remaining radiance, C minus the
+// prefix, needs that.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -91,13 +92,24 @@ TEST(RenderPacket, TransferFunctionEdgeCases) {
   // Densities exactly on the points: a volume of the points' densities and values between.
   for (std::size_t i = 0; i < s.volume.data.size(); ++i)
     s.volume.data[i] = float(std::vector<double>{0.35, 0.55, 0.8, 0.45, 1.0}[i % 5]);
-  expect_same(s, 0.5, "densities on the points");
-  Scene two = s;
-  two.tf.points = {{0.2, {1, 0.5, 0.2}, 4}, {0.9, {0.2, 0.4, 1}, 12}};
-  expect_same(two, 0.5, "two points");
-  Scene one = s;
-  one.tf.points = {{0.5, {0.3, 0.6, 0.9}, 3}};
-  expect_same(one, 0.5, "one point");
+  // The exact schemes cut their segments at the points: densities on them, and segments whose
+  // ends lie on two of them, are their edge cases.
+  for (Scheme scheme : {Scheme::midpoint, Scheme::preintegrated, Scheme::exact}) {
+    Scene sc = s;
+    sc.integrator.scheme = scheme;
+    if (scheme == Scheme::exact) sc.model = Model::absorption;
+    const std::string name = scheme_name(scheme);
+    expect_same(sc, 0.5, name + ", densities on the points");
+    Scene two = sc;
+    two.tf.points = {{0.2, {1, 0.5, 0.2}, 4}, {0.9, {0.2, 0.4, 1}, 12}};
+    expect_same(two, 0.5, name + ", two points");
+    Scene one = sc;
+    one.tf.points = {{0.5, {0.3, 0.6, 0.9}, 3}};
+    expect_same(one, 0.5, name + ", one point");
+    Scene opaque = sc;  // early termination at different segments of a packet
+    for (TfPoint& p : opaque.tf.points) p.extinction *= 40;
+    expect_same(opaque, 0.5, name + ", early termination");
+  }
 }
 
 // The four TF kinds, each with σ = 0 over the low densities (the Gaussians: nowhere exactly).
@@ -117,6 +129,13 @@ std::vector<std::pair<std::string, TransferFunction>> every_tf_kind() {
   gauss.kind = TfKind::gaussian;
   gauss.gaussians = {{0.3, 0.1, {1, 0.2, 0.1}, 5}, {0.7, 0.2, {0.1, 0.6, 1}, 3}};
   return {{"identity", identity}, {"piecewise_linear", pwl}, {"table", table}, {"gaussian", gauss}};
+}
+
+// Whether a scheme takes this model and TF (exact: absorption; both exact schemes: TFs linear in
+// density between knots).
+bool scheme_supports(Scheme scheme, Model model, const std::string& tf) {
+  if (scheme == Scheme::exact && model != Model::absorption) return false;
+  return scheme == Scheme::midpoint || scheme == Scheme::trapezoid || tf != "gaussian";
 }
 
 struct Case {
@@ -161,7 +180,14 @@ TEST(RenderPacket, EveryTfKindIsTheSame) {
        {"piecewise_linear", Model::absorption, Scheme::midpoint, f32, EmptySpace::on},
        {"table", Model::emission_absorption, Scheme::midpoint, f32, EmptySpace::off},
        {"gaussian", Model::absorption, Scheme::trapezoid, f32, EmptySpace::off},
-       {"table", Model::emission_absorption, Scheme::trapezoid, Precision::f64, EmptySpace::on}});
+       {"table", Model::emission_absorption, Scheme::trapezoid, Precision::f64, EmptySpace::on},
+       {"piecewise_linear", Model::emission_absorption, Scheme::preintegrated, f32, EmptySpace::on},
+       {"table", Model::absorption, Scheme::preintegrated, f32, EmptySpace::off},
+       {"identity", Model::emission_absorption, Scheme::preintegrated, Precision::f64,
+        EmptySpace::off},
+       {"piecewise_linear", Model::absorption, Scheme::exact, f32, EmptySpace::on},
+       {"table", Model::absorption, Scheme::exact, Precision::f64, EmptySpace::off},
+       {"identity", Model::absorption, Scheme::exact, f32, EmptySpace::on}});
 }
 
 // The whole matrix (ctest -L extended): every TF kind × model × scheme × precision × skipping.
@@ -169,10 +195,12 @@ TEST(RenderPacket, EveryTfKindModelSchemeAndSkippingIsTheSameExtended) {
   std::vector<Case> cases;
   for (const char* tf : {"identity", "piecewise_linear", "table", "gaussian"})
     for (Model model : {Model::emission_absorption, Model::absorption})
-      for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid})
+      for (Scheme scheme :
+           {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact})
         for (Precision precision : {Precision::f32, Precision::f64})
           for (EmptySpace skip : {EmptySpace::off, EmptySpace::on})
-            cases.push_back({tf, model, scheme, precision, skip});
+            if (scheme_supports(scheme, model, tf))
+              cases.push_back({tf, model, scheme, precision, skip});
   expect_cases_same(cases);
 }
 

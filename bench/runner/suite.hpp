@@ -2,6 +2,7 @@
 // environment) and the checks they share: an implementation's output against a reference with
 // absolute and relative tolerances, made before its times count.
 #pragma once
+#include <cstdlib>
 #include <functional>
 #include <map>
 #include <string>
@@ -52,6 +53,24 @@ Check check_max(const Difference& d, const std::string& against, double atol, do
 Check check_l2(const Difference& d, const std::string& against, double tolerance);
 
 std::vector<double> widen(const std::vector<float>& v);
+
+// Sets an environment variable for the lifetime of the object, then restores it (the suites
+// time ivr under $IVR_CACHE_DIR, $IVR_BUILD_OPTIONS, $IVR_PACKET settings).
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const std::string& value) : name_(name) {
+    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
+    ::setenv(name, value.c_str(), 1);
+  }
+  ~ScopedEnv() { had_ ? (void)::setenv(name_, old_.c_str(), 1) : (void)::unsetenv(name_); }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* name_;
+  std::string old_;
+  bool had_ = false;
+};
 
 // The case name of a benchmark-scene case, e.g. "v128_i256_s0.500" (volume, image, step).
 std::string scene_case(int volume, int image, double step);

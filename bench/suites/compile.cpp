@@ -13,30 +13,6 @@
 
 namespace ivr::bench {
 
-namespace {
-
-// Sets an environment variable for the lifetime of the object, then restores it.
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const std::string& value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
-    setenv(name, value.c_str(), 1);
-  }
-  ~ScopedEnv() {
-    if (had_)
-      setenv(name_, old_.c_str(), 1);
-    else
-      unsetenv(name_);
-  }
-
- private:
-  const char* name_;
-  std::string old_;
-  bool had_ = false;
-};
-
-}  // namespace
-
 void compile_suite(Context& ctx) {
   const int n = ctx.quick ? 32 : 64, image = ctx.quick ? 32 : 64;
   const Scene scene = bench_scene(n, image);

@@ -7,7 +7,7 @@
 // 128²), and on CPU devices time the one-ray-per-work-item kernel ($IVR_PACKET=0,
 // "ivr-one-ray", checked equal to the packet image bit for bit) beside the packet render of
 // those cases and the others at step 0.5 of that size.
-#include <cstdlib>
+#include <functional>
 #include <iostream>
 #include <map>
 
@@ -61,23 +61,6 @@ std::vector<double> same_step_reference(const Scene& scene, double step_world) {
       return reference::render_midpoint(scene, step_world, true);
   }
 }
-
-// Sets an environment variable for a scope (the one-ray kernel: IVR_PACKET=0).
-class ScopedEnv {
- public:
-  ScopedEnv(const char* name, const char* value) : name_(name) {
-    if (const char* old = std::getenv(name)) old_ = old, had_ = true;
-    setenv(name, value, 1);
-  }
-  ~ScopedEnv() { had_ ? (void)setenv(name_, old_.c_str(), 1) : (void)unsetenv(name_); }
-  ScopedEnv(const ScopedEnv&) = delete;
-  ScopedEnv& operator=(const ScopedEnv&) = delete;
-
- private:
-  const char* name_;
-  std::string old_;
-  bool had_ = false;
-};
 
 // References are the same for every device: computed once per run.
 struct References {
@@ -136,57 +119,56 @@ void render_suite(Context& ctx) {
     };
     const std::string against = "reference f64, same step";
 
-    // ivr on this device.
-    {
-      const RenderOptions options{Precision::f32, c.step};
-      RenderStats stats;
+    // ivr::render of the case, timed and checked by check_of(image) before its times count.
+    const RenderOptions options{Precision::f32, c.step};
+    struct Timed {
       Image image;
+      RenderStats stats;
+      Measurement m;
       Check check;
-      const Measurement m = measure(
+      Record r;
+    };
+    auto timed_render = [&](const std::string& implementation,
+                            const std::function<Check(const Image&)>& check_of) {
+      Timed t{{}, {}, {}, {}, {ctx.device_key, "render", c.name(), implementation, params}};
+      t.m = measure(
           ctx.budget,
           [&] {
-            image = render(ctx.device, scene, options, &stats);
-            return stats.kernel_seconds;
+            t.image = render(ctx.device, scene, options, &t.stats);
+            return t.stats.kernel_seconds;
           },
           [&] {
-            check = check_max(difference(image.pixels, ref.same_step), against, kAtol, kRtol);
-            return check.passed;
+            t.check = check_of(t.image);
+            return t.check.passed;
           });
-      Record r{ctx.device_key, "render", c.name(), "ivr", params};
-      add_timing(r, m);
-      r.metrics["samples"] = stats.samples;
-      r.metrics["samples_per_s"] = double(stats.samples) / m.wall.median;
-      r.metrics["peak_device_bytes"] = stats.device_bytes;
-      r.metrics["memory_bytes"] = operation_memory(ctx, m, stats.device_bytes);
-      with_error(r, image.pixels);
-      record_checked(ctx, std::move(r), check);
+      add_timing(t.r, t.m);
+      t.r.metrics["samples"] = t.stats.samples;
+      t.r.metrics["samples_per_s"] = double(t.stats.samples) / t.m.wall.median;
+      return t;
+    };
+
+    // ivr on this device.
+    {
+      Timed t = timed_render("ivr", [&](const Image& image) {
+        return check_max(difference(image.pixels, ref.same_step), against, kAtol, kRtol);
+      });
+      t.r.metrics["peak_device_bytes"] = t.stats.device_bytes;
+      t.r.metrics["memory_bytes"] = operation_memory(ctx, t.m, t.stats.device_bytes);
+      with_error(t.r, t.image.pixels);
+      record_checked(ctx, std::move(t.r), t.check);
 
       // The same kernel with one ray per work-item, where packets are what runs (CPU devices):
       // what the packets gain, in the same run. Its image must be the packet's bit for bit.
       if ((ctx.quick || (c.volume == 128 && c.image == 256)) && c.step == 0.5 &&
           ctx.device.info().type == "cpu") {
+        const std::vector<double> packet = widen(t.image.pixels);
         const ScopedEnv one_ray("IVR_PACKET", "0");
-        RenderStats one_stats;
-        Image one;
-        Check same;
-        const Measurement mo = measure(
-            ctx.budget,
-            [&] {
-              one = render(ctx.device, scene, options, &one_stats);
-              return one_stats.kernel_seconds;
-            },
-            [&] {
-              const std::vector<double> packet(image.pixels.begin(), image.pixels.end());
-              same = check_max(difference(one.pixels, packet), "the packet render, bit for bit", 0,
-                               0);
-              return same.passed;
-            });
-        Record ro{ctx.device_key, "render", c.name(), "ivr-one-ray", params};
-        add_timing(ro, mo);
-        ro.metrics["samples"] = one_stats.samples;
-        ro.metrics["samples_per_s"] = double(one_stats.samples) / mo.wall.median;
-        ro.params["variant"] = one_stats.variant;
-        record_checked(ctx, std::move(ro), same);
+        Timed o = timed_render("ivr-one-ray", [&](const Image& image) {
+          return check_max(difference(image.pixels, packet), "the packet render, bit for bit", 0,
+                           0);
+        });
+        o.r.params["variant"] = o.stats.variant;
+        record_checked(ctx, std::move(o.r), o.check);
       }
     }
 

@@ -194,7 +194,7 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
     // lane a vector of the rays' tangents); camera and voxel lanes, whose geometry is per ray,
     // one ray per work-item.
     const int rays =
-        use_packet(dev, variant) && !pass_camera && !pass_voxel ? packet_lanes(variant.precision) : 1;
+        use_packet(dev) && !pass_camera && !pass_voxel ? packet_lanes(variant.precision) : 1;
     if (rays > 1) config.set(Switch::rays, rays);
     op.stats.variant = config.label();
     cl_call("running the tangent kernel on " + dev.info.name, [&] {

@@ -22,20 +22,18 @@ int packet_lanes(Precision precision) {
 
 // Whether a render marches packets of rays in vector lanes: on CPU devices (PoCL runs a
 // work-item's march as scalar code and cannot vectorise across work-items), for every integrator,
-// TF kind, model and precision, with or without skipping (the variant does not matter any more;
-// it stays a parameter for the next kernel that has no packet form). $IVR_PACKET=0 turns it off
-// (tests compare both), and so does the tuner while it times the one-ray-per-work-item kernel.
-bool use_packet(const Device::Impl& dev, const RenderVariant& v) {
+// TF kind, model and precision, with or without skipping. $IVR_PACKET=0 turns it off (tests
+// compare both), and so does the tuner while it times the one-ray-per-work-item kernel.
+bool use_packet(const Device::Impl& dev) {
   if (const char* env = std::getenv("IVR_PACKET"); env && std::string(env) == "0") return false;
   if (const TuningProbe* probe = tuning_probe(); probe && !probe->packet) return false;  // ivr tune
-  (void)v;
   return dev.info.type == "cpu";
 }
 
 // Whether the adjoint takes its primal march from a packet render: what kernels/adjoint.cl reads
 // back (C, T and a midpoint march's samples, which are its end without skipping).
 bool use_packet_primal(const Device::Impl& dev, const RenderVariant& v) {
-  return use_packet(dev, v) && v.scheme == Scheme::midpoint &&
+  return use_packet(dev) && v.scheme == Scheme::midpoint &&
          v.model == Model::emission_absorption && !v.empty_space;
 }
 
@@ -57,7 +55,7 @@ DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op) {
   const Integrator& integrator = s.integrator();
   RenderVariant variant = s.variant_of(integrator);
   const cl::Buffer& occupied = s.plan_skipping(true, variant, op.stats);
-  const bool packet = use_packet(s.dev, variant);
+  const bool packet = use_packet(s.dev);
   const KernelConfig config =
       packet ? packet_config(variant, false) : variant.config("render.cl", "render");
   const std::size_t pixels = s.pixels();

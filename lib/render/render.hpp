@@ -11,13 +11,13 @@
 
 namespace ivr {
 
-// Rays per work-item; whether a scene's variant renders in packets (CPU device, midpoint or
-// trapezoid; $IVR_PACKET=0: never) and whether the adjoint takes its primal from one
+// Rays per work-item; whether a device renders in packets (CPU devices, every integrator;
+// $IVR_PACKET=0: never) and whether the adjoint takes its primal from one
 // (emission–absorption, midpoint, no skipping); the packet configuration (primal: each pixel's
 // emitted C and transmittance T into the image buffer, for the adjoint kernel, instead of the
 // composited pixel); its launch.
 int packet_lanes(Precision precision);
-bool use_packet(const Device::Impl& dev, const RenderVariant& v);
+bool use_packet(const Device::Impl& dev);
 bool use_packet_primal(const Device::Impl& dev, const RenderVariant& v);
 KernelConfig packet_config(const RenderVariant& variant, bool primal);
 PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene,

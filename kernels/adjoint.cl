@@ -1,4 +1,6 @@
-// adjoint.cl — reverse-mode gradients, one work-item per pixel: the primal march gives the pixel
+// adjoint.cl — reverse-mode gradients, one work-item per pixel (or, on CPUs, per packet of
+// IVR_RAYS neighbouring pixels in vector lanes, kernels/rays.cl: the midpoint rule's density and
+// TF gradients, each lane its own ray's arithmetic): the primal march gives the pixel
 // and its loss gradient (kernels/primal.cl), a second front-to-back march of the scene's
 // integrator (adjoint_<scheme>.cl) recovers each sample's remaining radiance as C minus the prefix
 // (no division by 1 − α, no per-sample storage) and scatters dL/d density to the voxels (through
@@ -12,6 +14,7 @@
 #include "loss.cl"
 #include "march.cl"
 #include "primal.cl"
+#include "rays.cl"
 #include "scatter_cache.cl"
 #include "adjoint_tf.cl"
 // Every scheme's march (the files' own include lines are resolved once, wherever they first
@@ -33,6 +36,69 @@
 #define adjoint_march adjoint_march_exact
 #endif
 
+// One pixel from its march's emitted colour C and transmittance T: its value into `image`, its
+// loss and dL/dbackground terms into `pixel_terms`, and dL/dpixel with what the adjoint march
+// needs of the primal into lane `l` of the arrays of `out` (one ray: l = 0).
+typedef struct {
+  real gr[IVR_RAYS], gg[IVR_RAYS], gb[IVR_RAYS], ga[IVR_RAYS], gi[IVR_RAYS];
+  real total_r[IVR_RAYS], total_g[IVR_RAYS], total_b[IVR_RAYS], intensity[IVR_RAYS];
+} PixelAdjoints;
+
+inline void pixel_adjoint(real cr, real cg, real cb, real t, size_t pixel,
+                          __global const real* target, real4 background, real norm,
+                          __global real* image, __global real* pixel_terms, PixelAdjoints* out,
+                          int l) {
+  __global const real* tgt = target + pixel * IVR_CHANNELS;
+  real loss = (real)0;
+  out->gr[l] = out->gg[l] = out->gb[l] = out->ga[l] = out->gi[l] = out->intensity[l] = (real)0;
+#if IVR_EMISSION
+  const real total_r = cr + t * background.x, total_g = cg + t * background.y,
+             total_b = cb + t * background.z, alpha = (real)1 - t;
+  const real gr = loss_term(total_r, tgt[0], norm, &loss);
+  const real gg = loss_term(total_g, tgt[1], norm, &loss);
+  const real gb = loss_term(total_b, tgt[2], norm, &loss);
+  out->ga[l] = loss_term(alpha, tgt[3], norm, &loss);
+  __global real* o = image + pixel * 4;
+  o[0] = total_r;
+  o[1] = total_g;
+  o[2] = total_b;
+  o[3] = alpha;
+  pixel_terms[pixel * 4 + 0] = loss;
+  pixel_terms[pixel * 4 + 1] = gr * t;  // dL/dbackground, per pixel
+  pixel_terms[pixel * 4 + 2] = gg * t;
+  pixel_terms[pixel * 4 + 3] = gb * t;
+  out->gr[l] = gr, out->gg[l] = gg, out->gb[l] = gb;
+  out->total_r[l] = total_r, out->total_g[l] = total_g, out->total_b[l] = total_b;
+#else
+  (void)cr, (void)cg, (void)cb;
+  out->total_r[l] = out->total_g[l] = out->total_b[l] = (real)0;
+  const real intensity = background.x * t;
+  const real gi = loss_term(intensity, tgt[0], norm, &loss);
+  image[pixel] = intensity;
+  pixel_terms[pixel * 4 + 0] = loss;
+  pixel_terms[pixel * 4 + 1] = gi * t;
+  pixel_terms[pixel * 4 + 2] = (real)0;
+  pixel_terms[pixel * 4 + 3] = (real)0;
+  out->gi[l] = gi, out->intensity[l] = intensity;
+#endif
+}
+
+// The AdjointRay of a work-item's rays from their pixels' adjoints.
+inline void adjoint_ray_of(const PixelAdjoints* p, vreal t_end, vint end, AdjointRay* ar) {
+#if IVR_RAYS == 1
+#define IVR_LOAD_RAYS(v) ((v)[0])
+#else
+#define IVR_LOAD_RAYS(v) IVR_VLOAD(0, v)
+#endif
+  ar->gr = IVR_LOAD_RAYS(p->gr), ar->gg = IVR_LOAD_RAYS(p->gg), ar->gb = IVR_LOAD_RAYS(p->gb);
+  ar->ga = IVR_LOAD_RAYS(p->ga), ar->gi = IVR_LOAD_RAYS(p->gi);
+  ar->total_r = IVR_LOAD_RAYS(p->total_r), ar->total_g = IVR_LOAD_RAYS(p->total_g);
+  ar->total_b = IVR_LOAD_RAYS(p->total_b), ar->intensity = IVR_LOAD_RAYS(p->intensity);
+#undef IVR_LOAD_RAYS
+  ar->t_end = t_end;
+  ar->end = end;
+}
+
 __kernel void adjoint(__global const real* restrict volume, const int4 dims, const real4 box_min,
                       const real4 box_max, const real4 inv_voxel,
                       __global const real* restrict cameras, const int width, const int height,
@@ -45,7 +111,8 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
                       __global const real* restrict camera_params,
                       __global real* restrict camera_partial, __local real* camera_scratch,
                       __global const uchar* restrict occupied, const int4 bricks) {
-  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  // One pixel per work-item, or a packet of IVR_RAYS neighbouring pixels of a row (CPUs).
+  const int x = get_global_id(0) * IVR_RAYS, y = get_global_id(1), view = get_global_id(2);
   const bool active = x < width && y < height;  // padding items still meet the barriers
   const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
   const int lsize = get_local_size(0) * get_local_size(1);
@@ -61,66 +128,65 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
 #endif
 
   if (active) {
-    const Ray ray = camera_ray(cameras + view * IVR_CAMERA_STRIDE, x, y, width, height);
+    __global const real* cam = cameras + view * IVR_CAMERA_STRIDE;
     March m;
-    const bool hit = march_begin(ray, cameras + view * IVR_CAMERA_STRIDE, x, y, width, height, box_min,
-                                 box_max, inv_voxel, step, &m);
+#if IVR_RAYS == 1
+    const Ray ray = camera_ray(cam, x, y, width, height);
+    const bool hit =
+        march_begin(ray, cam, x, y, width, height, box_min, box_max, inv_voxel, step, &m);
+#else
+    const Ray ray = {(real3)(real)0, (real3)(real)0};  // (the camera gradient's; one ray)
+    const bool hit =
+        march_begin_rays(cam, x, y, width, height, box_min, box_max, inv_voxel, step, &m);
+#endif
     Radiance r = radiance_begin();
-    const size_t pixel = ((size_t)view * height + y) * width + x;
-#if IVR_PRIMAL_GIVEN && IVR_EMISSION && IVR_SCHEME == IVR_SCHEME_MIDPOINT
-    r.cr = image[pixel * 4 + 0];
-    r.cg = image[pixel * 4 + 1];
-    r.cb = image[pixel * 4 + 2];
-    r.transmittance = image[pixel * 4 + 3];
-    r.samples = r.end = samples[pixel];  // the midpoint march: one sample per segment taken
+#if IVR_PRIMAL_GIVEN && IVR_EMISSION && IVR_SCHEME == IVR_SCHEME_MIDPOINT && IVR_RAYS == 1
+    {
+      const size_t pixel = ((size_t)view * height + y) * width + x;
+      r.cr = image[pixel * 4 + 0];
+      r.cg = image[pixel * 4 + 1];
+      r.cb = image[pixel * 4 + 2];
+      r.transmittance = image[pixel * 4 + 3];
+      r.samples = r.end = samples[pixel];  // the midpoint march: one sample per segment taken
+    }
 #else
     if (hit)
       primal_march(volume, dims, &m, tf, tf_count, tf_scalars, min_transmittance, occupied, bricks,
                    &r);
 #endif
 
-    // The pixel, its loss terms and dL/dpixel.
-    __global const real* tgt = target + pixel * IVR_CHANNELS;
-    real loss = (real)0;
+    // Each ray's pixel, its loss terms and dL/dpixel.
+    real t_end[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS];
+    int taken[IVR_RAYS];
+    IVR_STORE_RAYS(r.transmittance, t_end);
+    IVR_STORE_RAYS(r.cr, cr);
+    IVR_STORE_RAYS(r.cg, cg);
+    IVR_STORE_RAYS(r.cb, cb);
+    IVR_STORE_RAYS(r.samples, taken);
+    PixelAdjoints pa;
+    for (int l = 0; l < IVR_RAYS; ++l) {
+      const size_t pixel = ((size_t)view * height + y) * width + x + l;
+      if (x + l < width) {
+        pixel_adjoint(cr[l], cg[l], cb[l], t_end[l], pixel, target, background, norm, image,
+                      pixel_terms, &pa, l);
+        samples[pixel] = (uint)taken[l];
+      } else {  // past the image's edge: no ray (n = 0), nothing to add
+        pa.gr[l] = pa.gg[l] = pa.gb[l] = pa.ga[l] = pa.gi[l] = (real)0;
+        pa.total_r[l] = pa.total_g[l] = pa.total_b[l] = pa.intensity[l] = (real)0;
+      }
+    }
     AdjointRay ar;
-    ar.t_end = r.transmittance;
-    ar.end = r.end;
-    ar.gr = ar.gg = ar.gb = ar.ga = ar.gi = ar.intensity = (real)0;
-#if IVR_EMISSION
-    ar.total_r = r.cr + r.transmittance * background.x;
-    ar.total_g = r.cg + r.transmittance * background.y;
-    ar.total_b = r.cb + r.transmittance * background.z;
-    const real alpha = (real)1 - r.transmittance;
-    ar.gr = loss_term(ar.total_r, tgt[0], norm, &loss);
-    ar.gg = loss_term(ar.total_g, tgt[1], norm, &loss);
-    ar.gb = loss_term(ar.total_b, tgt[2], norm, &loss);
-    ar.ga = loss_term(alpha, tgt[3], norm, &loss);
-    __global real* out = image + pixel * 4;
-    out[0] = ar.total_r;
-    out[1] = ar.total_g;
-    out[2] = ar.total_b;
-    out[3] = alpha;
-    pixel_terms[pixel * 4 + 0] = loss;
-    pixel_terms[pixel * 4 + 1] = ar.gr * r.transmittance;  // dL/dbackground, per pixel
-    pixel_terms[pixel * 4 + 2] = ar.gg * r.transmittance;
-    pixel_terms[pixel * 4 + 3] = ar.gb * r.transmittance;
-#else
-    ar.total_r = ar.total_g = ar.total_b = (real)0;
-    ar.intensity = background.x * r.transmittance;
-    ar.gi = loss_term(ar.intensity, tgt[0], norm, &loss);
-    image[pixel] = ar.intensity;
-    pixel_terms[pixel * 4 + 0] = loss;
-    pixel_terms[pixel * 4 + 1] = ar.gi * r.transmittance;
-    pixel_terms[pixel * 4 + 2] = (real)0;
-    pixel_terms[pixel * 4 + 3] = (real)0;
-#endif
-    samples[pixel] = r.samples;
+    adjoint_ray_of(&pa, r.transmittance, r.end, &ar);
 
     if (hit) {
       TfGradCache tf_cache;
       tf_cache_init(&tf_cache);
       CameraSums cs;
+#if IVR_RAYS == 1
       camera_sums_init(&cs, m.t1);
+#else
+      camera_sums_init(&cs, (real)0);  // unused: no camera gradient in packets
+#endif
       adjoint_march(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar, occupied,
                     bricks, density, &tf_cache, tf_acc, &cs);
 #if IVR_GRAD_TF

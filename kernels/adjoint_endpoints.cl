@@ -13,6 +13,10 @@
 #include "end_sample.cl"
 #include "adjoint_preintegrated.cl"
 
+// One ray per work-item: the adjoint marches packets for the midpoint rule only
+// (lib/adjoint/adjoint.cpp, use_packet_adjoint).
+#if IVR_RAYS == 1
+
 // An end sample with what its scatter needs, and the gradient it has collected so far.
 typedef struct {
   EndSample s;
@@ -57,7 +61,7 @@ inline void finish_sample(AdjointSample* a, CellCache* cell, __global const real
   real fx, fy, fz;
   const int ix = cell_axis(a->s.ux, dims.x, &fx), iy = cell_axis(a->s.uy, dims.y, &fy),
             iz = cell_axis(a->s.uz, dims.z, &fz);
-  cell_enter(cell, ix, iy, iz, volume, dims, grad_volume);
+  cell_enter(cell, ix, iy, iz, volume, dims, grad_volume, 1);
   const real gd =
       a->gd + a->gsigma * a->dsigma + a->ger * a->der + a->geg * a->deg + a->geb * a->deb;
   const real slide = scatter_sample(cell, gd, a->t, fx, fy, fz, a->s.ux, a->s.uy, a->s.uz, dims,
@@ -149,4 +153,5 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
   fixed_step_ends(cs, m, along, indexed, direct);
 }
 
+#endif  // IVR_RAYS == 1
 #endif

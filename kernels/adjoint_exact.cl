@@ -11,6 +11,10 @@
 #include "empty_space.cl"
 #include "exact.cl"
 
+// One ray per work-item: the adjoint marches packets for the midpoint rule only
+// (lib/adjoint/adjoint.cpp, use_packet_adjoint).
+#if IVR_RAYS == 1
+
 inline void adjoint_march_exact(__global const real* volume, int4 dims, const March* m, Ray ray,
                                 real4 inv_voxel, __global const real* tf, int tf_count,
                                 real4 tf_scalars, const AdjointRay* ar,
@@ -32,8 +36,8 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
     if (pieces_skip_empty(&p, m, dims, ta, tb, occupied, bricks)) continue;
 #endif
     const PieceCell pc = piece_cell(m, dims, ta, tb);
-    cell_enter(&cell, pc.ix, pc.iy, pc.iz, volume, dims, grad_volume);
-    const Cubic c = piece_cubic(cell.v, pc);
+    cell_enter(&cell, pc.ix, pc.iy, pc.iz, volume, dims, grad_volume, 1);
+    const Cubic c = piece_cubic(IVR_CELL_CORNERS(&cell), pc);
     const real length = tb - ta;
     SubPieces sp;
     sub_pieces_begin(&sp, c);
@@ -49,7 +53,7 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
         cell_add(&cell, gd, pc.fx + s[k] * pc.gx, pc.fy + s[k] * pc.gy, pc.fz + s[k] * pc.gz);
 #if IVR_GRAD_CAMERA
         real ngx, ngy, ngz;
-        piece_gradient(cell.v, pc, s[k], &ngx, &ngy, &ngz);
+        piece_gradient(IVR_CELL_CORNERS(&cell), pc, s[k], &ngx, &ngy, &ngz);
         const real t = ta + s[k] * length;
         const real px = gd * ngx * inv_voxel.x, py = gd * ngy * inv_voxel.y,
                    pz = gd * ngz * inv_voxel.z;
@@ -90,4 +94,5 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
 #endif
 }
 
+#endif  // IVR_RAYS == 1
 #endif

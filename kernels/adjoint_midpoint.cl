@@ -6,76 +6,98 @@
 #include "adjoint_ray.cl"
 #include "compositing.cl"
 #include "empty_space.cl"
+#include "rays.cl"
 
+// One ray, or every ray of a packet (kernels/rays.cl) written once as primal.cl's marches are:
+// `take` holds the rays that sample in this round (the constant true for one ray), and each lane
+// does its own ray's arithmetic.
 inline void adjoint_march_midpoint(__global const real* volume, int4 dims, const March* m, Ray ray,
                                    real4 inv_voxel, __global const real* tf, int tf_count,
                                    real4 tf_scalars, const AdjointRay* ar,
                                    __global const uchar* occupied, int4 bricks,
                                    const ScatterSink grad_volume, TfGradCache* tf_cache,
                                    __local real* tf_acc, CameraSums* cs) {
-  real transmittance = (real)1;
-  real pr = 0, pg = 0, pb = 0;  // emission prefix, summed exactly as the primal march summed C
-  real kr = 0, kg = 0, kb = 0;
-  int seg_value = 0, seg_scatter = 0;
+  vreal transmittance = (vreal)(real)1;
+  // The emission prefix, summed exactly as the primal march summed C.
+  vreal pr = (vreal)(real)0, pg = pr, pb = pr, kr = pr, kg = pr, kb = pr;
+  vint seg_value = (vint)0, seg_scatter = (vint)0;
   CellCache cell;
   cell_init(&cell);
+#if IVR_GRAD_CAMERA
   real along = 0, indexed = 0, direct = 0;  // camera: fixed_step_ends()
-  for (uint i = 0; i < ar->end;) {
-    const real t = sample_t(m, i);
-    const real ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
+#endif
+  const vint end = ar->end;
+  vint i = (vint)0;
+  vint live = (vint)0 < end;
+  while (vany(live)) {
+    const vreal t = sample_t(m, i);
+    const vreal ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
 #if IVR_EMPTY_SPACE
-    const real exit = empty_brick_exit(ux, uy, uz, m, dims, occupied, bricks);
-    if (exit >= (real)0) {
-      i = skip_to(i, ar->end, m->t0, m->dt, exit);
-      continue;
-    }
+    const vint take = midpoint_skip(&i, end, &live, ux, uy, uz, m, dims, occupied, bricks);
+    if (!vany(take)) continue;
+#else
+    (void)occupied, (void)bricks;
+    const vint take = IVR_RAYS == 1 ? vtrue : live;
 #endif
     // The sample's cell and weights, as trilinear_at() clamps and indexes them.
-    real fx, fy, fz;
-    const int ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
-              iz = cell_axis(uz, dims.z, &fz);
-    cell_enter(&cell, ix, iy, iz, volume, dims, grad_volume);
-    const real d = cell_density(&cell, fx, fy, fz);
-    real er, eg, eb, dsigma, der, deg, deb;
-    TfPoint unused;
-    const real sigma = tf_sample_slope(d, tf, tf_count, tf_scalars, &seg_value, &er, &eg, &eb,
-                                       &dsigma, &der, &deg, &deb, &unused);
-    const real dt = m->dt, tau = sigma * dt;
-    real fraction;
-    const real decay = decay_and_fraction(tau, &fraction);
+    vreal fx, fy, fz;
+    const vint ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
+               iz = cell_axis(uz, dims.z, &fz);
+    cell_enter(&cell, ix, iy, iz, volume, dims, grad_volume, take);
+    const vreal d = cell_density(&cell, fx, fy, fz);
+    vreal er, eg, eb, dsigma, der, deg, deb;
+    TfPoint point;
+    const vreal sigma = tf_sample_slope(d, tf, tf_count, tf_scalars, &seg_value, &er, &eg, &eb,
+                                        &dsigma, &der, &deg, &deb, &point);
+    const vreal dt = m->dt, tau = sigma * dt;
+    vreal fraction;
+    const vreal decay = decay_and_fraction(tau, &fraction);
 #if IVR_EMISSION
-    const real weight = transmittance * dt * fraction;
-    accumulate(&pr, &kr, weight * er);
-    accumulate(&pg, &kg, weight * eg);
-    accumulate(&pb, &kb, weight * eb);
-    const real slope = transmittance * dt * dt * fraction_slope(tau, decay, fraction);
-    const real gsigma = ar->gr * (slope * er - dt * (ar->total_r - pr)) +
-                        ar->gg * (slope * eg - dt * (ar->total_g - pg)) +
-                        ar->gb * (slope * eb - dt * (ar->total_b - pb)) + ar->ga * dt * ar->t_end;
-    const real ger = ar->gr * weight, geg = ar->gg * weight, geb = ar->gb * weight;
+    const vreal weight = transmittance * dt * fraction;
+    accumulate_where(&pr, &kr, weight * er, take);
+    accumulate_where(&pg, &kg, weight * eg, take);
+    accumulate_where(&pb, &kb, weight * eb, take);
+    const vreal slope = transmittance * dt * dt * fraction_slope(tau, decay, fraction);
+    const vreal gsigma = ar->gr * (slope * er - dt * (ar->total_r - pr)) +
+                         ar->gg * (slope * eg - dt * (ar->total_g - pg)) +
+                         ar->gb * (slope * eb - dt * (ar->total_b - pb)) + ar->ga * dt * ar->t_end;
+    const vreal ger = ar->gr * weight, geg = ar->gg * weight, geb = ar->gb * weight;
+#if IVR_GRAD_CAMERA
     // The pixel depends on dt through tau = sigma·dt and through the weight's own factor dt.
     direct += sigma * gsigma + ger * er + geg * eg + geb * eb;
+#endif
 #else
-    const real gsigma = -dt * ar->intensity * ar->gi;
-    const real ger = (real)0, geg = (real)0, geb = (real)0;
+    const vreal gsigma = -dt * ar->intensity * ar->gi;
+    const vreal ger = (vreal)(real)0, geg = ger, geb = ger;
+#if IVR_GRAD_CAMERA
     direct += sigma * gsigma;
+#endif
     (void)er, (void)eg, (void)eb, (void)pr, (void)pg, (void)pb, (void)kr, (void)kg, (void)kb;
 #endif
-    transmittance = attenuate(transmittance, tau, fraction, decay);
-    const real gd = gsigma * dsigma + ger * der + geg * deg + geb * deb;  // dL / d density
-    const real slide =
+    transmittance = vsel(transmittance, attenuate(transmittance, tau, fraction, decay), take);
+    // dL / d density (0 in the lanes that do not sample).
+    const vreal gd = vsel((vreal)(real)0, gsigma * dsigma + ger * der + geg * deg + geb * deb, take);
+    const vreal slide =
         scatter_sample(&cell, gd, t, fx, fy, fz, ux, uy, uz, dims, inv_voxel, ray.dir, cs);
+#if IVR_GRAD_CAMERA
     along += slide;
     indexed += ((real)i + (real)0.5) * slide;
+#else
+    (void)slide;
+#endif
 #if IVR_GRAD_TF
-    tf_scatter(d, tf, tf_count, tf_scalars, &seg_scatter, gsigma, ger, geg, geb, tf_cache, tf_acc);
+    tf_scatter_sample(d, sigma, &point, take, tf, tf_count, tf_scalars, &seg_scatter, gsigma, ger,
+                      geg, geb, tf_cache, tf_acc);
 #else
     (void)seg_scatter, (void)tf_cache, (void)tf_acc;
 #endif
-    ++i;
+    i += vcount(take);
+    live = live && (i < end);
   }
   cell_flush(&cell, grad_volume);
+#if IVR_GRAD_CAMERA
   fixed_step_ends(cs, m, along, indexed, direct);
+#endif
 }
 
 #endif

@@ -12,6 +12,10 @@
 #include "preintegrated.cl"
 #include "adjoint_tf.cl"
 
+// One ray per work-item: the adjoint marches packets for the midpoint rule only
+// (lib/adjoint/adjoint.cpp, use_packet_adjoint).
+#if IVR_RAYS == 1
+
 // The adjoint of one segment inside the adjoint march: *transmittance and the prefix (pr, pg, pb;
 // compensations k*) advance exactly as the primal march advanced them; dL/d da and dL/d db are
 // added to *gd_a, *gd_b, dt · dL/d dt (at fixed densities) to *direct, and dL/d TF goes to the
@@ -102,4 +106,5 @@ inline void preintegrated_segment_adjoint(const EndSample* a, const EndSample* b
   *transmittance = attenuation_apply(&at, t_in);
 }
 
+#endif  // IVR_RAYS == 1
 #endif

@@ -17,14 +17,15 @@
 #define IVR_GRAD_CAMERA 0
 #endif
 
-// The pixel's loss gradient and what the primal march found.
+// The pixel's loss gradient and what the primal march found (one ray's, or each lane's of a
+// packet: kernels/rays.cl).
 typedef struct {
-  real gr, gg, gb, ga;             // dL / d pixel: emission–absorption RGB and alpha
-  real gi;                         // absorption: dL / d I
-  real total_r, total_g, total_b;  // the pixel's colour (emission–absorption)
-  real intensity;                  // absorption: I
-  real t_end;                      // transmittance where the march stopped
-  uint end;                        // Radiance.end of the primal march
+  vreal gr, gg, gb, ga;             // dL / d pixel: emission–absorption RGB and alpha
+  vreal gi;                         // absorption: dL / d I
+  vreal total_r, total_g, total_b;  // the pixel's colour (emission–absorption)
+  vreal intensity;                  // absorption: I
+  vreal t_end;                      // transmittance where the march stopped
+  vint end;                         // Radiance.end of the primal march
 } AdjointRay;
 
 // The camera gradient's sums over the ray (kernels/adjoint.cl turns them into dL / d camera):
@@ -44,9 +45,14 @@ inline void camera_sums_init(CameraSums* s, real t1) {
   s->end_axis = -1;
 }
 
+#if IVR_RAYS > 1 && IVR_GRAD_CAMERA
+#error "the camera gradient marches one ray per work-item (lib/adjoint/adjoint.cpp)"
+#endif
+
 // dL/dd = gd at a sample at ray parameter t with fractions f in the current cell: into the
 // cell's corners, and (camera) dL / d position = gd ∇d. Returns dL / d position · dir (how the
 // loss moves when the sample slides along the ray).
+#if IVR_RAYS == 1
 __attribute__((always_inline)) inline real scatter_sample(CellCache* cell, real gd, real t, real fx,
                                                           real fy, real fz, real ux, real uy,
                                                           real uz, int4 dims, real4 inv_voxel,
@@ -54,7 +60,7 @@ __attribute__((always_inline)) inline real scatter_sample(CellCache* cell, real 
   cell_add(cell, gd, fx, fy, fz);
 #if IVR_GRAD_CAMERA
   real ngx, ngy, ngz;
-  trilinear_gradient(cell->v, fx, fy, fz, ux, uy, uz, dims, &ngx, &ngy, &ngz);
+  trilinear_gradient(IVR_CELL_CORNERS(cell), fx, fy, fz, ux, uy, uz, dims, &ngx, &ngy, &ngz);
   const real px = gd * ngx * inv_voxel.x, py = gd * ngy * inv_voxel.y, pz = gd * ngz * inv_voxel.z;
   cs->gpx += px;
   cs->gpy += py;
@@ -68,7 +74,20 @@ __attribute__((always_inline)) inline real scatter_sample(CellCache* cell, real 
   return (real)0;
 #endif
 }
+#else
+// A packet's lanes (no camera gradient: the position sums are one ray's).
+__attribute__((always_inline)) inline vreal scatter_sample(CellCache* cell, vreal gd, vreal t,
+                                                           vreal fx, vreal fy, vreal fz, vreal ux,
+                                                           vreal uy, vreal uz, int4 dims,
+                                                           real4 inv_voxel, real3 dir,
+                                                           CameraSums* cs) {
+  (void)t, (void)ux, (void)uy, (void)uz, (void)dims, (void)inv_voxel, (void)dir, (void)cs;
+  cell_add(cell, gd, fx, fy, fz);
+  return (vreal)(real)0;
+}
+#endif
 
+#if IVR_RAYS == 1  // the camera gradient's: one ray per work-item
 // For the fixed-step integrators: samples at t_i = t0 + (i + offset)·dt with dt = (t1 − t0)/n.
 // `along` = Σ dL/d t_i, `indexed` = Σ (i + offset)·dL/d t_i, `direct` = dt · dL/d dt at fixed
 // sample values (through each segment's length).
@@ -107,5 +126,7 @@ inline void camera_terms_of(const CameraSums* cs, Ray ray, real t0, real4 box_mi
     terms[k] = lo[0] * o.x + lo[1] * o.y + lo[2] * o.z + ld[0] * d.x + ld[1] * d.y + ld[2] * d.z;
   }
 }
+
+#endif  // IVR_RAYS == 1
 
 #endif

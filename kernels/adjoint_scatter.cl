@@ -1,12 +1,14 @@
 // adjoint_scatter.cl — the adjoint march's cell cache: the ray's current cell in registers, its 8
 // corner densities (read once per cell, not once per sample) and the gradient of those corners,
 // added to global memory when the ray leaves them behind, so that a ray adds to each voxel it
-// touches once.
+// touches once. One ray's, or (IVR_RAYS > 1, kernels/rays.cl) every ray's of a packet, each lane
+// its own cell, flushing exactly what the one ray would.
 #ifndef IVR_ADJOINT_SCATTER_CL
 #define IVR_ADJOINT_SCATTER_CL
 #include "atomics.cl"
 #include "config.cl"
 #include "ivr_constants.h"
+#include "rays.cl"
 #include "scatter_cache.cl"
 
 #ifndef IVR_GRAD_DENSITY
@@ -49,7 +51,7 @@ inline void fixed_ray_end(__global real* grad, const real flushed) {
   fixed_max(fx + 4, flushed);
   if (!(ldexp(flushed, (int)fx[0]) <= (real)fx[1])) atom_inc(fx + 2);
 }
-#define IVR_ADD_DENSITY_GRAD(c, index, value) fixed_add(grad.out, &(c)->flushed, index, value)
+#define IVR_ADD_DENSITY_GRAD(c, index, value) fixed_add(grad.out, &(c)->flushed[l], index, value)
 
 // The fixed-point sums back to reals: out[i] = fx[header + i]·2^−S.
 __kernel void fixed_to_real(const int n, __global const long* restrict fx,
@@ -62,32 +64,40 @@ __kernel void fixed_to_real(const int n, __global const long* restrict fx,
 #define IVR_ADD_DENSITY_GRAD(c, index, value) scatter_add(grad, index, value)
 #endif
 
-// Corner k (bit 0: +x, bit 1: +y, bit 2: +z) is voxel base + IVR_CORNER(c, k); the offsets are 0
-// on the clamped upper edges, as in trilinear_at().
+// The cells of one ray, or of each ray of a packet (lane l), in arrays by corner and lane (the
+// lanes' values of corner k side by side, where a packet's samples read them as one vector).
+// Corner k (bit 0: +x, bit 1: +y, bit 2: +z) of lane l is voxel base[l] + IVR_CORNER(c, k); the
+// offsets are 0 on the clamped upper edges, as in trilinear_at().
 typedef struct {
-  real v[8];
+  real v[8][IVR_RAYS];
 #if IVR_GRAD_DENSITY
-  real g[8];
+  real g[8][IVR_RAYS];
 #endif
 #if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
-  real flushed;  // Σ |contribution| the ray has added so far
+  real flushed[IVR_RAYS];  // Σ |contribution| the ray has added so far
 #endif
-  int base, ox, oy, oz, ix, iy, iz;  // base < 0: no cell yet
+  int base[IVR_RAYS], ox[IVR_RAYS], oy[IVR_RAYS], oz[IVR_RAYS];  // base < 0: no cell yet
+  int ix[IVR_RAYS], iy[IVR_RAYS], iz[IVR_RAYS];
+#if IVR_RAYS > 1
+  vint cx, cy, cz;  // the lanes' cells as vectors (-1 before the first)
+#endif
 } CellCache;
 
+// Lane l's cell, as one ray keeps it (the macros read `l`, `volume`, `dims` and `grad`).
 #define IVR_CORNER(c, k) \
-  ((((k)&1) ? (c)->ox : 0) + (((k)&2) ? (c)->oy : 0) + (((k)&4) ? (c)->oz : 0))
-#define IVR_LOAD(c, k) (c)->v[k] = volume[(c)->base + IVR_CORNER(c, k)]
+  ((((k)&1) ? (c)->ox[l] : 0) + (((k)&2) ? (c)->oy[l] : 0) + (((k)&4) ? (c)->oz[l] : 0))
+#define IVR_LOAD(c, k) (c)->v[k][l] = volume[(c)->base[l] + IVR_CORNER(c, k)]
 #if IVR_GRAD_DENSITY
-#define IVR_FLUSH(c, k)                                                                          \
-  do {                                                                                           \
-    if ((c)->g[k] != (real)0) IVR_ADD_DENSITY_GRAD(c, (c)->base + IVR_CORNER(c, k), (c)->g[k]); \
-    (c)->g[k] = (real)0;                                                                         \
+#define IVR_FLUSH(c, k)                                                               \
+  do {                                                                                \
+    if ((c)->g[k][l] != (real)0)                                                      \
+      IVR_ADD_DENSITY_GRAD(c, (c)->base[l] + IVR_CORNER(c, k), (c)->g[k][l]);         \
+    (c)->g[k][l] = (real)0;                                                           \
   } while (0)
-#define IVR_MOVE_GRAD(c, to, from) \
-  do {                             \
-    (c)->g[to] = (c)->g[from];     \
-    (c)->g[from] = (real)0;        \
+#define IVR_MOVE_GRAD(c, to, from)     \
+  do {                                 \
+    (c)->g[to][l] = (c)->g[from][l];   \
+    (c)->g[from][l] = (real)0;         \
   } while (0)
 #else
 #define IVR_FLUSH(c, k) (void)0
@@ -105,25 +115,25 @@ typedef struct {
     F(c, 7);                  \
   } while (0)
 
-inline void cell_set(CellCache* c, int x, int y, int z, int4 dims) {
-  c->ix = x;
-  c->iy = y;
-  c->iz = z;
-  c->base = (z * dims.y + y) * dims.x + x;
-  c->ox = x + 1 < dims.x ? 1 : 0;
-  c->oy = y + 1 < dims.y ? dims.x : 0;
-  c->oz = z + 1 < dims.z ? dims.x * dims.y : 0;
+inline void lane_cell_set(CellCache* c, int l, int x, int y, int z, int4 dims) {
+  c->ix[l] = x;
+  c->iy[l] = y;
+  c->iz[l] = z;
+  c->base[l] = (z * dims.y + y) * dims.x + x;
+  c->ox[l] = x + 1 < dims.x ? 1 : 0;
+  c->oy[l] = y + 1 < dims.y ? dims.x : 0;
+  c->oz[l] = z + 1 < dims.z ? dims.x * dims.y : 0;
 }
 
 // Crossing one face along the axis of bit B: the 4 corners on the shared face carry over, density
 // and gradient so far; the 4 left behind are flushed and the 4 ahead read. a..d are the corners
 // with bit B clear; L is the bit of those left behind (0 going up, B going down), K = B − L that of
 // those kept, which become corners with bit L.
-#define IVR_CROSS_ONE(c, x, L, K)           \
-  do {                                      \
-    IVR_FLUSH(c, (x) | (L));                \
-    IVR_MOVE_GRAD(c, (x) | (L), (x) | (K)); \
-    (c)->v[(x) | (L)] = (c)->v[(x) | (K)];  \
+#define IVR_CROSS_ONE(c, x, L, K)                  \
+  do {                                             \
+    IVR_FLUSH(c, (x) | (L));                       \
+    IVR_MOVE_GRAD(c, (x) | (L), (x) | (K));        \
+    (c)->v[(x) | (L)][l] = (c)->v[(x) | (K)][l];   \
   } while (0)
 #define IVR_CROSS(c, L, K, a, b, cc, d, X, Y, Z) \
   do {                                           \
@@ -131,91 +141,150 @@ inline void cell_set(CellCache* c, int x, int y, int z, int4 dims) {
     IVR_CROSS_ONE(c, b, L, K);                   \
     IVR_CROSS_ONE(c, cc, L, K);                  \
     IVR_CROSS_ONE(c, d, L, K);                   \
-    cell_set(c, X, Y, Z, dims);                  \
+    lane_cell_set(c, l, X, Y, Z, dims);          \
     IVR_LOAD(c, (a) | (K));                      \
     IVR_LOAD(c, (b) | (K));                      \
     IVR_LOAD(c, (cc) | (K));                     \
     IVR_LOAD(c, (d) | (K));                      \
   } while (0)
 
-inline void cell_init(CellCache* c) {
-  c->base = -1;
-  c->ix = c->iy = c->iz = c->ox = c->oy = c->oz = 0;
+inline void lane_cell_init(CellCache* c, int l) {
+  c->base[l] = -1;
+  c->ix[l] = c->iy[l] = c->iz[l] = c->ox[l] = c->oy[l] = c->oz[l] = 0;
+  for (int k = 0; k < 8; ++k) {
+    c->v[k][l] = (real)0;
 #if IVR_GRAD_DENSITY
-  for (int k = 0; k < 8; ++k) c->g[k] = (real)0;
+    c->g[k][l] = (real)0;
 #endif
+  }
 #if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
-  c->flushed = (real)0;
+  c->flushed[l] = (real)0;
 #endif
 }
 
-// Makes (x, y, z) the current cell. Into a neighbouring cell (across a face, an edge or a corner)
-// one face at a time; a straight ray keeps its direction along each axis, so these branches are
-// predictable. Longer jumps and the first cell take the general path.
-__attribute__((always_inline)) inline void cell_enter(CellCache* c, int x, int y, int z,
-                                                      __global const real* volume, int4 dims,
-                                                      const ScatterSink grad) {
-  if (c->base >= 0 && x == c->ix && y == c->iy && z == c->iz) return;
-  if (c->base < 0 || abs(x - c->ix) > 1 || abs(y - c->iy) > 1 || abs(z - c->iz) > 1) {
-    if (c->base >= 0) IVR_EACH_CORNER(IVR_FLUSH, c);
-    cell_set(c, x, y, z, dims);
+// Makes (x, y, z) lane l's current cell. Into a neighbouring cell (across a face, an edge or a
+// corner) one face at a time; a straight ray keeps its direction along each axis, so these
+// branches are predictable. Longer jumps and the first cell take the general path.
+__attribute__((always_inline)) inline void lane_cell_enter(CellCache* c, int l, int x, int y, int z,
+                                                           __global const real* volume, int4 dims,
+                                                           const ScatterSink grad) {
+  if (c->base[l] >= 0 && x == c->ix[l] && y == c->iy[l] && z == c->iz[l]) return;
+  if (c->base[l] < 0 || abs(x - c->ix[l]) > 1 || abs(y - c->iy[l]) > 1 || abs(z - c->iz[l]) > 1) {
+    if (c->base[l] >= 0) IVR_EACH_CORNER(IVR_FLUSH, c);
+    lane_cell_set(c, l, x, y, z, dims);
     IVR_EACH_CORNER(IVR_LOAD, c);
     return;
   }
-  if (x != c->ix) {
-    if (x > c->ix)
-      IVR_CROSS(c, 0, 1, 0, 2, 4, 6, x, c->iy, c->iz);
+  if (x != c->ix[l]) {
+    if (x > c->ix[l])
+      IVR_CROSS(c, 0, 1, 0, 2, 4, 6, x, c->iy[l], c->iz[l]);
     else
-      IVR_CROSS(c, 1, 0, 0, 2, 4, 6, x, c->iy, c->iz);
+      IVR_CROSS(c, 1, 0, 0, 2, 4, 6, x, c->iy[l], c->iz[l]);
   }
-  if (y != c->iy) {
-    if (y > c->iy)
-      IVR_CROSS(c, 0, 2, 0, 1, 4, 5, x, y, c->iz);
+  if (y != c->iy[l]) {
+    if (y > c->iy[l])
+      IVR_CROSS(c, 0, 2, 0, 1, 4, 5, x, y, c->iz[l]);
     else
-      IVR_CROSS(c, 2, 0, 0, 1, 4, 5, x, y, c->iz);
+      IVR_CROSS(c, 2, 0, 0, 1, 4, 5, x, y, c->iz[l]);
   }
-  if (z != c->iz) {
-    if (z > c->iz)
+  if (z != c->iz[l]) {
+    if (z > c->iz[l])
       IVR_CROSS(c, 0, 4, 0, 1, 2, 3, x, y, z);
     else
       IVR_CROSS(c, 4, 0, 0, 1, 2, 3, x, y, z);
   }
 }
 
-// trilinear_at()'s interpolation, from the registers.
-__attribute__((always_inline)) inline real cell_density(const CellCache* c, real fx, real fy,
-                                                        real fz) {
-  return lerp(lerp(lerp(c->v[0], c->v[1], fx), lerp(c->v[2], c->v[3], fx), fy),
-              lerp(lerp(c->v[4], c->v[5], fx), lerp(c->v[6], c->v[7], fx), fy), fz);
+// Adds what lane l's corners still hold to global memory (the end of its ray); in fixed point,
+// checks the ray's Σ |contribution| against the cap.
+inline void lane_cell_flush(CellCache* c, int l, const ScatterSink grad) {
+  if (c->base[l] >= 0) IVR_EACH_CORNER(IVR_FLUSH, c);
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+  fixed_ray_end(grad.out, c->flushed[l]);
+#endif
 }
 
-// Adds gd = dL/d density at fractions (fx, fy, fz) of the current cell to its corners.
-__attribute__((always_inline)) inline void cell_add(CellCache* c, real gd, real fx, real fy,
-                                                    real fz) {
+// Corner k's values of every lane as one vreal, and back.
+#if IVR_RAYS == 1
+#define IVR_CORNER_LANES(a) ((a)[0])
+#define IVR_SET_CORNER_LANES(a, x) ((a)[0] = (x))
+#else
+#define IVR_CORNER_LANES(a) IVR_VLOAD(0, a)
+#define IVR_SET_CORNER_LANES(a, x) IVR_VSTORE(x, 0, a)
+#endif
+
+inline void cell_init(CellCache* c) {
+  for (int l = 0; l < IVR_RAYS; ++l) lane_cell_init(c, l);
+#if IVR_RAYS > 1
+  c->cx = c->cy = c->cz = (vint)-1;
+#endif
+}
+
+// Makes (x, y, z) the current cell of each ray where `take` holds (one ray: always); in a packet
+// the lanes that moved one after another in scalar code, each as its ray would alone (the same
+// flushes, at the same points, of the same sums — the fixed-point gradient is the one-ray
+// kernel's bit for bit).
+__attribute__((always_inline)) inline void cell_enter(CellCache* c, vint x, vint y, vint z,
+                                                      __global const real* volume, int4 dims,
+                                                      const ScatterSink grad, vint take) {
+#if IVR_RAYS == 1
+  (void)take;
+  lane_cell_enter(c, 0, x, y, z, volume, dims, grad);
+#else
+  const vint moved = take && (x != c->cx || y != c->cy || z != c->cz);
+  if (!vany(moved)) return;
+  int flag[IVR_RAYS], xs[IVR_RAYS], ys[IVR_RAYS], zs[IVR_RAYS];
+  IVR_VSTORE(moved, 0, flag);
+  IVR_VSTORE(x, 0, xs);
+  IVR_VSTORE(y, 0, ys);
+  IVR_VSTORE(z, 0, zs);
+  for (int l = 0; l < IVR_RAYS; ++l)
+    if (flag[l]) lane_cell_enter(c, l, xs[l], ys[l], zs[l], volume, dims, grad);
+  c->cx = vseli(c->cx, x, moved);
+  c->cy = vseli(c->cy, y, moved);
+  c->cz = vseli(c->cz, z, moved);
+#endif
+}
+
+inline void cell_flush(CellCache* c, const ScatterSink grad) {
+  for (int l = 0; l < IVR_RAYS; ++l) lane_cell_flush(c, l, grad);
+}
+
+// trilinear_at()'s interpolation, from the cached corners (every lane of a packet).
+__attribute__((always_inline)) inline vreal cell_density(const CellCache* c, vreal fx, vreal fy,
+                                                         vreal fz) {
+#define IVR_V(k) IVR_CORNER_LANES(c->v[k])
+  return vlerp(vlerp(vlerp(IVR_V(0), IVR_V(1), fx), vlerp(IVR_V(2), IVR_V(3), fx), fy),
+               vlerp(vlerp(IVR_V(4), IVR_V(5), fx), vlerp(IVR_V(6), IVR_V(7), fx), fy), fz);
+#undef IVR_V
+}
+
+// Adds gd = dL/d density at fractions (fx, fy, fz) of the current cell to its corners (every
+// lane of a packet; a lane that does not sample adds gd = 0).
+__attribute__((always_inline)) inline void cell_add(CellCache* c, vreal gd, vreal fx, vreal fy,
+                                                    vreal fz) {
 #if IVR_GRAD_DENSITY
-  const real gx0 = gd * ((real)1 - fx), gx1 = gd * fx;
-  const real wy0z0 = ((real)1 - fy) * ((real)1 - fz), wy1z0 = fy * ((real)1 - fz);
-  const real wy0z1 = ((real)1 - fy) * fz, wy1z1 = fy * fz;
-  c->g[0] += gx0 * wy0z0;
-  c->g[1] += gx1 * wy0z0;
-  c->g[2] += gx0 * wy1z0;
-  c->g[3] += gx1 * wy1z0;
-  c->g[4] += gx0 * wy0z1;
-  c->g[5] += gx1 * wy0z1;
-  c->g[6] += gx0 * wy1z1;
-  c->g[7] += gx1 * wy1z1;
+  const vreal gx0 = gd * ((real)1 - fx), gx1 = gd * fx;
+  const vreal wy0z0 = ((real)1 - fy) * ((real)1 - fz), wy1z0 = fy * ((real)1 - fz);
+  const vreal wy0z1 = ((real)1 - fy) * fz, wy1z1 = fy * fz;
+#define IVR_ADD(k, w) IVR_SET_CORNER_LANES(c->g[k], IVR_CORNER_LANES(c->g[k]) + (w))
+  IVR_ADD(0, gx0 * wy0z0);
+  IVR_ADD(1, gx1 * wy0z0);
+  IVR_ADD(2, gx0 * wy1z0);
+  IVR_ADD(3, gx1 * wy1z0);
+  IVR_ADD(4, gx0 * wy0z1);
+  IVR_ADD(5, gx1 * wy0z1);
+  IVR_ADD(6, gx0 * wy1z1);
+  IVR_ADD(7, gx1 * wy1z1);
+#undef IVR_ADD
 #else
   (void)c, (void)gd, (void)fx, (void)fy, (void)fz;
 #endif
 }
 
-// Adds what the current cell's corners still hold to global memory (the end of the ray); in fixed
-// point, checks the ray's Σ |contribution| against the cap.
-inline void cell_flush(CellCache* c, const ScatterSink grad) {
-  if (c->base >= 0) IVR_EACH_CORNER(IVR_FLUSH, c);
-#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
-  fixed_ray_end(grad.out, c->flushed);
-#endif
-}
+// One ray's 8 corner densities in corner order (the exact and camera adjoints' cubic and
+// gradient): v[k][0] for k = 0..7 lie side by side.
+#define IVR_CELL_CORNERS(c) (&(c)->v[0][0])
+
 
 #endif

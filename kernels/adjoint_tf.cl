@@ -148,7 +148,6 @@ __attribute__((always_inline)) inline vreal tf_sample_slope(vreal d, __global co
 #endif
 }
 
-#if IVR_RAYS == 1  // the adjoint's TF gradient: one ray per work-item
 // A ray's private TF-gradient accumulator: the rows its samples currently touch, each value summed
 // with compensation (accumulate), flushed into the work-group's local accumulator when the rows
 // change and when the ray ends. A ray of 1e5 samples in one TF segment would otherwise add 1e5
@@ -171,6 +170,7 @@ __attribute__((always_inline)) inline vreal tf_sample_slope(vreal d, __global co
 
 #define IVR_TF_CACHE_SIZE (IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS * IVR_TF_GRAD_COLUMNS : 1)
 
+#if IVR_RAYS == 1  // one ray per work-item
 typedef struct {
   int row[IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS : 1];  // -1: slot unused
   real value[IVR_TF_CACHE_SIZE], error[IVR_TF_CACHE_SIZE];
@@ -258,6 +258,17 @@ inline void tf_scatter(real d, __global const real* tf, int count, real4 scalars
 #endif
 }
 
+// The midpoint march's TF gradient of one sample: tf_scatter (`sigma`, `point`: the sample's, as
+// tf_sample_slope() found them, which the packet form reads instead of searching again; `take`:
+// one ray samples where it is called).
+inline void tf_scatter_sample(vreal d, vreal sigma, const TfPoint* point, vint take,
+                              __global const real* tf, int count, real4 scalars, vint* cursor,
+                              vreal gs, vreal gr, vreal gg, vreal gb, TfGradCache* cache,
+                              volatile __local real* acc) {
+  (void)sigma, (void)point, (void)take;
+  tf_scatter(d, tf, count, scalars, cursor, gs, gr, gg, gb, cache, acc);
+}
+
 // Adds a gradient taken through a TF piece (tf.cl, tf_piece) at density x — gs = dL/dσ(x) and
 // (gr, gg, gb) = dL/d colour(x), the colour not premultiplied — into the rows the piece blends:
 // the parameterisation of the integrators that integrate through the TF exactly.
@@ -291,6 +302,113 @@ inline void tf_scatter_piece(const TfPiece* p, real x, real gs, real gr, real gg
 #endif
 }
 
-#endif  // IVR_RAYS == 1
+#else  // IVR_RAYS > 1: each lane of a packet its own cache, as its ray would have alone
+
+typedef struct {
+  vint row[IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS : 1];  // -1: slot unused
+  vreal value[IVR_TF_CACHE_SIZE], error[IVR_TF_CACHE_SIZE];
+} TfGradCache;
+
+inline void tf_cache_init(TfGradCache* c) {
+  for (int k = 0; k < (IVR_TF_CACHE_ROWS > 0 ? IVR_TF_CACHE_ROWS : 1); ++k)
+    c->row[k] = (vint)(IVR_TF_CACHE_KEYED ? -1 : k);
+  for (int i = 0; i < IVR_TF_CACHE_SIZE; ++i) c->value[i] = c->error[i] = (vreal)(real)0;
+}
+
+// The lanes in `m`: their sums into the work-group's accumulator (lane by lane), and 0.
+inline void tf_cache_flush_where(TfGradCache* c, volatile __local real* acc, vint m) {
+  if (!vany(m)) return;
+  int flag[IVR_RAYS];
+  IVR_VSTORE(m, 0, flag);
+  for (int k = 0; k < IVR_TF_CACHE_ROWS; ++k) {
+    int row[IVR_RAYS];
+    IVR_VSTORE(c->row[k], 0, row);
+    for (int j = 0; j < IVR_TF_GRAD_COLUMNS; ++j) {
+      const int i = k * IVR_TF_GRAD_COLUMNS + j;
+      real v[IVR_RAYS];
+      IVR_VSTORE(c->value[i], 0, v);
+      for (int l = 0; l < IVR_RAYS; ++l)
+        if (flag[l] && row[l] >= 0 && v[l] != (real)0)
+          atomic_add_local(acc + row[l] * IVR_TF_GRAD_COLUMNS + j, v[l]);
+      c->value[i] = vsel(c->value[i], (vreal)(real)0, m);
+      c->error[i] = vsel(c->error[i], (vreal)(real)0, m);
+    }
+  }
+}
+
+inline void tf_cache_flush(TfGradCache* c, volatile __local real* acc) {
+  tf_cache_flush_where(c, acc, vtrue);
+}
+
+// Adds v to column j of cache slot k in the lanes of `m`.
+inline void tf_cache_add(TfGradCache* c, int k, int j, vreal v, vint m) {
+  accumulate_where(&c->value[k * IVR_TF_GRAD_COLUMNS + j], &c->error[k * IVR_TF_GRAD_COLUMNS + j], v,
+                   m);
+}
+
+// tf_scatter() in every lane of `take`, the rows and weights from `point` (tf_sample_slope()'s).
+inline void tf_scatter_sample(vreal d, vreal sigma, const TfPoint* point, vint take,
+                              __global const real* tf, int count, real4 scalars, vint* cursor,
+                              vreal gs, vreal gr, vreal gg, vreal gb, TfGradCache* cache,
+                              volatile __local real* acc) {
+  (void)cursor;
+#if IVR_TF == IVR_TF_IDENTITY
+  (void)sigma, (void)point, (void)tf, (void)count, (void)acc;
+  const vreal ge = gr + gg + gb;
+  tf_cache_add(cache, 0, 0, gs * d + ge * scalars.y * d * d, take);
+  tf_cache_add(cache, 0, 1, ge * scalars.x * d * d, take);
+#elif IVR_TF == IVR_TF_GAUSSIAN
+  (void)sigma, (void)point, (void)scalars;
+  for (int k = 0; k < count; ++k) {
+    __global const real* p = tf + k * IVR_TF_STRIDE_GAUSSIAN;
+    const vreal z = (d - p[0]) / p[1];
+    const vreal g = vexp((real)-0.5 * z * z);
+    const vreal through = gs + gr * p[2] + gg * p[3] + gb * p[4];
+    const vreal v[6] = {p[5] * g * gr,
+                        p[5] * g * gg,
+                        p[5] * g * gb,
+                        g * through,
+                        p[5] * through * g * z / p[1],
+                        p[5] * through * g * z * z / p[1]};
+    for (int j = 0; j < 6; ++j) {
+#if IVR_TF_CACHE_ROWS > 0
+      tf_cache_add(cache, k, j, v[j], take);
+#else
+      real lane[IVR_RAYS];
+      int flag[IVR_RAYS];
+      IVR_VSTORE(v[j], 0, lane);
+      IVR_VSTORE(take, 0, flag);
+      for (int l = 0; l < IVR_RAYS; ++l)
+        if (flag[l]) atomic_add_local(acc + k * IVR_TF_GRAD_COLUMNS + j, lane[l]);
+#endif
+    }
+  }
+#else
+  (void)d, (void)tf, (void)count, (void)scalars;
+  const vint one = point->row1 == point->row0;  // beyond the ends: one row, weight 1
+  const vint row1 = vseli(point->row1, (vint)-1, one);
+  const vint change = take && (point->row0 != cache->row[0] || row1 != cache->row[1]);
+  if (vany(change)) {
+    tf_cache_flush_where(cache, acc, change);
+    cache->row[0] = vseli(cache->row[0], point->row0, change);
+    cache->row[1] = vseli(cache->row[1], row1, change);
+  }
+  // sigma = lerp(s0, s1, w), c = lerp(c0, c1, w), E = sigma·c; slot 1 adds 0 where one row.
+  const vreal through = gs + gr * point->cr + gg * point->cg + gb * point->cb;
+  const vreal w[2] = {vsel((real)1 - point->w1, (vreal)(real)1, one),
+                      vsel(point->w1, (vreal)(real)0, one)};
+  for (int k = 0; k < 2; ++k) {
+#if IVR_EMISSION
+    tf_cache_add(cache, k, 0, w[k] * sigma * gr, take);
+    tf_cache_add(cache, k, 1, w[k] * sigma * gg, take);
+    tf_cache_add(cache, k, 2, w[k] * sigma * gb, take);
+#else
+    (void)sigma;
+#endif
+    tf_cache_add(cache, k, 3, w[k] * through, take);
+  }
+#endif
+}
+#endif  // IVR_RAYS
 
 #endif

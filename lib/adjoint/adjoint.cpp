@@ -58,9 +58,19 @@ double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss) {
   return std::ldexp(bound, fixed_bound_shift());
 }
 
+// Whether the adjoint marches packets of rays in vector lanes (kernels/adjoint.cl, IVR_RAYS): where
+// renders do (CPU devices), for the midpoint rule's density and TF gradients. The camera gradient
+// sums each ray's positions and the other integrators' adjoint marches are one ray's: those keep
+// one ray per work-item (with the primal from a packet render where use_packet_primal says).
+bool use_packet_adjoint(const Device::Impl& dev, const RenderVariant& v, const AdjointRequest& r) {
+  return use_packet(dev) && v.scheme == Scheme::midpoint && !r.camera;
+}
+
 KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std::size_t tf_rows,
-                            bool fixed, bool primal_given, AtomicAdd atomics, bool scatter_cache) {
+                            bool fixed, bool primal_given, AtomicAdd atomics, bool scatter_cache,
+                            bool packet) {
   KernelConfig c = v.config("adjoint.cl", "adjoint");
+  if (packet) c.set(Switch::rays, packet_lanes(v.precision));
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/adjoint_tf.cl; normalised).
   c.set(Switch::tf_rows, int(std::min<std::size_t>(tf_rows, 1 << 20)))
       .set(Switch::grad_density, r.density)
@@ -104,10 +114,13 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   // Empty-space skipping where the gradient stays exact (lib/empty_space/empty_space.hpp).
   const cl::Buffer& occupied =
       s.plan_skipping(gradient_may_skip(scene.tf, r.tf, r.density || r.camera), variant, op.stats);
-  // On CPU devices the packet render (16 rays per work-item in vector lanes) marches the primal
-  // several times faster than the adjoint kernel's own one-ray march; it leaves each pixel's C,
-  // T and samples in the image and sample buffers, where the adjoint kernel reads them.
-  const bool primal_given = use_packet_primal(dev, variant);
+  // On CPU devices the adjoint kernel marches packets of rays itself (primal and adjoint); where
+  // it marches one ray per work-item there, the packet render (16 rays per work-item in vector
+  // lanes) marches the primal several times faster than the kernel's own one-ray march: it leaves
+  // each pixel's C, T and samples in the image and sample buffers, where the adjoint kernel reads
+  // them.
+  const bool packet = use_packet_adjoint(dev, variant, r);
+  const bool primal_given = !packet && use_packet_primal(dev, variant);
 
   AdjointResult out;
   out.atomics = atomic_add_name(atomics);
@@ -133,7 +146,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   const cl::Buffer& sums = s.scratch("adjoint sums", 4 * 8, "the loss and background sums");
 
   const KernelConfig config =
-      adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache);
+      adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache, packet);
   op.stats.variant = config.label();
   op.stats.skipped_empty = variant.empty_space;
   op.stats.step = integrator.step;
@@ -168,8 +181,10 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     k.setArg(a++, samples);
     // A work-group's items share one local TF accumulator (the padding items only meet
     // barriers), so the size is always explicit.
+    const int lanes = packet ? packet_lanes(variant.precision) : 1;
     const PixelLaunch launch =
-        pixel_launch(dev, k, "adjoint", cam0.width, cam0.height, views, true);
+        pixel_launch(dev, k, packet ? "adjoint_packet" : "adjoint",
+                     (cam0.width + lanes - 1) / lanes, cam0.height, views, true);
     // The camera gradient: 7 values per work-group, summed per view on the device.
     const std::size_t partials = r.camera ? launch.groups_per_view * std::size_t(views) * 7 : 1;
     const cl::Buffer& camera_partial =

@@ -170,7 +170,8 @@ Runner add_tune_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--kernels", args->kernels,
                   "Kernels to tune, comma-separated (default: all of render, render_packet, "
-                  "adjoint, jacobian, project, backproject that the device launches)")
+                  "adjoint, adjoint_packet, jacobian, project, backproject that the device "
+                  "launches)")
       ->delimiter(',');
   cmd->add_option("--candidates", args->candidates,
                   "Shapes to try, e.g. 0x0,8x8,16x16 (0x0: the driver's choice; default: 0x0, "

@@ -92,16 +92,17 @@ CostModel read_cost_model(const std::string& path) {
 CostModel default_cost_model(const DeviceInfo& device) {
   CostModel m;
   if (device.type == "cpu") {
-    // ivr calibrate, 2-core Xeon (Skylake-AVX512), PoCL 3.1: base 1.12–1.15, per lane
-    // 0.072–0.087, adjoint 5.97–6.24 renders, 3.0–3.3e-9 s per sample (64³ → 128², 128³ → 256²).
-    m.forward_base = 1.15;
+    // ivr calibrate, 2-core Xeon (Skylake-AVX512), PoCL 3.1, with the adjoint in packets
+    // (64³ → 128², 128³ → 256²): base 1.07–1.14, per lane 0.075–0.091, adjoint 3.66–3.75
+    // renders (6.0 while it marched one ray per work-item), 2.9–3.2e-9 s per sample.
+    m.forward_base = 1.1;
     m.forward_per_lane = 0.08;
-    // Camera and voxel lanes: one ray per work-item (ivr-bench --suite planner, voxel lanes
-    // 1–32 at 128³ → 256², against the packet render: least squares 4.10 + 0.78 · L).
-    m.forward_ray_base = 4.1;
-    m.forward_ray_per_lane = 0.78;
-    m.adjoint = 6.0;
-    m.seconds_per_sample = 3.2e-9;
+    // Camera and voxel lanes: one ray per work-item (the same calibrations: 3.75 + 0.74–0.77 · L
+    // renders).
+    m.forward_ray_base = 3.75;
+    m.forward_ray_per_lane = 0.75;
+    m.adjoint = 3.7;
+    m.seconds_per_sample = 3.1e-9;
   }
   return m;
 }

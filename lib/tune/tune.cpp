@@ -55,17 +55,19 @@ std::vector<Operation> operations(const DeviceArray& lines) {
   GradientRequest adjoint;
   adjoint.mode = Mode::adjoint;
   const auto render = [](Session& s) { return std::vector<Output>{{"image", s.render(), true}}; };
+  const auto gradient = [adjoint](Session& s) {
+    const SessionGradient g = s.gradient(adjoint);
+    return std::vector<Output>{{"loss", g.loss, true}, {"density gradient", g["density"], false}};
+  };
+  const char* gradient_check = "loss bit-identical, density gradient within 1e-4 of its largest value";
   return {
       {"render", "render (one ray per work-item)", false, "image bit-identical", render},
       {"render_packet", "render (CPU packet kernel, 16 rays per work-item)", true,
        "image bit-identical", render},
-      {"adjoint", "gradient (adjoint mode, d mse / d density)", true,
-       "loss bit-identical, density gradient within 1e-4 of its largest value",
-       [adjoint](Session& s) {
-         const SessionGradient g = s.gradient(adjoint);
-         return std::vector<Output>{{"loss", g.loss, true},
-                                    {"density gradient", g["density"], false}};
-       }},
+      {"adjoint", "gradient (adjoint mode, d mse / d density, one ray per work-item)", false,
+       gradient_check, gradient},
+      {"adjoint_packet", "gradient (adjoint mode, CPU packet kernel, 16 rays per work-item)", true,
+       gradient_check, gradient},
       {"jacobian", "jacobian (forward mode, every TF parameter)", true, "jacobian bit-identical",
        [](Session& s) {
          return std::vector<Output>{{"jacobian", s.jacobian({"tf"}), true}};
@@ -313,7 +315,8 @@ std::vector<std::pair<int, int>> tune_candidates() {
 }
 
 std::vector<std::string> tune_kernels() {
-  return {"render", "render_packet", "adjoint", "jacobian", "project", "backproject"};
+  return {"render", "render_packet", "adjoint", "adjoint_packet", "jacobian", "project",
+          "backproject"};
 }
 
 TuneResult tune(Device& device, const TuneOptions& options) {

@@ -13,28 +13,30 @@
 #include "end_sample.cl"
 #include "adjoint_preintegrated.cl"
 
-// One ray per work-item: the adjoint marches packets for the midpoint rule only
-// (lib/adjoint/adjoint.cpp, use_packet_adjoint).
-#if IVR_RAYS == 1
+// One ray, or (trapezoid) every ray of a packet (kernels/rays.cl) written once as primal.cl's
+// marches are; preintegrated's segment adjoint is one ray's (lib/adjoint/adjoint.cpp,
+// use_packet_adjoint).
+#if IVR_RAYS == 1 || IVR_SCHEME == IVR_SCHEME_TRAPEZOID
 
 // An end sample with what its scatter needs, and the gradient it has collected so far.
 typedef struct {
   EndSample s;
-  uint index;
-  real t;
-  real dsigma, der, deg, deb;  // trapezoid: dσ/dd and d(σ·colour)/dd
-  real gsigma, ger, geg, geb;  // trapezoid: dL/dσ and dL/d(σ·colour) so far
-  real gd;                     // preintegrated: dL/dd so far
+  TfPoint point;  // trapezoid: where its density lies in the TF (the packets' TF gradient)
+  vint index;
+  vreal t;
+  vreal dsigma, der, deg, deb;  // trapezoid: dσ/dd and d(σ·colour)/dd
+  vreal gsigma, ger, geg, geb;  // trapezoid: dL/dσ and dL/d(σ·colour) so far
+  vreal gd;                     // preintegrated: dL/dd so far
 } AdjointSample;
 
-inline AdjointSample adjoint_sample(__global const real* volume, int4 dims, const March* m, uint i,
+inline AdjointSample adjoint_sample(__global const real* volume, int4 dims, const March* m, vint i,
                                     __global const real* tf, int tf_count, real4 tf_scalars,
-                                    int* cursor) {
+                                    vint* cursor) {
   AdjointSample a;
   a.index = i;
   a.t = sample_t(m, i);
-  a.gsigma = a.ger = a.geg = a.geb = a.gd = (real)0;
-  a.dsigma = a.der = a.deg = a.deb = (real)0;
+  a.gsigma = a.ger = a.geg = a.geb = a.gd = (vreal)(real)0;
+  a.dsigma = a.der = a.deg = a.deb = (vreal)(real)0;
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
   // As end_sample(), with the slopes: tf_sample_slope() computes σ and the emission exactly as
   // tf_sample() does, so the march below recovers what the primal march rendered.
@@ -42,35 +44,67 @@ inline AdjointSample adjoint_sample(__global const real* volume, int4 dims, cons
   a.s.uy = m->u0y + a.t * m->duy;
   a.s.uz = m->u0z + a.t * m->duz;
   a.s.d = trilinear_at(volume, dims, a.s.ux, a.s.uy, a.s.uz);
-  TfPoint unused;
   a.s.sigma = tf_sample_slope(a.s.d, tf, tf_count, tf_scalars, cursor, &a.s.er, &a.s.eg, &a.s.eb,
-                              &a.dsigma, &a.der, &a.deg, &a.deb, &unused);
+                              &a.dsigma, &a.der, &a.deg, &a.deb, &a.point);
 #else
   a.s = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, cursor);
+  a.point.row0 = a.point.row1 = (vint)0;
+  a.point.w1 = a.point.cr = a.point.cg = a.point.cb = (vreal)(real)0;
 #endif
   return a;
 }
 
-// Sample a is complete: its dL/d density into the voxels (and the camera's sums), trapezoid's TF
-// gradient into the work-group's accumulator.
-inline void finish_sample(AdjointSample* a, CellCache* cell, __global const real* volume, int4 dims,
-                          real4 inv_voxel, real3 dir, __global const real* tf, int tf_count,
-                          real4 tf_scalars, int* cursor, const ScatterSink grad_volume,
-                          TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs, real* along,
-                          real* indexed) {
-  real fx, fy, fz;
-  const int ix = cell_axis(a->s.ux, dims.x, &fx), iy = cell_axis(a->s.uy, dims.y, &fy),
-            iz = cell_axis(a->s.uz, dims.z, &fz);
-  cell_enter(cell, ix, iy, iz, volume, dims, grad_volume, 1);
-  const real gd =
-      a->gd + a->gsigma * a->dsigma + a->ger * a->der + a->geg * a->deg + a->geb * a->deb;
-  const real slide = scatter_sample(cell, gd, a->t, fx, fy, fz, a->s.ux, a->s.uy, a->s.uz, dims,
-                                    inv_voxel, dir, cs);
+// *a = *b for the rays where m is true.
+inline void adjoint_sample_where(AdjointSample* a, const AdjointSample* b, vint m) {
+#if IVR_RAYS == 1
+  if (m) *a = *b;
+#else
+  end_sample_where(&a->s, &b->s, m);
+  a->point.row0 = vseli(a->point.row0, b->point.row0, m);
+  a->point.row1 = vseli(a->point.row1, b->point.row1, m);
+  a->point.w1 = vsel(a->point.w1, b->point.w1, m);
+  a->point.cr = vsel(a->point.cr, b->point.cr, m);
+  a->point.cg = vsel(a->point.cg, b->point.cg, m);
+  a->point.cb = vsel(a->point.cb, b->point.cb, m);
+  a->index = vseli(a->index, b->index, m);
+  a->t = vsel(a->t, b->t, m);
+  a->dsigma = vsel(a->dsigma, b->dsigma, m), a->der = vsel(a->der, b->der, m);
+  a->deg = vsel(a->deg, b->deg, m), a->deb = vsel(a->deb, b->deb, m);
+  a->gsigma = vsel(a->gsigma, b->gsigma, m), a->ger = vsel(a->ger, b->ger, m);
+  a->geg = vsel(a->geg, b->geg, m), a->geb = vsel(a->geb, b->geb, m);
+  a->gd = vsel(a->gd, b->gd, m);
+#endif
+}
+
+// Sample a is complete (in the rays of `done`): its dL/d density into the voxels (and the
+// camera's sums), trapezoid's TF gradient into the work-group's accumulator.
+inline void finish_sample(AdjointSample* a, vint done, CellCache* cell, __global const real* volume,
+                          int4 dims, real4 inv_voxel, real3 dir, __global const real* tf,
+                          int tf_count, real4 tf_scalars, vint* cursor,
+                          const ScatterSink grad_volume, TfGradCache* tf_cache, __local real* tf_acc,
+                          CameraSums* cs, real* along, real* indexed) {
+#if IVR_RAYS == 1
+  if (!done) return;
+#endif
+  vreal fx, fy, fz;
+  const vint ix = cell_axis(a->s.ux, dims.x, &fx), iy = cell_axis(a->s.uy, dims.y, &fy),
+             iz = cell_axis(a->s.uz, dims.z, &fz);
+  cell_enter(cell, ix, iy, iz, volume, dims, grad_volume, done);
+  const vreal gd = vsel((vreal)(real)0,
+                        a->gd + a->gsigma * a->dsigma + a->ger * a->der + a->geg * a->deg +
+                            a->geb * a->deb,
+                        done);
+  const vreal slide = scatter_sample(cell, gd, a->t, fx, fy, fz, a->s.ux, a->s.uy, a->s.uz, dims,
+                                     inv_voxel, dir, cs);
+#if IVR_GRAD_CAMERA
   *along += slide;
   *indexed += (real)a->index * slide;
+#else
+  (void)slide, (void)along, (void)indexed;
+#endif
 #if IVR_GRAD_TF && IVR_SCHEME == IVR_SCHEME_TRAPEZOID
-  tf_scatter(a->s.d, tf, tf_count, tf_scalars, cursor, a->gsigma, a->ger, a->geg, a->geb, tf_cache,
-             tf_acc);
+  tf_scatter_sample(a->s.d, a->s.sigma, &a->point, done, tf, tf_count, tf_scalars, cursor,
+                    a->gsigma, a->ger, a->geg, a->geb, tf_cache, tf_acc);
 #else
   (void)tf, (void)tf_count, (void)tf_scalars, (void)cursor, (void)tf_cache, (void)tf_acc;
 #endif
@@ -82,76 +116,101 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
                                     __global const uchar* occupied, int4 bricks,
                                     const ScatterSink grad_volume, TfGradCache* tf_cache,
                                     __local real* tf_acc, CameraSums* cs) {
-  real transmittance = (real)1;
-  real pr = 0, pg = 0, pb = 0;  // emission prefix, summed exactly as the primal march summed C
-  real kr = 0, kg = 0, kb = 0;
-  int seg_value = 0, seg_scatter = 0;
+  vreal transmittance = (vreal)(real)1;
+  // The emission prefix, summed exactly as the primal march summed C.
+  vreal pr = (vreal)(real)0, pg = pr, pb = pr, kr = pr, kg = pr, kb = pr;
+  vint seg_value = (vint)0, seg_scatter = (vint)0;
   CellCache cell;
   cell_init(&cell);
-  real along = 0, indexed = 0, direct = 0;  // camera: fixed_step_ends()
-  const real dt = m->dt;
-  AdjointSample a = adjoint_sample(volume, dims, m, 0, tf, tf_count, tf_scalars, &seg_value);
-  bool open = true;  // a still waits for its scatter
-  for (uint i = 0; i < ar->end;) {
+  real along = 0, indexed = 0, direct = 0;  // camera (one ray): fixed_step_ends()
+  const vreal dt = m->dt;
+  const vint end = ar->end;
+  vint i = (vint)0;
+  AdjointSample a = adjoint_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &seg_value);
+  vint open = vtrue;  // a still waits for its scatter
+  vint live = i < end;
+  while (vany(live)) {
 #if IVR_EMPTY_SPACE
     {
-      const uint k = endpoint_skip(i, ar->end, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks, vtrue);
-      if (k > i) {  // the segments in between add nothing, nor does their gradient
-        finish_sample(&a, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
+      const vint k = endpoint_skip(i, end, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks, live);
+      const vint moved = live && (k > i);
+      if (vany(moved)) {  // the segments in between add nothing, nor does their gradient
+        finish_sample(&a, moved, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
                       &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);
-        open = false;
-        i = k;
-        if (i >= ar->end) break;
-        a = adjoint_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &seg_value);
-        open = true;
+        open = open && !moved;
+        i = vseli(i, k, moved);
+        live = live && (i < end);
+        if (!vany(live)) break;
+        const vint again = moved && live;
+        const AdjointSample n = adjoint_sample(volume, dims, m, i, tf, tf_count, tf_scalars,
+                                               &seg_value);
+        adjoint_sample_where(&a, &n, again);
+        open = open || again;
       }
     }
+#else
+    (void)occupied, (void)bricks;
 #endif
+    const vint take = IVR_RAYS == 1 ? vtrue : live;
     AdjointSample b = adjoint_sample(volume, dims, m, i + 1, tf, tf_count, tf_scalars, &seg_value);
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
     // τ = dt (σa + σb)/2, emission dt·fraction(τ)·(Ea + Eb)/2: as the primal's composite().
-    const real tau = (real)0.5 * (a.s.sigma + b.s.sigma) * dt;
-    real fraction;
-    const real decay = decay_and_fraction(tau, &fraction);
+    const vreal tau = (real)0.5 * (a.s.sigma + b.s.sigma) * dt;
+    vreal fraction;
+    const vreal decay = decay_and_fraction(tau, &fraction);
 #if IVR_EMISSION
-    const real er = (real)0.5 * (a.s.er + b.s.er), eg = (real)0.5 * (a.s.eg + b.s.eg),
-               eb = (real)0.5 * (a.s.eb + b.s.eb);
-    const real weight = transmittance * dt * fraction;
-    accumulate(&pr, &kr, weight * er);
-    accumulate(&pg, &kg, weight * eg);
-    accumulate(&pb, &kb, weight * eb);
-    const real slope = transmittance * dt * fraction_slope(tau, decay, fraction);  // dweight/dτ
-    const real gtau = ar->gr * (slope * er - (ar->total_r - pr)) +
-                      ar->gg * (slope * eg - (ar->total_g - pg)) +
-                      ar->gb * (slope * eb - (ar->total_b - pb)) + ar->ga * ar->t_end;
-    const real ger = ar->gr * weight, geg = ar->gg * weight, geb = ar->gb * weight;
+    const vreal er = (real)0.5 * (a.s.er + b.s.er), eg = (real)0.5 * (a.s.eg + b.s.eg),
+                eb = (real)0.5 * (a.s.eb + b.s.eb);
+    const vreal weight = transmittance * dt * fraction;
+    accumulate_where(&pr, &kr, weight * er, take);
+    accumulate_where(&pg, &kg, weight * eg, take);
+    accumulate_where(&pb, &kb, weight * eb, take);
+    const vreal slope = transmittance * dt * fraction_slope(tau, decay, fraction);  // dweight/dτ
+    const vreal gtau = ar->gr * (slope * er - (ar->total_r - pr)) +
+                       ar->gg * (slope * eg - (ar->total_g - pg)) +
+                       ar->gb * (slope * eb - (ar->total_b - pb)) + ar->ga * ar->t_end;
+    const vreal ger = ar->gr * weight, geg = ar->gg * weight, geb = ar->gb * weight;
+#if IVR_GRAD_CAMERA
     direct += gtau * tau + ger * er + geg * eg + geb * eb;
-    a.ger += (real)0.5 * ger, a.geg += (real)0.5 * geg, a.geb += (real)0.5 * geb;
+#endif
+    // (a's sums only in the rays that take the segment: a finished ray's a waits for its scatter.)
+    // (Selected whole, so that each add contracts as the one-ray kernel's does.)
+    a.ger = vsel(a.ger, a.ger + (real)0.5 * ger, take);
+    a.geg = vsel(a.geg, a.geg + (real)0.5 * geg, take);
+    a.geb = vsel(a.geb, a.geb + (real)0.5 * geb, take);
     b.ger += (real)0.5 * ger, b.geg += (real)0.5 * geg, b.geb += (real)0.5 * geb;
 #else
-    const real gtau = -ar->intensity * ar->gi;
+    const vreal gtau = -ar->intensity * ar->gi;
+#if IVR_GRAD_CAMERA
     direct += gtau * tau;
 #endif
-    transmittance = attenuate(transmittance, tau, fraction, decay);
-    a.gsigma += (real)0.5 * dt * gtau;
+    (void)pr, (void)pg, (void)pb, (void)kr, (void)kg, (void)kb;
+#endif
+    transmittance = vsel(transmittance, attenuate(transmittance, tau, fraction, decay), take);
+    a.gsigma = vsel(a.gsigma, a.gsigma + (real)0.5 * dt * gtau, take);
     b.gsigma += (real)0.5 * dt * gtau;
 #else
+    (void)take;
     preintegrated_segment_adjoint(&a.s, &b.s, dt, tf, tf_count, tf_scalars, ar, &transmittance, &pr,
                                   &pg, &pb, &kr, &kg, &kb, &a.gd, &b.gd, &direct, &seg_value,
                                   tf_cache, tf_acc);
 #endif
-    finish_sample(&a, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
+    finish_sample(&a, take, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
                   &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);
-    a = b;
-    open = true;
-    ++i;
+    adjoint_sample_where(&a, &b, take);
+    open = vseli(open, vtrue, take);
+    i += vcount(take);
+    live = live && (i < end);
   }
-  if (open)
-    finish_sample(&a, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
-                  &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);
+  finish_sample(&a, open, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
+                &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);
   cell_flush(&cell, grad_volume);
+#if IVR_GRAD_CAMERA
   fixed_step_ends(cs, m, along, indexed, direct);
+#else
+  (void)direct;
+#endif
 }
 
-#endif  // IVR_RAYS == 1
+#endif  // IVR_RAYS == 1 || trapezoid
 #endif

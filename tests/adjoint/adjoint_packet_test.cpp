@@ -1,5 +1,5 @@
 // adjoint_packet_test.cpp — the adjoint in packets (adjoint.cl with 16 or 8 rays per work-item in
-// vector lanes, the midpoint rule's density and TF gradients, on CPU devices) against one ray per
+// vector lanes, the midpoint and trapezoid rules' density and TF gradients, on CPU devices) against one ray per
 // work-item ($IVR_PACKET=0): the image and the loss bit for bit, the deterministic (fixed-point)
 // density gradient bit for bit (each lane flushes what its ray would alone, and integer sums do not
 // depend on their order), the float density and TF gradients to their summation order, for every
@@ -92,6 +92,7 @@ struct Case {
   Model model;
   Precision precision;
   EmptySpace skip;
+  Scheme scheme = Scheme::midpoint;
 };
 
 void expect_cases_same(const std::vector<Case>& cases) {
@@ -99,7 +100,8 @@ void expect_cases_same(const std::vector<Case>& cases) {
   for (const Case& c : cases) {
     Scene s = two_view_scene(c.model, c.kind);
     for (Camera& cam : s.cameras) cam.width = 19;  // a full packet and a partial one per row
-    const std::string what = std::string(kinds[int(c.kind)]) +
+    s.integrator.scheme = c.scheme;
+    const std::string what = std::string(kinds[int(c.kind)]) + " " + scheme_name(c.scheme) +
                              (c.model == Model::absorption ? " absorption" : " ea") +
                              (c.precision == Precision::f64 ? " f64" : "") +
                              (c.skip == EmptySpace::on ? " skipping" : "");
@@ -115,17 +117,27 @@ TEST(AdjointPacket, EveryTfKindIsTheSame) {
                      {TfKind::gaussian, Model::emission_absorption, Precision::f32, EmptySpace::off},
                      {TfKind::piecewise_linear, Model::absorption, Precision::f64, EmptySpace::off},
                      {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32,
-                      EmptySpace::on}});
+                      EmptySpace::on},
+                     {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32,
+                      EmptySpace::off, Scheme::trapezoid},
+                     {TfKind::identity, Model::absorption, Precision::f32, EmptySpace::on,
+                      Scheme::trapezoid},
+                     {TfKind::gaussian, Model::emission_absorption, Precision::f64, EmptySpace::off,
+                      Scheme::trapezoid},
+                     {TfKind::table, Model::emission_absorption, Precision::f32, EmptySpace::on,
+                      Scheme::trapezoid}});
 }
 
-// The whole matrix (ctest -L extended): every TF kind × model × precision × skipping.
+// The whole matrix (ctest -L extended): every scheme in packets × TF kind × model × precision ×
+// skipping.
 TEST(AdjointPacket, EveryTfKindModelPrecisionAndSkippingIsTheSameExtended) {
   std::vector<Case> cases;
-  for (TfKind kind : {TfKind::identity, TfKind::piecewise_linear, TfKind::table, TfKind::gaussian})
-    for (Model model : {Model::emission_absorption, Model::absorption})
-      for (Precision precision : {Precision::f32, Precision::f64})
-        for (EmptySpace skip : {EmptySpace::off, EmptySpace::on})
-          cases.push_back({kind, model, precision, skip});
+  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid})
+    for (TfKind kind : {TfKind::identity, TfKind::piecewise_linear, TfKind::table, TfKind::gaussian})
+      for (Model model : {Model::emission_absorption, Model::absorption})
+        for (Precision precision : {Precision::f32, Precision::f64})
+          for (EmptySpace skip : {EmptySpace::off, EmptySpace::on})
+            cases.push_back({kind, model, precision, skip, scheme});
   expect_cases_same(cases);
 }
 
@@ -138,11 +150,17 @@ TEST(AdjointPacket, SkippingAndEarlyTerminationAreTheSame) {
   s.volume.data.assign(16 * 16 * 16, 0.f);
   for (int z = 8; z < 16; ++z)
     for (int i = 0; i < 256; ++i) s.volume.data[std::size_t(z) * 256 + i] = 0.3f + 0.002f * float(i);
-  expect_same(s, "half empty", Precision::f32, EmptySpace::on);
-  Scene opaque = s;
-  for (TfPoint& p : opaque.tf.points) p.extinction *= 60;
-  opaque.integrator.min_transmittance = 0.05;
-  expect_same(opaque, "opaque", Precision::f32, EmptySpace::off);
+  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid}) {
+    Scene sc = s;
+    sc.integrator.scheme = scheme;
+    expect_same(sc, std::string("half empty ") + scheme_name(scheme), Precision::f32,
+                EmptySpace::on);
+    Scene opaque = sc;
+    for (TfPoint& p : opaque.tf.points) p.extinction *= 60;
+    opaque.integrator.min_transmittance = 0.05;
+    expect_same(opaque, std::string("opaque ") + scheme_name(scheme), Precision::f32,
+                EmptySpace::off);
+  }
 }
 
 }  // namespace

@@ -13,10 +13,7 @@
 #include "end_sample.cl"
 #include "adjoint_preintegrated.cl"
 
-// One ray, or (trapezoid) every ray of a packet (kernels/rays.cl) written once as primal.cl's
-// marches are; preintegrated's segment adjoint is one ray's (lib/adjoint/adjoint.cpp,
-// use_packet_adjoint).
-#if IVR_RAYS == 1 || IVR_SCHEME == IVR_SCHEME_TRAPEZOID
+// One ray, or every ray of a packet (kernels/rays.cl), written once as primal.cl's marches are.
 
 // An end sample with what its scatter needs, and the gradient it has collected so far.
 typedef struct {
@@ -190,10 +187,9 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
     a.gsigma = vsel(a.gsigma, a.gsigma + (real)0.5 * dt * gtau, take);
     b.gsigma += (real)0.5 * dt * gtau;
 #else
-    (void)take;
-    preintegrated_segment_adjoint(&a.s, &b.s, dt, tf, tf_count, tf_scalars, ar, &transmittance, &pr,
-                                  &pg, &pb, &kr, &kg, &kb, &a.gd, &b.gd, &direct, &seg_value,
-                                  tf_cache, tf_acc);
+    preintegrated_segment_adjoint(&a.s, &b.s, dt, tf, tf_count, tf_scalars, ar, take,
+                                  &transmittance, &pr, &pg, &pb, &kr, &kg, &kb, &a.gd, &b.gd,
+                                  &direct, &seg_value, tf_cache, tf_acc);
 #endif
     finish_sample(&a, take, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
                   &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);
@@ -212,5 +208,4 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
 #endif
 }
 
-#endif  // IVR_RAYS == 1 || trapezoid
 #endif

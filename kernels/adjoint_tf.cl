@@ -302,6 +302,13 @@ inline void tf_scatter_piece(const TfPiece* p, real x, real gs, real gr, real gg
 #endif
 }
 
+// tf_scatter_piece in the rays of `m` (one ray: wherever it is called).
+inline void tf_scatter_piece_where(const TfPiece* p, real x, real gs, real gr, real gg, real gb,
+                                   int m, TfGradCache* cache, volatile __local real* acc) {
+  (void)m;
+  tf_scatter_piece(p, x, gs, gr, gg, gb, cache, acc);
+}
+
 #else  // IVR_RAYS > 1: each lane of a packet its own cache, as its ray would have alone
 
 typedef struct {
@@ -407,6 +414,40 @@ inline void tf_scatter_sample(vreal d, vreal sigma, const TfPoint* point, vint t
 #endif
     tf_cache_add(cache, k, 3, w[k] * through, take);
   }
+#endif
+}
+
+// A gradient taken through a TF piece at density x (tf_scatter_piece) in the rays of `m`.
+inline void tf_scatter_piece_where(const TfPiece* p, vreal x, vreal gs, vreal gr, vreal gg,
+                                   vreal gb, vint m, TfGradCache* cache,
+                                   volatile __local real* acc) {
+#if IVR_TF == IVR_TF_IDENTITY
+  (void)p, (void)acc;
+  tf_cache_add(cache, 0, 0, gs * x, m);              // σ = a·x
+  tf_cache_add(cache, 0, 1, (gr + gg + gb) * x, m);  // colour = b·x
+#elif IVR_TF == IVR_TF_PIECEWISE_LINEAR || IVR_TF == IVR_TF_TABLE
+  const vint one = p->row1 == p->row0;  // one row for a constant piece
+  const vint row1 = vseli(p->row1, (vint)-1, one);
+  const vint change = m && (p->row0 != cache->row[0] || row1 != cache->row[1]);
+  if (vany(change)) {
+    tf_cache_flush_where(cache, acc, change);
+    cache->row[0] = vseli(cache->row[0], p->row0, change);
+    cache->row[1] = vseli(cache->row[1], row1, change);
+  }
+  const vreal w1 = vsel((x - p->x0) * p->inv_width, (vreal)(real)0, one);
+  const vreal w[2] = {(real)1 - w1, w1};
+  for (int k = 0; k < 2; ++k) {
+#if IVR_EMISSION
+    tf_cache_add(cache, k, 0, w[k] * gr, m);
+    tf_cache_add(cache, k, 1, w[k] * gg, m);
+    tf_cache_add(cache, k, 2, w[k] * gb, m);
+#else
+    (void)gr, (void)gg, (void)gb;
+#endif
+    tf_cache_add(cache, k, 3, w[k] * gs, m);
+  }
+#else
+  (void)p, (void)x, (void)gs, (void)gr, (void)gg, (void)gb, (void)m, (void)cache, (void)acc;
 #endif
 }
 #endif  // IVR_RAYS

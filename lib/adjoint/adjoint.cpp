@@ -59,13 +59,12 @@ double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss) {
 }
 
 // Whether the adjoint marches packets of rays in vector lanes (kernels/adjoint.cl, IVR_RAYS): where
-// renders do (CPU devices), for the midpoint and trapezoid rules' density and TF gradients. The
-// camera gradient sums each ray's positions, and preintegrated's and exact's adjoint marches are
-// one ray's: those keep one ray per work-item (with the primal from a packet render where
-// use_packet_primal says).
+// renders do (CPU devices), for the density and TF gradients of the midpoint, trapezoid and
+// preintegrated schemes. The camera gradient sums each ray's positions, and the exact adjoint
+// march is one ray's: those keep one ray per work-item (with the primal from a packet render
+// where use_packet_primal says).
 bool use_packet_adjoint(const Device::Impl& dev, const RenderVariant& v, const AdjointRequest& r) {
-  return use_packet(dev) && (v.scheme == Scheme::midpoint || v.scheme == Scheme::trapezoid) &&
-         !r.camera;
+  return use_packet(dev) && v.scheme != Scheme::exact && !r.camera;
 }
 
 KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std::size_t tf_rows,

@@ -1,5 +1,6 @@
 // adjoint_packet_test.cpp — the adjoint in packets (adjoint.cl with 16 or 8 rays per work-item in
-// vector lanes, the midpoint and trapezoid rules' density and TF gradients, on CPU devices) against one ray per
+// vector lanes, the density and TF gradients of midpoint, trapezoid and preintegrated, on CPU
+// devices) against one ray per
 // work-item ($IVR_PACKET=0): the image and the loss bit for bit, the deterministic (fixed-point)
 // density gradient bit for bit (each lane flushes what its ray would alone, and integer sums do not
 // depend on their order), the float density and TF gradients to their summation order, for every
@@ -109,35 +110,36 @@ void expect_cases_same(const std::vector<Case>& cases) {
   }
 }
 
+// Each TF kind, model and scheme at least once, one in float64, skipping in each scheme (the rest:
+// the Extended matrix).
 TEST(AdjointPacket, EveryTfKindIsTheSame) {
-  expect_cases_same({{TfKind::identity, Model::emission_absorption, Precision::f32, EmptySpace::off},
-                     {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32,
-                      EmptySpace::off},
-                     {TfKind::table, Model::absorption, Precision::f32, EmptySpace::off},
-                     {TfKind::gaussian, Model::emission_absorption, Precision::f32, EmptySpace::off},
-                     {TfKind::piecewise_linear, Model::absorption, Precision::f64, EmptySpace::off},
-                     {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32,
-                      EmptySpace::on},
-                     {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32,
-                      EmptySpace::off, Scheme::trapezoid},
-                     {TfKind::identity, Model::absorption, Precision::f32, EmptySpace::on,
-                      Scheme::trapezoid},
-                     {TfKind::gaussian, Model::emission_absorption, Precision::f64, EmptySpace::off,
-                      Scheme::trapezoid},
-                     {TfKind::table, Model::emission_absorption, Precision::f32, EmptySpace::on,
-                      Scheme::trapezoid}});
+  expect_cases_same(
+      {{TfKind::piecewise_linear, Model::emission_absorption, Precision::f32, EmptySpace::off},
+       {TfKind::gaussian, Model::emission_absorption, Precision::f32, EmptySpace::off},
+       {TfKind::table, Model::absorption, Precision::f32, EmptySpace::off},
+       {TfKind::piecewise_linear, Model::absorption, Precision::f64, EmptySpace::off},
+       {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32, EmptySpace::on},
+       {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32, EmptySpace::off,
+        Scheme::trapezoid},
+       {TfKind::identity, Model::absorption, Precision::f32, EmptySpace::on, Scheme::trapezoid},
+       {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32, EmptySpace::off,
+        Scheme::preintegrated},
+       {TfKind::table, Model::absorption, Precision::f32, EmptySpace::on,
+        Scheme::preintegrated}});
 }
 
 // The whole matrix (ctest -L extended): every scheme in packets × TF kind × model × precision ×
 // skipping.
 TEST(AdjointPacket, EveryTfKindModelPrecisionAndSkippingIsTheSameExtended) {
   std::vector<Case> cases;
-  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid})
+  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated})
     for (TfKind kind : {TfKind::identity, TfKind::piecewise_linear, TfKind::table, TfKind::gaussian})
       for (Model model : {Model::emission_absorption, Model::absorption})
         for (Precision precision : {Precision::f32, Precision::f64})
           for (EmptySpace skip : {EmptySpace::off, EmptySpace::on})
-            cases.push_back({kind, model, precision, skip, scheme});
+            // (preintegrated: TFs linear in density between knots)
+            if (scheme != Scheme::preintegrated || kind != TfKind::gaussian)
+              cases.push_back({kind, model, precision, skip, scheme});
   expect_cases_same(cases);
 }
 
@@ -150,7 +152,7 @@ TEST(AdjointPacket, SkippingAndEarlyTerminationAreTheSame) {
   s.volume.data.assign(16 * 16 * 16, 0.f);
   for (int z = 8; z < 16; ++z)
     for (int i = 0; i < 256; ++i) s.volume.data[std::size_t(z) * 256 + i] = 0.3f + 0.002f * float(i);
-  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid}) {
+  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated}) {
     Scene sc = s;
     sc.integrator.scheme = scheme;
     expect_same(sc, std::string("half empty ") + scheme_name(scheme), Precision::f32,

@@ -11,50 +11,64 @@
 #include "empty_space.cl"
 #include "exact.cl"
 
-// One ray per work-item: the adjoint marches packets for the midpoint rule only
-// (lib/adjoint/adjoint.cpp, use_packet_adjoint).
-#if IVR_RAYS == 1
-
+// One ray, or every ray of a packet (kernels/rays.cl; no camera gradient), written once as
+// primal.cl's marches are.
 inline void adjoint_march_exact(__global const real* volume, int4 dims, const March* m, Ray ray,
                                 real4 inv_voxel, __global const real* tf, int tf_count,
                                 real4 tf_scalars, const AdjointRay* ar,
                                 __global const uchar* occupied, int4 bricks,
                                 const ScatterSink grad_volume, TfGradCache* tf_cache,
                                 __local real* tf_acc, CameraSums* cs) {
-  const real gtau = -ar->intensity * ar->gi;  // dL/dτ, the same for every piece
+  const vreal gtau = -ar->intensity * ar->gi;  // dL/dτ, the same for every piece
   CellCache cell;
   cell_init(&cell);
   Pieces p;
   pieces_begin(&p, m, dims, m->t0);
-  real ta, tb, t_last = m->t0;
+  vreal ta = m->t0, tb = m->t0;
+#if IVR_GRAD_CAMERA
+  real t_last = m->t0;
   int last_axis = -1;
-  for (uint count = 0; count < ar->end && pieces_next(&p, m, dims, &ta, &tb); ++count) {
+#endif
+  vint count = (vint)0;
+  vint live = count < ar->end, go;
+  while (vany(go = pieces_next_where(&p, m, dims, live, &ta, &tb))) {
+    count += vcount(go);
+    live = live && (count < ar->end);
+#if IVR_GRAD_CAMERA
     t_last = tb;
     last_axis = p.axis;
-    if (!(tb > ta)) continue;
-#if IVR_EMPTY_SPACE
-    if (pieces_skip_empty(&p, m, dims, ta, tb, occupied, bricks)) continue;
 #endif
+    vint take = go && vmask_of(tb > ta);
+#if IVR_EMPTY_SPACE
+    if (vany(take))
+      take = take && !pieces_skip_empty_where(&p, m, dims, take, ta, tb, occupied, bricks);
+#else
+    (void)occupied, (void)bricks;
+#endif
+    if (!vany(take)) continue;
     const PieceCell pc = piece_cell(m, dims, ta, tb);
-    cell_enter(&cell, pc.ix, pc.iy, pc.iz, volume, dims, grad_volume, 1);
-    const Cubic c = piece_cubic(IVR_CELL_CORNERS(&cell), pc);
-    const real length = tb - ta;
+    cell_enter(&cell, pc.ix, pc.iy, pc.iz, volume, dims, grad_volume, take);
+    vreal v[8];
+    for (int k = 0; k < 8; ++k) v[k] = IVR_CORNER_LANES(cell.v[k]);
+    const Cubic c = piece_cubic(v, pc);
+    const vreal length = tb - ta;
     SubPieces sp;
     sub_pieces_begin(&sp, c);
-    int cursor = 0;
+    sp.s = vsel(sp.s, (vreal)(real)1, !take);  // (idle rays: nothing to cover)
+    vint cursor = (vint)0, sub;
     SimpsonNodes n;
-    while (simpson_nodes_next(&sp, length, tf, tf_count, tf_scalars, &cursor, &n)) {
-      const real* s = n.s;
-      const TfPiece tp = n.tf;
-      const real sub = n.length;
+    while (vany(sub = simpson_nodes_next(&sp, length, tf, tf_count, tf_scalars, &cursor, &n))) {
       for (int k = 0; k < 3; ++k) {
         // Simpson's weights (1, 4, 1)/6 of dL/dτ · dσ/dd at the node.
-        const real gd = gtau * tp.s1 * sub * (k == 1 ? (real)4 : (real)1) / (real)6;
-        cell_add(&cell, gd, pc.fx + s[k] * pc.gx, pc.fy + s[k] * pc.gy, pc.fz + s[k] * pc.gz);
+        const vreal gd = vsel((vreal)(real)0,
+                              gtau * n.tf.s1 * n.length * (k == 1 ? (real)4 : (real)1) / (real)6,
+                              sub);
+        cell_add(&cell, gd, pc.fx + n.s[k] * pc.gx, pc.fy + n.s[k] * pc.gy,
+                 pc.fz + n.s[k] * pc.gz);
 #if IVR_GRAD_CAMERA
         real ngx, ngy, ngz;
-        piece_gradient(IVR_CELL_CORNERS(&cell), pc, s[k], &ngx, &ngy, &ngz);
-        const real t = ta + s[k] * length;
+        piece_gradient(v, pc, n.s[k], &ngx, &ngy, &ngz);
+        const real t = ta + n.s[k] * length;
         const real px = gd * ngx * inv_voxel.x, py = gd * ngy * inv_voxel.y,
                    pz = gd * ngz * inv_voxel.z;
         cs->gpx += px, cs->gpy += py, cs->gpz += pz;
@@ -62,8 +76,8 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
 #endif
       }
 #if IVR_GRAD_TF
-      tf_scatter_piece(&tp, simpson_mean(&n), gtau * sub, (real)0, (real)0,
-                       (real)0, tf_cache, tf_acc);
+      tf_scatter_piece_where(&n.tf, simpson_mean(&n), gtau * n.length, (vreal)(real)0,
+                             (vreal)(real)0, (vreal)(real)0, sub, tf_cache, tf_acc);
 #else
       (void)tf_cache, (void)tf_acc;
 #endif
@@ -90,9 +104,8 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
   cs->t_end = t_end;
   cs->end_axis = early ? last_axis : -1;
 #else
-  (void)ray, (void)inv_voxel, (void)t_last, (void)last_axis;
+  (void)ray, (void)inv_voxel, (void)cs;
 #endif
 }
 
-#endif  // IVR_RAYS == 1
 #endif

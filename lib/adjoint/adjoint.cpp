@@ -59,12 +59,11 @@ double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss) {
 }
 
 // Whether the adjoint marches packets of rays in vector lanes (kernels/adjoint.cl, IVR_RAYS): where
-// renders do (CPU devices), for the density and TF gradients of the midpoint, trapezoid and
-// preintegrated schemes. The camera gradient sums each ray's positions, and the exact adjoint
-// march is one ray's: those keep one ray per work-item (with the primal from a packet render
-// where use_packet_primal says).
-bool use_packet_adjoint(const Device::Impl& dev, const RenderVariant& v, const AdjointRequest& r) {
-  return use_packet(dev) && v.scheme != Scheme::exact && !r.camera;
+// renders do (CPU devices), for the density and TF gradients of every integrator. The camera
+// gradient sums each ray's positions along its march: it keeps one ray per work-item (with the
+// primal from a packet render where use_packet_primal says).
+bool use_packet_adjoint(const Device::Impl& dev, const AdjointRequest& r) {
+  return use_packet(dev) && !r.camera;
 }
 
 KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std::size_t tf_rows,
@@ -120,7 +119,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   // lanes) marches the primal several times faster than the kernel's own one-ray march: it leaves
   // each pixel's C, T and samples in the image and sample buffers, where the adjoint kernel reads
   // them.
-  const bool packet = use_packet_adjoint(dev, variant, r);
+  const bool packet = use_packet_adjoint(dev, r);
   const bool primal_given = !packet && use_packet_primal(dev, variant);
 
   AdjointResult out;

@@ -1,6 +1,6 @@
 // adjoint_packet_test.cpp — the adjoint in packets (adjoint.cl with 16 or 8 rays per work-item in
-// vector lanes, the density and TF gradients of midpoint, trapezoid and preintegrated, on CPU
-// devices) against one ray per
+// vector lanes, the density and TF gradients of every integrator, on CPU devices) against one ray
+// per
 // work-item ($IVR_PACKET=0): the image and the loss bit for bit, the deterministic (fixed-point)
 // density gradient bit for bit (each lane flushes what its ray would alone, and integer sums do not
 // depend on their order), the float density and TF gradients to their summation order, for every
@@ -125,20 +125,25 @@ TEST(AdjointPacket, EveryTfKindIsTheSame) {
        {TfKind::piecewise_linear, Model::emission_absorption, Precision::f32, EmptySpace::off,
         Scheme::preintegrated},
        {TfKind::table, Model::absorption, Precision::f32, EmptySpace::on,
-        Scheme::preintegrated}});
+        Scheme::preintegrated},
+       {TfKind::piecewise_linear, Model::absorption, Precision::f32, EmptySpace::off,
+        Scheme::exact},
+       {TfKind::identity, Model::absorption, Precision::f64, EmptySpace::on, Scheme::exact}});
 }
 
-// The whole matrix (ctest -L extended): every scheme in packets × TF kind × model × precision ×
-// skipping.
+// The whole matrix (ctest -L extended): every scheme × TF kind × model × precision × skipping.
 TEST(AdjointPacket, EveryTfKindModelPrecisionAndSkippingIsTheSameExtended) {
   std::vector<Case> cases;
-  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated})
+  for (Scheme scheme :
+       {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact})
     for (TfKind kind : {TfKind::identity, TfKind::piecewise_linear, TfKind::table, TfKind::gaussian})
       for (Model model : {Model::emission_absorption, Model::absorption})
         for (Precision precision : {Precision::f32, Precision::f64})
           for (EmptySpace skip : {EmptySpace::off, EmptySpace::on})
-            // (preintegrated: TFs linear in density between knots)
-            if (scheme != Scheme::preintegrated || kind != TfKind::gaussian)
+            // (exact: absorption; both exact schemes: TFs linear in density between knots)
+            if ((scheme != Scheme::exact || model == Model::absorption) &&
+                (scheme == Scheme::midpoint || scheme == Scheme::trapezoid ||
+                 kind != TfKind::gaussian))
               cases.push_back({kind, model, precision, skip, scheme});
   expect_cases_same(cases);
 }

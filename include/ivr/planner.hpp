@@ -38,7 +38,7 @@ IVR_API std::string cost_model_path(const DeviceInfo& device);
 // The built-in model of a device without a calibration file. CPU devices: measured with PoCL 3.1
 // on a 2-core Skylake-AVX512 Xeon, where forward mode marches TF and background lanes in packets
 // of rays and the adjoint marches packets too: forward 1.1 + 0.08 · L renders (`ivr calibrate`,
-// 64³ → 128² and 128³ → 256²), with camera or voxel lanes 3.75 + 0.75 · L, adjoint 3.7 renders,
+// 64³ → 128² and 128³ → 256²), with camera or voxel lanes 3.8 + 0.75 · L, adjoint 5.4 renders,
 // 3.1e-9 s per sample. Other devices: CostModel's defaults (forward
 // 1.5 + 0.16 · L whatever the lanes, adjoint 3), the one-ray-per-work-item kernels' figures on a
 // 2-core EPYC.

@@ -5,6 +5,7 @@
 #pragma once
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <string>
 #include <vector>
 
 #include "ivr/core.hpp"
@@ -13,6 +14,28 @@ namespace ivr::bench {
 
 inline Scene bench_scene(int n, int image) {
   return calibration_scene(n, image);
+}
+
+// The benchmark scene in another look: "" as it is; "identity" (σ = 20·d, colour d); "absorption"
+// (the TF at a quarter of its extinction: optical depths of a few per ray); "trapezoid" and
+// "preintegrated" (those integrators); "exact" (absorption, as "absorption", the exact integral).
+inline Scene look_scene(int n, int image, const std::string& look) {
+  Scene s = bench_scene(n, image);
+  if (look == "identity") {
+    s.tf.kind = TfKind::identity;
+    s.tf.extinction_scale = 20;
+    s.tf.color_scale = 1;
+  } else if (look == "absorption" || look == "exact") {
+    s.model = Model::absorption;
+    s.background.reset();
+    for (TfPoint& p : s.tf.points) p.extinction *= 0.25;
+    if (look == "exact") s.integrator.scheme = Scheme::exact;
+  } else if (look == "preintegrated") {
+    s.integrator.scheme = Scheme::preintegrated;
+  } else if (look == "trapezoid") {
+    s.integrator.scheme = Scheme::trapezoid;
+  }
+  return s;
 }
 
 // n³ Shepp–Logan (cell averages of 4³ samples) in the unit box, `views` cameras over a half orbit

@@ -29,24 +29,9 @@ struct RenderCase {
   std::string name() const { return scene_case(volume, image, step) + (look.empty() ? "" : "_" + look); }
 };
 
-// The benchmark scene, or the same volume and view through the identity TF (σ = 20·d, colour d)
-// or in the absorption model (the scene's TF at a quarter of its extinction: optical depths of a
-// few per ray).
+// The case's scene (bench_scene.hpp's looks).
 Scene case_scene(const RenderCase& c) {
-  Scene s = bench_scene(c.volume, c.image);
-  if (c.look == "identity") {
-    s.tf.kind = TfKind::identity;
-    s.tf.extinction_scale = 20;
-    s.tf.color_scale = 1;
-  } else if (c.look == "absorption" || c.look == "exact") {
-    s.model = Model::absorption;
-    s.background.reset();
-    for (TfPoint& p : s.tf.points) p.extinction *= 0.25;
-    if (c.look == "exact") s.integrator.scheme = Scheme::exact;
-  } else if (c.look == "preintegrated") {
-    s.integrator.scheme = Scheme::preintegrated;
-  }
-  return s;
+  return look_scene(c.volume, c.image, c.look);
 }
 
 // The float64 reference of the case's own integrator at the same step: the midpoint rule's

@@ -1,6 +1,6 @@
 // adjoint.cl — reverse-mode gradients, one work-item per pixel (or, on CPUs, per packet of
-// IVR_RAYS neighbouring pixels in vector lanes, kernels/rays.cl: the midpoint rule's density and
-// TF gradients, each lane its own ray's arithmetic): the primal march gives the pixel
+// IVR_RAYS neighbouring pixels in vector lanes, kernels/rays.cl: every integrator's density and TF
+// gradients, each lane its own ray's arithmetic): the primal march gives the pixel
 // and its loss gradient (kernels/primal.cl), a second front-to-back march of the scene's
 // integrator (adjoint_<scheme>.cl) recovers each sample's remaining radiance as C minus the prefix
 // (no division by 1 − α, no per-sample storage) and scatters dL/d density to the voxels (through

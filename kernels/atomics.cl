@@ -1,8 +1,8 @@
 // atomics.cl — adding reals to global and local memory without losing updates: OpenCL 1.2 has no
 // float atomics, so a compare-and-swap loop on the value's bits (32-bit, or 64-bit through
 // cl_khr_int64_base_atomics for float64), unless the device has cl_ext_float_atomics or is
-// NVIDIA's, whose native adds are reached through inline PTX (the host picks: lib/runtime/runtime.hpp,
-// atomic_add_for).
+// NVIDIA's, whose native adds are reached through inline PTX (the host picks:
+// lib/runtime/runtime.hpp, atomic_add_for).
 #ifndef IVR_ATOMICS_CL
 #define IVR_ATOMICS_CL
 #include "config.cl"
@@ -76,8 +76,12 @@ inline void atomic_add_global(volatile __global real* p, real v) {
 #endif
 }
 
+// With IVR_PRIVATE_SUMS every work-group is one work-item (kernels/private_sums.cl): its local
+// memory is its own, and a plain add is exact.
 inline void atomic_add_local(volatile __local real* p, real v) {
-#if IVR_NATIVE_LOCAL_ADD
+#if defined(IVR_PRIVATE_SUMS) && IVR_PRIVATE_SUMS
+  *p += v;
+#elif IVR_NATIVE_LOCAL_ADD
   atomic_fetch_add_explicit((volatile __local atomic_real*)p, v, memory_order_relaxed,
                             memory_scope_work_group);
 #else

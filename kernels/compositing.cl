@@ -15,7 +15,7 @@
 // is the costliest part of a sample: PoCL's takes about a third of the render's time.
 // Every ray of a packet (kernels/rays.cl) takes the same arithmetic: the series where its x is
 // small, the exp (computed only where some ray needs it) elsewhere.
-inline vreal decay_and_fraction(vreal x, vreal* fraction) {
+__attribute__((always_inline)) inline vreal decay_and_fraction(vreal x, vreal* fraction) {
 #if IVR_F64
   *fraction = vsel((vreal)1.0, -vexpm1(-x) / x, vmask_of(x > (vreal)0.0));
   return vexp(-x);
@@ -46,9 +46,9 @@ inline vreal fraction_slope(vreal x, vreal decay, vreal fraction) {
            x * (-1.0 / 8 +
                 x * (1.0 / 30 +
                      x * (-1.0 / 144 +
-                          x * (1.0 / 840 +
-                               x * (-1.0 / 5760 +
-                                    x * (1.0 / 45360 + x * (-1.0 / 403200 + x * (1.0 / 3991680)))))))));
+                          x * (1.0 / 840 + x * (-1.0 / 5760 +
+                                                x * (1.0 / 45360 + x * (-1.0 / 403200 +
+                                                                        x * (1.0 / 3991680)))))))));
 #else
   const vreal series =
       -0.5f +
@@ -60,7 +60,8 @@ inline vreal fraction_slope(vreal x, vreal decay, vreal fraction) {
 // sum += x, compensated (Kahan) in float32 so that 1e5-sample rays keep float32 accuracy; *error
 // carries the running rounding error. float64 adds plainly. Only the rays where `m` is true add
 // (a packet's finished or skipping rays keep their sums).
-inline void accumulate_where(vreal* sum, vreal* error, vreal x, vint m) {
+__attribute__((always_inline)) inline void accumulate_where(vreal* sum, vreal* error, vreal x,
+                                                            vint m) {
 #if IVR_F64
   (void)error;
   *sum = vsel(*sum, *sum + x, m);
@@ -79,7 +80,8 @@ inline void accumulate(vreal* sum, vreal* error, vreal x) {
 // transmittance·exp(-x). Below x = 0.1 as T - T·(x·fraction) in one fused multiply-add: forming
 // 1 - x·fraction first would round x to the float spacing near 1 and bias long rays of small
 // steps; above, the product with the decay (no cancellation there).
-inline vreal attenuate(vreal transmittance, vreal x, vreal fraction, vreal decay) {
+__attribute__((always_inline)) inline vreal attenuate(vreal transmittance, vreal x, vreal fraction,
+                                                      vreal decay) {
   return vsel(transmittance * decay, fma(-transmittance, x * fraction, transmittance),
               vmask_of(x < (vreal)(real)0.1));
 }

@@ -1,5 +1,6 @@
 // empty_space.cl — empty-space skipping: the brick a sample reads, where the ray leaves it, and
-// the brick ranges behind the occupancy grid (lib/empty_space/empty_space.cpp maps them through the TF).
+// the brick ranges behind the occupancy grid (lib/empty_space/empty_space.cpp maps them through the
+// TF).
 #ifndef IVR_EMPTY_SPACE_CL
 #define IVR_EMPTY_SPACE_CL
 #include "config.cl"
@@ -9,7 +10,7 @@
 
 // The brick of the cell that trilinear_at() reads at u (clamped as there).
 __attribute__((always_inline)) inline vint brick_axis(vreal u, int n) {
-  return vto_int(fmin(fmax(u, (vreal)(real)0), (vreal)(real)(n - 1))) / IVR_BRICK_SIZE;
+  return vto_int(vclamp(u, (real)0, (real)(n - 1))) / IVR_BRICK_SIZE;
 }
 
 // The ray parameter at which u = u0 + t·du leaves brick b of `bricks` along this axis; +inf
@@ -24,8 +25,9 @@ __attribute__((always_inline)) inline vreal brick_exit(vreal u0, vreal du, vint 
 // The ray parameter at which the ray leaves brick (bx, by, bz).
 __attribute__((always_inline)) inline vreal brick_leave(const March* m, vint bx, vint by, vint bz,
                                                         int4 bricks) {
-  return fmin(brick_exit(m->u0x, m->dux, bx, bricks.x),
-              fmin(brick_exit(m->u0y, m->duy, by, bricks.y), brick_exit(m->u0z, m->duz, bz, bricks.z)));
+  return fmin(
+      brick_exit(m->u0x, m->dux, bx, bricks.x),
+      fmin(brick_exit(m->u0y, m->duy, by, bricks.y), brick_exit(m->u0z, m->duz, bz, bricks.z)));
 }
 
 // Where voxel coordinates u lie in an empty brick, the ray parameter at which the ray leaves
@@ -113,9 +115,9 @@ __attribute__((always_inline)) inline vint midpoint_skip(vint* i, vint n, vint* 
 // The end-sample marches' skipping step from sample i (voxel coordinates u): the live rays move i
 // to endpoint_skip()'s sample, and those now at their last stop. Returns the rays that moved and
 // go on, whose sample i the march takes again.
-__attribute__((always_inline)) inline vint endpoint_skip_step(vint* i, vint n, vint* live,
-                                                              vreal ux, vreal uy, vreal uz,
-                                                              const March* m, int4 dims,
+__attribute__((always_inline)) inline vint endpoint_skip_step(vint* i, vint n, vint* live, vreal ux,
+                                                              vreal uy, vreal uz, const March* m,
+                                                              int4 dims,
                                                               __global const uchar* occupied,
                                                               int4 bricks) {
   const vint k = endpoint_skip(*i, n, ux, uy, uz, m, dims, occupied, bricks, *live);
@@ -127,7 +129,8 @@ __attribute__((always_inline)) inline vint endpoint_skip_step(vint* i, vint n, v
 }
 
 // Per brick (one work-item each): the min and max density over the voxels its samples read,
-// [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space/empty_space.hpp), as float pairs.
+// [b·size − 1, (b+1)·size + 1] clamped along each axis (lib/empty_space/empty_space.hpp), as float
+// pairs.
 __kernel void brick_ranges(__global const real* restrict volume, const int4 dims, const int4 bricks,
                            __global float* restrict ranges) {
   const int bx = get_global_id(0), by = get_global_id(1), bz = get_global_id(2);

@@ -31,9 +31,9 @@ inline Ray camera_ray(__global const real* cam, int x, int y, int width, int hei
   const real sy = geometry_divide((real)(height - 2 * y - 1), (real)height);
   Ray r;
   if (cam[12] != (real)0) {  // orthographic
-    r.origin = (real3)(fma(sy, cam[9], fma(sx, cam[6], cam[0])),
-                       fma(sy, cam[10], fma(sx, cam[7], cam[1])),
-                       fma(sy, cam[11], fma(sx, cam[8], cam[2])));
+    r.origin =
+        (real3)(fma(sy, cam[9], fma(sx, cam[6], cam[0])), fma(sy, cam[10], fma(sx, cam[7], cam[1])),
+                fma(sy, cam[11], fma(sx, cam[8], cam[2])));
     r.dir = (real3)(cam[3], cam[4], cam[5]);
   } else {
     const real dx = fma(sy, cam[9], fma(sx, cam[6], cam[3]));
@@ -42,7 +42,8 @@ inline Ray camera_ray(__global const real* cam, int x, int y, int width, int hei
     const real dz2 = dz * dz;
     const real norm = geometry_sqrt(fma(dx, dx, fma(dy, dy, dz2)));
     r.origin = (real3)(cam[0], cam[1], cam[2]);
-    r.dir = (real3)(geometry_divide(dx, norm), geometry_divide(dy, norm), geometry_divide(dz, norm));
+    r.dir =
+        (real3)(geometry_divide(dx, norm), geometry_divide(dy, norm), geometry_divide(dz, norm));
   }
   return r;
 }
@@ -73,7 +74,7 @@ inline bool clip_box(Ray r, real3 bmin, real3 bmax, real* t0, real* t1) {
 // as trilinear_at() clamps it: returns the index i, and the fraction in [0, 1] in *f (every ray of
 // a packet: kernels/rays.cl).
 __attribute__((always_inline)) inline vint cell_axis(vreal u, int n, vreal* f) {
-  const vreal c = fmin(fmax(u, (vreal)(real)0), (vreal)(real)(n - 1));
+  const vreal c = vclamp(u, (real)0, (real)(n - 1));
   const vint i = vto_int(c);  // c >= 0, so truncation is floor
   *f = c - vto_real(i);
   return i;
@@ -94,6 +95,20 @@ __attribute__((always_inline)) inline vreal trilinear_at(__global const real* vo
   const vint oy = vseli((vint)0, (vint)sx, iy + 1 < dims.y);
   const vint oz = vseli((vint)0, (vint)sxy, iz + 1 < dims.z);
   const vint p = iz * sxy + iy * sx + ix;
+#ifdef IVR_GATHER_PAIRS
+  // A packet in float32: the ±x neighbours as pairs (kernels/rays.cl); on the upper x edge of a
+  // grid at least 2 wide, the pair before (ix − 1 >= 0).
+  if (dims.x >= 2) {
+    const vint edge = ox == (vint)0;
+    vreal a0, a1, b0, b1, c0, c1, d0, d1;
+    vgather_pair(vol, p, edge, &a0, &a1);
+    vgather_pair(vol, p + oy, edge, &b0, &b1);
+    vgather_pair(vol, p + oz, edge, &c0, &c1);
+    vgather_pair(vol, p + oz + oy, edge, &d0, &d1);
+    return vlerp(vlerp(vlerp(a0, a1, fx), vlerp(b0, b1, fx), fy),
+                 vlerp(vlerp(c0, c1, fx), vlerp(d0, d1, fx), fy), fz);
+  }
+#endif
   const vreal c00 = vlerp(vgather_off(vol, p, 0), vgather_off(vol, p, ox), fx);
   const vreal c10 = vlerp(vgather_off(vol, p, oy), vgather_off(vol, p, oy + ox), fx);
   const vreal c01 = vlerp(vgather_off(vol, p, oz), vgather_off(vol, p, oz + ox), fx);

@@ -20,6 +20,11 @@
 #define IVR_TF_STRIDE_PIECEWISE_LINEAR 5
 #define IVR_TF_STRIDE_TABLE 4
 #define IVR_TF_STRIDE_GAUSSIAN 6
+/* Piecewise-linear and table TFs of at most IVR_TF_COLUMN_ENTRIES rows are followed by their
+ * columns, each IVR_TF_COLUMN_ENTRIES values long (the last row repeated): density, r, g, b,
+ * sigma (piecewise linear) or r, g, b, sigma (table). A packet of rays looks its rows up there
+ * with one permute per column (kernels/tf.cl, tf_rows). */
+#define IVR_TF_COLUMN_ENTRIES 16
 
 /* What a tangent lane differentiates (int4 per lane: kind, a, b, c; kernels/jacobian_ray.cl). */
 #define IVR_LANE_NONE 0       /* padding: derivative 0 */
@@ -32,6 +37,10 @@
  * exponent, the per-ray cap, the over-cap count, the largest contribution and the largest ray
  * (kernels/adjoint_scatter.cl). */
 #define IVR_FIXED_HEADER 5
+
+/* Values each private copy of the density gradient is padded to (kernels/private_sums.cl): one
+ * 16-wide vector of the copies' sum. */
+#define IVR_PRIVATE_ALIGN 16
 
 /* Tangent lanes of one forward-mode pass at most (more parameters run in several passes). */
 #define IVR_MAX_LANES 32

@@ -44,8 +44,10 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
                        __global real* restrict image, __global real* restrict jacobian,
                        __global real* restrict partial, __local real* scratch,
                        __global const uchar* restrict occupied, const int4 bricks) {
-  const int x0 = get_global_id(0) * IVR_RAYS, y = get_global_id(1), view = get_global_id(2);
-  const bool active = x0 < width && y < height;  // padding items still meet the barrier
+  // One pixel, or the tile of a packet (kernels/rays.cl), with corner (x0, y0).
+  const int x0 = get_global_id(0) * IVR_PACKET_W, y0 = get_global_id(1) * IVR_PACKET_H;
+  const int view = get_global_id(2);
+  const bool active = x0 < width && y0 < height;  // padding items still meet the barrier
   real loss = (real)0, dloss[IVR_LANES];
   IVR_FOR_LANES(p) dloss[p] = (real)0;
 
@@ -53,17 +55,17 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
     __global const real* cam = cameras + view * IVR_CAMERA_STRIDE;
     March m;
 #if IVR_RAYS == 1
-    const Ray ray = camera_ray(cam, x0, y, width, height);
+    const Ray ray = camera_ray(cam, x0, y0, width, height);
     const bool hit =
-        march_begin(ray, cam, x0, y, width, height, box_min, box_max, inv_voxel, step, &m);
+        march_begin(ray, cam, x0, y0, width, height, box_min, box_max, inv_voxel, step, &m);
 #else
     // A packet carries no camera lanes: the rays' own geometry is in their marches.
     const Ray ray = {(real3)(real)0, (real3)(real)0};
     const bool hit =
-        march_begin_rays(cam, x0, y, width, height, box_min, box_max, inv_voxel, step, &m);
+        march_begin_rays(cam, x0, y0, width, height, box_min, box_max, inv_voxel, step, &m);
 #endif
     TangentRay tr;
-    tangent_ray_begin(&tr, lanes, camera_params, view, x0, y, width, height, ray,
+    tangent_ray_begin(&tr, lanes, camera_params, view, x0, y0, width, height, ray,
                       hit ? &m : (const March*)0, box_min, box_max);
     Radiance r = radiance_begin();
     if (hit)
@@ -76,12 +78,13 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
     IVR_STORE_RAYS(r.cr, cr);
     IVR_STORE_RAYS(r.cg, cg);
     IVR_STORE_RAYS(r.cb, cb);
-    const int rays = min(IVR_RAYS, width - x0);
 #if IVR_LOSS_GRADIENT
     real g[IVR_RAYS][IVR_CHANNELS];
 #endif
-    for (int l = 0; l < rays; ++l) {
-      const size_t pixel = ((size_t)view * height + y) * width + x0 + l;
+    for (int l = 0; l < IVR_RAYS; ++l) {
+      const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
+      if (x >= width || y >= height) continue;
+      const size_t pixel = ((size_t)view * height + y) * width + x;
       real value[IVR_CHANNELS];
 #if IVR_EMISSION
       value[0] = cr[l] + transmittance[l] * background.x;
@@ -105,8 +108,10 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
       IVR_STORE_RAYS(tr.dcr[p], dcr);
       IVR_STORE_RAYS(tr.dcg[p], dcg);
       IVR_STORE_RAYS(tr.dcb[p], dcb);
-      for (int l = 0; l < rays; ++l) {
-        const size_t pixel = ((size_t)view * height + y) * width + x0 + l;
+      for (int l = 0; l < IVR_RAYS; ++l) {
+        const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
+        if (x >= width || y >= height) continue;
+        const size_t pixel = ((size_t)view * height + y) * width + x;
         real dv[IVR_CHANNELS];
 #if IVR_EMISSION
         const real bg[3] = {background.x, background.y, background.z};
@@ -117,8 +122,7 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
         dv[3] = -dT[l];
 #else
         (void)dcr, (void)dcg, (void)dcb;
-        dv[0] = background.x * dT[l] +
-                (lane.x == IVR_LANE_BACKGROUND ? transmittance[l] : (real)0);
+        dv[0] = background.x * dT[l] + (lane.x == IVR_LANE_BACKGROUND ? transmittance[l] : (real)0);
 #endif
 #if IVR_JACOBIAN
         for (int c = 0; c < IVR_CHANNELS; ++c)

@@ -1,6 +1,6 @@
 // march.cl — where a ray meets the box and how the fixed-step integrators cut it: n equal
-// segments of at most `step` (n from sample_count.cl) covering the clipped interval exactly, and the ray in continuous
-// voxel coordinates u(t) = u0 + t·du (voxel centre i at u = i).
+// segments of at most `step` (n from sample_count.cl) covering the clipped interval exactly, and
+// the ray in continuous voxel coordinates u(t) = u0 + t·du (voxel centre i at u = i).
 #ifndef IVR_MARCH_CL
 #define IVR_MARCH_CL
 #include "config.cl"
@@ -52,9 +52,9 @@ inline bool march_begin(Ray ray, __global const real* cam, int x, int y, int wid
 }
 
 #if IVR_RAYS > 1
-// The marches of the IVR_RAYS pixels (x0 + l, y) of camera `cam`, each as march_begin() sets it;
-// false where none meets the box.
-inline bool march_begin_rays(__global const real* cam, int x0, int y, int width, int height,
+// The marches of the IVR_RAYS pixels of the tile with corner (x0, y0) (kernels/rays.cl) of camera
+// `cam`, each as march_begin() sets it; false where none meets the box.
+inline bool march_begin_rays(__global const real* cam, int x0, int y0, int width, int height,
                              real4 box_min, real4 box_max, real4 inv_voxel, real step, March* m) {
   real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], u0x[IVR_RAYS], u0y[IVR_RAYS], u0z[IVR_RAYS],
       dux[IVR_RAYS], duy[IVR_RAYS], duz[IVR_RAYS];
@@ -62,9 +62,10 @@ inline bool march_begin_rays(__global const real* cam, int x0, int y, int width,
   bool any_hit = false;
   for (int l = 0; l < IVR_RAYS; ++l) {
     RayMarch r;
-    if (x0 + l < width &&
-        march_begin(camera_ray(cam, x0 + l, y, width, height), cam, x0 + l, y, width, height,
-                    box_min, box_max, inv_voxel, step, &r)) {
+    const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
+    if (x < width && y < height &&
+        march_begin(camera_ray(cam, x, y, width, height), cam, x, y, width, height, box_min,
+                    box_max, inv_voxel, step, &r)) {
       t0[l] = r.t0, t1[l] = r.t1, dt[l] = r.dt, n[l] = (int)r.n;
       u0x[l] = r.u0x, u0y[l] = r.u0y, u0z[l] = r.u0z, dux[l] = r.dux, duy[l] = r.duy,
       duz[l] = r.duz;

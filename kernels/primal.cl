@@ -68,8 +68,9 @@ inline void march_finish(Radiance* r) {
 #if IVR_EMISSION
 // Adds a segment's emitted colour, weighted, to the ray's (compensated) sums; the transmittance
 // behind the segment becomes `next`. Only where m is true.
-inline void radiance_emit_where(Radiance* r, vreal weight, vreal er, vreal eg, vreal eb,
-                                vreal next, vint m) {
+__attribute__((always_inline)) inline void radiance_emit_where(Radiance* r, vreal weight, vreal er,
+                                                               vreal eg, vreal eb, vreal next,
+                                                               vint m) {
   accumulate_where(&r->cr, &r->kr, weight * er, m);
   accumulate_where(&r->cg, &r->kg, weight * eg, m);
   accumulate_where(&r->cb, &r->kb, weight * eb, m);
@@ -83,8 +84,8 @@ inline void radiance_emit(Radiance* r, vreal weight, vreal er, vreal eg, vreal e
 
 // Adds one segment of optical depth tau emitting (er, eg, eb)·dt·fraction(tau) per unit
 // transmittance: the midpoint and trapezoid rules' compositing. Only where m is true.
-inline void composite_where(Radiance* r, vreal tau, vreal dt, vreal er, vreal eg, vreal eb,
-                            vint m) {
+__attribute__((always_inline)) inline void composite_where(Radiance* r, vreal tau, vreal dt,
+                                                           vreal er, vreal eg, vreal eb, vint m) {
 #if IVR_EMISSION
   vreal fraction;
   const vreal decay = decay_and_fraction(tau, &fraction);
@@ -108,10 +109,12 @@ inline void composite(Radiance* r, vreal tau, vreal dt, vreal er, vreal eg, vrea
 
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT
 // One sample at the middle of each segment.
-inline void primal_march(__global const real* volume, int4 dims, const March* m,
-                         __global const real* tf, int tf_count, real4 tf_scalars,
-                         real min_transmittance, __global const uchar* occupied, int4 bricks,
-                         Radiance* r) {
+__attribute__((always_inline)) inline void primal_march(__global const real* volume, int4 dims,
+                                                        const March* m, __global const real* tf,
+                                                        int tf_count, real4 tf_scalars,
+                                                        real min_transmittance,
+                                                        __global const uchar* occupied, int4 bricks,
+                                                        Radiance* r) {
   vint segment = (vint)0;  // the transfer function's search cursor (tf_sample)
   const real threshold = march_threshold(min_transmittance);
   const vint n = (vint)m->n;
@@ -147,10 +150,12 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
 #elif IVR_ENDPOINT_SAMPLES
 // Samples at the segment ends; each segment from its two ends (trapezoid: their average;
 // preintegrated: the density linear between them, through the TF exactly).
-inline void primal_march(__global const real* volume, int4 dims, const March* m,
-                         __global const real* tf, int tf_count, real4 tf_scalars,
-                         real min_transmittance, __global const uchar* occupied, int4 bricks,
-                         Radiance* r) {
+__attribute__((always_inline)) inline void primal_march(__global const real* volume, int4 dims,
+                                                        const March* m, __global const real* tf,
+                                                        int tf_count, real4 tf_scalars,
+                                                        real min_transmittance,
+                                                        __global const uchar* occupied, int4 bricks,
+                                                        Radiance* r) {
   vint segment = (vint)0;
   const real threshold = march_threshold(min_transmittance);
   const vint n = (vint)m->n;
@@ -161,8 +166,8 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
   while (vany(live)) {
 #if IVR_EMPTY_SPACE
     {
-      const vint again = endpoint_skip_step(&i, n, &live, a.ux, a.uy, a.uz, m, dims, occupied,
-                                            bricks);
+      const vint again =
+          endpoint_skip_step(&i, n, &live, a.ux, a.uy, a.uz, m, dims, occupied, bricks);
       if (vany(again)) {  // the sample the march goes on from
         const EndSample s = end_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &segment);
         end_sample_where(&a, &s, again);
@@ -204,10 +209,12 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
 
 #elif IVR_SCHEME == IVR_SCHEME_EXACT
 // Absorption only: the optical depth of every piece, exactly.
-inline void primal_march(__global const real* volume, int4 dims, const March* m,
-                         __global const real* tf, int tf_count, real4 tf_scalars,
-                         real min_transmittance, __global const uchar* occupied, int4 bricks,
-                         Radiance* r) {
+__attribute__((always_inline)) inline void primal_march(__global const real* volume, int4 dims,
+                                                        const March* m, __global const real* tf,
+                                                        int tf_count, real4 tf_scalars,
+                                                        real min_transmittance,
+                                                        __global const uchar* occupied, int4 bricks,
+                                                        Radiance* r) {
   vreal tau = (vreal)(real)0, k = tau;
   const real tau_stop = min_transmittance > (real)0 ? -log(min_transmittance) : (real)INFINITY;
   Pieces p;
@@ -218,8 +225,8 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
     r->end += vcount(go);
     vint take = go && vmask_of(tb > ta);
 #if IVR_EMPTY_SPACE
-    if (vany(take)) take = take && !pieces_skip_empty_where(&p, m, dims, take, ta, tb, occupied,
-                                                            bricks);
+    if (vany(take))
+      take = take && !pieces_skip_empty_where(&p, m, dims, take, ta, tb, occupied, bricks);
 #else
     (void)occupied, (void)bricks;
 #endif
@@ -229,9 +236,9 @@ inline void primal_march(__global const real* volume, int4 dims, const March* m,
     piece_corners(volume, dims, cell, v);
     const Cubic c = piece_cubic(v, cell);
     vint nodes = (vint)0;
-    accumulate_where(
-        &tau, &k,
-        piece_optical_depth_where(&c, tb - ta, tf, tf_count, tf_scalars, take, &nodes), take);
+    accumulate_where(&tau, &k,
+                     piece_optical_depth_where(&c, tb - ta, tf, tf_count, tf_scalars, take, &nodes),
+                     take);
     r->samples += nodes;
 #if IVR_EARLY_TERMINATION
     live = live && !vmask_of(tau > tau_stop);

@@ -1,5 +1,5 @@
-// render.cl — the forward renderer: one work-item per IVR_RAYS neighbouring pixels of a row and
-// view (1 on GPUs; a packet of 8 or 16 in vector lanes on CPUs, kernels/rays.cl), the scene's
+// render.cl — the forward renderer: one work-item per pixel, or per tile of IVR_RAYS neighbouring
+// pixels (a packet of 8 or 16 in vector lanes on CPUs, kernels/rays.cl), and view, the scene's
 // integrator on the exactly clipped ray (kernels/primal.cl), early termination, empty-space
 // skipping, both optical models. A packet's image is the one-ray kernel's bit for bit.
 #include "config.cl"
@@ -22,18 +22,19 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
                      const real4 background, const real step, const real min_transmittance,
                      __global const uchar* restrict occupied, const int4 bricks,
                      __global real* restrict image, __global uint* restrict samples) {
-  const int x0 = get_global_id(0) * IVR_RAYS, y = get_global_id(1), view = get_global_id(2);
-  if (x0 >= width || y >= height) return;
+  const int x0 = get_global_id(0) * IVR_PACKET_W, y0 = get_global_id(1) * IVR_PACKET_H;
+  const int view = get_global_id(2);
+  if (x0 >= width || y0 >= height) return;
   __global const real* cam = cameras + view * IVR_CAMERA_STRIDE;
 
   Radiance r = radiance_begin();
   March m;
 #if IVR_RAYS == 1
-  const bool hit = march_begin(camera_ray(cam, x0, y, width, height), cam, x0, y, width, height,
+  const bool hit = march_begin(camera_ray(cam, x0, y0, width, height), cam, x0, y0, width, height,
                                box_min, box_max, inv_voxel, step, &m);
 #else
   const bool hit =
-      march_begin_rays(cam, x0, y, width, height, box_min, box_max, inv_voxel, step, &m);
+      march_begin_rays(cam, x0, y0, width, height, box_min, box_max, inv_voxel, step, &m);
 #endif
   if (hit)
     primal_march(volume, dims, &m, tf, tf_count, tf_scalars, min_transmittance, occupied, bricks,
@@ -58,8 +59,10 @@ __kernel void render(__global const real* restrict volume, const int4 dims, cons
   IVR_STORE_RAYS(background.x * r.transmittance, o0);
   (void)o1, (void)o2, (void)o3;
 #endif
-  for (int l = 0; l < IVR_RAYS && x0 + l < width; ++l) {
-    const size_t pixel = ((size_t)view * height + y) * width + x0 + l;
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
+    if (x >= width || y >= height) continue;
+    const size_t pixel = ((size_t)view * height + y) * width + x;
     samples[pixel] = (uint)taken[l];
 #if IVR_EMISSION
     __global real* out = image + pixel * 4;  // the image in the precision it was computed in

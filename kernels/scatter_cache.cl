@@ -23,11 +23,11 @@
 // of 8x8 rays in lockstep (one add each per step; 128³ → 256² from a corner) leaves 0.20 of the
 // global adds with the packed table, 0.78 with the keyed one, 0.135 the floor (one per voxel).
 //
-// IVR_SCATTER_CACHE (the host's, lib/adjoint/scatter_cache.hpp; $IVR_SCATTER_CACHE forces it) turns the
-// table on; off, scatter_add() is the plain global atomic add and nothing here takes memory or a
-// barrier. Float sums in the table change the order of the additions (results agree to
-// rounding); the deterministic fixed-point gradient does not use the table (its adds are
-// fixed_add()'s, kernels/adjoint_scatter.cl).
+// IVR_SCATTER_CACHE (the host's, lib/adjoint/scatter_cache.hpp; $IVR_SCATTER_CACHE forces it) turns
+// the table on; off, scatter_add() is the plain global atomic add and nothing here takes memory or
+// a barrier. Float sums in the table change the order of the additions (results agree to rounding);
+// the deterministic fixed-point gradient does not use the table (its adds are fixed_add()'s,
+// kernels/adjoint_scatter.cl).
 #ifndef IVR_SCATTER_CACHE_CL
 #define IVR_SCATTER_CACHE_CL
 #include "atomics.cl"
@@ -147,9 +147,12 @@ inline ScatterSink scatter_begin(__global real* out, __local int* keys, __local 
 #define IVR_SCATTER_SINK(name, out) const ScatterSink name = {out}
 #endif
 
-// out[index] += v, through the table where the voxel has (or can get) a slot there.
+// out[index] += v, through the table where the voxel has (or can get) a slot there; with
+// IVR_PRIVATE_SUMS `out` is the work-group's own copy (kernels/private_sums.cl): a plain add.
 inline void scatter_add(const ScatterSink s, const int index, const real v) {
-#if IVR_SCATTER_PACKED
+#if defined(IVR_PRIVATE_SUMS) && IVR_PRIVATE_SUMS
+  s.out[index] += v;
+#elif IVR_SCATTER_PACKED
   const uint home = scatter_home(index);
   uint slot = home;
   for (int probe = 0; probe < IVR_SCATTER_PROBES; ++probe) {

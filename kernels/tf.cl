@@ -1,5 +1,6 @@
-// tf.cl — the transfer functions of docs/design.md: extinction sigma(d) and, for emission–absorption,
-// the premultiplied emission sigma(d)·colour(d). Only the scene's TF kind is compiled.
+// tf.cl — the transfer functions of docs/design.md: extinction sigma(d) and, for
+// emission–absorption, the premultiplied emission sigma(d)·colour(d). Only the scene's TF kind is
+// compiled.
 #ifndef IVR_TF_CL
 #define IVR_TF_CL
 #include "config.cl"
@@ -23,6 +24,9 @@
 // move their own cursor through gathers, blends every segment in by masks instead (the rows are
 // the same for every ray: broadcasts, not gathers). Table: R entries at evenly spaced densities
 // lo..hi, linear in between, constant beyond.
+// Points up to which a packet blends every segment (tf_rows).
+#define IVR_TF_BLEND_ALL 8
+
 typedef struct {
   vreal a0, a1, a2, a3, b0, b1, b2, b3;
   vreal w, dw;
@@ -46,7 +50,8 @@ __attribute__((always_inline)) inline TfRows tf_rows(vreal d, __global const rea
     while (tf[(k + 1) * IVR_TF_STRIDE_PIECEWISE_LINEAR] <= d) ++k;
     *cursor = k;
     k0 = k, k1 = k + 1;
-    const real width = tf[k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR] - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
+    const real width =
+        tf[k1 * IVR_TF_STRIDE_PIECEWISE_LINEAR] - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR];
     t.w = (d - tf[k * IVR_TF_STRIDE_PIECEWISE_LINEAR]) / width;  // never a zero width
     t.dw = (real)1 / width;
   }
@@ -57,24 +62,58 @@ __attribute__((always_inline)) inline TfRows tf_rows(vreal d, __global const rea
   t.row0 = k0, t.row1 = k1;
 #else
   (void)cursor;
+#if IVR_PERMUTE_ENTRIES
+  if (count <= IVR_PERMUTE_ENTRIES) {
+    // Each lane's row k by counting the points at or below d (the one ray's search finds the
+    // same: the last point at or below d), then every column's value of rows k and k + 1 by one
+    // permute of the column (ivr_constants.h: the columns follow the rows).
+    __global const real* column = tf + count * IVR_TF_STRIDE_PIECEWISE_LINEAR;
+    vint k = (vint)0;
+    for (int j = 1; j < count; ++j)
+      k -= vmask_of(d >= (vreal)tf[j * IVR_TF_STRIDE_PIECEWISE_LINEAR]);  // masks are −1
+    const vint beyond = vmask_of(d >= (vreal)tf[last * IVR_TF_STRIDE_PIECEWISE_LINEAR]);
+    const vint inside = !beyond && vmask_of(d > (vreal)tf[0]);
+    t.row0 = vseli(vseli((vint)0, k, inside), (vint)last, beyond);
+    t.row1 = vseli(t.row0, k + 1, inside);
+#define IVR_COLUMN(c) IVR_VLOAD(0, column + (c)*IVR_TF_COLUMN_ENTRIES)
+    const vreal start = vpermute(IVR_COLUMN(0), t.row0), end = vpermute(IVR_COLUMN(0), t.row1);
+    t.a0 = vpermute(IVR_COLUMN(1), t.row0), t.b0 = vpermute(IVR_COLUMN(1), t.row1);
+    t.a1 = vpermute(IVR_COLUMN(2), t.row0), t.b1 = vpermute(IVR_COLUMN(2), t.row1);
+    t.a2 = vpermute(IVR_COLUMN(3), t.row0), t.b2 = vpermute(IVR_COLUMN(3), t.row1);
+    t.a3 = vpermute(IVR_COLUMN(4), t.row0), t.b3 = vpermute(IVR_COLUMN(4), t.row1);
+#undef IVR_COLUMN
+    const vreal width = vsel((vreal)(real)1, end - start, inside);
+    t.w = vsel((vreal)(real)0, (d - start) / width, inside);
+    t.dw = vsel((vreal)(real)0, (real)1 / width, inside);
+    return t;
+  }
+#endif
   t.a0 = t.b0 = (vreal)tf[1], t.a1 = t.b1 = (vreal)tf[2], t.a2 = t.b2 = (vreal)tf[3];
   t.a3 = t.b3 = (vreal)tf[4];
-  t.w = t.dw = (vreal)(real)0;
   t.row0 = t.row1 = (vint)0;
+  // Each lane's segment start and width, its weight computed once after the loop (one division
+  // a sample, not one a segment); the same operands as one ray's, so the same bits.
+  vreal start = (vreal)(real)0, width = (vreal)(real)1;
+  vint inside = (vint)0;
   for (int k = 0; k < last; ++k) {
     __global const real* p = tf + k * IVR_TF_STRIDE_PIECEWISE_LINEAR;
     __global const real* q = p + IVR_TF_STRIDE_PIECEWISE_LINEAR;
     const vint in = vmask_of(d >= p[0]) && vmask_of(d < q[0]) && vmask_of(d > tf[0]);
-    if (!vany(in)) continue;
-    const real width = q[0] - p[0];
-    t.w = vsel(t.w, (d - p[0]) / width, in);
-    t.dw = vsel(t.dw, (vreal)((real)1 / width), in);
+    // A few segments are blended whole, without a branch (whether any lane is in one changes
+    // from sample to sample, and a mispredicted branch costs more than the blend); many are
+    // skipped where no lane is in them.
+    if (count > IVR_TF_BLEND_ALL && !vany(in)) continue;
+    inside = inside || in;
+    start = vsel(start, (vreal)p[0], in);
+    width = vsel(width, (vreal)(q[0] - p[0]), in);
     t.a0 = vsel(t.a0, (vreal)p[1], in), t.a1 = vsel(t.a1, (vreal)p[2], in);
     t.a2 = vsel(t.a2, (vreal)p[3], in), t.a3 = vsel(t.a3, (vreal)p[4], in);
     t.b0 = vsel(t.b0, (vreal)q[1], in), t.b1 = vsel(t.b1, (vreal)q[2], in);
     t.b2 = vsel(t.b2, (vreal)q[3], in), t.b3 = vsel(t.b3, (vreal)q[4], in);
     t.row0 = vseli(t.row0, (vint)k, in), t.row1 = vseli(t.row1, (vint)(k + 1), in);
   }
+  t.w = vsel((vreal)(real)0, (d - start) / width, inside);
+  t.dw = vsel((vreal)(real)0, (real)1 / width, inside);
   __global const real* z = tf + last * IVR_TF_STRIDE_PIECEWISE_LINEAR;
   const vint beyond = vmask_of(d >= z[0]);
   t.a0 = vsel(t.a0, (vreal)z[1], beyond), t.a1 = vsel(t.a1, (vreal)z[2], beyond);
@@ -92,6 +131,18 @@ __attribute__((always_inline)) inline TfRows tf_rows(vreal d, __global const rea
   t.w = u - vto_real(t.row0);
   t.dw = vsel((vreal)(real)0, (vreal)((real)(count - 1) / (scalars.y - scalars.x)),
               vmask_of(q >= (real)0) && vmask_of(q < (real)1));
+#if IVR_PERMUTE_ENTRIES
+  if (count <= IVR_PERMUTE_ENTRIES) {  // the columns after the rows (ivr_constants.h)
+    __global const real* column = tf + count * IVR_TF_STRIDE_TABLE;
+#define IVR_COLUMN(c) IVR_VLOAD(0, column + (c)*IVR_TF_COLUMN_ENTRIES)
+    t.a0 = vpermute(IVR_COLUMN(0), t.row0), t.b0 = vpermute(IVR_COLUMN(0), t.row1);
+    t.a1 = vpermute(IVR_COLUMN(1), t.row0), t.b1 = vpermute(IVR_COLUMN(1), t.row1);
+    t.a2 = vpermute(IVR_COLUMN(2), t.row0), t.b2 = vpermute(IVR_COLUMN(2), t.row1);
+    t.a3 = vpermute(IVR_COLUMN(3), t.row0), t.b3 = vpermute(IVR_COLUMN(3), t.row1);
+#undef IVR_COLUMN
+    return t;
+  }
+#endif
   const vint ia = t.row0 * IVR_TF_STRIDE_TABLE, ib = t.row1 * IVR_TF_STRIDE_TABLE;
   t.a0 = vgather(tf, ia), t.a1 = vgather(tf, ia + 1), t.a2 = vgather(tf, ia + 2);
   t.a3 = vgather(tf, ia + 3);
@@ -202,8 +253,7 @@ inline vreal tf_knot(vint k, __global const real* tf, int count, real4 scalars) 
 }
 
 // The interval holding density x (knot_j <= x < knot_j+1). *cursor: as tf_rows' search cursor.
-inline vint tf_interval(vreal x, __global const real* tf, int count, real4 scalars,
-                        vint* cursor) {
+inline vint tf_interval(vreal x, __global const real* tf, int count, real4 scalars, vint* cursor) {
 #if IVR_TF == IVR_TF_PIECEWISE_LINEAR
   (void)scalars;
   const int last = count - 1;
@@ -259,8 +309,8 @@ inline TfPiece tf_piece(vint j, __global const real* tf, int count, real4 scalar
 #endif
   p.x0 = tf_knot(p.row0, tf, count, scalars);
   const vreal width = tf_knot(p.row1, tf, count, scalars) - p.x0;
-  p.inv_width = vsel((vreal)(real)0, (real)1 / width,
-                     p.row0 != p.row1 && vmask_of(width > (real)0));
+  p.inv_width =
+      vsel((vreal)(real)0, (real)1 / width, p.row0 != p.row1 && vmask_of(width > (real)0));
   const vreal a0 = vgather(tf, ia), a1 = vgather(tf, ia + 1), a2 = vgather(tf, ia + 2),
               a3 = vgather(tf, ia + 3);
   const vreal b0 = vgather(tf, ib), b1 = vgather(tf, ib + 1), b2 = vgather(tf, ib + 2),

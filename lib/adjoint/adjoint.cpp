@@ -9,6 +9,7 @@
 
 #include "adjoint/adjoint.hpp"
 #include "adjoint/adjoint_bound.hpp"
+#include "adjoint/private_sums.hpp"
 #include "adjoint/scatter_cache.hpp"
 #include "ivr_constants.h"
 #include "render/render.hpp"
@@ -66,9 +67,27 @@ bool use_packet_adjoint(const Device::Impl& dev, const AdjointRequest& r) {
   return use_packet(dev) && !r.camera;
 }
 
+// Private sums (lib/adjoint/private_sums.hpp) for this operation: not while the tuner looks at
+// the pixel launches (ivr tune: it records which an operation makes, then shapes their
+// work-groups, which the private sums' one-item groups do not have).
+PrivateSums private_sums_of(const Device::Impl& dev, const Scene& scene, std::size_t pixels,
+                            std::size_t real, const AdjointRequest& r, bool packet, bool fixed,
+                            bool scatter_cache) {
+  if (tuning_probe()) return {};
+  PrivateSumsQuery q;
+  q.packet = packet;
+  q.density = r.density;
+  q.eligible = !r.camera && !fixed && !scatter_cache;
+  q.voxels = scene.volume.voxel_count();
+  q.real_size = real;
+  q.pixels = pixels;
+  q.longest_edge = std::max({scene.volume.nx, scene.volume.ny, scene.volume.nz});
+  return private_sums_for(dev.info, q);
+}
+
 KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std::size_t tf_rows,
                             bool fixed, bool primal_given, AtomicAdd atomics, bool scatter_cache,
-                            bool packet) {
+                            bool packet, bool private_sums) {
   KernelConfig c = v.config("adjoint.cl", "adjoint");
   if (packet) c.set(Switch::rays, packet_lanes(v.precision));
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/adjoint_tf.cl; normalised).
@@ -79,7 +98,8 @@ KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std
       .set(Switch::loss_l1, r.loss == Loss::l1)
       .set(Switch::deterministic, fixed)
       .set(Switch::primal_given, primal_given)
-      .set(Switch::scatter_cache, scatter_cache);
+      .set(Switch::scatter_cache, scatter_cache)
+      .set(Switch::private_sums, private_sums);
   return c.with_atomics(atomics);
 }
 
@@ -121,6 +141,10 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   // them.
   const bool packet = use_packet_adjoint(dev, r);
   const bool primal_given = !packet && use_packet_primal(dev, variant);
+  // On CPU devices: work-groups of one work-item marching packets, each summing into its own
+  // memory without atomics (kernels/private_sums.cl).
+  const PrivateSums priv =
+      private_sums_of(dev, scene, pixels, real, r, packet, fixed, scatter_cache);
 
   AdjointResult out;
   out.atomics = atomic_add_name(atomics);
@@ -133,8 +157,10 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   if (r.density)
     out.density =
         s.output("density gradient", s.volume_shape(), real_dtype(s.f64), "the density gradient");
+  const std::size_t private_bytes = priv.on ? priv.bytes(real) : 0;
   const cl::Buffer& grad_volume =
-      r.density && !fixed
+      private_bytes ? s.scratch("private copies", private_bytes, "the density gradient's copies")
+      : r.density && !fixed
           ? buffer_of(out.density)
           : s.scratch(fixed ? "fixed density" : "no density", grad_bytes, "the density gradient");
   if (r.tf)
@@ -145,8 +171,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   const DType acc = s.arrays.acc_dtype();
   const cl::Buffer& sums = s.scratch("adjoint sums", 4 * 8, "the loss and background sums");
 
-  const KernelConfig config =
-      adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics, scatter_cache, packet);
+  const KernelConfig config = adjoint_config(variant, r, tf_shape[0], fixed, primal_given, atomics,
+                                             scatter_cache, packet, priv.on);
   op.stats.variant = config.label();
   op.stats.skipped_empty = variant.empty_space;
   op.stats.step = integrator.step;
@@ -154,7 +180,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   op.stats.mode = Mode::adjoint;
   op.stats.device_bytes = s.scene_bytes() + target.bytes() + out.image.bytes() +
                           pixels * (4 * real + sizeof(cl_uint)) + grad_bytes +
-                          std::max<std::size_t>(tf_size, 1) * real + (fixed ? voxels * real : 0);
+                          std::max<std::size_t>(tf_size, 1) * real + (fixed ? voxels * real : 0) +
+                          private_bytes;
   cl_call("running the adjoint kernel on " + dev.info.name, [&] {
     double build = 0;
     cl::Kernel& k = s.kernels.get(config, &build);
@@ -181,10 +208,11 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     k.setArg(a++, samples);
     // A work-group's items share one local TF accumulator (the padding items only meet
     // barriers), so the size is always explicit.
-    const int lanes = packet ? packet_lanes(variant.precision) : 1;
+    const PacketShape tile = packet_shape(packet ? packet_lanes(variant.precision) : 1);
     const PixelLaunch launch =
-        pixel_launch(dev, k, packet ? "adjoint_packet" : "adjoint",
-                     (cam0.width + lanes - 1) / lanes, cam0.height, views, true);
+        priv.on ? PixelLaunch{}
+                : pixel_launch(dev, k, packet ? "adjoint_packet" : "adjoint",
+                               tile.across(cam0.width), tile.down(cam0.height), views, true);
     // The camera gradient: 7 values per work-group, summed per view on the device.
     const std::size_t partials = r.camera ? launch.groups_per_view * std::size_t(views) * 7 : 1;
     const cl::Buffer& camera_partial =
@@ -196,6 +224,9 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
              cl::Local((r.camera ? std::size_t(launch.group_x) * launch.group_y * 7 : 1) * real));
     k.setArg(a++, occupied);
     k.setArg(a++, s.brick_counts());
+    // Private sums: the packets' counter and their number.
+    const cl::Buffer& work = s.scratch("adjoint work", 2 * sizeof(cl_int), "the packets' counter");
+    k.setArg(a++, work);
     // Fixed point: no ray's scaled Σ |contribution| above 2^62 / rays, so no voxel's sum leaves
     // the long range.
     const int cap_exponent = fixed_cap_exponent(pixels);
@@ -206,6 +237,13 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
                                     &op.events.back());
         const cl_long header[kFixedHeader] = {exponent, cl_long(1) << cap_exponent, 0, 0, 0};
         dev.queue.enqueueWriteBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
+      } else if (private_bytes) {  // the copies are 0 where the last launch left them so
+        if (s.private_copies_zero() != grad_volume()) {
+          op.events.push_back(cl::Event());
+          dev.queue.enqueueFillBuffer(grad_volume, cl_uchar(0), 0, private_bytes, nullptr,
+                                      &op.events.back());
+        }
+        s.private_copies_zero = cl::Buffer();
       } else if (r.density) {
         op.events.push_back(cl::Event());
         dev.queue.enqueueFillBuffer(grad_volume, cl_uchar(0), 0, grad_bytes, nullptr,
@@ -216,8 +254,26 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
         dev.queue.enqueueFillBuffer(grad_tf, cl_uchar(0), 0, tf_size * real, nullptr,
                                     &op.events.back());
       }
-      if (primal) op.events.push_back(enqueue(dev, *primal, packet_launch(dev, *primal, scene, variant.precision)));
-      op.events.push_back(enqueue(dev, k, launch));
+      if (primal)
+        op.events.push_back(
+            enqueue(dev, *primal, packet_launch(dev, *primal, scene, variant.precision)));
+      if (!priv.on) {
+        op.events.push_back(enqueue(dev, k, launch));
+        return;
+      }
+      const cl_int counter[2] = {0, tile.across(cam0.width) * tile.down(cam0.height) * views};
+      dev.queue.enqueueWriteBuffer(work, CL_TRUE, 0, sizeof counter, counter);
+      op.events.push_back(enqueue_groups(dev, k, std::size_t(priv.groups), 1));
+      if (private_bytes) {  // the copies into the gradient, which leaves them 0
+        cl::Kernel& sum = s.kernels.get(config.with_entry("sum_private_copies"));
+        sum.setArg(0, cl_int(voxels));
+        sum.setArg(1, cl_int(priv.groups));
+        sum.setArg(2, grad_volume);
+        sum.setArg(3, buffer_of(out.density));
+        const std::size_t chunks = (voxels + IVR_PRIVATE_ALIGN - 1) / IVR_PRIVATE_ALIGN;
+        op.events.push_back(enqueue_1d(dev, sum, chunks, 0));
+        s.private_copies_zero = grad_volume;
+      }
     };
     if (!fixed) {
       run_pass(0);

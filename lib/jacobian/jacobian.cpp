@@ -9,16 +9,15 @@
 #include <sstream>
 #include <string>
 
+#include "gradient/parameter_groups.hpp"
 #include "ivr/error.hpp"
+#include "ivr_constants.h"
+#include "jacobian/jacobian.hpp"
 #include "render/render.hpp"
 #include "runtime/real_args.hpp"
 #include "scene/scene.hpp"
-#include "session/session.hpp"
-#include "ivr_constants.h"
 #include "scene/tf_kinds.hpp"
-#include "gradient/parameter_groups.hpp"
-#include "render/render.hpp"
-#include "jacobian/jacobian.hpp"
+#include "session/session.hpp"
 
 namespace ivr {
 
@@ -125,8 +124,8 @@ std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& 
 }
 
 JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& all_lanes,
-                               const DeviceArray* target, bool jacobian, Loss loss_kind,
-                               OperationRecord& op) {
+                                const DeviceArray* target, bool jacobian, Loss loss_kind,
+                                OperationRecord& op) {
   Device::Impl& dev = s.dev;
   const Scene& scene = s.scene;
   const Integrator& integrator = s.integrator();
@@ -142,8 +141,8 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
     any_tf |= l.s[0] == lane_tf;
     any_position |= l.s[0] == lane_camera || l.s[0] == lane_voxel;
   }
-  const cl::Buffer& occupied = s.plan_skipping(
-      gradient_may_skip(scene.tf, any_tf, any_position), variant, op.stats);
+  const cl::Buffer& occupied =
+      s.plan_skipping(gradient_may_skip(scene.tf, any_tf, any_position), variant, op.stats);
   const int pass_lanes = lanes_for(std::min<std::size_t>(params, kMaxLanes));
 
   JacobianResult out;
@@ -201,8 +200,9 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
       double build = 0;
       cl::Kernel& k = s.kernels.get(config, &build);
       op.stats.build_seconds += build;
-      const PixelLaunch launch = pixel_launch(dev, k, "jacobian", (cam0.width + rays - 1) / rays,
-                                              cam0.height, views, true);
+      const PacketShape tile = packet_shape(rays);
+      const PixelLaunch launch = pixel_launch(dev, k, "jacobian", tile.across(cam0.width),
+                                              tile.down(cam0.height), views, true);
       const std::size_t groups = launch.groups_per_view * std::size_t(views);
       const cl::Buffer& partial =
           s.scratch("tangent partials", groups * row * real, "the partial sums");
@@ -226,8 +226,8 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
       op.events.push_back(enqueue(dev, k, launch));
       if (jacobian && count > 0)
         op.events.push_back(s.arrays.copy_columns(pixels * channels, jacobian_pass, pass_lanes, 0,
-                                                  buffer_of(out.jacobian), int(params),
-                                                  int(first), int(count)));
+                                                  buffer_of(out.jacobian), int(params), int(first),
+                                                  int(count)));
       if (loss) {
         op.events.push_back(s.arrays.sum_rows(partial, int(groups), int(row), 1, sums));
         const std::size_t size = dtype_size(acc);
@@ -294,13 +294,13 @@ std::vector<Parameter> parameters_of(const Scene& scene, const std::string& grou
 Jacobian jacobian(Device& device, const Scene& scene, const std::vector<Parameter>& parameters,
                   const Image* target, const JacobianOptions& options) {
   Session session = one_shot_session(
-      device, scene, {options.precision, options.step, options.empty_space, 0.05,
-                      options.brick_size});
+      device, scene,
+      {options.precision, options.step, options.empty_space, 0.05, options.brick_size});
   Session::Impl& s = session.impl();
   if (target) session.set_target(*target);
   const std::vector<cl_int4> lanes = lanes_of(s.scene, parameters);
   const JacobianResult r = enqueue_jacobian(s, lanes, target ? &s.target : nullptr,
-                                           options.jacobian, options.loss, s.begin("jacobian"));
+                                            options.jacobian, options.loss, s.begin("jacobian"));
   Jacobian out;
   out.image = image_of(r.image);
   if (options.jacobian) download_kept(r.jacobian, &out.jacobian, &out.jacobian_f64);

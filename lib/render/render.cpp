@@ -4,7 +4,9 @@
 #include "ivr/render.hpp"
 
 #include <cstdlib>
+#include <string>
 
+#include "ivr/error.hpp"
 #include "render/render.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
@@ -33,8 +35,8 @@ bool use_packet(const Device::Impl& dev) {
 // Whether the adjoint takes its primal march from a packet render: what kernels/adjoint.cl reads
 // back (C, T and a midpoint march's samples, which are its end without skipping).
 bool use_packet_primal(const Device::Impl& dev, const RenderVariant& v) {
-  return use_packet(dev) && v.scheme == Scheme::midpoint &&
-         v.model == Model::emission_absorption && !v.empty_space;
+  return use_packet(dev) && v.scheme == Scheme::midpoint && v.model == Model::emission_absorption &&
+         !v.empty_space;
 }
 
 KernelConfig packet_config(const RenderVariant& variant, bool primal) {
@@ -43,11 +45,19 @@ KernelConfig packet_config(const RenderVariant& variant, bool primal) {
       .set(Switch::packet_primal, primal);
 }
 
+PacketShape packet_shape(int lanes) {
+  if (lanes == 16) return {4, 4};
+  if (lanes == 8) return {4, 2};
+  if (lanes == 1) return {1, 1};
+  throw Error(Status::invalid_argument,
+              "packets hold 1, 8 or 16 rays, not " + std::to_string(lanes));
+}
+
 PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene,
                           Precision precision) {
   const Camera& c = scene.cameras.front();
-  const int lanes = packet_lanes(precision);
-  return pixel_launch(dev, kernel, "render_packet", (c.width + lanes - 1) / lanes, c.height,
+  const PacketShape tile = packet_shape(packet_lanes(precision));
+  return pixel_launch(dev, kernel, "render_packet", tile.across(c.width), tile.down(c.height),
                       int(scene.cameras.size()), false);
 }
 
@@ -113,10 +123,9 @@ Image image_of(const DeviceArray& image) {
 }
 
 Image render(Device& device, const Scene& scene, const RenderOptions& options, RenderStats* stats) {
-  Session session = one_shot_session(
-      device, scene,
-      {options.precision, options.step, options.empty_space, options.min_empty_fraction,
-       options.brick_size});
+  Session session = one_shot_session(device, scene,
+                                     {options.precision, options.step, options.empty_space,
+                                      options.min_empty_fraction, options.brick_size});
   Session::Impl& s = session.impl();
   const Image out = image_of(enqueue_render(s, s.begin("render")));
   if (stats) {

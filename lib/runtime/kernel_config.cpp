@@ -47,6 +47,7 @@ constexpr SwitchInfo kInfo[kSwitches] = {
     {"IVR_DETERMINISTIC", "deterministic", Shown::flag, true},
     {"IVR_PRIMAL_GIVEN", "primal_given", Shown::flag, true},
     {"IVR_SCATTER_CACHE", "scatter_cache", Shown::flag, true},
+    {"IVR_PRIVATE_SUMS", "private_sums", Shown::flag, true},
     {"IVR_REDUCE_SIZE", "reduce", Shown::value, false},
     {"IVR_FLOAT_ATOMICS", "", Shown::flag, true},  // shown as atomics=… from KernelConfig::atomics
     {"IVR_PTX_ATOMICS", "", Shown::flag, true},

@@ -39,6 +39,7 @@ enum class Switch : int {
   deterministic,      // IVR_DETERMINISTIC: fixed-point density gradient
   primal_given,       // IVR_PRIMAL_GIVEN: the adjoint reads the packet render's (C, T)
   scatter_cache,      // IVR_SCATTER_CACHE: work-group cache in front of the global scatter
+  private_sums,       // IVR_PRIVATE_SUMS: one-item groups summing into their own copies
   reduce_size,        // IVR_REDUCE_SIZE: work-group size of array_ops.cl's reductions
   float_atomics,      // IVR_FLOAT_ATOMICS: cl_ext_float_atomics adds
   ptx_atomics,        // IVR_PTX_ATOMICS: NVIDIA's red.global.add through inline PTX

@@ -2,6 +2,7 @@
 // function in the layouts of kernels/config.cl, jacobian_geometry.cl and tf.cl (a session uploads
 // them, lib/session/session.cpp).
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <glm/geometric.hpp>
@@ -121,6 +122,18 @@ std::vector<Real> pack_tf(const TransferFunction& tf, int* count, double scalars
                                Real(g.color.z), Real(g.extinction)});
       *count = int(tf.gaussians.size());
       break;
+  }
+  // The rows' columns after them, for the packets' permutes (ivr_constants.h).
+  const std::size_t width = tf.kind == TfKind::piecewise_linear ? IVR_TF_STRIDE_PIECEWISE_LINEAR
+                            : tf.kind == TfKind::table          ? IVR_TF_STRIDE_TABLE
+                                                                : 0;
+  if (width && *count <= IVR_TF_COLUMN_ENTRIES) {
+    const std::size_t rows = std::size_t(*count);
+    for (std::size_t c = 0; c < width; ++c)
+      for (std::size_t j = 0; j < IVR_TF_COLUMN_ENTRIES; ++j) {
+        const Real v = out[std::min(j, rows - 1) * width + c];
+        out.push_back(v);
+      }
   }
   return out;
 }

@@ -201,8 +201,9 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
       cl::Kernel& k = s.kernels.get(config, &build);
       op.stats.build_seconds += build;
       const PacketShape tile = packet_shape(rays);
-      const PixelLaunch launch = pixel_launch(dev, k, "jacobian", tile.across(cam0.width),
-                                              tile.down(cam0.height), views, true);
+      const PixelLaunch launch =
+          pixel_launch(dev, k, rays > 1 ? "jacobian_packet" : "jacobian", tile.across(cam0.width),
+                       tile.down(cam0.height), views, true);
       const std::size_t groups = launch.groups_per_view * std::size_t(views);
       const cl::Buffer& partial =
           s.scratch("tangent partials", groups * row * real, "the partial sums");

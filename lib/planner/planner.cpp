@@ -78,8 +78,8 @@ CostModel read_cost_model(const std::string& path) {
   m.forward_base = number(j, "forward_base", path);
   m.forward_per_lane = number(j, "forward_per_lane", path);
   // Optional (files written before them): the same as the other forward lanes.
-  m.forward_ray_base = j.contains("forward_ray_base") ? number(j, "forward_ray_base", path)
-                                                      : m.forward_base;
+  m.forward_ray_base =
+      j.contains("forward_ray_base") ? number(j, "forward_ray_base", path) : m.forward_base;
   m.forward_ray_per_lane = j.contains("forward_ray_per_lane")
                                ? number(j, "forward_ray_per_lane", path)
                                : m.forward_per_lane;
@@ -92,17 +92,18 @@ CostModel read_cost_model(const std::string& path) {
 CostModel default_cost_model(const DeviceInfo& device) {
   CostModel m;
   if (device.type == "cpu") {
-    // ivr calibrate, 2-core Xeon (Skylake-AVX512), PoCL 3.1, with the adjoint in packets
-    // (64³ → 128², 128³ → 256², against a target 10 % off: the adjoint's scatter included):
-    // base 1.06–1.14, per lane 0.076–0.092, adjoint 5.3–5.5 renders, 3.0–3.2e-9 s per sample.
-    m.forward_base = 1.1;
-    m.forward_per_lane = 0.08;
-    // Camera and voxel lanes: one ray per work-item (the same calibrations: 3.76–3.82 +
-    // 0.72–0.76 · L renders).
-    m.forward_ray_base = 3.8;
-    m.forward_ray_per_lane = 0.75;
-    m.adjoint = 5.4;
-    m.seconds_per_sample = 3.1e-9;
+    // ivr calibrate, 2-core Xeon (Sapphire Rapids; PoCL 3.1 targets it as skylake-avx512),
+    // 2026-11-27, with packets of 4x4 rays, the adjoint's private sums and the render's vector
+    // TF lookup (64³ → 128² and 128³ → 256², against a target 10 % off): base 1.25–1.37, per lane
+    // 0.118–0.125, adjoint 4.85–5.52 renders, 3.1–3.2e-9 s per sample.
+    m.forward_base = 1.3;
+    m.forward_per_lane = 0.12;
+    // Camera and voxel lanes: one ray per work-item (the same calibrations: 5.77–7.65 +
+    // 1.04–1.17 · L renders; the render they are counted in got faster, they did not).
+    m.forward_ray_base = 6.7;
+    m.forward_ray_per_lane = 1.1;
+    m.adjoint = 5.2;
+    m.seconds_per_sample = 3.2e-9;
   }
   return m;
 }
@@ -173,10 +174,9 @@ Plan plan_gradient(const CostModel& model, const Scene& scene, std::size_t forwa
   Plan p;
   p.model = model.source;
   const double inf = std::numeric_limits<double>::infinity();
-  p.forward_seconds = forward_possible
-                          ? render * forward_cost(model, forward_parameters, &p.passes, &p.lanes,
-                                                  per_ray)
-                          : inf;
+  p.forward_seconds = forward_possible ? render * forward_cost(model, forward_parameters, &p.passes,
+                                                               &p.lanes, per_ray)
+                                       : inf;
   p.adjoint_seconds = adjoint_possible ? render * model.adjoint : inf;
   if (requested == Mode::forward && !forward_possible)
     throw Error(Status::invalid_argument, "--mode forward cannot compute every group asked for");

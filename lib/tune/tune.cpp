@@ -1,5 +1,6 @@
 // tune.cpp — the work-group tuner: each kernel's candidate shapes timed on the benchmark scene
-// through the launch layer's probe (lib/runtime/launch.hpp), their outputs compared, a winner picked.
+// through the launch layer's probe (lib/runtime/launch.hpp), their outputs compared, a winner
+// picked.
 #include "ivr/tune.hpp"
 
 #include <algorithm>
@@ -10,10 +11,10 @@
 #include <ctime>
 #include <functional>
 
-#include "runtime/device_params.hpp"
 #include "ivr/calibrate.hpp"
 #include "ivr/error.hpp"
 #include "ivr/session.hpp"
+#include "runtime/device_params.hpp"
 #include "runtime/launch.hpp"
 #include "runtime/runtime.hpp"
 
@@ -59,7 +60,8 @@ std::vector<Operation> operations(const DeviceArray& lines) {
     const SessionGradient g = s.gradient(adjoint);
     return std::vector<Output>{{"loss", g.loss, true}, {"density gradient", g["density"], false}};
   };
-  const char* gradient_check = "loss bit-identical, density gradient within 1e-4 of its largest value";
+  const char* gradient_check =
+      "loss bit-identical, density gradient within 1e-4 of its largest value";
   return {
       {"render", "render (one ray per work-item)", false, "image bit-identical", render},
       {"render_packet", "render (CPU packet kernel, 16 rays per work-item)", true,
@@ -68,7 +70,13 @@ std::vector<Operation> operations(const DeviceArray& lines) {
        gradient_check, gradient},
       {"adjoint_packet", "gradient (adjoint mode, CPU packet kernel, 16 rays per work-item)", true,
        gradient_check, gradient},
-      {"jacobian", "jacobian (forward mode, every TF parameter)", true, "jacobian bit-identical",
+      {"jacobian", "jacobian (forward mode, every TF parameter, one ray per work-item)", false,
+       "jacobian bit-identical",
+       [](Session& s) {
+         return std::vector<Output>{{"jacobian", s.jacobian({"tf"}), true}};
+       }},
+      {"jacobian_packet", "jacobian (forward mode, every TF parameter, CPU packet kernel)", true,
+       "jacobian bit-identical",
        [](Session& s) {
          return std::vector<Output>{{"jacobian", s.jacobian({"tf"}), true}};
        }},
@@ -310,13 +318,14 @@ void tune_kernel(Session& session, const Operation& op, const TuneOptions& o,
 }  // namespace
 
 std::vector<std::pair<int, int>> tune_candidates() {
-  return {{0, 0},  {8, 8},  {16, 8}, {16, 16}, {32, 4},
-          {32, 8}, {64, 1}, {64, 4}, {128, 1}, {256, 1}};
+  // The small shapes are for the packet kernels, whose work-items are tiles of 16 pixels.
+  return {{0, 0},  {1, 1},  {2, 2},  {4, 4},  {8, 8},   {16, 8}, {16, 16},
+          {32, 4}, {32, 8}, {64, 1}, {64, 4}, {128, 1}, {256, 1}};
 }
 
 std::vector<std::string> tune_kernels() {
-  return {"render", "render_packet", "adjoint", "adjoint_packet", "jacobian", "project",
-          "backproject"};
+  return {"render",   "render_packet",   "adjoint", "adjoint_packet",
+          "jacobian", "jacobian_packet", "project", "backproject"};
 }
 
 TuneResult tune(Device& device, const TuneOptions& options) {

@@ -44,11 +44,9 @@ TEST(Planner, CpuDefaultPicksForwardUpToThirtyTwoLanes) {
   for (std::size_t p : {1, 8, 16, 20, 32})
     EXPECT_EQ(plan_gradient(model, s, p, true, true).mode, Mode::forward) << p << " parameters";
   EXPECT_EQ(plan_gradient(model, s, s.volume.voxel_count(), true, true).mode, Mode::adjoint);
-  // Camera and voxel lanes march one ray per work-item: forward for one or two, then the adjoint.
-  for (std::size_t p : {1, 2})
-    EXPECT_EQ(plan_gradient(model, s, p, true, true, Mode::automatic, 0, true).mode, Mode::forward)
-        << p << " voxel parameters";
-  for (std::size_t p : {4, 16, 32})
+  // Camera and voxel lanes march one ray per work-item: the adjoint (packets, private sums) is
+  // faster from one parameter on (ivr calibrate: one voxel lane 1.3–1.4 times its time).
+  for (std::size_t p : {1, 2, 4, 16, 32})
     EXPECT_EQ(plan_gradient(model, s, p, true, true, Mode::automatic, 0, true).mode, Mode::adjoint)
         << p << " voxel parameters";
   const CostModel other = default_cost_model(gpu);

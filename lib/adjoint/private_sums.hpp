@@ -39,10 +39,10 @@ struct PrivateSumsQuery {
 // On for the packet adjoint's float sums on CPU devices, one group a compute unit, where the
 // copies fit (a quarter of the device's global memory, one allocation) and cost less than the
 // atomics they replace: the copies' sum touches groups × voxels values, the atomics are about one
-// per cell a ray crosses (pixels × longest edge), and a streamed value costs a fraction of a
-// compare-and-swap (the factor: kAddsPerCopyValue, measured in README, "The adjoint in
-// packets"). $IVR_PRIVATE_SUMS=0|1|auto: 0 off, 1 on wherever eligible (an error where not, or
-// where the copies do not fit), auto (or unset) the default.
+// per cell a ray crosses (pixels × longest edge), and a streamed value costs a small fraction of
+// a compare-and-swap (kCopyValuesPerAdd in private_sums.cpp, with its measurements).
+// $IVR_PRIVATE_SUMS=0|1|auto: 0 off, 1 on wherever eligible (an error where not, or where the
+// copies do not fit), auto (or unset) the default.
 PrivateSums private_sums_for(const DeviceInfo& info, const PrivateSumsQuery& q);
 
 }  // namespace ivr

@@ -74,19 +74,26 @@ def speed_vs_error(doc, path) -> bool:
     return True
 
 
-def baselines(doc, path) -> bool:
+def baselines(doc, path, cases=None) -> bool:
+    """One panel per case (`cases`: only those whose name is one of them), four to a row."""
     groups = defaultdict(dict)  # (suite, case) -> impl -> (median_s, memory)
     for r in doc["results"]:
         if r["suite"] not in ("render", "gradient", "planner", "crossover") or "median_s" not in r["metrics"]:
             continue
-        if r["suite"] == "crossover" and not r["case"].split("_")[-1].startswith("tf"):
+        if r["suite"] in ("crossover", "planner") and not r["case"].split("_")[-1].startswith("tf"):
+            continue
+        if cases and r["case"] not in cases:
             continue
         key = r["implementation"] if r["device"] == "host" else (
             r["implementation"] + ("" if len(doc["devices"]) == 1 else f" [{short(r['device'])}]"))
         groups[(r["suite"], r["case"])][key] = (r["metrics"]["median_s"], r["metrics"].get("memory_bytes"))
     if not groups:
         return False
-    fig, axes = plt.subplots(1, len(groups), figsize=(4.2 * len(groups), 4.2), squeeze=False)
+    columns = min(4, len(groups))
+    rows = (len(groups) + columns - 1) // columns
+    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 4.2 * rows), squeeze=False)
+    for ax in axes.flat[len(groups):]:
+        ax.set_visible(False)
     for ax, ((suite, case), impls) in zip(axes.flat, sorted(groups.items())):
         names = sorted(impls, key=lambda n: impls[n][0])
         times = [impls[n][0] for n in names]
@@ -113,7 +120,10 @@ def baselines(doc, path) -> bool:
 
 
 def crossover(doc, path) -> bool:
-    rows = timed(doc["results"], "crossover")
+    # The planner suite (called crossover before issue 20): its TF-lane sweep and adjoint, not its
+    # voxel sweep (cases voxels_*).
+    rows = [r for r in timed(doc["results"], "crossover") + timed(doc["results"], "planner")
+            if not r["case"].startswith("voxels_")]
     if not rows:
         return False
     fig, ax = plt.subplots(figsize=(6, 4.2))
@@ -129,7 +139,8 @@ def crossover(doc, path) -> bool:
                 ax.axhline(adj[0] * 1e3, color=line.get_color(), ls="--",
                            label=f"adjoint, any P ({short(device)})")
         for r in doc["results"]:
-            if r["suite"] == "crossover" and r["device"] == device and r["case"].endswith("summary"):
+            if r["suite"] in ("crossover", "planner") and r["device"] == device and \
+                    r["case"].endswith("summary") and not r["case"].startswith("voxels_"):
                 x = r["metrics"].get("crossover_lanes", -1)
                 if x and x > 0:
                     ax.axvline(x, color="grey", ls=":", label=f"measured crossover {x:.1f} lanes")
@@ -140,7 +151,7 @@ def crossover(doc, path) -> bool:
     ax.set_xscale("log", base=2)
     ax.set_xlabel("parameters P (tangent lanes)")
     ax.set_ylabel("median time (ms)")
-    ax.set_title("Forward mode against the adjoint (TF and background parameters)")
+    ax.set_title("Forward mode against the adjoint\n(TF and background parameters)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -208,7 +219,9 @@ def main() -> int:
     p.add_argument("results", help="an ivr-bench/1 JSON file")
     p.add_argument("-o", "--outdir", default=".", help="folder for the PNGs")
     p.add_argument("--name", help="file name prefix (default: the results file's stem)")
+    p.add_argument("--cases", help="comma-separated case names: the baselines plot shows only them")
     a = p.parse_args()
+    cases = set(a.cases.split(",")) if a.cases else None
     try:
         with open(a.results) as f:
             doc = json.load(f)
@@ -220,7 +233,8 @@ def main() -> int:
         return 1
     os.makedirs(a.outdir, exist_ok=True)
     name = a.name or os.path.splitext(os.path.basename(a.results))[0]
-    for what, draw in (("speed_vs_error", speed_vs_error), ("baselines", baselines),
+    for what, draw in (("speed_vs_error", speed_vs_error),
+                       ("baselines", lambda d, path: baselines(d, path, cases)),
                        ("crossover", crossover), ("scaling", scaling)):
         path = os.path.join(a.outdir, f"{name}_{what}.png")
         if draw(doc, path):

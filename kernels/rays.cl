@@ -145,8 +145,10 @@ inline void vgather_pair(__global const real* restrict p, vint i, vint edge, vre
 // every lane, one instruction (vpermps, vpermpd) where the compiler targets AVX-512 or AVX2
 // (Clang's x86 builtins, which PoCL's compiler has for such CPUs; OpenCL's shuffle() compiles to a
 // loop through memory there). IVR_PERMUTE_ENTRIES is 0 where there is none: the callers then take
-// another way.
-#if IVR_RAYS == 16 && !IVR_F64 && defined(__AVX512F__) && !defined(IVR_NO_PERMUTE)
+// another way (and so does -DIVR_NO_PERMUTE in IVR_BUILD_OPTIONS, to compare them).
+#if defined(IVR_NO_PERMUTE)
+#define IVR_PERMUTE_ENTRIES 0
+#elif IVR_RAYS == 16 && !IVR_F64 && defined(__AVX512F__)
 #define IVR_PERMUTE_ENTRIES 16
 #define vpermute(t, k) __builtin_ia32_permvarsf512(t, k)
 #elif IVR_RAYS == 8 && !IVR_F64 && defined(__AVX2__)

@@ -110,6 +110,27 @@ TEST(RenderPacket, TransferFunctionEdgeCases) {
     for (TfPoint& p : opaque.tf.points) p.extinction *= 40;
     expect_same(opaque, 0.5, name + ", early termination");
   }
+  // The packets' lookup by permutes (a TF of at most 16 rows, kernels/tf.cl) against one ray's
+  // search: a step (two points at one density, which is a voxel's), 16 points (the most the
+  // columns hold) and 17 (the masked blend instead); tables of 16 and 17 entries likewise.
+  Scene step = s;
+  step.tf.points = {{0.3, {1, 0.5, 0.2}, 2}, {0.45, {0.2, 0.4, 1}, 1}, {0.45, {0.9, 0.9, 0.1}, 9},
+                    {0.8, {0.5, 0.5, 0.5}, 3}};
+  expect_same(step, 0.5, "a step at a voxel's density");
+  for (int rows : {16, 17}) {
+    Scene many = s;
+    many.tf.points.clear();
+    for (int k = 0; k < rows; ++k)
+      many.tf.points.push_back({0.25 + 0.05 * k, {0.05 * k, 1 - 0.05 * k, 0.5}, 1.0 + (k % 5)});
+    expect_same(many, 0.5, std::to_string(rows) + " points");
+    Scene table = s;
+    table.tf.kind = TfKind::table;
+    table.tf.range = {0.3, 0.95};
+    table.tf.entries.clear();
+    for (int k = 0; k < rows; ++k)
+      table.tf.entries.push_back({0.05 * k, 0.5, 1 - 0.05 * k, 1.0 + (k % 4)});
+    expect_same(table, 0.5, std::to_string(rows) + " table entries");
+  }
 }
 
 // The four TF kinds, each with σ = 0 over the low densities (the Gaussians: nowhere exactly).

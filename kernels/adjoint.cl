@@ -191,8 +191,8 @@ __attribute__((always_inline)) inline void adjoint_pixels(
   }
 }
 
-// `work`: with IVR_PRIVATE_SUMS, [0] the counter packets are taken from (0 before the launch) and
-// [1] the packets of every view.
+// `work`: with IVR_PRIVATE_SUMS, the counter packets are taken from (0 before the launch), up to
+// `packets`, every view's.
 __kernel void adjoint(__global const real* restrict volume, const int4 dims, const real4 box_min,
                       const real4 box_max, const real4 inv_voxel,
                       __global const real* restrict cameras, const int width, const int height,
@@ -205,7 +205,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
                       __global const real* restrict camera_params,
                       __global real* restrict camera_partial, __local real* camera_scratch,
                       __global const uchar* restrict occupied, const int4 bricks,
-                      volatile __global int* restrict work) {
+                      volatile __global int* restrict work, const int packets) {
   const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
   const int lsize = get_local_size(0) * get_local_size(1);
 #if IVR_GRAD_TF
@@ -217,18 +217,19 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
 #if IVR_PRIVATE_SUMS
   // One work-item per group (kernels/private_sums.cl): packets from the shared counter, the
   // density gradient into the group's own copy of the volume (`grad_volume` holds the copies).
-  const ScatterSink density = {grad_volume +
-                               private_copy_offset(get_group_id(0), dims.x * dims.y * dims.z)};
+  // (Without a density gradient the buffer holds one value, and nothing is added to it.)
+  const ScatterSink density = {
+      grad_volume +
+      (IVR_GRAD_DENSITY ? private_copy_offset(get_group_id(0), dims.x * dims.y * dims.z) : 0)};
   const int per_row = (width + IVR_PACKET_W - 1) / IVR_PACKET_W;
   const int per_view = per_row * ((height + IVR_PACKET_H - 1) / IVR_PACKET_H);
-  const int packets = work[1];  // per_view × views, the host's
   const int take = private_take_size(packets);
   for (;;) {
     const int first = atomic_add(work, take);
     if (first >= packets) break;
     for (int p = first; p < min(first + take, packets); ++p) {
-      const int view = p / per_view, row = p % per_view;
-      adjoint_pixels((row % per_row) * IVR_PACKET_W, (row / per_row) * IVR_PACKET_H, view, volume,
+      const int view = p / per_view, tile = p % per_view;  // the tile's index in its view
+      adjoint_pixels((tile % per_row) * IVR_PACKET_W, (tile / per_row) * IVR_PACKET_H, view, volume,
                      dims, box_min, box_max, inv_voxel, cameras, width, height, tf, tf_count,
                      tf_scalars, background, step, min_transmittance, target, norm, image,
                      pixel_terms, density, tf_acc, samples, camera_params, occupied, bricks,
@@ -236,7 +237,7 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
     }
   }
 #else
-  (void)work;
+  (void)work, (void)packets;
   // One pixel per work-item, or a packet of IVR_RAYS neighbouring pixels (CPUs: a tile).
   const int x = get_global_id(0) * IVR_PACKET_W, y = get_global_id(1) * IVR_PACKET_H;
   const int view = get_global_id(2);

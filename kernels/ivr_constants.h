@@ -23,7 +23,8 @@
 /* Piecewise-linear and table TFs of at most IVR_TF_COLUMN_ENTRIES rows are followed by their
  * columns, each IVR_TF_COLUMN_ENTRIES values long (the last row repeated): density, r, g, b,
  * sigma (piecewise linear) or r, g, b, sigma (table). A packet of rays looks its rows up there
- * with one permute per column (kernels/tf.cl, tf_rows). */
+ * with one permute per column where the compiler has one (kernels/tf.cl, tf_rows; 16 rows for
+ * 16 lanes, 8 for 8). */
 #define IVR_TF_COLUMN_ENTRIES 16
 
 /* What a tangent lane differentiates (int4 per lane: kind, a, b, c; kernels/jacobian_ray.cl). */

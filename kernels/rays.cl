@@ -115,12 +115,13 @@ inline vreal vgather(__global const real* restrict p, vint i) {
   return (vreal)(IVR_GATHER_LANES(p, i, IVR_AS_IS));
 }
 #define vgather_off(p, base, off) vgather(p, (base) + (off))
-#if !IVR_F64
+#if !IVR_F64 && defined(__ENDIAN_LITTLE__)
 // Two neighbours of every lane, lo = p[i] and hi = p[i + 1], from one 64-bit load per lane where
 // `edge` is false (a float32 gather loads each lane's element through the load ports one by one:
 // the pairs halve them, and the trilinear samples' 8 gathers of 16 become 8 of 8); where `edge`
 // is true (the clamped upper edge, where a cell's +x corner is the voxel itself) from p[i − 1]
-// and p[i], both p[i]. The caller keeps i − 1 inside the array where `edge` holds.
+// and p[i], both p[i]. The caller keeps i − 1 inside the array where `edge` holds. (The first of
+// a pair is the low half of its 64 bits: little-endian devices only.)
 #define IVR_PAIR(k) as_ulong(vload2(0, p + b.s##k))
 inline void vgather_pair(__global const real* restrict p, vint i, vint edge, vreal* lo, vreal* hi) {
   const vint b = i + edge;  // −1 where `edge` holds
@@ -220,7 +221,7 @@ IVR_PER_LANE(vexpm1, expm1)
 // 1 where a mask is true, else 0: what a lane adds to a count.
 #define vcount(m) vseli((vint)0, (vint)1, (m))
 
-// x clamped to [lo, hi] by two selects: fmax(fmin(…)) keeps IEEE's NaN rule (the other operand),
+// x clamped to [lo, hi] by two selects: fmin(fmax(…)) keeps IEEE's NaN rule (the other operand),
 // which x86 compiles to a compare, a mask operation and a blend around each min and max; here NaN
 // gives lo, as fmax(NaN, lo) does, and every number the same value.
 inline vreal vclamp(vreal x, real lo, real hi) {

@@ -158,8 +158,15 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     out.density =
         s.output("density gradient", s.volume_shape(), real_dtype(s.f64), "the density gradient");
   const std::size_t private_bytes = priv.on ? priv.bytes(real) : 0;
+  if (private_bytes > s.private_copies_bytes) {  // the old copies go before the new are made
+    s.private_copies = cl::Buffer();
+    s.private_copies_bytes = s.private_copies_clean = 0;
+    s.private_copies = dev.buffer(CL_MEM_READ_WRITE, private_bytes, nullptr,
+                                  "the density gradient's private copies");
+    s.private_copies_bytes = private_bytes;
+  }
   const cl::Buffer& grad_volume =
-      private_bytes ? s.scratch("private copies", private_bytes, "the density gradient's copies")
+      private_bytes ? s.private_copies
       : r.density && !fixed
           ? buffer_of(out.density)
           : s.scratch(fixed ? "fixed density" : "no density", grad_bytes, "the density gradient");
@@ -225,11 +232,13 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     k.setArg(a++, occupied);
     k.setArg(a++, s.brick_counts());
     // Private sums: the packets' counter and their number.
-    const cl::Buffer& work = s.scratch("adjoint work", 2 * sizeof(cl_int), "the packets' counter");
+    const cl::Buffer& work = s.scratch("adjoint work", sizeof(cl_int), "the packets' counter");
     k.setArg(a++, work);
+    k.setArg(a++, cl_int(tile.across(cam0.width) * tile.down(cam0.height) * views));
     // Fixed point: no ray's scaled Σ |contribution| above 2^62 / rays, so no voxel's sum leaves
     // the long range.
     const int cap_exponent = fixed_cap_exponent(pixels);
+    std::size_t clean = 0;  // the private copies' leading bytes that are 0 after this call
     auto run_pass = [&](int exponent) {
       if (fixed) {
         op.events.push_back(cl::Event());
@@ -237,13 +246,14 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
                                     &op.events.back());
         const cl_long header[kFixedHeader] = {exponent, cl_long(1) << cap_exponent, 0, 0, 0};
         dev.queue.enqueueWriteBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
-      } else if (private_bytes) {  // the copies are 0 where the last launch left them so
-        if (s.private_copies_zero() != grad_volume()) {
+      } else if (private_bytes) {  // the copies are 0 where the last sum left them so
+        if (s.private_copies_clean < private_bytes) {
           op.events.push_back(cl::Event());
           dev.queue.enqueueFillBuffer(grad_volume, cl_uchar(0), 0, private_bytes, nullptr,
                                       &op.events.back());
         }
-        s.private_copies_zero = cl::Buffer();
+        clean = std::max(s.private_copies_clean, private_bytes);
+        s.private_copies_clean = 0;  // until the sum is enqueued
       } else if (r.density) {
         op.events.push_back(cl::Event());
         dev.queue.enqueueFillBuffer(grad_volume, cl_uchar(0), 0, grad_bytes, nullptr,
@@ -261,8 +271,8 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
         op.events.push_back(enqueue(dev, k, launch));
         return;
       }
-      const cl_int counter[2] = {0, tile.across(cam0.width) * tile.down(cam0.height) * views};
-      dev.queue.enqueueWriteBuffer(work, CL_TRUE, 0, sizeof counter, counter);
+      op.events.push_back(cl::Event());
+      dev.queue.enqueueFillBuffer(work, cl_int(0), 0, sizeof(cl_int), nullptr, &op.events.back());
       op.events.push_back(enqueue_groups(dev, k, std::size_t(priv.groups), 1));
       if (private_bytes) {  // the copies into the gradient, which leaves them 0
         cl::Kernel& sum = s.kernels.get(config.with_entry("sum_private_copies"));
@@ -272,7 +282,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
         sum.setArg(3, buffer_of(out.density));
         const std::size_t chunks = (voxels + IVR_PRIVATE_ALIGN - 1) / IVR_PRIVATE_ALIGN;
         op.events.push_back(enqueue_1d(dev, sum, chunks, 0));
-        s.private_copies_zero = grad_volume;
+        s.private_copies_clean = clean;
       }
     };
     if (!fixed) {

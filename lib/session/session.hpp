@@ -77,9 +77,11 @@ struct Session::Impl {
   cl::Buffer no_occupancy;  // one byte: the kernels' occupancy argument when not skipping
   std::map<std::string, std::vector<DeviceArray>> pool;  // outputs by slot
   std::map<std::string, std::pair<cl::Buffer, std::size_t>> scratch_buffers;
-  // The private copies of the adjoint's density gradient where they are all 0 (kernels/
-  // private_sums.cl leaves them so); null while a launch may have left them otherwise.
-  cl::Buffer private_copies_zero;
+  // The private copies of the adjoint's density gradient (kernels/private_sums.cl), their size
+  // and how many of their leading bytes are known to be 0 (the sum of the copies leaves them so;
+  // 0 while a launch may have left them otherwise).
+  cl::Buffer private_copies;
+  std::size_t private_copies_bytes = 0, private_copies_clean = 0;
   OperationRecord last;
 
   // `host_data`: the scene's densities stay alive and unchanged for the session's life (see

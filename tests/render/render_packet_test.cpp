@@ -65,7 +65,7 @@ TEST(RenderPacket, SameImageAsOneRayPerWorkItem) {
   for (const char* lanes : {"16", "8"}) {
     const ScopedEnv width("IVR_PACKET_LANES", lanes);
     Scene s = calibration_scene(24, 8);
-    s.cameras[0].width = 37;  // 4 packets and a partial one per row
+    s.cameras[0].width = 37;  // whole 4x4 tiles and partial ones at the right and the bottom
     s.cameras[0].height = 23;
     Camera side = s.cameras[0];
     side.eye = {0.2, -1.4, 0.3};
@@ -114,9 +114,12 @@ TEST(RenderPacket, TransferFunctionEdgeCases) {
   // search: a step (two points at one density, which is a voxel's), 16 points (the most the
   // columns hold) and 17 (the masked blend instead); tables of 16 and 17 entries likewise.
   Scene step = s;
-  step.tf.points = {{0.3, {1, 0.5, 0.2}, 2}, {0.45, {0.2, 0.4, 1}, 1}, {0.45, {0.9, 0.9, 0.1}, 9},
+  step.tf.points = {{0.3, {1, 0.5, 0.2}, 2},
+                    {0.45, {0.2, 0.4, 1}, 1},
+                    {0.45, {0.9, 0.9, 0.1}, 9},
                     {0.8, {0.5, 0.5, 0.5}, 3}};
   expect_same(step, 0.5, "a step at a voxel's density");
+  expect_same(step, 0.5, "a step at a voxel's density, float64", Precision::f64);
   for (int rows : {16, 17}) {
     Scene many = s;
     many.tf.points.clear();
@@ -130,6 +133,22 @@ TEST(RenderPacket, TransferFunctionEdgeCases) {
     for (int k = 0; k < rows; ++k)
       table.tf.entries.push_back({0.05 * k, 0.5, 1 - 0.05 * k, 1.0 + (k % 4)});
     expect_same(table, 0.5, std::to_string(rows) + " table entries");
+  }
+}
+
+// Volumes 1 and 2 voxels wide, where the float32 trilinear sample's pairs of neighbours meet the
+// grid's edge on both sides (kernels/rays.cl, vgather_pair; one voxel wide: plain gathers).
+TEST(RenderPacket, NarrowVolumes) {
+  for (int nx : {1, 2, 3}) {
+    Scene s = calibration_scene(8, 8);
+    s.volume = Volume();
+    s.volume.nx = nx, s.volume.ny = 6, s.volume.nz = 5;
+    for (std::size_t i = 0; i < s.volume.voxel_count(); ++i)
+      s.volume.data.push_back(float(0.3 + 0.6 * std::abs(std::sin(0.7 * double(i)))));
+    set_default_box(s);
+    s.cameras[0].width = 13;
+    s.cameras[0].height = 9;
+    expect_same(s, 0.4, std::to_string(nx) + " voxels wide");
   }
 }
 
@@ -254,7 +273,8 @@ TEST(RenderPacket, GradientFromThePacketPrimalIsTheSame) {
     Image target = render_at(scene, Precision::f32, 0.5);
     for (std::size_t i = 0; i < target.pixels.size(); ++i)
       target.pixels[i] -= 0.1f + 0.05f * float(i % 4);
-    const AdjointGradient a = gradient_with(scene, target, true), b = gradient_with(scene, target, false);
+    const AdjointGradient a = gradient_with(scene, target, true),
+                          b = gradient_with(scene, target, false);
     EXPECT_EQ(a.loss, b.loss) << what;
     EXPECT_EQ(a.samples, b.samples) << what;
     EXPECT_EQ(a.density, b.density) << what;

@@ -191,8 +191,8 @@ __attribute__((always_inline)) inline void adjoint_pixels(
   }
 }
 
-// `work`: with IVR_PRIVATE_SUMS, the counter packets are taken from (0 before the launch), up to
-// `packets`, every view's.
+// `packets`: with IVR_PRIVATE_SUMS, every view's packets; `work`: the counter they are taken from
+// with -DIVR_PRIVATE_DYNAMIC (0 before the launch).
 __kernel void adjoint(__global const real* restrict volume, const int4 dims, const real4 box_min,
                       const real4 box_max, const real4 inv_voxel,
                       __global const real* restrict cameras, const int width, const int height,
@@ -215,8 +215,11 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
   real camera_terms[7] = {0, 0, 0, 0, 0, 0, 0};  // this pixel's dL / d camera component
 
 #if IVR_PRIVATE_SUMS
-  // One work-item per group (kernels/private_sums.cl): packets from the shared counter, the
-  // density gradient into the group's own copy of the volume (`grad_volume` holds the copies).
+  // One work-item per group (kernels/private_sums.cl): chunks of packets dealt out in turn (group
+  // g takes chunks g, g + groups, …, each in order, so that every copy's sums, and the density
+  // gradient's bits, are the same on every call; -DIVR_PRIVATE_DYNAMIC takes them from the shared
+  // counter instead), the density gradient into the group's own copy of the volume (`grad_volume`
+  // holds the copies).
   // (Without a density gradient the buffer holds one value, and nothing is added to it.)
   const ScatterSink density = {
       grad_volume +
@@ -224,9 +227,14 @@ __kernel void adjoint(__global const real* restrict volume, const int4 dims, con
   const int per_row = (width + IVR_PACKET_W - 1) / IVR_PACKET_W;
   const int per_view = per_row * ((height + IVR_PACKET_H - 1) / IVR_PACKET_H);
   const int take = private_take_size(packets);
+#ifdef IVR_PRIVATE_DYNAMIC
   for (;;) {
     const int first = atomic_add(work, take);
     if (first >= packets) break;
+#else
+  (void)work;
+  for (int first = get_group_id(0) * take; first < packets; first += get_num_groups(0) * take) {
+#endif
     for (int p = first; p < min(first + take, packets); ++p) {
       const int view = p / per_view, tile = p % per_view;  // the tile's index in its view
       adjoint_pixels((tile % per_row) * IVR_PACKET_W, (tile / per_row) * IVR_PACKET_H, view, volume,

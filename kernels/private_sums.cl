@@ -8,10 +8,13 @@
 // which thread runs a work-item, so "one copy of the gradient per thread" is built from what it
 // can say: a work-group of one work-item is the only writer of its local memory and of any global
 // memory indexed by its group id. The host launches as many such groups as the device has compute
-// units (PoCL: worker threads; lib/adjoint/private_sums.hpp), each marches packets until the shared
-// counter runs out (dynamic: a thread that starts late or is slowed takes fewer, so every core
-// stays busy to the end), adds the TF gradient into its local accumulator and the density
-// gradient into its own copy of the volume with plain adds. sum_private_copies() then adds the
+// units (PoCL: worker threads; lib/adjoint/private_sums.hpp); they take chunks of packets in turn
+// (small chunks, so that neighbouring tiles of like cost spread over every group; always the same
+// chunks, so that the density gradient has the same bits on every call with as many compute
+// units: -DIVR_PRIVATE_DYNAMIC takes them from a shared counter instead, which a thread slowed by
+// another process helps less, measured within noise of the turns on 2 cores), add the TF
+// gradient into their local accumulators and the density gradient into their own copies of the
+// volume with plain adds. sum_private_copies() then adds the
 // copies into the gradient (memory-bound, 16 values per work-item) and zeroes them, so that the
 // next call finds them clean without a fill of its own.
 //

@@ -71,29 +71,29 @@ typedef IVR_VN(int) vint;
 // any() and all() as trees of lane-wise ORs and ANDs: PoCL's builtins test the lanes one after
 // another with a branch each (16 compare-and-branch pairs per call, several calls per sample),
 // where these are a few vector operations and one test of the sign bit.
-#if IVR_RAYS == 16
-inline int vany(vint m) {
-  const int8 a = m.lo | m.hi;
-  const int4 b = a.lo | a.hi;
-  const int2 c = b.lo | b.hi;
-  return (c.x | c.y) < 0;
-}
-inline int vall(vint m) {
-  const int8 a = m.lo & m.hi;
-  const int4 b = a.lo & a.hi;
-  const int2 c = b.lo & b.hi;
-  return (c.x & c.y) < 0;
-}
-#else
-inline int vany(vint m) {
+inline int ivr_any8(int8 m) {
   const int4 b = m.lo | m.hi;
   const int2 c = b.lo | b.hi;
   return (c.x | c.y) < 0;
 }
-inline int vall(vint m) {
+inline int ivr_all8(int8 m) {
   const int4 b = m.lo & m.hi;
   const int2 c = b.lo & b.hi;
   return (c.x & c.y) < 0;
+}
+#if IVR_RAYS == 16
+inline int vany(vint m) {
+  return ivr_any8(m.lo | m.hi);
+}
+inline int vall(vint m) {
+  return ivr_all8(m.lo & m.hi);
+}
+#else
+inline int vany(vint m) {
+  return ivr_any8(m);
+}
+inline int vall(vint m) {
+  return ivr_all8(m);
 }
 #endif
 #define vseli(a, b, m) select(a, b, m)

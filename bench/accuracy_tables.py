@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""accuracy_tables.py — the README's tables from `ivr-bench --suite integrators` (the time at the
-target error per look, volume and integrator with the best against midpoint; the exact scheme's
-error in both precisions; the tolerance section's worst cases) and from `ivr-bench --suite
-stability` (per hard case and integrator: forward error, float32-vs-float64 gradient error,
-non-finite values); the earlier accuracy and stability programs' JSON too.
+"""accuracy_tables.py — docs/performance.md's tables from `ivr-bench --suite integrators` (the
+time at the target error per look, volume and integrator with the best against midpoint; the exact
+scheme's error in both precisions; the tolerance section's worst cases) and from `ivr-bench
+--suite stability` (per hard case and integrator: forward error, float32-vs-float64 gradient
+error, non-finite values); the earlier accuracy and stability programs' JSON too.
 Prints Markdown.
 
 Usage: /usr/bin/python3 bench/accuracy_tables.py RESULTS.json [--device SUBSTRING]

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs the default suite N times at -jJOBS, each from empty caches, to show that it does not flake
-# (README "Reliability"). Usage: scripts/repeat-suite.sh [RUNS [JOBS [BUILD]]]   (default 5 2 build)
+# (docs/reliability.md). Usage: scripts/repeat-suite.sh [RUNS [JOBS [BUILD]]]   (default 5 2 build)
 # Before each run it empties every cache a run could reuse: PoCL's (~/.cache/pocl and the suite's
 # BUILD/pocl-cache) and ivr's kernel cache (~/.cache/ivr and BUILD/kernel-cache). Each run's log is
 # BUILD/repeat-suite-<k>.log; the last line says how many runs were green.

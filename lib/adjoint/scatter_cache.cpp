@@ -26,9 +26,10 @@ bool scatter_cache_for(const DeviceInfo& info, std::uint64_t local_memory, std::
                       std::to_string(local_memory) + " bytes of local memory");
     return true;
   }
-  // Off by default everywhere until a GPU measures it: on PoCL it costs 15–51 % (README), and on a
-  // GPU, where it is meant to pay (an 8×8 tile makes ~7 global adds per voxel it touches; the
-  // evicting table ~1.5 in a model), neither its speed nor its build has been seen yet.
+  // Off by default everywhere until a GPU measures it: on PoCL it costs 15–51 % (docs/devices.md),
+  // and on a GPU, where it is meant to pay (an 8×8 tile makes ~7 global adds per voxel it
+  // touches; the evicting table ~1.5 in a model), neither its speed nor its build has been seen
+  // yet.
   (void)info;
   return false;
 }

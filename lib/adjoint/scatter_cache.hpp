@@ -19,8 +19,8 @@ inline std::size_t scatter_cache_bytes(std::size_t real_size) {
 // work-group's adds per voxel in a local table before the global atomic adds: by default on GPUs,
 // whose global atomics on shared addresses contend where local ones do not, and off on CPU
 // devices, where local memory is ordinary memory and a work-group's items run one after another
-// in one thread, so the table only adds work (measured on PoCL: README.md, "Devices, kernels and
-// caches"). $IVR_SCATTER_CACHE=0|1 forces it (auto: the default). On, the table and the kernel's
+// in one thread, so the table only adds work (measured on PoCL: docs/devices.md).
+// $IVR_SCATTER_CACHE=0|1 forces it (auto: the default). On, the table and the kernel's
 // other local memory (`other_local` bytes) must fit in `local_memory` (CL_DEVICE_LOCAL_MEM_SIZE):
 // the default is off where they do not, forcing it is then an error.
 bool scatter_cache_for(const DeviceInfo& info, std::uint64_t local_memory, std::size_t real_size,

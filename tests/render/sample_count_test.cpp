@@ -1,4 +1,4 @@
-// sample_count_test.cpp — the sample count (README.md, Integrators): the same n for float32 and float64 on every
+// sample_count_test.cpp — the sample count (docs/integrators.md): the same n for float32 and float64 on every
 // count arithmetic a device may use, a 1-ulp division error emulated on the host and in the
 // kernels, and the rays built so that length / step is an integer (where any rounding moves n).
 #include <gtest/gtest.h>

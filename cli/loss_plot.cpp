@@ -1,93 +1,79 @@
-// loss_plot.cpp — the loss-curve plotter of loss_plot.hpp: axes, decade grid, anti-aliased curve.
+// loss_plot.cpp — the SVG loss plot of loss_plot.hpp: log axis, ticks, labels, legend, title.
 #include "loss_plot.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <sstream>
 
 namespace ivr::cli {
 
 namespace {
 
-struct Rgb {
-  float r, g, b;
-};
+const char* const kFont = "DejaVu Sans, Liberation Sans, Arial, Helvetica, sans-serif";
+const char* const kLossColour = "#1f5ac8";
+const char* const kPriorColour = "#2ca02c";
+const char* const kLevelColour = "#e07b10";
 
-// Colours are chosen as sRGB bytes; the image holds linear values because the PNG writer applies
-// the sRGB curve (tone_map_8bit), so they come out as chosen.
-Rgb srgb(int r, int g, int b) {
-  const auto linear = [](int c) {
-    const double s = c / 255.0;
-    return float(s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4));
-  };
-  return {linear(r), linear(g), linear(b)};
+// Coordinates with two decimals: enough for a plot, and the C locale's '.' (the CLI never sets
+// another locale).
+std::string num(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2f", x);
+  return buf;
 }
 
-class Canvas {
- public:
-  Canvas(int width, int height) {
-    image_.views = 1;
-    image_.width = width;
-    image_.height = height;
-    image_.channels = 4;
-    image_.pixels.assign(std::size_t(width) * height * 4, 1.0f);  // white, opaque
-  }
+std::string escape(const std::string& s) {
+  std::string out;
+  for (char c : s) switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += c;
+    }
+  return out;
+}
 
-  // Blends `c` over pixel (x, y) with coverage `a` in [0, 1]; outside the canvas: nothing.
-  void blend(int x, int y, Rgb c, double a) {
-    if (x < 0 || y < 0 || x >= image_.width || y >= image_.height || a <= 0) return;
-    float* p = image_.pixels.data() + (std::size_t(y) * image_.width + x) * 4;
-    const float w = float(std::min(a, 1.0));
-    p[0] += (c.r - p[0]) * w;
-    p[1] += (c.g - p[1]) * w;
-    p[2] += (c.b - p[2]) * w;
-  }
+// An integer exponent in Unicode superscripts ("⁻³"): plain text, so that the label needs no
+// tspan positioning and reads the same in every SVG viewer.
+std::string superscript(int e) {
+  static const char* const digits[] = {"⁰", "¹", "²", "³", "⁴", "⁵", "⁶", "⁷", "⁸", "⁹"};
+  const std::string plain = std::to_string(e);
+  std::string out;
+  for (char c : plain) out += c == '-' ? "⁻" : digits[c - '0'];
+  return out;
+}
 
-  void hline(int x0, int x1, int y, Rgb c) {
-    for (int x = x0; x <= x1; ++x) blend(x, y, c, 1);
-  }
-  // Every `dash` pixels on, `gap` off (gap 0: solid).
-  void vline(int x, int y0, int y1, Rgb c, int dash = 1, int gap = 0) {
-    for (int y = y0; y <= y1; ++y)
-      if (gap == 0 || (y - y0) % (dash + gap) < dash) blend(x, y, c, 1);
-  }
+// m × 10^e for a tick (m a small integer; m = 1 is left out): "10⁻³", "2×10⁻³".
+std::string tick_text(int m, int e) {
+  return (m == 1 ? std::string() : std::to_string(m) + "×") + "10" + superscript(e);
+}
 
-  // A round-capped segment of the given half-width: each pixel near it is covered by how far it
-  // lies inside (one pixel of soft edge), keeping the larger of that and what is drawn already
-  // from this stroke, so joints do not darken.
-  void segment(double ax, double ay, double bx, double by, double half, Rgb c) {
-    const int x0 = int(std::floor(std::min(ax, bx) - half - 1));
-    const int x1 = int(std::ceil(std::max(ax, bx) + half + 1));
-    const int y0 = int(std::floor(std::min(ay, by) - half - 1));
-    const int y1 = int(std::ceil(std::max(ay, by) + half + 1));
-    const double dx = bx - ax, dy = by - ay, len2 = dx * dx + dy * dy;
-    for (int y = y0; y <= y1; ++y)
-      for (int x = x0; x <= x1; ++x) {
-        const double px = x + 0.5 - ax, py = y + 0.5 - ay;
-        const double t = len2 > 0 ? std::clamp((px * dx + py * dy) / len2, 0.0, 1.0) : 0.0;
-        const double d = std::hypot(px - t * dx, py - t * dy);
-        const double cover = std::clamp(half + 0.5 - d, 0.0, 1.0);
-        if (cover <= 0 || x < 0 || y < 0 || x >= image_.width || y >= image_.height) continue;
-        float& done = coverage(x, y);
-        if (cover <= done) continue;
-        // Blend only the extra coverage: (1 − done) of the pixel is still background-like.
-        blend(x, y, c, (cover - done) / (1 - done + 1e-9));
-        done = float(cover);
-      }
-  }
-  void clear_coverage() { coverage_.assign(image_.pixels.size() / 4, 0.0f); }
+// A value with three significant digits in the ticks' notation: "3.12×10⁻²".
+std::string value_text(double v) {
+  if (!(v > 0) || !std::isfinite(v)) return "n/a";
+  int e = int(std::floor(std::log10(v)));
+  double m = std::pow(10.0, std::log10(v) - e);  // not v / 10^e: 10^e underflows below 1e-308
+  if (m >= 9.995) m /= 10, ++e;                  // rounds up to the next decade
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%.2f", m);
+  return std::string(buf) + "×10" + superscript(e);
+}
 
-  Image take() { return std::move(image_); }
-
- private:
-  float& coverage(int x, int y) {
-    if (coverage_.empty()) clear_coverage();
-    return coverage_[std::size_t(y) * image_.width + x];
-  }
-  Image image_;
-  std::vector<float> coverage_;
-};
-
-// A round step (1, 2 or 5 times a power of ten) giving about `count` ticks over `span`.
+// A round step (1, 2 or 5 times a power of ten) giving about `count` ticks over `span` > 0.
 double nice_step(double span, int count) {
   const double raw = span / count, p = std::pow(10.0, std::floor(std::log10(raw)));
   for (double m : {1.0, 2.0, 5.0})
@@ -95,64 +81,221 @@ double nice_step(double span, int count) {
   return 10 * p;
 }
 
+bool drawable(double v) {
+  return v > 0 && std::isfinite(v);
+}
+
+// Text widths are not measurable without the font; this estimate (0.6 em a character, counting
+// a multi-byte UTF-8 character once) only keeps labels from being placed over each other.
+double text_width(const std::string& s, double size) {
+  std::size_t chars = 0;
+  for (unsigned char c : s) chars += (c & 0xC0) != 0x80;
+  return 0.6 * size * double(chars);
+}
+
+class Svg {
+ public:
+  Svg(int width, int height) {
+    out_ << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+         << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << width << "\" height=\""
+         << height << "\" viewBox=\"0 0 " << width << " " << height << "\" font-family=\"" << kFont
+         << "\">\n"
+         << "<rect width=\"" << width << "\" height=\"" << height << "\" fill=\"white\"/>\n";
+  }
+  void line(double x0, double y0, double x1, double y1, const std::string& stroke, double w,
+            const std::string& extra = "") {
+    out_ << "<line x1=\"" << num(x0) << "\" y1=\"" << num(y0) << "\" x2=\"" << num(x1) << "\" y2=\""
+         << num(y1) << "\" stroke=\"" << stroke << "\" stroke-width=\"" << w << "\"" << extra
+         << "/>\n";
+  }
+  // `anchor`: start, middle or end; `cls` names the label's role for readers and tests.
+  void text(double x, double y, const std::string& s, double size, const std::string& anchor,
+            const std::string& cls, const std::string& extra = "") {
+    out_ << "<text class=\"" << cls << "\" x=\"" << num(x) << "\" y=\"" << num(y)
+         << "\" font-size=\"" << size << "\" text-anchor=\"" << anchor << "\"" << extra << ">"
+         << escape(s) << "</text>\n";
+  }
+  void raw(const std::string& s) { out_ << s; }
+  std::string finish() {
+    out_ << "</svg>\n";
+    return out_.str();
+  }
+
+ private:
+  std::ostringstream out_;
+};
+
 }  // namespace
 
-Image plot_loss(const LossCurve& curve, int width, int height) {
-  width = std::max(width, 64);
-  height = std::max(height, 48);
-  Canvas canvas(width, height);
-  const Rgb axis = srgb(40, 40, 40), grid = srgb(225, 225, 225), line = srgb(25, 90, 200),
-            marker = srgb(235, 130, 20);
-  // The plot area, with margins where a reader would expect labels.
-  const int left = std::min(56, width / 8), right = width - 16, top = 16,
-            bottom = height - std::min(40, height / 8);
+std::string loss_svg(const LossCurve& curve, int width, int height) {
+  width = std::max(width, 480);
+  height = std::max(height, 300);
+  // Margins for the tick labels and axis titles (left, bottom), the title and level names (top)
+  // and the legend (right).
+  const double left = 84, right = width - 230, top = 52, bottom = height - 60;
+  const std::size_t n = std::min(curve.iterations.size(), curve.losses.size());
+  const bool has_priors =
+      curve.priors.size() >= n && std::any_of(curve.priors.begin(), curve.priors.begin() + long(n),
+                                              [](double v) { return drawable(v); });
 
-  // x: the iterations' range; y: whole decades around the positive finite losses.
-  double xmin = 0, xmax = 1, lo = 0, hi = 1;
-  bool any = false;
-  for (std::size_t i = 0; i < curve.losses.size() && i < curve.iterations.size(); ++i) {
-    const double x = curve.iterations[i], y = curve.losses[i];
-    xmin = i == 0 ? x : std::min(xmin, x);
-    xmax = i == 0 ? x : std::max(xmax, x);
-    if (!(y > 0) || !std::isfinite(y)) continue;
-    const double l = std::log10(y);
-    lo = any ? std::min(lo, l) : l;
-    hi = any ? std::max(hi, l) : l;
-    any = true;
+  // The ranges: x over the finite iterations, y over whole decades of every drawable value.
+  double xmin = 0, xmax = 0, lo = 0, hi = 0;
+  bool any_x = false, any_y = false;
+  const auto widen = [&](double v) {
+    if (!drawable(v)) return;
+    const double l = std::log10(v);
+    lo = any_y ? std::min(lo, l) : l;
+    hi = any_y ? std::max(hi, l) : l;
+    any_y = true;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = curve.iterations[i];
+    if (!std::isfinite(x)) continue;
+    xmin = any_x ? std::min(xmin, x) : x;
+    xmax = any_x ? std::max(xmax, x) : x;
+    any_x = true;
+    widen(curve.losses[i]);
+    if (has_priors) widen(curve.priors[i]);
   }
+  if (!any_x) xmin = 0, xmax = 1;
+  if (!any_y) lo = -1, hi = 0;
   lo = std::floor(lo);
   hi = std::max(std::ceil(hi), lo + 1);
-  if (xmax <= xmin) xmin -= 1, xmax += 1;  // one point: in the middle
-  const auto px = [&](double x) { return left + (x - xmin) / (xmax - xmin) * (right - left); };
-  const auto py = [&](double log_y) { return bottom - (log_y - lo) / (hi - lo) * (bottom - top); };
+  // Iterations are whole numbers: the x step is at least 1.
+  const double xstep = std::max(1.0, nice_step(std::max(xmax - xmin, 1.0), 8));
+  double xlo = std::floor(xmin / xstep) * xstep, xhi = std::ceil(xmax / xstep) * xstep;
+  if (xmax - xmin < 1) xlo = std::floor(xmin) - 1, xhi = std::ceil(xmax) + 1;  // one point: centred
+  const auto px = [&](double x) { return left + (x - xlo) / (xhi - xlo) * (right - left); };
+  const auto py = [&](double v) {
+    return bottom - (std::log10(v) - lo) / (hi - lo) * (bottom - top);
+  };
 
-  // Grid lines at the decades, tick marks at round iteration counts.
-  for (double d = lo; d <= hi; ++d) canvas.hline(left, right, int(std::lround(py(d))), grid);
-  const double tick = nice_step(xmax - xmin, 8);
-  for (double t = std::ceil(xmin / tick) * tick; t <= xmax + 1e-9; t += tick)
-    canvas.vline(int(std::lround(px(t))), bottom + 1, bottom + 5, axis);
-  for (double m : curve.markers)
-    if (m >= xmin && m <= xmax) canvas.vline(int(std::lround(px(m))), top, bottom, marker, 6, 4);
-  canvas.hline(left, right, bottom, axis);
-  canvas.vline(left, top, bottom, axis);
-
-  // The curve: segments between consecutive drawable points (a gap where one is not).
-  canvas.clear_coverage();
-  bool have_previous = false;
-  double ax = 0, ay = 0;
-  for (std::size_t i = 0; i < curve.losses.size() && i < curve.iterations.size(); ++i) {
-    const double y = curve.losses[i];
-    if (!(y > 0) || !std::isfinite(y)) {
-      have_previous = false;
-      continue;
+  Svg svg(width, height);
+  const std::string axis = "#333333";
+  // y: grid lines at every decade, fainter ones at 2..9 times them when there are few decades;
+  // labels at every k-th decade (about 8 at most), and at 2 and 5 times them over <= 2 decades.
+  const int decades = int(hi - lo);
+  const int label_every = std::max(1, (decades + 7) / 8);
+  for (int e = int(lo); e <= int(hi); ++e) {
+    const double y = bottom - (e - lo) / (hi - lo) * (bottom - top);
+    svg.line(left, y, right, y, "#d0d0d0", 1);
+    if ((e - int(lo)) % label_every == 0) {
+      svg.line(left - 5, y, left, y, axis, 1);
+      svg.text(left - 8, y + 4, tick_text(1, e), 12, "end", "y-tick");
     }
-    const double bx = px(curve.iterations[i]), by = py(std::log10(y));
-    canvas.segment(have_previous ? ax : bx, have_previous ? ay : by, bx, by, 1.1, line);
-    ax = bx;
-    ay = by;
-    have_previous = true;
+    if (e == int(hi) || decades > 6) continue;
+    for (int m = 2; m <= 9; ++m) {
+      const double ym = py(m * std::pow(10.0, e));
+      svg.line(left, ym, right, ym, "#efefef", 1);
+      if (decades <= 2 && (m == 2 || m == 5)) {
+        svg.line(left - 3, ym, left, ym, axis, 1);
+        svg.text(left - 8, ym + 4, tick_text(m, e), 11, "end", "y-tick");
+      }
+    }
   }
-  return canvas.take();
+  // x: ticks and grid lines at the round steps.
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = xlo + k * xstep;
+    if (t > xhi + 1e-9 * xstep) break;
+    const double x = px(t);
+    svg.line(x, top, x, bottom, "#efefef", 1);
+    svg.line(x, bottom, x, bottom + 5, axis, 1);
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.0f", t);
+    svg.text(x, bottom + 19, buf, 12, "middle", "x-tick");
+  }
+
+  // Level changes: dashed lines between the levels' iterations, each level named above the plot
+  // area at its start (skipped where it would overlap the previous name).
+  double free_from = -1e300;
+  for (std::size_t l = 0; l < curve.levels.size(); ++l) {
+    const double at = curve.levels[l].iteration - 0.5;
+    if (!std::isfinite(at) || at < xlo - 0.5 || at > xhi) continue;
+    const double x = px(std::max(at, xlo));
+    if (l > 0)
+      svg.line(x, top, x, bottom, kLevelColour, 1.2,
+               " stroke-dasharray=\"6 4\" class=\"level-change\"");
+    const std::string& name = curve.levels[l].name;
+    if (!name.empty() && x + 3 >= free_from) {
+      svg.text(x + 3, top - 6, name, 11, "start", "level", " fill=\"#a85400\"");
+      free_from = x + 3 + text_width(name, 11) + 6;
+    }
+  }
+
+  // The curves: polylines split at the gaps; a point with no drawable neighbour as a dot.
+  const auto polyline = [&](const std::vector<double>& values, const char* colour, double w,
+                            const std::string& cls) {
+    std::vector<std::pair<double, double>> run;
+    const auto flush = [&] {
+      if (run.size() == 1) {
+        svg.raw("<circle class=\"" + cls + "\" cx=\"" + num(run[0].first) + "\" cy=\"" +
+                num(run[0].second) + "\" r=\"2.5\" fill=\"" + colour + "\"/>\n");
+      } else if (run.size() > 1) {
+        std::string points;
+        for (const auto& [x, y] : run) points += num(x) + "," + num(y) + " ";
+        points.pop_back();
+        svg.raw("<polyline class=\"" + cls + "\" fill=\"none\" stroke=\"" + colour +
+                "\" stroke-width=\"" + num(w) + "\" stroke-linejoin=\"round\" points=\"" + points +
+                "\"/>\n");
+      }
+      run.clear();
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(curve.iterations[i])) continue;
+      if (!drawable(values[i])) {
+        flush();
+        continue;
+      }
+      run.emplace_back(px(curve.iterations[i]), py(values[i]));
+    }
+    flush();
+  };
+  if (has_priors) polyline(curve.priors, kPriorColour, 1.6, "prior");
+  polyline(curve.losses, kLossColour, 2, "loss");
+  if (!any_y)
+    svg.text((left + right) / 2, (top + bottom) / 2, "no positive finite loss to draw", 13,
+             "middle", "note", " fill=\"#888888\"");
+
+  // Axes, axis titles and the title.
+  svg.line(left, bottom, right, bottom, axis, 1.2);
+  svg.line(left, top, left, bottom, axis, 1.2);
+  svg.text((left + right) / 2, bottom + 44, "iteration", 14, "middle", "x-title");
+  const double yc = (top + bottom) / 2;
+  svg.text(22, yc, "loss (" + curve.loss_name + ", log scale)", 14, "middle", "y-title",
+           " transform=\"rotate(-90 22 " + num(yc) + ")\"");
+  if (!curve.title.empty())
+    svg.text(width / 2.0, 22, curve.title, 15, "middle", "title", " font-weight=\"bold\"");
+
+  // The legend: a sample of each drawn line, then the loss's first, last and lowest values.
+  double y = top + 14;
+  const double lx = right + 22;
+  const auto entry = [&](const std::string& label, const char* colour, double w,
+                         const std::string& dash) {
+    svg.line(lx, y - 4, lx + 28, y - 4, colour, w, dash);
+    svg.text(lx + 36, y, label, 12, "start", "legend");
+    y += 20;
+  };
+  entry(curve.loss_label + " (" + curve.loss_name + ")", kLossColour, 2, "");
+  if (has_priors) entry("prior term", kPriorColour, 1.6, "");
+  if (curve.levels.size() > 1)
+    entry("level change", kLevelColour, 1.2, " stroke-dasharray=\"6 4\"");
+  double first = NAN, last = NAN, lowest = NAN, lowest_at = NAN;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double v = curve.losses[i];
+    if (!drawable(v) || !std::isfinite(curve.iterations[i])) continue;
+    if (std::isnan(first)) first = v;
+    last = v;
+    if (std::isnan(lowest) || v < lowest) lowest = v, lowest_at = curve.iterations[i];
+  }
+  y += 6;
+  char at[48];
+  std::snprintf(at, sizeof at, " (it. %.0f)", std::isnan(lowest_at) ? 0.0 : lowest_at);
+  for (const std::string& s : {"first " + value_text(first), "last " + value_text(last),
+                               "lowest " + value_text(lowest) + (std::isnan(lowest) ? "" : at)}) {
+    svg.text(lx, y, s, 12, "start", "stat", " fill=\"#444444\"");
+    y += 18;
+  }
+  return svg.finish();
 }
 
 }  // namespace ivr::cli

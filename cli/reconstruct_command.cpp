@@ -254,14 +254,33 @@ std::string csv_text(const std::vector<IterationRecord>& history) {
   return s;
 }
 
-LossCurve loss_curve(const std::vector<IterationRecord>& history) {
+// The loss plot's data: the image loss and the priors per iteration, each level by its grid.
+LossCurve loss_curve(const Reconstruction& r, const ReconstructOptions& used) {
   LossCurve c;
+  const std::vector<IterationRecord>& history = r.history();
   for (std::size_t i = 0; i < history.size(); ++i) {
     c.iterations.push_back(history[i].iteration);
     c.losses.push_back(history[i].loss);
-    if (i > 0 && history[i].level != history[i - 1].level)
-      c.markers.push_back(history[i].iteration - 0.5);  // between the levels' iterations
+    c.priors.push_back(history[i].prior);
+    if (i == 0 || history[i].level != history[i - 1].level) {
+      const std::vector<int> d = r.level_dims(history[i].level);
+      c.levels.push_back(
+          {double(history[i].iteration),
+           d[0] == d[1] && d[1] == d[2]
+               ? std::to_string(d[0]) + "³"
+               : std::to_string(d[0]) + "×" + std::to_string(d[1]) + "×" + std::to_string(d[2])});
+    }
   }
+  c.loss_name = used.loss == Loss::l1 ? "L1" : "MSE";
+  c.loss_label = "image loss";
+  std::ostringstream title;
+  title << "ivr reconstruct: "
+        << (used.density && used.tf ? "density and TF"
+            : used.density          ? "density"
+                                    : "TF")
+        << ", " << optimizer_name(used.optimizer.kind) << " lr " << used.optimizer.lr << ", "
+        << history.size() << " iterations";
+  c.title = title.str();
   return c;
 }
 
@@ -283,7 +302,7 @@ Runner add_reconstruct_command(CLI::App& app) {
       ->required();
   cmd->add_option("-o,--output", a.prefix,
                   "Output prefix: PREFIX_density.{npy,nrrd}, PREFIX_tf.{npy,json}, "
-                  "PREFIX_loss.{csv,png}, PREFIX_{before,after,target}.png")
+                  "PREFIX_loss.{csv,svg}, PREFIX_{before,after,target}.png")
       ->required();
   cmd->add_option("--wrt", a.wrt, "What to optimise: density (default), tf or density,tf");
   cmd->add_option("--iterations", a.options.iterations, "Iterations in total over every level")
@@ -424,11 +443,11 @@ Runner add_reconstruct_command(CLI::App& app) {
       outputs.insert(outputs.end(), {p + "_tf.npy", p + "_tf.json"});
     }
     write_text_atomically(p + "_loss.csv", csv_text(history));
-    save_image_file(p + "_loss.png", plot_loss(loss_curve(history)));
+    write_text_atomically(p + "_loss.svg", loss_svg(loss_curve(r, used)));
     save_image_file(p + "_before.png", before);
     save_image_file(p + "_after.png", after);
     save_image_file(p + "_target.png", targets, 0);
-    outputs.insert(outputs.end(), {p + "_loss.csv", p + "_loss.png", p + "_before.png",
+    outputs.insert(outputs.end(), {p + "_loss.csv", p + "_loss.svg", p + "_before.png",
                                    p + "_after.png", p + "_target.png"});
     Reconstruction::remove_checkpoint(p);
 

@@ -7,10 +7,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
@@ -18,6 +20,7 @@
 #include <thread>
 
 #include "reconstruct/reconstruct_support.hpp"
+#include "reconstruct/svg_check.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -126,11 +129,11 @@ TEST_F(CliReconstruct, DensityWritesEveryOutputAndReportsVolumeErrorAndHeldOutPs
 
   const std::string p = prefix();
   const std::vector<std::string> expected = {
-      p + "_density.npy", p + "_density.nrrd", p + "_loss.csv",  p + "_loss.png",
+      p + "_density.npy", p + "_density.nrrd", p + "_loss.csv",  p + "_loss.svg",
       p + "_before.png",  p + "_after.png",    p + "_target.png"};
   EXPECT_EQ(j["outputs"].get<std::vector<std::string>>(), expected);
   for (const std::string& o : expected) EXPECT_TRUE(fs::exists(o)) << o;
-  for (const char* png : {"_loss.png", "_before.png", "_after.png", "_target.png"})
+  for (const char* png : {"_before.png", "_after.png", "_target.png"})
     EXPECT_TRUE(is_png(p + png)) << png;
   EXPECT_TRUE(file_text(p + "_density.nrrd").rfind("NRRD", 0) == 0);
   const NpyArray v = load_npy(p + "_density.npy");
@@ -145,6 +148,33 @@ TEST_F(CliReconstruct, DensityWritesEveryOutputAndReportsVolumeErrorAndHeldOutPs
   ASSERT_EQ(l.size(), 40u);
   EXPECT_DOUBLE_EQ(l.front(), j["loss_first"].get<double>());
   EXPECT_LT(l.back(), 0.1 * l.front());
+
+  // The loss plot: well-formed SVG with both axis titles, decade labels that bracket the CSV's
+  // losses within a decade each side, iterations up to the 40th, the three levels and a legend.
+  std::vector<XmlElement> svg;
+  ASSERT_NO_THROW(svg = parse_xml(file_text(p + "_loss.svg")));
+  ASSERT_EQ(svg.front().name, "svg");
+  std::map<std::string, std::vector<std::string>> text;
+  for (const XmlElement& e : svg)
+    if (e.name == "text") text[e.attributes.at("class")].push_back(e.text);
+  EXPECT_EQ(text["x-title"], std::vector<std::string>{"iteration"});
+  EXPECT_EQ(text["y-title"], std::vector<std::string>{"loss (MSE, log scale)"});
+  EXPECT_EQ(text["title"],
+            std::vector<std::string>{"ivr reconstruct: density, adam lr 0.025, 40 iterations"});
+  EXPECT_EQ(text["level"], (std::vector<std::string>{"4³", "8³", "16³"}));
+  EXPECT_EQ(text["legend"], (std::vector<std::string>{"image loss (MSE)", "level change"}));
+  std::vector<double> ticks;
+  for (const std::string& t : text["y-tick"]) ticks.push_back(tick_value(t));
+  ASSERT_GE(ticks.size(), 2u);
+  const double lo = *std::min_element(l.begin(), l.end()),
+               hi = *std::max_element(l.begin(), l.end());
+  EXPECT_LE(*std::min_element(ticks.begin(), ticks.end()), lo);
+  EXPECT_GT(*std::min_element(ticks.begin(), ticks.end()), lo / 10);
+  EXPECT_GE(*std::max_element(ticks.begin(), ticks.end()), hi);
+  EXPECT_LT(*std::max_element(ticks.begin(), ticks.end()), hi * 10);
+  ASSERT_FALSE(text["x-tick"].empty());
+  EXPECT_EQ(text["x-tick"].front(), "0");
+  EXPECT_EQ(text["x-tick"].back(), "40");
 
   // Not a terminal: a plain progress line every max(1, 40/20) = 2 iterations.
   const std::regex line(

@@ -22,6 +22,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from plot_axes import number_log_axes  # noqa: E402
+
 COLOURS = {"ivr": "#1f77b4", "ivr-deterministic": "#6baed6", "ivr-resident": "#17becf",
            "ivr-resident-deterministic": "#9edae5", "native": "#2ca02c", "jax": "#d62728",
            "drjit": "#9467bd", "torch": "#ff7f0e"}
@@ -68,7 +70,8 @@ def speed_vs_error(doc, path) -> bool:
     for ax in list(axes.flat)[len(scenes):]:
         ax.axis("off")
     fig.suptitle("Speed against error (labels: step in voxels)")
-    fig.tight_layout()
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
+    fig.tight_layout(rect=(0, 0, 1, 0.97))  # room for the suptitle
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
@@ -113,6 +116,7 @@ def baselines(doc, path, cases=None) -> bool:
                         va="bottom", fontsize=7)
         ax.grid(True, axis="y", which="both", alpha=0.3)
     fig.suptitle("ivr against the baselines (same scene, same step; lower is better)")
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -154,6 +158,7 @@ def crossover(doc, path) -> bool:
     ax.set_title("Forward mode against the adjoint\n(TF and background parameters)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -208,6 +213,7 @@ def scaling(doc, path) -> bool:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Scaling (time ∝ x^k, least squares in log–log)")
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -20,6 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from accuracy_records import accuracy_doc  # noqa: E402
+from plot_axes import number_log_axes  # noqa: E402
 
 STYLES = {"midpoint": ("tab:blue", "o"), "trapezoid": ("tab:green", "s"),
           "preintegrated": ("tab:red", "^"), "exact": ("tab:purple", "D")}
@@ -47,7 +48,7 @@ def plot_look(doc, look, out):
                     ax.annotate(f'{r["step"]:g}', (r["ms"], r["relative_rms"]), fontsize=6,
                                 textcoords="offset points", xytext=(3, 3))
         if target:
-            ax.axhline(target, ls=":", color="grey", lw=0.8)
+            ax.axhline(target, ls=":", color="grey", lw=0.8, label=f"target error {target:g}")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(f"{volume} ({look})", fontsize=9)
@@ -61,6 +62,7 @@ def plot_look(doc, look, out):
              f'{doc["image"]}², reference: {doc["reference"]}; time: median kernel (+ grid); '
              'labels: midpoint steps)')
     fig.suptitle(textwrap.fill(title, 45 * cols), fontsize=9)
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
     fig.tight_layout()
     fig.savefig(out, dpi=100)
     print(out)

@@ -15,6 +15,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from plot_axes import number_log_axes  # noqa: E402
+
 
 def main(path, out):
     with open(path) as f:
@@ -42,17 +44,18 @@ def main(path, out):
         psnr.plot(secs, [c[2] for c in curve], marker=".", label=label)
         error.plot(secs, [c[3] for c in curve], marker=".", label=label)
     target = runs[0]["target_db"]
-    psnr.axhline(target, color="grey", linestyle="--", linewidth=1)
+    psnr.axhline(target, color="grey", linestyle="--", linewidth=1, label=f"target {target:g} dB")
     psnr.set_xlabel("seconds (evaluations excluded)")
     psnr.set_ylabel("held-out PSNR (dB)")
     error.set_xlabel("seconds (evaluations excluded)")
-    error.set_ylabel("relative volume error")
+    error.set_ylabel("relative volume error ‖x − x_true‖ / ‖x_true‖")
     error.set_yscale("log")
     for ax in (psnr, error):
         ax.grid(True, alpha=0.3)
         ax.legend()
     fig.suptitle(f"Shepp–Logan density from {runs[0]['views']} views, batches of "
                  f"{runs[0]['batch']} × {runs[0]['image']}² — {device}", fontsize=9)
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
     fig.tight_layout()
     fig.savefig(out, dpi=110)
 

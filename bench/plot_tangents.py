@@ -13,6 +13,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from plot_axes import number_log_axes  # noqa: E402
+
 
 def from_planner_suite(doc):
     """The planner suite's voxel sweep in the earlier program's form (kernel times in ms)."""
@@ -61,6 +63,7 @@ def main():
                  f"adjoint faster from P = {cross}" if cross else "forward faster at every P")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     print(out)

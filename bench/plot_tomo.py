@@ -15,6 +15,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from plot_axes import number_log_axes  # noqa: E402
+
 STYLES = {"cgls": "tab:blue", "lsqr": "tab:orange", "sirt": "tab:green"}
 
 
@@ -44,12 +46,13 @@ def main(path, out):
         by_time.semilogy(secs, res, label=label, color=colour)
     n, views = runs[0]["volume"], runs[0]["views"]
     for ax, xlabel in ((by_iter, "iteration"), (by_time, "wall time (s)")):
-        ax.axhline(0.01, color="grey", linestyle="--", linewidth=0.8)
+        ax.axhline(0.01, color="grey", linestyle="--", linewidth=0.8, label="1 % residual")
         ax.set_xlabel(xlabel)
         ax.set_ylabel("relative residual ‖p − N x‖ / ‖p‖")
         ax.grid(True, which="both", alpha=0.3)
-    by_iter.legend()
+        ax.legend(fontsize=8)
     fig.suptitle(f"{n}³ Shepp–Logan, {views} parallel views — {device}")
+    number_log_axes(fig)  # before the layout, which must fit the tick labels it adds
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     print(f"wrote {out}")

@@ -45,7 +45,8 @@ Runner add_gradient_command(CLI::App& app) {
                   "camera, step, voxels:LIST (indices and ranges a-b)")
       ->required();
   cmd->add_option("--mode", args->mode, "auto (default: the planner's choice), forward or adjoint");
-  cmd->add_option("--loss", args->loss, "Image loss: mse (default) or l1");
+  cmd->add_option("--loss", args->loss, "Image loss: mse (default), l1, or dot (the sum of target * image: the "
+                  "gradient is the vector-Jacobian product with the target as dL/dimage)");
   add_march_options(cmd, args->march);
   cmd->add_option("-o,--output", args->prefix,
                   "Output prefix: writes PREFIX_<group>.npy for every group asked for (float32; "
@@ -72,15 +73,15 @@ Runner add_gradient_command(CLI::App& app) {
     else
       throw input_error("--mode: unknown mode '" + args->mode +
                         "' (known: auto, forward, adjoint)");
-    if (args->loss != "mse" && args->loss != "l1")
-      throw input_error("--loss: unknown loss '" + args->loss + "' (known: mse, l1)");
+    if (args->loss != "mse" && args->loss != "l1" && args->loss != "dot")
+      throw input_error("--loss: unknown loss '" + args->loss + "' (known: mse, l1, dot)");
     const Precision precision = checked_precision(args->march);
     const Scene scene = with_integrator(load_scene(args->scene), args->march);
     const Image target = load_target(args->target, scene);
     Device device(args->march.device);
     options.precision = precision;
     options.step = args->march.step;
-    options.loss = args->loss == "l1" ? Loss::l1 : Loss::mse;
+    options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;
     const Gradient d = gradient(device, scene, target, groups, options);
 
     std::vector<Output> outputs;

@@ -145,17 +145,18 @@ __kernel void volume_check(const ulong n, const ulong chunk, __global const real
 IVR_SUM_ROWS(sum_rows, real)
 IVR_SUM_ROWS(sum_acc_rows, acc)
 
-// The loss of an image against a target (docs/design.md's mse, or l1), per work-group partial sums of
-// the elements' terms × norm (1 / elements), grid-stride; sum_rows adds the groups' partials.
+// The loss of an image against a target (docs/design.md's losses; kind 0 mse, 1 l1, 2 dot), per
+// work-group partial sums of the elements' terms × norm (1 / elements; 1 for dot), grid-stride;
+// sum_rows adds the groups' partials.
 __kernel void loss_partial(const ulong n, __global const real* restrict image,
-                           __global const real* restrict target, const acc norm, const int l1,
+                           __global const real* restrict target, const acc norm, const int kind,
                            __global acc* restrict partial) {
   __local acc scratch[IVR_REDUCE_SIZE];
   const int lid = get_local_id(0);
   acc s = (acc)0;
   for (ulong i = get_global_id(0); i < n; i += get_global_size(0)) {
     const acc d = (acc)image[i] - (acc)target[i];
-    s += l1 ? fabs(d) : d * d;
+    s += kind == 2 ? (acc)image[i] * (acc)target[i] : kind == 1 ? fabs(d) : d * d;
   }
   scratch[lid] = s;
   group_sum(scratch, lid);

@@ -7,14 +7,23 @@
 #ifndef IVR_LOSS_L1  // 0: mean squared error, 1: mean absolute error
 #define IVR_LOSS_L1 0
 #endif
+#ifndef IVR_LOSS_DOT  // 1: sum of target * value, whose dL/dpixel is the target itself
+#define IVR_LOSS_DOT 0
+#endif
 
 // dL/dpixel for one channel; *loss += its term. `norm` = 1 / (number of elements).
 inline real loss_term(real value, real target, real norm, real* loss) {
+#if IVR_LOSS_DOT
+  // Not a mean: the target is dL/dimage as given (an autograd backward's weights), unscaled.
+  (void)norm;
+  *loss += value * target;
+  return target;
+#elif IVR_LOSS_L1
   const real diff = value - target;
-#if IVR_LOSS_L1
   *loss += fabs(diff) * norm;
   return diff > (real)0 ? norm : (diff < (real)0 ? -norm : (real)0);
 #else
+  const real diff = value - target;
   *loss += diff * diff * norm;
   return (real)2 * diff * norm;
 #endif

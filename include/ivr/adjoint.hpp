@@ -14,6 +14,8 @@ namespace ivr {
 enum class Loss {
   mse,  // mean over every element of (image - target)^2
   l1,   // mean over every element of |image - target| (subgradient 0 where they are equal)
+  dot,  // sum over every element of target * image: its gradient is the vector-Jacobian product
+        // of the render with the target as the weights (dL/dimage = target; autograd's backward)
 };
 
 struct AdjointOptions {

@@ -66,6 +66,8 @@ typedef enum ivr_mode {
 typedef enum ivr_loss {
   IVR_LOSS_MSE = 0,
   IVR_LOSS_L1 = 1,
+  IVR_LOSS_DOT = 2, /* sum of target * image: the gradient is the vector-Jacobian product of the
+                       render with the target as dL/dimage (an autograd backward), not a loss */
   IVR_LOSS_MAX_ENUM = 0x7fffffff
 } ivr_loss;
 

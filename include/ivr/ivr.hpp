@@ -73,7 +73,7 @@ enum class Mode {
   forward = IVR_MODE_FORWARD,
   adjoint = IVR_MODE_ADJOINT
 };
-enum class Loss { mse = IVR_LOSS_MSE, l1 = IVR_LOSS_L1 };
+enum class Loss { mse = IVR_LOSS_MSE, l1 = IVR_LOSS_L1, dot = IVR_LOSS_DOT };
 
 inline int version() {
   return ivr_version();

@@ -96,6 +96,7 @@ KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std
       .set(Switch::grad_tf, r.tf)
       .set(Switch::grad_camera, r.camera)
       .set(Switch::loss_l1, r.loss == Loss::l1)
+      .set(Switch::loss_dot, r.loss == Loss::dot)
       .set(Switch::deterministic, fixed)
       .set(Switch::primal_given, primal_given)
       .set(Switch::scatter_cache, scatter_cache)
@@ -362,9 +363,14 @@ double image_loss(const Image& image, const Image& target, Loss loss) {
     throw Error(Status::invalid_argument, "image and target differ in shape");
   double sum = 0;
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    if (loss == Loss::dot) {
+      sum += double(image.pixels[i]) * double(target.pixels[i]);
+      continue;
+    }
     const double d = double(image.pixels[i]) - double(target.pixels[i]);
     sum += loss == Loss::l1 ? std::abs(d) : d * d;
   }
+  if (loss == Loss::dot) return sum;  // a weighted sum, not a mean (kernels/loss.cl)
   return image.pixels.empty() ? 0.0 : sum / double(image.pixels.size());
 }
 

@@ -145,6 +145,7 @@ double ray_gradient_bound(const Scene& scene, const TfExtremes& tf, double targe
   const glm::dvec3 bg = scene.effective_background();
   // |dL/dpixel| for a pixel value of at most `value` in magnitude (kernels/loss.cl).
   auto adjoint = [&](double value) {
+    if (loss == Loss::dot) return target_abs_max;  // dL/dpixel is the target itself
     return loss == Loss::l1 ? norm : 2 * (value + target_abs_max) * norm;
   };
   if (scene.model == Model::absorption) {

@@ -208,10 +208,8 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
     not_null(wrt, "wrt");
     not_null(out, "result");
     *out = nullptr;
-    if (mode != IVR_MODE_AUTO && mode != IVR_MODE_FORWARD && mode != IVR_MODE_ADJOINT)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown mode " + std::to_string(int(mode))};
-    if (loss != IVR_LOSS_MSE && loss != IVR_LOSS_L1)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown loss " + std::to_string(int(loss))};
+    const ivr::Mode m = mode_of(mode);
+    const ivr::Loss l = loss_of(loss);
     const ivr::Camera& cam = s->scene.cameras.front();
     ivr::Image t{int(s->scene.cameras.size()), cam.height, cam.width, s->scene.channels(), {}};
     const size_t want = size_t(t.views) * t.height * t.width * t.channels;
@@ -221,10 +219,8 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
                                                    std::to_string(want)};
     t.pixels.assign(target, target + count);
     ivr::GradientOptions o;
-    o.mode = mode == IVR_MODE_FORWARD   ? ivr::Mode::forward
-             : mode == IVR_MODE_ADJOINT ? ivr::Mode::adjoint
-                                        : ivr::Mode::automatic;
-    o.loss = loss == IVR_LOSS_L1 ? ivr::Loss::l1 : ivr::Loss::mse;
+    o.mode = m;
+    o.loss = l;
     o.precision = precision_of(precision);
     o.step = step;
     const ivr::Gradient d =
@@ -246,11 +242,10 @@ ivr_status ivr_image_loss(const float* image, const float* target, size_t count,
     not_null(target, "target");
     not_null(value, "value");
     if (count == 0) throw CError{IVR_ERROR_INVALID_ARGUMENT, "count is 0 (no pixels to compare)"};
-    if (loss != IVR_LOSS_MSE && loss != IVR_LOSS_L1)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown loss " + std::to_string(int(loss))};
+    const ivr::Loss l = loss_of(loss);
     ivr::Image a{1, 1, int(count), 1, std::vector<float>(image, image + count)};
     ivr::Image b{1, 1, int(count), 1, std::vector<float>(target, target + count)};
-    *value = ivr::image_loss(a, b, loss == IVR_LOSS_L1 ? ivr::Loss::l1 : ivr::Loss::mse);
+    *value = ivr::image_loss(a, b, l);
   });
 }
 

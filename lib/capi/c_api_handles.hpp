@@ -197,6 +197,20 @@ inline ivr::Precision precision_of(ivr_precision p) {
   return p == IVR_PRECISION_F64 ? ivr::Precision::f64 : ivr::Precision::f32;
 }
 
+inline ivr::Mode mode_of(ivr_mode m) {
+  if (m != IVR_MODE_AUTO && m != IVR_MODE_FORWARD && m != IVR_MODE_ADJOINT)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown mode " + std::to_string(int(m))};
+  return m == IVR_MODE_FORWARD ? ivr::Mode::forward
+         : m == IVR_MODE_ADJOINT ? ivr::Mode::adjoint
+                                 : ivr::Mode::automatic;
+}
+
+inline ivr::Loss loss_of(ivr_loss l) {
+  if (l != IVR_LOSS_MSE && l != IVR_LOSS_L1 && l != IVR_LOSS_DOT)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown loss " + std::to_string(int(l))};
+  return ivr::Loss(int(l));  // the same numbers (ivr::Loss's order: mse, l1, dot)
+}
+
 template <class Handle>
 inline ivr_status release(Handle* h, Kind k, const char* function) {
   return guarded(nullptr, function, [&] {

@@ -93,20 +93,6 @@ ivr::DType dtype_of(ivr_dtype d, const char* what) {
                                                " (device arrays hold IVR_FLOAT32 or IVR_FLOAT64)"};
 }
 
-ivr::Mode mode_of(ivr_mode m) {
-  if (m != IVR_MODE_AUTO && m != IVR_MODE_FORWARD && m != IVR_MODE_ADJOINT)
-    throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown mode " + std::to_string(int(m))};
-  return m == IVR_MODE_FORWARD ? ivr::Mode::forward
-         : m == IVR_MODE_ADJOINT ? ivr::Mode::adjoint
-                                 : ivr::Mode::automatic;
-}
-
-ivr::Loss loss_of(ivr_loss l) {
-  if (l != IVR_LOSS_MSE && l != IVR_LOSS_L1)
-    throw CError{IVR_ERROR_INVALID_ARGUMENT, "unknown loss " + std::to_string(int(l))};
-  return l == IVR_LOSS_L1 ? ivr::Loss::l1 : ivr::Loss::mse;
-}
-
 template <class Out>
 Out* out_handle(Out** out, const char* what) {
   not_null(out, what);

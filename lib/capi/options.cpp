@@ -70,7 +70,8 @@ constexpr EnumValue<ivr_schedule, Schedule> kSchedule[] = {
     {IVR_SCHEDULE_STEP, Schedule::step, "IVR_SCHEDULE_STEP"},
     {IVR_SCHEDULE_COSINE, Schedule::cosine, "IVR_SCHEDULE_COSINE"}};
 constexpr EnumValue<ivr_loss, Loss> kLoss[] = {{IVR_LOSS_MSE, Loss::mse, "IVR_LOSS_MSE"},
-                                               {IVR_LOSS_L1, Loss::l1, "IVR_LOSS_L1"}};
+                                               {IVR_LOSS_L1, Loss::l1, "IVR_LOSS_L1"},
+                                               {IVR_LOSS_DOT, Loss::dot, "IVR_LOSS_DOT"}};
 constexpr EnumValue<ivr_init, Init> kInit[] = {{IVR_INIT_SCENE, Init::scene, "IVR_INIT_SCENE"},
                                                {IVR_INIT_ZEROS, Init::zeros, "IVR_INIT_ZEROS"},
                                                {IVR_INIT_CONSTANT, Init::constant, "IVR_INIT_CONSTANT"}};

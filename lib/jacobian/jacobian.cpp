@@ -169,7 +169,8 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
   base.set(Switch::lanes, pass_lanes)
       .set(Switch::jacobian, jacobian)
       .set(Switch::loss_gradient, loss)
-      .set(Switch::loss_l1, loss && loss_kind == Loss::l1);
+      .set(Switch::loss_l1, loss && loss_kind == Loss::l1)
+      .set(Switch::loss_dot, loss && loss_kind == Loss::dot);
   op.stats.variant = base.label();
   op.stats.skipped_empty = variant.empty_space;
   op.stats.step = integrator.step;

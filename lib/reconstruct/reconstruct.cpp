@@ -73,6 +73,8 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 void validate_reconstruct(const ReconstructOptions& o) {
   if (!o.density && !o.tf) fail("reconstruct: nothing to optimise (density and tf both off)");
   if (o.iterations < 1) fail("iterations must be >= 1, got " + std::to_string(o.iterations));
+  if (o.loss == Loss::dot)
+    fail("reconstruct: loss dot is a vector-Jacobian product, not a loss to minimise (mse or l1)");
   if (o.batch < 0) fail("batch must be >= 0 (0: every view), got " + std::to_string(o.batch));
   if (o.levels < 0 || o.levels > 8)
     fail("levels must be in 0 .. 8 (0: automatic), got " + std::to_string(o.levels));

@@ -281,18 +281,19 @@ cl::Event ArrayKernels::sum_rows(const cl::Buffer& in, int rows, int cols, int b
 }
 
 cl::Event ArrayKernels::loss(const cl::Buffer& image, const cl::Buffer& target, std::uint64_t n,
-                             bool l1, const cl::Buffer& out, std::vector<cl::Event>& events) {
+                             int kind, const cl::Buffer& out, std::vector<cl::Event>& events) {
   const std::size_t groups = pass_groups(dev_.info, n);
   const cl::Buffer& partial = scratch(groups * (acc_f64_ ? 8 : 4));
   cl::Kernel& k = kernel("loss_partial");
   k.setArg(0, cl_ulong(n));
   k.setArg(1, image);
   k.setArg(2, target);
+  const double norm = kind == 2 ? 1.0 : 1.0 / double(n);  // dot: a sum, not a mean
   if (acc_f64_)
-    k.setArg(3, cl_double(1.0 / double(n)));
+    k.setArg(3, cl_double(norm));
   else
-    k.setArg(3, cl_float(1.0 / double(n)));
-  k.setArg(4, cl_int(l1 ? 1 : 0));
+    k.setArg(3, cl_float(norm));
+  k.setArg(4, cl_int(kind));
   k.setArg(5, partial);
   events.push_back(enqueue_groups(dev_, k, groups, kReduceSize));
   cl::Kernel& sum = kernel("sum_acc_rows");

@@ -55,8 +55,9 @@ class ArrayKernels {
                              double* lo, double* hi, std::vector<cl::Event>& events);
   // out[b·cols + c] = Σ_r in[(b·rows + r)·cols + c] for b < blocks, accumulated as acc_dtype().
   cl::Event sum_rows(const cl::Buffer& in, int rows, int cols, int blocks, const cl::Buffer& out);
-  // The loss of `image` (float32) against `target` (reals), n elements, into out[0].
-  cl::Event loss(const cl::Buffer& image, const cl::Buffer& target, std::uint64_t n, bool l1,
+  // The loss of `image` (float32) against `target` (reals), n elements, into out[0]; `kind` is
+  // ivr::Loss's value (0 mse, 1 l1, 2 dot: kernels/array_ops.cl loss_partial).
+  cl::Event loss(const cl::Buffer& image, const cl::Buffer& target, std::uint64_t n, int kind,
                  const cl::Buffer& out, std::vector<cl::Event>& events);
   cl::Event gather(const cl::Buffer& src, const cl::Buffer& index, int n, const cl::Buffer& dst);
   cl::Event copy_columns(std::uint64_t rows, const cl::Buffer& src, int src_cols, int src_first,

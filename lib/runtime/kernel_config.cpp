@@ -40,6 +40,7 @@ constexpr SwitchInfo kInfo[kSwitches] = {
     {"IVR_JACOBIAN", "jacobian", Shown::flag, false},
     {"IVR_LOSS_GRADIENT", "loss_gradient", Shown::flag, false},
     {"IVR_LOSS_L1", "l1", Shown::flag, true},
+    {"IVR_LOSS_DOT", "dot", Shown::flag, true},
     {"IVR_GRAD_DENSITY", "grad_density", Shown::flag, false},
     {"IVR_GRAD_TF", "grad_tf", Shown::flag, true},
     {"IVR_GRAD_CAMERA", "grad_camera", Shown::flag, true},

@@ -32,6 +32,7 @@ enum class Switch : int {
   jacobian,           // IVR_JACOBIAN: the tangent kernel writes the Jacobian
   loss_gradient,      // IVR_LOSS_GRADIENT: the tangent kernel sums d loss / d parameter
   loss_l1,            // IVR_LOSS_L1: the loss is l1 (else mse)
+  loss_dot,           // IVR_LOSS_DOT: the loss is sum(target * image): dL/dpixel = target
   grad_density,       // IVR_GRAD_DENSITY: the adjoint scatters d loss / d voxel
   grad_tf,            // IVR_GRAD_TF
   grad_camera,        // IVR_GRAD_CAMERA

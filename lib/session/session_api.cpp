@@ -254,6 +254,9 @@ SessionGradient Session::forward(const std::vector<Parameter>& parameters, Loss 
   return g;
 }
 
+static_assert(int(Loss::mse) == 0 && int(Loss::l1) == 1 && int(Loss::dot) == 2,
+              "kernels/array_ops.cl loss_partial numbers the losses in this order");
+
 DeviceArray Session::loss(const DeviceArray& image, const DeviceArray& target, Loss kind) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   Impl& s = *impl_;
@@ -268,7 +271,7 @@ DeviceArray Session::loss(const DeviceArray& image, const DeviceArray& target, L
     const cl::Buffer img = s.buffer_as(image, real_dtype(s.f64), "the loss's image", op);
     const cl::Buffer tgt = s.buffer_as(target, real_dtype(s.f64), "the loss's target", op);
     DeviceArray out = s.output("loss", {1}, s.arrays.acc_dtype(), "the loss");
-    mark_written(out, s.arrays.loss(img, tgt, image.size(), kind == Loss::l1, buffer_of(out),
+    mark_written(out, s.arrays.loss(img, tgt, image.size(), int(kind), buffer_of(out),
                                     op.events));
     return out;
   });

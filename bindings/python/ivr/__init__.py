@@ -137,7 +137,7 @@ _DTYPES = {np.dtype(np.float32): 0, np.dtype(np.float64): 1, np.dtype(np.uint8):
 _PRECISIONS = {"f32": 0, "f64": 1}
 _MODES = {"auto": 0, "forward": 1, "adjoint": 2}
 _MODE_NAMES = {1: "forward", 2: "adjoint"}
-_LOSSES = {"mse": 0, "l1": 1}
+_LOSSES = {"mse": 0, "l1": 1, "dot": 2}  # dot: sum(target * image), a vector-Jacobian product
 _SOLVERS = {"cgls": 0, "sirt": 1, "lsqr": 2}
 _FLOAT_P = ctypes.POINTER(ctypes.c_float)
 
@@ -542,3 +542,20 @@ class Context(_Owned):
 # Device-resident sessions (bindings/python/ivr/_session.py): imported last, as they build on the
 # names above.
 from ._session import DensityOptimizer, DeviceArray, Session  # noqa: E402
+
+
+def _require_a_platform():
+    """`import ivr` fails at once, naming what is missing, where the library cannot be loaded or
+    no OpenCL platform exists — rather than at the first render, deep in a training script."""
+    try:
+        _library()
+    except OSError as e:
+        raise ImportError(f"ivr: {e}") from None
+    try:
+        devices()
+    except Error as e:
+        raise ImportError(f"ivr: {e.message}; GPUs need their vendor's OpenCL driver, CPUs PoCL "
+                          f"(Debian: apt-get install pocl-opencl-icd)") from None
+
+
+_require_a_platform()

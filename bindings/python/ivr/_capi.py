@@ -153,7 +153,10 @@ def load():
             continue
         _declare(lib)
         return lib
-    raise OSError("libivr not found (set IVR_LIBRARY to its path)" +
+    hint = ""
+    if any("libOpenCL" in e for e in errors):  # libivr is there, the ICD loader is not
+        hint = " (libOpenCL.so.1, the OpenCL ICD loader: Debian's ocl-icd-libopencl1)"
+    raise OSError("libivr not found or not loadable" + hint + " (set IVR_LIBRARY to its path)" +
                   ("; tried " + "; ".join(errors) if errors else ""))
 
 

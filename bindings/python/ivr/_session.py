@@ -360,7 +360,8 @@ class Session(_Owned):
         the image shape or a numpy array as set_target takes it) and its gradient for every
         group of `wrt` (as ivr gradient --wrt: density, tf, tf_points, scales, background, camera,
         step, "voxels:3,17,40-45"), keyed by group name ("voxels" for voxels:LIST) in `wrt` order.
-        mode "auto", "forward" or "adjoint"; loss "mse" or "l1"; deterministic sums the
+        mode "auto", "forward" or "adjoint"; loss "mse", "l1" or "dot" (sum(target * image):
+        the gradient is the vector-Jacobian product with `target` as dL/dimage); deterministic sums the
         adjoint's density gradient in fixed point. `info`, a dict, receives the mode that ran."""
         h = self._live()
         text = wrt if isinstance(wrt, str) else ",".join(wrt)

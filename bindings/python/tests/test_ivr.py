@@ -181,32 +181,6 @@ def test_examples_run(name):
     assert r.returncode == 0, r.stdout + r.stderr
 
 
-def test_pip_install(tmp_path):
-    """`pip install ./bindings/python` gives an importable package that finds libivr."""
-    import shutil
-    import sys
-    # From a copy: setuptools leaves build/ and *.egg-info beside the sources it builds.
-    source = tmp_path / "src"
-    shutil.copytree(os.path.join(os.path.dirname(__file__), ".."), source,
-                    ignore=shutil.ignore_patterns("tests", "__pycache__", "build", "*.egg-info"))
-    target = tmp_path / "site"
-    r = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-index",
-                        "--no-build-isolation", "--target", str(target), str(source)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stdout + r.stderr
-    code = ("import ivr, numpy as np, sys; sys.stdout.write(ivr.__file__ + '\\n');"
-            "s = {'cameras': [{'eye': [0, 0, 2], 'width': 3, 'height': 2}]};"
-            "print(ivr.Context().render(s, np.full((4, 4, 4), 0.5, np.float32)).shape)")
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    env["PYTHONPATH"] = str(target)
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                       cwd=tmp_path, env=env, timeout=300)
-    assert r.returncode == 0, r.stdout + r.stderr
-    installed, shape = r.stdout.splitlines()
-    assert installed.startswith(str(target))
-    assert shape == "(1, 2, 3, 4)"
-
-
 def test_load_volume(ctx, tmp_path):
     """Volumes read through the library as a scene reads them: a file, a raw file, synthetic."""
     v = volume()

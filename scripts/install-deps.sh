@@ -9,7 +9,7 @@ packages=(
   libgtest-dev zlib1g-dev
   python3-numpy python3-pytest python3-matplotlib  # Python binding tests, bench/ plots
   python3-pip python3-venv  # the test of `pip install .` in a fresh virtual environment (label package)
-  python3-torch  # runs examples/python/torch_function.py in the tests (skipped where absent)
+  python3-torch  # ivr.torch's tests and examples (skipped where absent)
   clang libclang-rt-dev  # the loaders' libFuzzer harnesses (scripts/fuzz.sh, CTest label fuzz)
 )
 

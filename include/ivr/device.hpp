@@ -29,6 +29,9 @@ struct DeviceInfo {
   int nv_compute_capability = 0;
   std::uint64_t global_memory = 0, max_allocation = 0;
   int compute_units = 0;
+  // CL_DEVICE_HOST_UNIFIED_MEMORY: the device's memory is the host's (CPUs, integrated GPUs), so
+  // DeviceArray::wrap and map() reach host memory without a copy.
+  bool host_unified_memory = false;
 };
 
 // Every device of every platform; throws ivr::Error(no_device) if there is no OpenCL platform.

@@ -40,6 +40,20 @@ IVR_API ivr_status ivr_array_download(const ivr_array* array, void* values, ivr_
                                       size_t capacity);
 /* Waits until the commands that write the array have finished. */
 IVR_API ivr_status ivr_array_wait(const ivr_array* array);
+/* An array over the caller's memory `data` (rank, shape and dtype as ivr_array_create). Where the
+ * device's memory is the host's (ivr_devices_json's "host_unified_memory": CPUs through PoCL)
+ * kernels use that memory itself, no copy: the caller keeps it alive, and does not touch it while
+ * an operation that uses the array runs, until the array is released (the release waits for
+ * them). Elsewhere the values are copied in once. *borrowed (may be NULL): 1 for the former. */
+IVR_API ivr_status ivr_array_wrap(ivr_context* context, void* data, int rank,
+                                  const int64_t* shape, ivr_dtype dtype, int* borrowed,
+                                  ivr_array** array);
+/* The array's values in host memory, in its own dtype: waits for what writes it and maps it — no
+ * copy where the device's memory is the host's, one elsewhere (written back at unmap). *data is
+ * valid until the last ivr_array_unmap (every map needs one; maps nest) or the array's release.
+ * A mapped array must not be written (ivr_array_upload refuses; operations would race). */
+IVR_API ivr_status ivr_array_map(const ivr_array* array, void** data);
+IVR_API ivr_status ivr_array_unmap(const ivr_array* array);
 
 /* What stays fixed for a session's life. Fill it with ivr_session_options_init. */
 typedef struct ivr_session_options {

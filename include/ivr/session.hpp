@@ -56,6 +56,21 @@ class IVR_API DeviceArray {
   // Whether the array lives on `device` (arrays of another device or context are refused).
   bool on(const Device& device) const;
 
+  // An array over the caller's `host` memory (shape in C order, dtype). Where the device's memory
+  // is the host's (DeviceInfo::host_unified_memory: CPUs through PoCL) kernels read and write that
+  // memory itself, with no copy: the caller keeps it alive, and does not touch it while an
+  // operation that uses the array runs, until the array is released (the release waits for those
+  // operations). Elsewhere the values are copied in once. borrowed() tells which.
+  static DeviceArray wrap(Device& device, void* host, std::vector<std::int64_t> shape,
+                          DType dtype);
+  bool borrowed() const;
+  // The array's values in host memory: waits for what writes it and maps it — no copy where the
+  // device's memory is the host's, one elsewhere (written back at unmap). Every map() needs an
+  // unmap(); maps nest and share one pointer, valid until the last unmap or the array's release.
+  // A mapped array must not be written by uploads (refused) or operations.
+  void* map() const;
+  void unmap() const;
+
   struct Impl;
   const std::shared_ptr<Impl>& impl() const { return impl_; }
   explicit DeviceArray(std::shared_ptr<Impl> impl) : impl_(std::move(impl)) {}

@@ -119,6 +119,34 @@ ivr_status ivr_array_create(ivr_context* c, int rank, const int64_t* shape, ivr_
   });
 }
 
+ivr_status ivr_array_wrap(ivr_context* c, void* data, int rank, const int64_t* shape,
+                          ivr_dtype dtype, int* borrowed, ivr_array** out) {
+  return guarded(c, "ivr_array_wrap", [&] {
+    checked(c, Kind::context, "context");
+    out_handle(out, "array");
+    if (rank < 1 || rank > 8)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "rank " + std::to_string(rank) + " (1 .. 8)"};
+    not_null(shape, "shape");
+    not_null(data, "data");
+    ivr::DeviceArray a = ivr::DeviceArray::wrap(c->device, data,
+                                                std::vector<int64_t>(shape, shape + rank),
+                                                dtype_of(dtype, "ivr_array_wrap"));
+    if (borrowed) *borrowed = a.borrowed() ? 1 : 0;
+    *out = new_array(c, std::move(a));
+  });
+}
+
+ivr_status ivr_array_map(const ivr_array* a, void** data) {
+  return guarded(context_of(a), "ivr_array_map", [&] {
+    checked(a, Kind::array, "array");
+    *not_null(data, "data") = a->array.map();
+  });
+}
+
+ivr_status ivr_array_unmap(const ivr_array* a) {
+  return guarded(context_of(a), "ivr_array_unmap", [&] { checked(a, Kind::array, "array")->array.unmap(); });
+}
+
 ivr_status ivr_array_retain(ivr_array* a) {
   return retain(a, Kind::array, "ivr_array_retain");
 }

@@ -28,6 +28,7 @@ const DeviceArray::Impl& live(const DeviceArray& a, const char* what) {
 template <class T>
 void upload_as(DeviceArray::Impl& a, const T* values, std::size_t count) {
   if (!values) bad("upload: values is null");
+  if (a.host && a.host->maps > 0) bad("upload: the device array is mapped (unmap it first)");
   if (count != a.size)
     bad("upload: " + std::to_string(count) + " values for an array of " + std::to_string(a.size) +
         " " + shape_text(a.shape));
@@ -94,7 +95,7 @@ std::string shape_text(const std::vector<std::int64_t>& shape) {
 }
 
 DeviceArray make_array(const Device& device, Device::Impl& dev, std::vector<std::int64_t> shape,
-                       DType dtype, const char* what) {
+                       DType dtype, const char* what, void* host) {
   auto a = std::make_shared<DeviceArray::Impl>();
   std::size_t n = 1;
   for (std::int64_t d : shape) {
@@ -110,8 +111,73 @@ DeviceArray make_array(const Device& device, Device::Impl& dev, std::vector<std:
   a->shape = std::move(shape);
   a->dtype = dtype;
   a->size = n;
-  a->buffer = dev.buffer(CL_MEM_READ_WRITE, n * dtype_size(dtype), nullptr, what);
+  const std::size_t bytes = n * dtype_size(dtype);
+  host = bytes > 0 ? host : nullptr;  // an empty array has no memory to share
+  a->buffer = dev.buffer(CL_MEM_READ_WRITE | (host ? CL_MEM_USE_HOST_PTR : 0), bytes, host, what);
+  a->host = std::make_shared<HostAccess>();
+  a->host->borrowed = host != nullptr;
+  a->host->buffer = a->buffer;
+  a->host->queue = dev.queue;
+  a->host->bytes = std::max<std::size_t>(bytes, 1);
   return DeviceArray(std::move(a));
+}
+
+HostAccess::~HostAccess() {
+  // Destructors do not throw: a device lost here has failed the operations that used it already.
+  try {
+    if (maps > 0 && mapped) queue.enqueueUnmapMemObject(buffer, mapped);
+    if (borrowed || maps > 0) queue.finish();  // no command reads the caller's memory any more
+  } catch (...) {
+  }
+}
+
+DeviceArray DeviceArray::wrap(Device& device, void* host, std::vector<std::int64_t> shape,
+                              DType dtype) {
+  if (!host) bad("wrap: the host memory is null");
+  Device::Impl& dev = device.impl();
+  if (!dev.info.host_unified_memory) {  // one copy in, into a buffer of the device's own
+    DeviceArray a = make_array(device, dev, std::move(shape), dtype, "a wrapped array");
+    if (a.dtype() == DType::f32)
+      a.upload(static_cast<const float*>(host), a.size());
+    else
+      a.upload(static_cast<const double*>(host), a.size());
+    return a;
+  }
+  // The caller's memory itself (CL_MEM_USE_HOST_PTR): the driver uses it as the buffer.
+  return make_array(device, dev, std::move(shape), dtype, "a wrapped array", host);
+}
+
+bool DeviceArray::borrowed() const {
+  return live(*this, "borrowed").host->borrowed;
+}
+
+void* DeviceArray::map() const {
+  const Impl& a = live(*this, "map");
+  HostAccess& h = *a.host;
+  std::lock_guard<std::mutex> lock(h.mutex);
+  if (h.maps == 0)
+    h.mapped = cl_call("mapping a device array into host memory", [&] {
+      // Blocking, on the in-order queue: every command enqueued before it (its writers) is done.
+      return a.dev->queue.enqueueMapBuffer(h.buffer, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0,
+                                           h.bytes);
+    });
+  ++h.maps;
+  return h.mapped;
+}
+
+void DeviceArray::unmap() const {
+  const Impl& a = live(*this, "unmap");
+  HostAccess& h = *a.host;
+  std::lock_guard<std::mutex> lock(h.mutex);
+  if (h.maps == 0) bad("unmap: the device array is not mapped");
+  if (--h.maps == 0) {
+    cl_call("unmapping a device array", [&] {
+      cl::Event done;
+      a.dev->queue.enqueueUnmapMemObject(h.buffer, h.mapped, nullptr, &done);
+      done.wait();
+    });
+    h.mapped = nullptr;
+  }
 }
 
 DeviceArray reshape(const DeviceArray& array, std::vector<std::int64_t> shape) {

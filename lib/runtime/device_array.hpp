@@ -2,6 +2,8 @@
 // kernels/array_ops.cl (conversions, reductions, gathers, column copies) that sessions run.
 #pragma once
 #include <CL/opencl.hpp>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -10,6 +12,20 @@
 #include "runtime/runtime.hpp"
 
 namespace ivr {
+
+// Host access to one buffer (DeviceArray::map, wrap), shared by its reshaped views: the mapping
+// and its count, and for wrapped host memory the wait that keeps the caller's memory in use until
+// no command reads it. Holds the buffer and queue so that its destructor can unmap and wait.
+struct HostAccess {
+  std::mutex mutex;
+  cl::Buffer buffer;
+  cl::CommandQueue queue;
+  std::size_t bytes = 0;
+  void* mapped = nullptr;
+  int maps = 0;
+  bool borrowed = false;  // the buffer is the caller's memory (CL_MEM_USE_HOST_PTR)
+  ~HostAccess();
+};
 
 struct DeviceArray::Impl {
   const Device* device = nullptr;  // the owner (arrays of other devices are refused)
@@ -20,14 +36,16 @@ struct DeviceArray::Impl {
   std::size_t size = 0;  // elements
   cl::Event written;     // the last command that writes it (null: none pending)
   std::shared_ptr<Impl> base;  // a reshaped view keeps the array it views alive (and busy)
+  std::shared_ptr<HostAccess> host;  // map/unmap state, shared with the views
 };
 
 std::size_t dtype_size(DType dtype);
 DType real_dtype(bool f64);
 
-// A new array; `what` names it in allocation errors. Not initialised.
+// A new array; `what` names it in allocation errors. Not initialised; or, with `host`, over that
+// memory (CL_MEM_USE_HOST_PTR: DeviceArray::wrap).
 DeviceArray make_array(const Device& device, Device::Impl& dev, std::vector<std::int64_t> shape,
-                       DType dtype, const char* what);
+                       DType dtype, const char* what, void* host = nullptr);
 // The same buffer under another shape of the same size.
 DeviceArray reshape(const DeviceArray& array, std::vector<std::int64_t> shape);
 // "(4, 256, 256, 4)"

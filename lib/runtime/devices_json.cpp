@@ -24,7 +24,8 @@ std::string devices_json() {
                     {"double_atomic_add", d.double_atomic_add},
                     {"global_memory", d.global_memory},
                     {"max_allocation", d.max_allocation},
-                    {"compute_units", d.compute_units}});
+                    {"compute_units", d.compute_units},
+                    {"host_unified_memory", d.host_unified_memory}});
   return nlohmann::json{{"devices", list}}.dump();
 }
 

@@ -194,6 +194,7 @@ std::vector<Found> discover() {
       info.global_memory = dev.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
       info.max_allocation = dev.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
       info.compute_units = int(dev.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+      info.host_unified_memory = dev.getInfo<CL_DEVICE_HOST_UNIFIED_MEMORY>() != 0;
       query_float_atomics(dev, info);
       info.nv_compute_capability = nv_compute_capability(dev);
       found.push_back({info, platforms[p], dev});
@@ -295,7 +296,7 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
         << "-byte largest allocation of " << info.name;
     throw Error(Status::out_of_memory, msg.str());
   }
-  if (host) flags |= CL_MEM_COPY_HOST_PTR;
+  if (host && !(flags & CL_MEM_USE_HOST_PTR)) flags |= CL_MEM_COPY_HOST_PTR;
   const std::size_t size = std::max<std::size_t>(bytes, 1);
   if (allocation_countdown > 0 && allocation_countdown.fetch_sub(1) == 1)
     throw_cl(cl::Error(CL_MEM_OBJECT_ALLOCATION_FAILURE, "clCreateBuffer (injected)"),

@@ -135,9 +135,7 @@ TEST(DotLoss, SessionLossAndGradient) {
   const Image w = weights_for(s);
   Session session(device(), s, {Precision::f64});
   const std::vector<double> image = session.render().to_doubles();
-  DeviceArray weights(device(), {std::size_t(w.views), std::size_t(w.height),
-                                 std::size_t(w.width), std::size_t(w.channels)},
-                      DType::f64);
+  DeviceArray weights(device(), {w.views, w.height, w.width, w.channels}, DType::f64);
   std::vector<double> wd(w.pixels.begin(), w.pixels.end());
   weights.upload(wd.data(), wd.size());
   double want = 0;

@@ -43,8 +43,9 @@ std::vector<double> projections_of(const Scene& s, Precision precision = Precisi
 
 // The phantom as cell averages (4³ samples per voxel): point samples of its 1-voxel skull put
 // most of the volume's norm into the highest frequencies, which trilinear line integrals damp most
-// and CGLS recovers last (9.4 % after 50 iterations; docs/tomography.md).
-TEST(Tomo, CglsReconstructsSheppLogan64From90ViewsWithin5Percent) {
+// and CGLS recovers last (9.4 % after 50 iterations; docs/tomography.md). Two minutes on 2 cores:
+// label extended (`ctest -L extended -R Tomo`); SolverTest below runs CGLS on 32³ by default.
+TEST(Tomo, CglsReconstructsSheppLogan64From90ViewsWithin5PercentExtended) {
   const Volume truth = phantom("shepp-logan", 64, 1, 4);
   const Scene scene = tomo_scene(truth, 90);
   const std::vector<double> p = projections_of(scene);

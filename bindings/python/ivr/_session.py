@@ -37,6 +37,23 @@ def _host_floats(values, what):
     return np.ascontiguousarray(values, dtype=np.float64)
 
 
+class _Mapping:
+    """One ivr_array_map of a DeviceArray as numpy's array interface; unmaps when numpy lets go."""
+
+    def __init__(self, array):
+        self._array = array
+        ptr = ctypes.c_void_p()
+        _check(array._lib.ivr_array_map(array._live(), ctypes.byref(ptr)))
+        self._mapped = True
+        self.__array_interface__ = {"shape": array.shape, "typestr": array.dtype.str,
+                                    "data": (ptr.value, False), "version": 3}
+
+    def __del__(self):
+        if getattr(self, "_mapped", False) and getattr(self._array, "_handle", None):
+            self._array._lib.ivr_array_unmap(self._array._handle)
+            self._mapped = False
+
+
 class DeviceArray(_Owned):
     """An array in device memory (ivr_array): shape, dtype (float32 or float64) and a buffer
     that keeps its context alive. Operation results stay valid (their values unchanged) while
@@ -49,6 +66,7 @@ class DeviceArray(_Owned):
     elsewhere are not affected.
     """
     _release, _what = "ivr_array_release", "device array"
+    borrowed = False  # wrap(): the device uses the host memory itself
 
     def __init__(self, context, shape, dtype="float32"):
         self._lib = _library()
@@ -72,6 +90,36 @@ class DeviceArray(_Owned):
         out = cls(context, a.shape or (1,), a.dtype)
         out.upload(a)
         return out
+
+    @classmethod
+    def wrap(cls, context, array):
+        """A device array over `array`'s own memory (a C-contiguous float32 or float64 numpy
+        array, kept alive by the DeviceArray): no copy where the device's memory is the host's
+        (`borrowed` is then True: CPUs through PoCL), one copy in elsewhere. Leave `array` alone
+        while an operation that reads the DeviceArray runs."""
+        a = np.asarray(array)
+        if a.dtype not in _ARRAY_DTYPES or not a.flags.c_contiguous or not a.flags.writeable:
+            raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                        f"wrap: a writable C-contiguous float32 or float64 array, got {a.dtype}"
+                        f"{'' if a.flags.c_contiguous else ', not contiguous'}"
+                        f"{'' if a.flags.writeable else ', read-only'}")
+        lib = _library()
+        dims = a.shape or (1,)
+        handle, borrowed = _capi.HANDLE(), ctypes.c_int()
+        _check(lib.ivr_array_wrap(_context_handle(context), a.ctypes.data_as(ctypes.c_void_p),
+                                  len(dims), (ctypes.c_int64 * len(dims))(*dims),
+                                  _ARRAY_DTYPES[a.dtype], ctypes.byref(borrowed),
+                                  ctypes.byref(handle)))
+        out = cls._wrap(handle)
+        out._host = a  # the memory the device uses stays alive with the array
+        out.borrowed = bool(borrowed.value)
+        return out
+
+    def view(self):
+        """The values as a numpy array over the mapped device memory: no copy where the
+        device's memory is the host's, one elsewhere. It keeps this DeviceArray alive, and is
+        unmapped when the last numpy (or torch.from_numpy) user of it goes."""
+        return np.asarray(_Mapping(self))
 
     @classmethod
     def _wrap(cls, handle):

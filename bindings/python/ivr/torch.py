@@ -20,10 +20,14 @@ the adjoint for voxels) unless `mode` says otherwise.
 project(projector, volume) and backproject(projector, lines) are the exact line integrals
 N v of an absorption scene's rays and their transpose N^T p, each the other's backward.
 
-Data path: CPU tensors are viewed as numpy arrays without a copy and uploaded once into the
-session's device buffers; images come back with one download, which the returned tensor shares.
-Tensors on other torch devices go through host memory. The session keeps what the last call set;
-a backward after another forward of the same Renderer sets its own forward's tensors again.
+Data path: where the device's memory is the host's (CPUs through PoCL: `module.zero_copy`), the
+returned images, gradients and projections are tensors over the device arrays' own memory
+(DeviceArray.view: mapped, not copied) and the incoming dL/dimage and projected volumes are read
+by the kernels from the tensors' memory (DeviceArray.wrap); only the densities, TF, background
+and cameras are copied once into the session, which owns them (it checks the densities and
+builds its empty-space grid from its copy). Elsewhere each array is copied once each way. Tensors
+on other torch devices pass through host memory. The session keeps what the last call set; a
+backward after another forward of the same Renderer sets its own forward's tensors again.
 """
 import json
 
@@ -47,13 +51,6 @@ def _host(tensor, dtype, what):
         raise Error("IVR_ERROR_INVALID_ARGUMENT",
                     f"{what} must be a floating-point tensor, got {tensor.dtype}")
     return np.ascontiguousarray(tensor.detach().cpu().numpy(), dtype=dtype)
-
-
-def _like(array, tensor):
-    """A numpy result as a tensor of `tensor`'s dtype and device (shares CPU memory where the
-    dtypes agree)."""
-    out = torch.from_numpy(np.ascontiguousarray(array))
-    return out.to(dtype=tensor.dtype, device=tensor.device)
 
 
 def _tf_with(tf, values):
@@ -124,6 +121,22 @@ class _Resident(torch.nn.Module):
         self.session = Session(self.context, self.scene, precision=precision, **session_options)
         self._real = np.float64 if precision == "f64" else np.float32
         self._state = 0  # which forward's tensors the session holds
+        # Whether the device reaches host memory itself: then arrays are wrapped and mapped.
+        self.zero_copy = DeviceArray.wrap(self.session, np.zeros(1, self._real)).borrowed
+
+    def _in(self, array):
+        """A host array for an operation as a device array of its own dtype (a numpy array given
+        to Session.gradient would become float32): the device reads its memory where it can,
+        else it is uploaded once."""
+        if self.zero_copy:
+            return DeviceArray.wrap(self.session, array)
+        return DeviceArray.from_numpy(self.session, array)
+
+    def _out(self, array, like=None):
+        """A result as a tensor (of `like`'s dtype and device): over the mapped device memory
+        where the device's memory is the host's, else downloaded."""
+        out = torch.from_numpy(array.view() if self.zero_copy else array.numpy())
+        return out if like is None else out.to(dtype=like.dtype, device=like.device)
 
     def close(self):
         """Releases the session now (also done when the module is garbage-collected)."""
@@ -137,10 +150,9 @@ class _RenderFunction(torch.autograd.Function):
         ctx.renderer, ctx.state = renderer, renderer._state
         ctx.given = tuple(t is not None for t in (density, tf, background, camera))
         ctx.save_for_backward(*(t for t in (density, tf, background, camera) if t is not None))
-        image = renderer.session.render().numpy()
+        image = renderer._out(renderer.session.render())
         like = next((t for t in (density, tf, background, camera) if t is not None), None)
-        out = torch.from_numpy(image)
-        return out if like is None else out.to(device=like.device)
+        return image if like is None else image.to(device=like.device)
 
     @staticmethod
     def backward(ctx, grad_image):
@@ -154,15 +166,14 @@ class _RenderFunction(torch.autograd.Function):
                if t is not None and need]
         grads = [None] * 4
         if wrt:
-            weights = DeviceArray.from_numpy(renderer.session,
-                                             _host(grad_image, renderer._real, "grad_output"))
+            weights = renderer._in(_host(grad_image, renderer._real, "grad_output"))
             info = {}
             _, g = renderer.session.gradient(target=weights, wrt=wrt, mode=renderer.mode,
                                              loss="dot", info=info)
             renderer.last_mode = info["mode"]
             for name in wrt:
                 i = names.index(name)
-                grads[i] = _like(g[name].numpy().reshape(inputs[i].shape), inputs[i])
+                grads[i] = renderer._out(g[name], inputs[i]).reshape(inputs[i].shape)
         return (None, *grads)
 
 
@@ -230,29 +241,27 @@ class Renderer(_Resident):
 class _ProjectFunction(torch.autograd.Function):
     @staticmethod
     def forward(ctx, projector, volume):
-        ctx.projector = projector
-        s = projector.session
-        return _like(s.project(_host(volume, projector._real, "volume")).numpy(), volume)
+        ctx.projector = p = projector
+        return p._out(p.session.project(p._in(_host(volume, p._real, "volume"))), volume)
 
     @staticmethod
     def backward(ctx, grad_lines):
         p = ctx.projector
-        return None, _like(p.session.backproject(_host(grad_lines, p._real, "grad_output"))
-                           .numpy(), grad_lines)
+        return None, p._out(p.session.backproject(p._in(_host(grad_lines, p._real, "grad_output"))),
+                            grad_lines)
 
 
 class _BackprojectFunction(torch.autograd.Function):
     @staticmethod
     def forward(ctx, projector, lines):
-        ctx.projector = projector
-        s = projector.session
-        return _like(s.backproject(_host(lines, projector._real, "lines")).numpy(), lines)
+        ctx.projector = p = projector
+        return p._out(p.session.backproject(p._in(_host(lines, p._real, "lines"))), lines)
 
     @staticmethod
     def backward(ctx, grad_volume):
         p = ctx.projector
-        return None, _like(p.session.project(_host(grad_volume, p._real, "grad_output"))
-                           .numpy(), grad_volume)
+        return None, p._out(p.session.project(p._in(_host(grad_volume, p._real, "grad_output"))),
+                            grad_volume)
 
 
 class Projector(_Resident):

@@ -170,13 +170,10 @@ def test_loss_matches_numpy():
 EXAMPLES = os.path.join(os.path.dirname(__file__), "../../../examples/python")
 
 
-@pytest.mark.parametrize("name", ["render.py", "torch_function.py"])
-def test_examples_run(name):
-    """The examples exit 0; the PyTorch one is reported as skipped where torch is missing."""
+def test_example_runs():
+    """examples/python/render.py exits 0 (the PyTorch examples: tests/test_torch*.py)."""
     import sys
-    if name == "torch_function.py":
-        pytest.importorskip("torch")
-    r = subprocess.run([sys.executable, os.path.join(EXAMPLES, name)], capture_output=True,
+    r = subprocess.run([sys.executable, os.path.join(EXAMPLES, "render.py")], capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
 

@@ -470,3 +470,30 @@ def test_one_session_from_two_threads(ctx):
     assert len(got) == 8
     for r in got:
         same_results(r, want)
+
+
+def test_wrap_and_view_share_host_memory(ctx):
+    """On PoCL (device memory = host memory) a wrapped array is the numpy array's own memory and a
+    view is the device array's memory: no copies either way."""
+    a = np.arange(12, dtype=np.float32).reshape(3, 4)
+    d = ivr.DeviceArray.wrap(ctx, a)
+    assert d.borrowed and d.shape == (3, 4) and d.dtype == np.float32
+    v = d.view()
+    assert np.shares_memory(v, a)
+    a[0, 0] = 7.0
+    assert v[0, 0] == 7.0
+    np.testing.assert_array_equal(d.numpy(), a)
+    with pytest.raises(ivr.Error, match="mapped"):
+        d.upload(np.zeros(12, np.float32))
+    del v  # the last user of the mapping: unmapped
+    d.upload(np.ones(12, np.float32))
+    np.testing.assert_array_equal(a, 1.0)
+    # A result's view equals its download and keeps the array alive on its own.
+    r = ivr.DeviceArray.from_numpy(ctx, np.linspace(0, 1, 5))
+    view = r.view()
+    del r
+    np.testing.assert_array_equal(view, np.linspace(0, 1, 5))
+    with pytest.raises(ivr.Error, match="C-contiguous"):
+        ivr.DeviceArray.wrap(ctx, np.zeros((4, 4), np.float32)[:, ::2])
+    with pytest.raises(ivr.Error, match="float32 or float64"):
+        ivr.DeviceArray.wrap(ctx, np.zeros(3, np.int32))

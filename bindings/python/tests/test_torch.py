@@ -209,3 +209,33 @@ def test_readme_pytorch_block_runs_after_the_python_one():
     assert density.grad is not None and density.grad.abs().max() > 0
     assert tf.grad is not None and tuple(tf.grad.shape) == (2, 4) and tf.grad.abs().max() > 0
     assert renderer.last_mode == "forward"
+
+
+def test_zero_copy_gives_the_copied_paths_results(ctx):
+    """On PoCL images and gradients are tensors over the device arrays and dL/dimage is read from
+    the tensor's memory; the copying path (as on devices with memory of their own) gives the same
+    image bits and the same gradients (to the order of the adjoint's atomic sums)."""
+    a = it.Renderer(scene(), ctx, precision="f64")
+    b = it.Renderer(scene(), ctx, precision="f64")
+    assert a.zero_copy
+    b.zero_copy = False
+    results = []
+    for r in (a, b):
+        d = volume(seed=5)
+        tf = r.tf_parameters().clone().requires_grad_(True)
+        image = r(d, tf=tf)
+        w = torch.linspace(-1, 1, image.numel(), dtype=torch.float64).reshape(image.shape)
+        (image * w).sum().backward()
+        results.append((image.detach().clone(), d.grad, tf.grad))
+    check(lambda d: b(d), volume())  # the copying path keeps float64 too
+    assert torch.equal(results[0][0], results[1][0])
+    for x, y in zip(results[0][1:], results[1][1:]):
+        np.testing.assert_allclose(x.numpy(), y.numpy(), rtol=1e-12, atol=1e-15)
+    p = it.Projector({"model": "absorption", "tf": {"type": "identity"},
+                      "cameras": [{"eye": [0, 0, 2], "width": 5, "height": 4}]}, ctx,
+                     precision="f64", grid=(3, 4, 5))
+    assert p.zero_copy
+    v = volume()
+    lines = it.project(p, v)
+    q = p.session.project(v.detach().numpy()).numpy()
+    np.testing.assert_array_equal(lines.detach().numpy(), q)

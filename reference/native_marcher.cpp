@@ -69,7 +69,7 @@ struct Prepared {
   float step, min_t;
   V3 bmin, bmax, inv_h, bg;
   glm::dvec3 box_min, box_max;
-  std::vector<reference::PackedCamera> packed;  // for ivr's sample count (README.md, Integrators)
+  std::vector<reference::PackedCamera> packed;  // for ivr's sample count (docs/integrators.md)
 };
 
 // The gradient takes emission–absorption through a piecewise-linear TF; the render also the
@@ -145,7 +145,7 @@ inline bool ray_at(const Prepared& p, int view, int x, int y, Ray& ray) {
   slab(origin.x, dir.x, p.bmin.x, p.bmax.x, t0, t1);
   slab(origin.y, dir.y, p.bmin.y, p.bmax.y, t0, t1);
   slab(origin.z, dir.z, p.bmin.z, p.bmax.z, t0, t1);
-  // Whether the ray meets the box and its segment count: ivr's definition (README.md, Integrators).
+  // Whether the ray meets the box and its segment count: ivr's definition (docs/integrators.md).
   ray.n = reference::sample_count(p.packed[std::size_t(view)], x, y, p.W, p.H, p.box_min,
                                   p.box_max, p.step);
   if (ray.n == 0) return false;

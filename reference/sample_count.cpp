@@ -1,4 +1,4 @@
-// sample_count.cpp — ivr's sample count (README.md, Integrators) on the host, operation for operation as
+// sample_count.cpp — ivr's sample count (docs/integrators.md) on the host, operation for operation as
 // kernels/sample_count.cl: float32 inputs, products summed only through std::fma (so no compiler
 // contraction can change a bit), correctly rounded division and sqrt.
 #include "reference/sample_count.hpp"

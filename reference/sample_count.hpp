@@ -1,4 +1,4 @@
-// sample_count.hpp — ivr's sample count (README.md, Integrators) on the host: whether a camera ray meets the box and
+// sample_count.hpp — ivr's sample count (docs/integrators.md) on the host: whether a camera ray meets the box and
 // into how many segments the fixed-step integrators cut it, from float32 roundings of the inputs
 // through correctly rounded float32 operations (kernels/sample_count.cl is the device's copy).
 #pragma once

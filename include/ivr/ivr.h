@@ -147,7 +147,7 @@ IVR_API ivr_status ivr_scene_volume_shape(const ivr_scene* scene, int64_t shape[
 
 /* The integrator step (voxel units) a render of the scene uses: the scene's own, or, where its
  * integrator asks for a "tolerance", the step chosen for it (pilot renders at a quarter of the
- * resolution, Richardson: README "Integrators"); *estimated_error (may be NULL) receives that
+ * resolution, Richardson: docs/integrators.md); *estimated_error (may be NULL) receives that
  * step's estimated relative RMS error (0 without a tolerance). Renders with step 0 use this step.
  */
 IVR_API ivr_status ivr_scene_step(ivr_context* context, const ivr_scene* scene,

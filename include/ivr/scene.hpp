@@ -57,7 +57,7 @@ struct Camera {
   int width = 256, height = 256;
 };
 
-// How each ray's integral is evaluated (docs/design.md, README "Integrators"):
+// How each ray's integral is evaluated (docs/design.md, docs/integrators.md):
 //   midpoint       n = ceil(L/step) equal segments, one sample at each segment's midpoint
 //   trapezoid      the same segments, samples at their ends: the trapezoid rule for the optical
 //                  depth, the segment's emission from its two ends' average

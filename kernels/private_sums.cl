@@ -4,7 +4,7 @@
 //
 // Why: OpenCL 1.2 has no float atomic add, and PoCL's CPU device runs the compare-and-swap loop
 // kernels/atomics.cl writes as `lock cmpxchg`, 35 % of the packet adjoint's time at 128³ → 256²
-// (README, "The adjoint in packets"), where a plain add takes a few cycles. OpenCL cannot say
+// (docs/performance.md, "The adjoint in packets"), where a plain add takes a few cycles. OpenCL cannot say
 // which thread runs a work-item, so "one copy of the gradient per thread" is built from what it
 // can say: a work-group of one work-item is the only writer of its local memory and of any global
 // memory indexed by its group id. The host launches as many such groups as the device has compute

@@ -1,6 +1,6 @@
 // sample_count.cl — whether a camera ray meets the box and into how many segments it is cut,
-// defined in float32 arithmetic whose every operation is correctly rounded (README.md, "Sample
-// counts"), so that float32 and float64 kernels on every device and compiler take the same n.
+// defined in float32 arithmetic whose every operation is correctly rounded (docs/integrators.md,
+// sample counts), so that float32 and float64 kernels on every device and compiler take the same n.
 //
 // Why not n = ceil(length / step) from the march's own geometry: that length carries the rounding
 // of the precision, of the device's division (NVIDIA's float32 quotient is not correctly rounded

@@ -14,7 +14,9 @@ its adjoint, so the ratio includes that difference as well as the copies and Pyt
 timed in alternating rounds (one of each per round), so drift on a shared machine hits all alike.
 """
 import argparse
+import importlib.util
 import json
+import os
 import statistics
 import sys
 import time
@@ -27,15 +29,12 @@ import ivr.torch
 
 
 def scene(views, resolution):
-    return {"model": "emission_absorption",
-            "tf": {"type": "piecewise_linear", "points": [
-                {"density": 0.0, "color": [0.1, 0.3, 0.9], "extinction": 0.0},
-                {"density": 1.0, "color": [1.0, 0.7, 0.3], "extinction": 12.0},
-                {"density": 2.0, "color": [1.0, 1.0, 1.0], "extinction": 24.0}]},
-            "cameras": [{"orbit": {"views": views, "radius": 2.4, "fov_y": 30,
-                                   "axis": [0.3, 1, 0.2], "width": resolution,
-                                   "height": resolution}}],
-            "integrator": {"scheme": "trapezoid", "step": 1.0}}
+    """The training example's scene (examples/python/torch_train.py), so both time one problem."""
+    path = os.path.join(os.path.dirname(__file__), "../examples/python/torch_train.py")
+    spec = importlib.util.spec_from_file_location("torch_train", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    return example.scene(views, resolution)
 
 
 def alternating_medians(steps, repeats):

@@ -106,15 +106,20 @@ extern "C" {
 
 // --- arrays --------------------------------------------------------------------------------------
 
+// The shape of a new array from its rank (1 .. 8) and dimensions.
+std::vector<int64_t> array_shape(int rank, const int64_t* shape) {
+  if (rank < 1 || rank > 8)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT, "rank " + std::to_string(rank) + " (1 .. 8)"};
+  not_null(shape, "shape");
+  return std::vector<int64_t>(shape, shape + rank);
+}
+
 ivr_status ivr_array_create(ivr_context* c, int rank, const int64_t* shape, ivr_dtype dtype,
                             ivr_array** out) {
   return guarded(c, "ivr_array_create", [&] {
     checked(c, Kind::context, "context");
     out_handle(out, "array");
-    if (rank < 1 || rank > 8)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "rank " + std::to_string(rank) + " (1 .. 8)"};
-    not_null(shape, "shape");
-    *out = new_array(c, ivr::DeviceArray(c->device, std::vector<int64_t>(shape, shape + rank),
+    *out = new_array(c, ivr::DeviceArray(c->device, array_shape(rank, shape),
                                          dtype_of(dtype, "ivr_array_create")));
   });
 }
@@ -124,12 +129,9 @@ ivr_status ivr_array_wrap(ivr_context* c, void* data, int rank, const int64_t* s
   return guarded(c, "ivr_array_wrap", [&] {
     checked(c, Kind::context, "context");
     out_handle(out, "array");
-    if (rank < 1 || rank > 8)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "rank " + std::to_string(rank) + " (1 .. 8)"};
-    not_null(shape, "shape");
+    std::vector<int64_t> dims = array_shape(rank, shape);
     not_null(data, "data");
-    ivr::DeviceArray a = ivr::DeviceArray::wrap(c->device, data,
-                                                std::vector<int64_t>(shape, shape + rank),
+    ivr::DeviceArray a = ivr::DeviceArray::wrap(c->device, data, std::move(dims),
                                                 dtype_of(dtype, "ivr_array_wrap"));
     if (borrowed) *borrowed = a.borrowed() ? 1 : 0;
     *out = new_array(c, std::move(a));

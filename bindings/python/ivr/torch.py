@@ -238,30 +238,22 @@ class Renderer(_Resident):
         self._state += 1
 
 
-class _ProjectFunction(torch.autograd.Function):
-    @staticmethod
-    def forward(ctx, projector, volume):
-        ctx.projector = p = projector
-        return p._out(p.session.project(p._in(_host(volume, p._real, "volume"))), volume)
+class _LinearFunction(torch.autograd.Function):
+    """N v (transpose False) or N^T p (transpose True); the backward is the other one."""
 
     @staticmethod
-    def backward(ctx, grad_lines):
-        p = ctx.projector
-        return None, p._out(p.session.backproject(p._in(_host(grad_lines, p._real, "grad_output"))),
-                            grad_lines)
-
-
-class _BackprojectFunction(torch.autograd.Function):
-    @staticmethod
-    def forward(ctx, projector, lines):
-        ctx.projector = p = projector
-        return p._out(p.session.backproject(p._in(_host(lines, p._real, "lines"))), lines)
+    def forward(ctx, projector, x, transpose):
+        ctx.projector, ctx.transpose = projector, transpose
+        return _apply_projector(projector, x, transpose, "lines" if transpose else "volume")
 
     @staticmethod
-    def backward(ctx, grad_volume):
-        p = ctx.projector
-        return None, p._out(p.session.project(p._in(_host(grad_volume, p._real, "grad_output"))),
-                            grad_volume)
+    def backward(ctx, grad):
+        return None, _apply_projector(ctx.projector, grad, not ctx.transpose, "grad_output"), None
+
+
+def _apply_projector(p, x, transpose, what):
+    op = p.session.backproject if transpose else p.session.project
+    return p._out(op(p._in(_host(x, p._real, what))), x)
 
 
 class Projector(_Resident):
@@ -298,10 +290,10 @@ def _projector(p):
 def project(projector, volume):
     """N v: line integrals of `volume` (Z, Y, X) along the projector's rays, (views, H, W, 1);
     its backward is backproject."""
-    return _ProjectFunction.apply(_projector(projector), volume)
+    return _LinearFunction.apply(_projector(projector), volume, False)
 
 
 def backproject(projector, lines):
     """N^T p of `lines` (views, H, W, 1) onto the projector's grid, (Z, Y, X); its backward is
     project."""
-    return _BackprojectFunction.apply(_projector(projector), lines)
+    return _LinearFunction.apply(_projector(projector), lines, True)

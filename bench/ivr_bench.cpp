@@ -94,6 +94,11 @@ int main(int argc, char** argv) {
   app.add_option("--min-runs", budget.min_runs, "Timed runs at least")->check(CLI::Range(1, 1000));
   app.add_option("--max-runs", budget.max_runs, "Timed runs at most")->check(CLI::Range(1, 100000));
   app.add_flag("--quick", quick, "Small cases only (minutes, not an hour)");
+  std::vector<std::string> case_filter;
+  app.add_option("--cases", case_filter,
+                 "Comma-separated: only the render and tomo cases whose name contains one of "
+                 "these (e.g. v128_i256_s0.500)")
+      ->delimiter(',');
   app.add_option("-o,--output", output, "Write PREFIX.json and PREFIX.csv");
   app.add_option("--compare", compare_path, "Print ratios against this earlier results file");
   app.add_option("--input", input_path,
@@ -233,6 +238,7 @@ int main(int argc, char** argv) {
                          work_dir,
                          data_dir,
                          {}};
+      ctx.cases = case_filter;
       // The Python baselines once per kind of device: on the CPU beside the first CPU device
       // (or the first device of any kind but GPU), on the GPU beside the first GPU device.
       const bool gpu = info.type == "gpu";
@@ -251,10 +257,15 @@ int main(int argc, char** argv) {
         std::cerr << "ivr-bench: " << s.name << " done in "
                   << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
                   << " s\n";
+        // What is measured so far, should the run be stopped before the end (the final write
+        // below replaces it; "partial" says which one a file is).
+        results.meta["partial"] = true;
+        results.write(output);
       }
       failures.insert(failures.end(), ctx.failures.begin(), ctx.failures.end());
     }
     results.meta["failures"] = failures;
+    results.meta["partial"] = false;
     results.write(output);
     std::cerr << "ivr-bench: wrote " << output << ".json and " << output << ".csv\n";
     if (keep_cases) std::cerr << "ivr-bench: the baselines' cases are in " << work_dir << "\n";

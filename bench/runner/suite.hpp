@@ -30,6 +30,15 @@ struct Context {
   // not a GPU) or on a GPU ("gpu": JAX, PyTorch, Dr.Jit and ASTRA on CUDA, beside the first GPU).
   bool python_baselines = true;
   std::string baseline_device = "cpu";
+  // --cases: only the cases whose name contains one of these (empty: every case). The render and
+  // tomo suites, whose cases each cost their own float64 references, honour it.
+  std::vector<std::string> cases = {};
+  bool wants(const std::string& case_name) const {
+    if (cases.empty()) return true;
+    for (const std::string& c : cases)
+      if (case_name.find(c) != std::string::npos) return true;
+    return false;
+  }
 };
 
 struct Suite {

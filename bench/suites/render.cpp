@@ -77,6 +77,7 @@ void render_suite(Context& ctx) {
       cases.push_back({128, 256, 0.5, false, look});
   }
   for (const RenderCase& c : cases) {
+    if (!ctx.wants(c.name())) continue;
     const Scene scene = case_scene(c);
     const double h = reference::min_voxel_edge(scene);
     nlohmann::json params = {{"volume", c.volume},

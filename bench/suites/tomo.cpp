@@ -214,6 +214,7 @@ void tomo_suite(Context& ctx) {
     const std::string base = "v" + std::to_string(n) +
                              (views == n / 2 ? "" : "_views" + std::to_string(views)) + "_" +
                              (cone ? "cone" : "parallel");
+    if (!ctx.wants(base)) continue;
     const nlohmann::json params = {{"volume", n},
                                    {"views", views},
                                    {"detector", n},

@@ -38,6 +38,9 @@
 #ifndef IVR_EMPTY_SPACE  // 1: jump over bricks whose σ is 0 everywhere (kernels/empty_space.cl)
 #define IVR_EMPTY_SPACE 0
 #endif
+#ifndef IVR_RAY_LIST  // 1: the rays are a list (origin, direction, interval), not cameras' pixels
+#define IVR_RAY_LIST 0
+#endif
 #ifndef IVR_BRICK_SIZE  // cells per brick edge of the occupancy grid
 #define IVR_BRICK_SIZE 8
 #endif

@@ -27,6 +27,16 @@ typedef struct {
 // explicit fma, so that no compiler's contraction changes the ray either (sample_count.cl builds
 // the float32 ray the same way).
 inline Ray camera_ray(__global const real* cam, int x, int y, int width, int height) {
+#if IVR_RAY_LIST
+  // A ray list (docs/design.md, ray lists): `cam` is the list, pixel x of the one-row "image" is
+  // ray x; its interval is ray_interval()'s.
+  (void)y, (void)width, (void)height;
+  __global const real* row = cam + (size_t)x * IVR_RAY_STRIDE;
+  Ray listed;
+  listed.origin = (real3)(row[0], row[1], row[2]);
+  listed.dir = (real3)(row[3], row[4], row[5]);
+  return listed;
+#else
   const real sx = geometry_divide((real)(2 * x + 1 - width), (real)width);
   const real sy = geometry_divide((real)(height - 2 * y - 1), (real)height);
   Ray r;
@@ -46,6 +56,7 @@ inline Ray camera_ray(__global const real* cam, int x, int y, int width, int hei
         (real3)(geometry_divide(dx, norm), geometry_divide(dy, norm), geometry_divide(dz, norm));
   }
   return r;
+#endif
 }
 
 // Slab test for one axis; shrinks [*t0, *t1]. A ray parallel to the slab keeps its interval when
@@ -60,10 +71,21 @@ inline void clip_slab(real o, real d, real lo, real hi, real* t0, real* t1) {
   }
 }
 
-// Parameter interval of the ray inside the box, starting no earlier than the origin.
-inline bool clip_box(Ray r, real3 bmin, real3 bmax, real* t0, real* t1) {
+// The interval a ray is marched over before clipping to the box: from its origin on for a camera's
+// rays; a ray list's own [t_start, t_end] (pixel x of the list's row, ray_list in camera_ray()).
+inline void ray_interval(__global const real* cam, int x, real* t0, real* t1) {
+#if IVR_RAY_LIST
+  *t0 = cam[(size_t)x * IVR_RAY_STRIDE + 6];
+  *t1 = cam[(size_t)x * IVR_RAY_STRIDE + 7];
+#else
+  (void)cam, (void)x;
   *t0 = (real)0;
   *t1 = INFINITY;
+#endif
+}
+
+// Parameter interval of the ray inside the box, within [*t0, *t1] as given.
+inline bool clip_box(Ray r, real3 bmin, real3 bmax, real* t0, real* t1) {
   clip_slab(r.origin.x, r.dir.x, bmin.x, bmax.x, t0, t1);
   clip_slab(r.origin.y, r.dir.y, bmin.y, bmax.y, t0, t1);
   clip_slab(r.origin.z, r.dir.z, bmin.z, bmax.z, t0, t1);

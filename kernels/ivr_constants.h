@@ -11,6 +11,10 @@
 /* Values per view in the camera-parameter buffer (kernels/jacobian_geometry.cl): eye, target, up,
  * fov_y (degrees), aspect (W/H), ortho_height, orthographic flag; the rest is padding. */
 #define IVR_CAMERA_PARAMS_STRIDE 16
+/* Values per ray of a ray list (IVR_RAY_LIST, kernels/geometry.cl), in the camera buffer's place:
+ * origin, unit direction, t_start, t_end (world units along the direction; ±INFINITY: from the
+ * box entry, to the box exit). */
+#define IVR_RAY_STRIDE 8
 
 /* Transfer-function rows (kernels/tf.cl):
  *   identity:          none; scalars = (extinction_scale, color_scale)

@@ -38,6 +38,7 @@ inline bool march_begin(Ray ray, __global const real* cam, int x, int y, int wid
                         real4 box_min, real4 box_max, real4 inv_voxel, real step, RayMarch* m) {
   m->n = sample_count(cam, x, y, width, height, box_min, box_max, step);
   if (m->n == 0u) return false;
+  ray_interval(cam, x, &m->t0, &m->t1);
   clip_box(ray, box_min.xyz, box_max.xyz, &m->t0, &m->t1);
   if (!(m->t1 > m->t0)) m->t1 = m->t0;  // also a parallel ray's t1 = −1 outside a slab
   const real length = m->t1 - m->t0;

@@ -193,7 +193,10 @@ IVR_PER_LANE(vexpm1, expm1)
 // of one row: its rays stay closer together, so a sample's gathers touch fewer cache lines and its
 // rays' lengths differ less (fewer idle lanes); 7 % faster than 16×1 at 128³ → 256² on PoCL.
 // The host launches one work-item per tile (lib/render/render.cpp, packet_shape).
-#if IVR_RAYS == 16
+// A ray list's "image" is one row (pixel x is ray x): its packets are runs of IVR_RAYS rays.
+#if IVR_RAY_LIST
+#define IVR_PACKET_W IVR_RAYS
+#elif IVR_RAYS == 16
 #define IVR_PACKET_W 4
 #elif IVR_RAYS == 8
 #define IVR_PACKET_W 4

@@ -32,9 +32,18 @@ inline void count_slab(float o, float d, float lo, float hi, float* t0, float* t
 // screen coordinates are the exact fractions (2x + 1 − W)/W and (H − 2y − 1)/H, rounded once.
 inline uint sample_count(__global const real* cam, int x, int y, int width, int height,
                          real4 box_min, real4 box_max, real step) {
+  float o[3], d[3];
+  float t0 = 0.0f, t1 = INFINITY;
+#if IVR_RAY_LIST
+  // A ray list: the float32 roundings of the ray's own origin, direction and interval.
+  (void)y, (void)width, (void)height;
+  __global const real* row = cam + (size_t)x * IVR_RAY_STRIDE;
+  for (int k = 0; k < 3; ++k) o[k] = (float)row[k], d[k] = (float)row[3 + k];
+  t0 = (float)row[6];
+  t1 = (float)row[7];
+#else
   const float sx = rounded_divide((float)(2 * x + 1 - width), (float)width);
   const float sy = rounded_divide((float)(height - 2 * y - 1), (float)height);
-  float o[3], d[3];
   for (int k = 0; k < 3; ++k) {
     const float eye = (float)cam[k], fwd = (float)cam[3 + k];
     const float right = (float)cam[6 + k], up = (float)cam[9 + k];
@@ -50,10 +59,11 @@ inline uint sample_count(__global const real* cam, int x, int y, int width, int 
     const float norm = rounded_sqrt(fma(d[0], d[0], fma(d[1], d[1], d[2] * d[2])));
     for (int k = 0; k < 3; ++k) d[k] = rounded_divide(d[k], norm);
   }
-  float t0 = 0.0f, t1 = INFINITY;
+#endif
   count_slab(o[0], d[0], (float)box_min.x, (float)box_max.x, &t0, &t1);
   count_slab(o[1], d[1], (float)box_min.y, (float)box_max.y, &t0, &t1);
   count_slab(o[2], d[2], (float)box_min.z, (float)box_max.z, &t0, &t1);
+  // A ray list's empty interval (t_start = t_end, or one that ends before the box) misses.
   if (!(t0 < t1)) return 0u;
   const float q = rounded_divide(t1 - t0, (float)step);
   // Below 2^32 as a float; a longer march is no march anyone waits for (and the cast is defined).

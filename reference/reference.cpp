@@ -128,8 +128,8 @@ TfSample transfer(const ivr::TransferFunction& tf, double d) {
 }
 
 bool clip_to_box(const glm::dvec3& lo, const glm::dvec3& hi, const glm::dvec3& o,
-                 const glm::dvec3& d, double* t0, double* t1) {
-  double a = 0.0, b = std::numeric_limits<double>::infinity();  // rays start at their origin
+                 const glm::dvec3& d, double* t0, double* t1, double from, double to) {
+  double a = from, b = to;
   for (int k = 0; k < 3; ++k) {
     if (d[k] == 0.0) {
       if (o[k] < lo[k] || o[k] > hi[k]) return false;
@@ -167,12 +167,12 @@ namespace {
 // Integrates one ray. The interval is split where the ray crosses a plane through voxel centres:
 // between those the trilinear density is a cubic in t, so the midpoint rule sees a smooth
 // integrand on every piece (TF kinks aside) and converges cleanly at second order.
-void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec3& dir, double step,
-                   bool early, double* out) {
+void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec3& dir, double lo,
+                   double hi, double step, bool early, double* out) {
   const bool ea = scene.model == ivr::Model::emission_absorption;
   const glm::dvec3 bg = scene.effective_background();
   double t0, t1;
-  if (!clip_to_box(scene.box_min, scene.box_max, o, dir, &t0, &t1)) {
+  if (!clip_to_box(scene.box_min, scene.box_max, o, dir, &t0, &t1, lo, hi)) {
     if (ea) {
       out[0] = bg.x, out[1] = bg.y, out[2] = bg.z, out[3] = 0.0;
     } else {
@@ -216,13 +216,13 @@ void integrate_ray(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec
 // segments (the sample count, sample_count.hpp; 0: the ray misses the box), σ and c at each
 // midpoint, exact compositing of each segment (C += T·(1 − e^{−σΔ})·c, T ·= e^{−σΔ}); with `early` the ray stops after the sample
 // that takes T below min_transmittance.
-void march_midpoint(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec3& dir,
-                    unsigned n, bool early, double* out) {
+void march_midpoint(const ivr::Scene& scene, const glm::dvec3& o, const glm::dvec3& dir, double lo,
+                    double hi, unsigned n, bool early, double* out) {
   const bool ea = scene.model == ivr::Model::emission_absorption;
   const glm::dvec3 bg = scene.effective_background();
   double t0, t1, transmittance = 1.0;
   glm::dvec3 radiance(0.0);
-  if (n > 0 && clip_to_box(scene.box_min, scene.box_max, o, dir, &t0, &t1)) {
+  if (n > 0 && clip_to_box(scene.box_min, scene.box_max, o, dir, &t0, &t1, lo, hi)) {
     const double dt = (t1 - t0) / double(n);
     for (unsigned i = 0; i < n; ++i) {
       const TfSample s = transfer(scene.tf, density(scene, o + (t0 + (i + 0.5) * dt) * dir));
@@ -243,6 +243,21 @@ void march_midpoint(const ivr::Scene& scene, const glm::dvec3& o, const glm::dve
 
 template <class Integrate>
 std::vector<double> render_rows(const ivr::Scene& scene, Integrate&& integrate) {
+  if (scene.has_ray_list()) {  // one value (or four) per ray, in order
+    const std::size_t n = scene.rays.count(), c = std::size_t(scene.channels());
+    std::vector<double> image(n * c);
+    auto work = [&](std::size_t first, std::size_t stride) {
+      for (std::size_t i = first; i < n; i += stride) {
+        const double* q = scene.rays.values.data() + i * ivr::RayList::kColumns;
+        integrate(glm::dvec3(q[0], q[1], q[2]), glm::dvec3(q[3], q[4], q[5]), q[6], q[7],
+                  Pixel{0, int(i), 0}, &image[i * c]);
+      }
+    };
+    std::thread other(work, 1, 2);
+    work(0, 2);
+    other.join();
+    return image;
+  }
   if (scene.cameras.empty()) return {};
   const int w = scene.cameras[0].width, h = scene.cameras[0].height, c = scene.channels();
   const int views = int(scene.cameras.size());
@@ -254,7 +269,8 @@ std::vector<double> render_rows(const ivr::Scene& scene, Integrate&& integrate) 
       for (int x = 0; x < w; ++x) {
         glm::dvec3 o, d;
         ray(scene.cameras[v], x, y, &o, &d);
-        integrate(o, d, Pixel{v, x, y}, &image[((std::size_t(v) * h + y) * w + x) * c]);
+        integrate(o, d, 0.0, std::numeric_limits<double>::infinity(), Pixel{v, x, y},
+                  &image[((std::size_t(v) * h + y) * w + x) * c]);
       }
     }
   };
@@ -271,16 +287,22 @@ std::vector<double> render_midpoint(const ivr::Scene& scene, double step_world,
                                     bool early_termination) {
   if (!(step_world > 0))
     throw std::invalid_argument("reference::render_midpoint: step must be > 0");
-  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, Pixel p, double* out) {
-    march_midpoint(scene, o, d, sample_count(scene, p.view, p.x, p.y, step_world),
-                   early_termination, out);
+  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, double lo, double hi,
+                                Pixel p, double* out) {
+    const unsigned n =
+        scene.has_ray_list()
+            ? ray_sample_count(scene.rays.values.data() + std::size_t(p.x) * ivr::RayList::kColumns,
+                               scene.box_min, scene.box_max, step_world)
+            : sample_count(scene, p.view, p.x, p.y, step_world);
+    march_midpoint(scene, o, d, lo, hi, n, early_termination, out);
   });
 }
 
 std::vector<double> render(const ivr::Scene& scene, double step_world, bool early_termination) {
   if (!(step_world > 0)) throw std::invalid_argument("reference::render: step must be > 0");
-  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, Pixel, double* out) {
-    integrate_ray(scene, o, d, step_world, early_termination, out);
+  return render_rows(scene, [&](const glm::dvec3& o, const glm::dvec3& d, double lo, double hi,
+                                Pixel, double* out) {
+    integrate_ray(scene, o, d, lo, hi, step_world, early_termination, out);
   });
 }
 

@@ -1,6 +1,7 @@
 // reference.hpp — an independent double-precision CPU evaluation of docs/design.md's continuous model
 // (density, camera rays, transfer functions, both optical models), the yardstick for the kernels.
 #pragma once
+#include <limits>
 #include <glm/vec3.hpp>
 #include <vector>
 
@@ -26,9 +27,11 @@ struct TfSample {
 };
 TfSample transfer(const ivr::TransferFunction& tf, double d);
 
-// Parameter interval [t0, t1] (t0 >= 0) of the ray inside the closed box; false if it misses.
+// Parameter interval [t0, t1] of the ray inside the closed box within [lo, hi] (a camera's rays:
+// from the origin on; a ray list's: its own interval); false if it is empty.
 bool clip_to_box(const glm::dvec3& box_min, const glm::dvec3& box_max, const glm::dvec3& origin,
-                 const glm::dvec3& dir, double* t0, double* t1);
+                 const glm::dvec3& dir, double* t0, double* t1, double lo = 0.0,
+                 double hi = std::numeric_limits<double>::infinity());
 
 // [t0, t1] cut where the ray o + t·dir crosses a plane through voxel centres, sorted (t0 and t1
 // included): between two cuts the trilinear density is one polynomial in t.
@@ -46,6 +49,8 @@ std::vector<double> render(const ivr::Scene& scene, double step_world,
 // and composited exactly; with early_termination it stops after the sample that takes the
 // transmittance below scene.integrator.min_transmittance. What a float32 midpoint render equals up
 // to rounding (the benchmarks check renders against it before timing them).
+// render() and render_midpoint() take a scene's ray list as they take its cameras (rays in
+// order, each over its own interval; the sample count sample_count.hpp's ray-list definition).
 std::vector<double> render_midpoint(const ivr::Scene& scene, double step_world,
                                     bool early_termination = false);
 

@@ -110,6 +110,17 @@ unsigned sample_count(const PackedCamera& cam, int x, int y, int width, int heig
   return q < 4294967040.f ? std::max(1u, unsigned(std::ceil(q))) : 4294967040u;
 }
 
+unsigned ray_sample_count(const double* ray, const glm::dvec3& box_min, const glm::dvec3& box_max,
+                          double step_world) {
+  const CountArithmetic ar = CountArithmetic::correctly_rounded;
+  float t0 = float(ray[6]), t1 = float(ray[7]);
+  for (int k = 0; k < 3; ++k)
+    slab(ar, float(ray[k]), float(ray[3 + k]), float(box_min[k]), float(box_max[k]), &t0, &t1);
+  if (!(t0 < t1)) return 0;
+  const float q = count_divide(t1 - t0, float(step_world), ar);
+  return q < 4294967040.f ? std::max(1u, unsigned(std::ceil(q))) : 4294967040u;
+}
+
 unsigned sample_count(const ivr::Scene& scene, int view, int x, int y, double step_world) {
   const ivr::Camera& c = scene.cameras[std::size_t(view)];
   return sample_count(packed_camera(c), x, y, c.width, c.height, scene.box_min, scene.box_max,

@@ -27,5 +27,9 @@ unsigned sample_count(const PackedCamera& camera, int x, int y, int width, int h
                       const glm::dvec3& box_min, const glm::dvec3& box_max, double step_world,
                       CountArithmetic arithmetic = CountArithmetic::correctly_rounded);
 unsigned sample_count(const ivr::Scene& scene, int view, int x, int y, double step_world);
+// The same of a ray-list row (origin, direction, t_start, t_end; kernels/sample_count.cl with
+// IVR_RAY_LIST): the float32 roundings of its values, the slabs from [t_start, t_end].
+unsigned ray_sample_count(const double* ray, const glm::dvec3& box_min, const glm::dvec3& box_max,
+                          double step_world);
 
 }  // namespace ivr::reference

@@ -57,6 +57,33 @@ struct Camera {
   int width = 256, height = 256;
 };
 
+// A list of rays, each with its own origin, direction and interval (docs/design.md, "Ray lists"):
+// the geometry of a scene beside cameras — sightlines to stars, sensor lines, detector pairs. Row i
+// of `values` is ray i: origin (x, y, z), unit direction (x, y, z), t_start, t_end, in world units
+// along the direction (t_start may be −∞: from the box entry; t_end +∞: to the box exit). Make
+// one with make_ray_list(), which checks and normalises; what a scene with rays renders is one
+// value (absorption) or four (emission–absorption) per ray, shape (rays, channels).
+struct RayList {
+  static constexpr int kColumns = 8;
+  std::vector<double> values;  // (count, 8), row-major
+  std::size_t count() const { return values.size() / kColumns; }
+  bool empty() const { return values.empty(); }
+};
+
+// The ray list of `rows` rows of `columns` values, row-major: 8 (ox oy oz dx dy dz t_start t_end)
+// or 6 (start and end points: origin = start, t in [0, |end − start|]; start = end is a ray of
+// length 0, which adds nothing). Directions are normalised unless their length is within 1e-6 of
+// 1 (then kept as given, so that rays built in float32 stay those bits). Throws
+// Error(invalid_argument) naming the first bad ray and field (`where`[i].field): a zero or
+// non-finite direction, NaN anywhere, an infinite origin or point, t_end < t_start, t_start = +∞
+// or t_end = −∞, no rows, more than 2^31 − 1 rows, another column count.
+IVR_API RayList make_ray_list(const double* values, std::size_t rows, int columns,
+                              const std::string& where = "rays");
+// The rays of every pixel of `camera`, row by row (pixel (x, y) is row y·width + x), from t = 0 to
+// the box exit: computed in float32 (or float64 where `f64`) exactly as the kernels compute the
+// camera's own rays, so that rendering the list gives the camera's image bit for bit.
+IVR_API RayList ray_list_of_camera(const Camera& camera, bool f64 = false);
+
 // How each ray's integral is evaluated (docs/design.md, docs/integrators.md):
 //   midpoint       n = ceil(L/step) equal segments, one sample at each segment's midpoint
 //   trapezoid      the same segments, samples at their ends: the trapezoid rule for the optical
@@ -89,6 +116,7 @@ struct Scene {
   TransferFunction tf;
   std::optional<glm::dvec3> background;  // unset: 1 (absorption I_in) or black (emission)
   std::vector<Camera> cameras;
+  RayList rays;  // non-empty: the scene's rays are these (and it has no cameras)
   Integrator integrator;
 
   glm::dvec3 effective_background() const {
@@ -99,7 +127,17 @@ struct Scene {
     return (box_max - box_min) / glm::dvec3(volume.nx, volume.ny, volume.nz);
   }
   int channels() const { return model == Model::absorption ? 1 : 4; }
+  bool has_ray_list() const { return !rays.empty(); }
 };
+
+// What a scene renders, as views × rows × columns of pixels: its cameras', or for a ray list one
+// view of one row of its rays (the layout sessions and kernels use; images of ray lists are shaped
+// (rays, channels) where users see them).
+struct ImageExtent {
+  int views = 0, height = 0, width = 0;
+  std::size_t pixels() const { return std::size_t(views) * std::size_t(height) * std::size_t(width); }
+};
+IVR_API ImageExtent image_extent(const Scene& scene);
 
 // Box centred at the origin, longest side 1, proportional to dims x spacing.
 IVR_API void set_default_box(Scene& scene);

@@ -162,10 +162,13 @@ class IVR_API Session {
   void set_tf(const TransferFunction& tf);
   // Views may change in number and size (a target of the old shape is then dropped).
   void set_cameras(const std::vector<Camera>& cameras);
+  // A ray list instead of cameras (ivr::make_ray_list; docs/design.md, "Ray lists"): images and
+  // targets then have shape (rays, channels). set_cameras goes back to cameras.
+  void set_rays(const RayList& rays);
   void set_integrator(const Integrator& integrator);
   void set_background(const glm::dvec3& background);  // absorption: x is I_in
   void set_box(const glm::dvec3& box_min, const glm::dvec3& box_max);
-  // The loss target: the image shape (views, H, W, C), finite.
+  // The loss target: the image shape (views, H, W, C) — (rays, C) for a ray list — finite.
   void set_target(const Image& target);
   void set_target(const DeviceArray& target);
 

@@ -111,8 +111,12 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   Device::Impl& dev = s.dev;
   const Scene& scene = s.scene;
   const Integrator& integrator = s.integrator();
-  const Camera& cam0 = scene.cameras.front();
-  const int views = int(scene.cameras.size()), channels = scene.channels();
+  const ImageExtent cam0 = image_extent(scene);
+  const int views = cam0.views, channels = scene.channels();
+  if (r.camera && scene.has_ray_list())
+    throw Error(Status::invalid_argument,
+                "adjoint: the camera gradient of a ray list: its rays have no camera to "
+                "differentiate (ask for density, tf or background)");
   const std::size_t pixels = s.pixels(), voxels = scene.volume.voxel_count();
   const std::vector<std::size_t> tf_shape = tf_gradient_shape(scene.tf);
   const std::size_t tf_size = tf_shape[0] * tf_shape[1], real = s.real_size;
@@ -216,7 +220,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     k.setArg(a++, samples);
     // A work-group's items share one local TF accumulator (the padding items only meet
     // barriers), so the size is always explicit.
-    const PacketShape tile = packet_shape(packet ? packet_lanes(variant.precision) : 1);
+    const PacketShape tile = packet_shape(packet ? packet_lanes(variant.precision) : 1, variant.ray_list);
     const PixelLaunch launch =
         priv.on ? PixelLaunch{}
                 : pixel_launch(dev, k, packet ? "adjoint_packet" : "adjoint",

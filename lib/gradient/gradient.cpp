@@ -52,6 +52,9 @@ GroupPlan plan_group(const Scene& scene, const std::string& g) {
   const ParameterGroupInfo* info = find_parameter_group(g);
   if (!info) throw bad_group(unknown_group_message(g));
   const bool voxels = std::string(info->name) == "voxels";
+  if (g == "camera" && scene.has_ray_list())
+    throw bad_group("camera: the scene's rays are a ray list, which has no camera to "
+                    "differentiate (ask for density, tf, background, …)");
   GroupPlan p;
   p.name = voxels ? "voxels" : g;
   p.asked = g;

@@ -59,6 +59,10 @@ cl_int4 lane_of(const Scene& scene, const Parameter& p, std::size_t i) {
       return {{lane_background, cl_int(p.index), 0, 0}};
     }
     case ParameterGroup::camera:
+      if (scene.has_ray_list())
+        throw bad_parameter(i, "camera view " + std::to_string(p.index) +
+                                   ": the scene's rays are a ray list, which has no camera to "
+                                   "differentiate");
       if (p.index < 0 || std::size_t(p.index) >= scene.cameras.size() || p.column < 0 ||
           p.column > 6)
         throw bad_parameter(
@@ -129,8 +133,8 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
   Device::Impl& dev = s.dev;
   const Scene& scene = s.scene;
   const Integrator& integrator = s.integrator();
-  const Camera& cam0 = scene.cameras.front();
-  const int views = int(scene.cameras.size()), channels = scene.channels();
+  const ImageExtent cam0 = image_extent(scene);
+  const int views = cam0.views, channels = scene.channels();
   const std::size_t pixels = s.pixels(), params = all_lanes.size(), real = s.real_size;
   const bool loss = target != nullptr;
 
@@ -201,7 +205,7 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
       double build = 0;
       cl::Kernel& k = s.kernels.get(config, &build);
       op.stats.build_seconds += build;
-      const PacketShape tile = packet_shape(rays);
+      const PacketShape tile = packet_shape(rays, variant.ray_list);
       const PixelLaunch launch =
           pixel_launch(dev, k, rays > 1 ? "jacobian_packet" : "jacobian", tile.across(cam0.width),
                        tile.down(cam0.height), views, true);

@@ -45,7 +45,8 @@ KernelConfig packet_config(const RenderVariant& variant, bool primal) {
       .set(Switch::packet_primal, primal);
 }
 
-PacketShape packet_shape(int lanes) {
+PacketShape packet_shape(int lanes, bool ray_list) {
+  if (ray_list && (lanes == 16 || lanes == 8 || lanes == 1)) return {lanes, 1};
   if (lanes == 16) return {4, 4};
   if (lanes == 8) return {4, 2};
   if (lanes == 1) return {1, 1};
@@ -55,10 +56,10 @@ PacketShape packet_shape(int lanes) {
 
 PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Scene& scene,
                           Precision precision) {
-  const Camera& c = scene.cameras.front();
-  const PacketShape tile = packet_shape(packet_lanes(precision));
+  const ImageExtent c = image_extent(scene);
+  const PacketShape tile = packet_shape(packet_lanes(precision), scene.has_ray_list());
   return pixel_launch(dev, kernel, "render_packet", tile.across(c.width), tile.down(c.height),
-                      int(scene.cameras.size()), false);
+                      c.views, false);
 }
 
 DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op) {
@@ -80,10 +81,10 @@ DeviceArray enqueue_render(Session::Impl& s, OperationRecord& op) {
     k.setArg(a++, s.brick_counts());
     k.setArg(a++, buffer_of(image));
     k.setArg(a++, samples);
-    const Camera& c = s.scene.cameras.front();
+    const ImageExtent c = image_extent(s.scene);
     const PixelLaunch launch = packet ? packet_launch(s.dev, k, s.scene, variant.precision)
                                       : pixel_launch(s.dev, k, "render", c.width, c.height,
-                                                     int(s.scene.cameras.size()), false);
+                                                     c.views, false);
     op.events.push_back(enqueue(s.dev, k, launch));
   });
   mark_written(image, op.events.back());
@@ -117,7 +118,9 @@ void download_kept(const DeviceArray& a, std::vector<float>* floats, std::vector
 
 Image image_of(const DeviceArray& image) {
   const std::vector<std::int64_t> shape = image.shape();
-  Image out{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3])};
+  // A ray list's (rays, channels) is one view of one row on the host (ivr::Image).
+  Image out = shape.size() == 2 ? Image{1, 1, int(shape[0]), int(shape[1])}
+                                : Image{int(shape[0]), int(shape[1]), int(shape[2]), int(shape[3])};
   download_kept(image, &out.pixels, &out.pixels_f64);
   return out;
 }

@@ -24,14 +24,14 @@ PixelLaunch packet_launch(Device::Impl& dev, const cl::Kernel& kernel, const Sce
                           Precision precision);
 
 // The tile of pixels one work-item of `lanes` rays covers (kernels/rays.cl, IVR_PACKET_W and
-// IVR_PACKET_H): 4×4 for 16, 4×2 for 8, one pixel for one ray; and the work-items that cover a
-// width × height image.
+// IVR_PACKET_H): 4×4 for 16, 4×2 for 8, one pixel for one ray — a ray list's one row: runs of
+// `lanes` rays; and the work-items that cover a width × height image.
 struct PacketShape {
   int w = 1, h = 1;
   int across(int width) const { return (width + w - 1) / w; }
   int down(int height) const { return (height + h - 1) / h; }
 };
-PacketShape packet_shape(int lanes);
+PacketShape packet_shape(int lanes, bool ray_list = false);
 
 // The image (in the session's precision) and, where `samples` is set, the per-pixel sample
 // counts into it.

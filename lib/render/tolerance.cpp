@@ -28,6 +28,14 @@ constexpr double kSafety = 0.5;
 Scene pilot_scene(const Scene& scene) {
   Scene pilot = scene;
   pilot.integrator.tolerance = 0;
+  if (scene.has_ray_list()) {  // a ray list: every k-th ray, at most ~4096 of them
+    const std::size_t n = scene.rays.count(), k = std::max<std::size_t>(1, n / 4096);
+    pilot.rays.values.clear();
+    for (std::size_t i = 0; i < n; i += k)
+      pilot.rays.values.insert(pilot.rays.values.end(), scene.rays.values.begin() + i * 8,
+                               scene.rays.values.begin() + (i + 1) * 8);
+    return pilot;
+  }
   const int w = scene.cameras.front().width, h = scene.cameras.front().height;
   if (w <= 8 || h <= 8) return pilot;  // small images: every ray
   for (Camera& c : pilot.cameras) {

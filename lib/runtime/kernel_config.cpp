@@ -52,6 +52,7 @@ constexpr SwitchInfo kInfo[kSwitches] = {
     {"IVR_REDUCE_SIZE", "reduce", Shown::value, false},
     {"IVR_FLOAT_ATOMICS", "", Shown::flag, true},  // shown as atomics=… from KernelConfig::atomics
     {"IVR_PTX_ATOMICS", "", Shown::flag, true},
+    {"IVR_RAY_LIST", "ray_list", Shown::flag, true},
 };
 
 std::string words(Switch s, int v) {

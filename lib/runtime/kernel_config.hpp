@@ -44,6 +44,7 @@ enum class Switch : int {
   reduce_size,        // IVR_REDUCE_SIZE: work-group size of array_ops.cl's reductions
   float_atomics,      // IVR_FLOAT_ATOMICS: cl_ext_float_atomics adds
   ptx_atomics,        // IVR_PTX_ATOMICS: NVIDIA's red.global.add through inline PTX
+  ray_list,           // IVR_RAY_LIST: the rays are a list, not cameras' pixels (geometry.cl)
   count_
 };
 constexpr int kSwitches = int(Switch::count_);

@@ -79,6 +79,8 @@ PixelLaunch pixel_launch(Device::Impl& dev, const cl::Kernel& kernel, const std:
     l.local = cl::NullRange;
     return l;
   }
+  // One row (a ray list, lib/scene/ray_list.cpp): the group's work-items along it, not idle rows.
+  if (height == 1 && ly > 1) lx *= ly, ly = 1;
   const int gx = (width + lx - 1) / lx * lx, gy = (height + ly - 1) / ly * ly;
   l.global = cl::NDRange(std::size_t(gx), std::size_t(gy), std::size_t(views));
   l.local = cl::NDRange(std::size_t(lx), std::size_t(ly), 1);

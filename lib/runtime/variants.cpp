@@ -11,6 +11,7 @@ RenderVariant RenderVariant::of(const Scene& scene, const Integrator& integrator
   v.scheme = integrator.scheme;
   v.precision = precision;
   v.early_termination = integrator.min_transmittance > 0;
+  v.ray_list = scene.has_ray_list();
   return v;
 }
 
@@ -21,7 +22,8 @@ KernelConfig& RenderVariant::apply(KernelConfig& c) const {
       .with_precision(precision)
       .set(Switch::early_termination, early_termination)
       .set(Switch::empty_space, empty_space)
-      .set(Switch::brick_size, brick_size);
+      .set(Switch::brick_size, brick_size)
+      .set(Switch::ray_list, ray_list);
 }
 
 }  // namespace ivr

@@ -16,6 +16,7 @@ struct RenderVariant {
   bool early_termination = true;
   bool empty_space = false;  // empty-space skipping
   int brick_size = 8;
+  bool ray_list = false;  // the scene's rays are a list (kernels/geometry.cl, IVR_RAY_LIST)
 
   static RenderVariant of(const Scene& scene, const Integrator& integrator, Precision precision);
   // Sets the configuration's model, TF, scheme, precision, early termination and skipping.

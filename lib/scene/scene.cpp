@@ -164,6 +164,21 @@ void validate_geometry(const Scene& s) {
   if (!finite(s.box_min) || !finite(s.box_max) || !(s.box_max.x > s.box_min.x) ||
       !(s.box_max.y > s.box_min.y) || !(s.box_max.z > s.box_min.z))
     fail("box", "max must exceed min on every axis");
+  if (s.has_ray_list()) {
+    if (!s.cameras.empty())
+      fail("rays", "a scene has cameras or a ray list, not both (" +
+                       std::to_string(s.cameras.size()) + " cameras given)");
+    if (s.rays.values.size() % RayList::kColumns != 0)
+      fail("rays", "holds " + std::to_string(s.rays.values.size()) +
+                       " values, not a multiple of 8 (make one with ivr::make_ray_list)");
+    // make_ray_list's checks, on whatever the caller put in (a row must come through unchanged).
+    const RayList again = make_ray_list(s.rays.values.data(), s.rays.count(), 8);
+    for (std::size_t i = 0; i < again.values.size(); ++i)
+      if (again.values[i] != s.rays.values[i])
+        fail("rays[" + std::to_string(i / 8) + "]",
+             "its direction is not unit length (make the list with ivr::make_ray_list)");
+    return;
+  }
   if (s.cameras.empty()) fail("cameras", "a scene needs at least one camera");
   for (std::size_t i = 0; i < s.cameras.size(); ++i) {
     const std::string w = "cameras[" + std::to_string(i) + "]";
@@ -269,12 +284,12 @@ Volume synthetic_volume(const std::string& name, int nx, int ny, int nz) {
 }
 
 void check_target(const Scene& scene, const Image& target) {
-  const Camera& c = scene.cameras.front();
+  const ImageExtent c = image_extent(scene);
   const auto shape = [](int v, int h, int w, int ch) {
     return "(" + std::to_string(v) + ", " + std::to_string(h) + ", " + std::to_string(w) + ", " +
            std::to_string(ch) + ")";
   };
-  const std::string want = shape(int(scene.cameras.size()), c.height, c.width, scene.channels());
+  const std::string want = shape(c.views, c.height, c.width, scene.channels());
   const std::string got = shape(target.views, target.height, target.width, target.channels);
   if (want != got || target.pixels.size() !=
                          std::size_t(target.views) * target.height * target.width * target.channels)

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "io/files.hpp"
+#include "io/npy.hpp"
 #include "ivr/error.hpp"
 #include "ivr/scene.hpp"
 #include "ivr/volume_io.hpp"
@@ -326,10 +327,58 @@ Integrator parse_integrator(const std::string& text, const std::string& where) {
   return read_integrator(r, parse_json(text, where), where);
 }
 
+// A "rays" entry: {"file": "rays.npy"} holding an (R, 8) or (R, 6) array of any real or integer
+// dtype, or the rows inline ([[ox, oy, oz, dx, dy, dz, t0, t1], …], "inf"/"-inf" as strings
+// where an end is infinite).
+RayList read_rays(const Reader& r, const json& j, const std::string& base_dir,
+                  const std::string& where) {
+  std::vector<double> values;
+  std::size_t rows = 0;
+  int columns = 0;
+  if (j.is_object()) {
+    r.only_keys(j, "rays", {"file"});
+    if (!j.contains("file")) r.fail("rays", "needs 'file' (an .npy of shape (rays, 8) or (rays, 6))");
+    if (!j["file"].is_string()) r.fail("rays.file", "expected a string");
+    const fs::path file(j["file"].get<std::string>());
+    const std::string path = file.is_absolute() ? file.string() : (fs::path(base_dir) / file).string();
+    const volfile::TypedArray a = volfile::read_npy(path);
+    if (a.shape.size() != 2 || (a.shape[1] != 8 && a.shape[1] != 6))
+      r.fail("rays.file", path + " holds an array of " + std::to_string(a.shape.size()) +
+                              " dimensions " + (a.shape.size() == 2 ? "with " + std::to_string(a.shape[1]) + " columns" : "") +
+                              "; rays are (rays, 8) or (rays, 6)");
+    rows = a.shape[0];
+    columns = int(a.shape[1]);
+    values.resize(rows * std::size_t(columns));
+    volfile::for_each_value(a, values.size(), [&](std::size_t i, double v) { values[i] = v; });
+  } else if (j.is_array()) {
+    rows = j.size();
+    for (std::size_t i = 0; i < rows; ++i) {
+      const std::string at = "rays[" + std::to_string(i) + "]";
+      if (!j[i].is_array() || (j[i].size() != 8 && j[i].size() != 6))
+        r.fail(at, "expected 8 numbers (ox oy oz dx dy dz t_start t_end) or 6 (start, end)");
+      if (i == 0) columns = int(j[i].size());
+      if (int(j[i].size()) != columns)
+        r.fail(at, "has " + std::to_string(j[i].size()) + " numbers; rays[0] has " +
+                       std::to_string(columns));
+      for (std::size_t k = 0; k < j[i].size(); ++k) {
+        const json& v = j[i][k];
+        if (v.is_string() && (v == "inf" || v == "-inf"))
+          values.push_back(v == "inf" ? INFINITY : -INFINITY);
+        else
+          values.push_back(r.number(v, at + "[" + std::to_string(k) + "]"));
+      }
+    }
+  } else {
+    r.fail("rays", "expected {\"file\": \"rays.npy\"} or an array of rays");
+  }
+  return make_ray_list(values.data(), rows, columns, where + ": rays");
+}
+
 Scene parse_scene(const std::string& text, const std::string& base_dir, const std::string& where) {
   const json j = parse_json(text, where);
   const Reader r(where);
-  r.only_keys(j, "", {"volume", "box", "model", "tf", "background", "cameras", "integrator"});
+  r.only_keys(j, "",
+              {"volume", "box", "model", "tf", "background", "cameras", "rays", "integrator"});
   Scene s;
   if (!j.contains("volume")) r.fail("volume", "a scene needs a volume");
   try {
@@ -367,8 +416,13 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
     else
       s.background = r.vec3(b, "background");
   }
-  if (!j.contains("cameras")) r.fail("cameras", "a scene needs at least one camera");
-  s.cameras = read_cameras(r, j["cameras"]);
+  if (j.contains("rays")) {
+    if (j.contains("cameras")) r.fail("rays", "a scene has cameras or rays, not both");
+    s.rays = read_rays(r, j["rays"], base_dir, where);
+  } else {
+    if (!j.contains("cameras")) r.fail("cameras", "a scene needs cameras (or rays)");
+    s.cameras = read_cameras(r, j["cameras"]);
+  }
   if (j.contains("integrator")) s.integrator = read_integrator(r, j["integrator"], where);
   try {
     validate(s);

@@ -32,6 +32,7 @@ Scene description_of(const Scene& scene) {
   d.tf = scene.tf;
   d.background = scene.background;
   d.cameras = scene.cameras;
+  d.rays = scene.rays;
   d.integrator = scene.integrator;
   return d;
 }
@@ -72,7 +73,10 @@ Session::Impl::Impl(Device& d, const Scene& s, const SessionOptions& o, bool hos
         std::to_string(voxels));
   const std::uint8_t none = 0;
   no_occupancy = dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, 1, &none, "the occupancy grid");
-  upload_cameras(scene.cameras);
+  if (scene.has_ray_list())
+    upload_rays(scene.rays);
+  else
+    upload_cameras(scene.cameras);
   upload_tf(scene.tf);
   if (!s.volume.data.empty()) {
     upload_volume(s.volume.data.data(), nullptr, s.volume);
@@ -166,6 +170,7 @@ void Session::Impl::tf_changed() {
 void Session::Impl::upload_cameras(const std::vector<Camera>& cams) {
   Scene next = scene;
   next.cameras = cams;
+  next.rays = RayList{};
   validate_description(next, declared_integrator());
   cl::Buffer packed, params;
   if (f64) {
@@ -179,9 +184,37 @@ void Session::Impl::upload_cameras(const std::vector<Camera>& cams) {
     params = dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, b.size() * 4, b.data(),
                         "the camera parameters");
   }
+  geometry_changed(std::move(next), packed, params);
+}
+
+void Session::Impl::upload_rays(const RayList& rays) {
+  Scene next = scene;
+  next.cameras.clear();
+  next.rays = rays;
+  validate_description(next, declared_integrator());
+  // The list in the kernels' precision, in the cameras' place (kernels/geometry.cl, IVR_RAY_LIST);
+  // no camera parameters (nothing differentiates a ray list's geometry): one value, as buffers
+  // cannot be empty.
+  cl::Buffer packed, params;
+  if (f64) {
+    packed = dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, rays.values.size() * 8,
+                        const_cast<double*>(rays.values.data()), "the rays");
+  } else {
+    std::vector<float> a(rays.values.begin(), rays.values.end());
+    packed = dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, a.size() * 4, a.data(), "the rays");
+  }
+  const double none = 0;
+  params = dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, 8, const_cast<double*>(&none),
+                      "the camera parameters");
+  geometry_changed(std::move(next), packed, params);
+}
+
+void Session::Impl::geometry_changed(Scene next, const cl::Buffer& packed,
+                                     const cl::Buffer& params) {
   cameras = packed;
   camera_params = params;
-  scene.cameras = cams;
+  scene.cameras = std::move(next.cameras);
+  scene.rays = std::move(next.rays);
   if (target.valid() && target.shape() != image_shape()) {
     target = DeviceArray();
     target_abs_max = -1;
@@ -258,7 +291,7 @@ int Session::Impl::set_scene_args(cl::Kernel& k, const Integrator& it) const {
   const glm::dvec3 h = scene.voxel_size();
   const double step = it.step * std::min(h.x, std::min(h.y, h.z));
   const glm::dvec3 bg = scene.effective_background();
-  const Camera& cam0 = scene.cameras.front();
+  const ImageExtent extent = image_extent(scene);
   int a = 0;
   k.setArg(a++, buffer_of(volume));
   k.setArg(a++, cl_int4{{scene.volume.nx, scene.volume.ny, scene.volume.nz, 0}});
@@ -266,8 +299,8 @@ int Session::Impl::set_scene_args(cl::Kernel& k, const Integrator& it) const {
   set_real4(k, a++, f64, scene.box_max.x, scene.box_max.y, scene.box_max.z);
   set_real4(k, a++, f64, 1 / h.x, 1 / h.y, 1 / h.z);
   k.setArg(a++, cameras);
-  k.setArg(a++, cl_int(cam0.width));
-  k.setArg(a++, cl_int(cam0.height));
+  k.setArg(a++, cl_int(extent.width));
+  k.setArg(a++, cl_int(extent.height));
   k.setArg(a++, tf);
   k.setArg(a++, cl_int(tf_count));
   set_real4(k, a++, f64, tf_scalars[0], tf_scalars[1], 0);
@@ -364,17 +397,18 @@ OperationRecord& Session::Impl::begin(const std::string& operation) {
 
 std::uint64_t Session::Impl::scene_bytes() const {
   const std::uint64_t voxels = has_volume ? scene.volume.voxel_count() : 0;
-  return (voxels + 32 * scene.cameras.size() + 6 * std::max(tf_count, 1)) * real_size;
+  const std::uint64_t geometry = 32 * scene.cameras.size() + RayList::kColumns * scene.rays.count();
+  return (voxels + geometry + 6 * std::max(tf_count, 1)) * real_size;
 }
 
 std::size_t Session::Impl::pixels() const {
-  const Camera& c = scene.cameras.front();
-  return scene.cameras.size() * std::size_t(c.width) * std::size_t(c.height);
+  return image_extent(scene).pixels();
 }
 
 std::vector<std::int64_t> Session::Impl::image_shape() const {
-  const Camera& c = scene.cameras.front();
-  return {std::int64_t(scene.cameras.size()), c.height, c.width, scene.channels()};
+  if (scene.has_ray_list()) return {std::int64_t(scene.rays.count()), scene.channels()};
+  const ImageExtent e = image_extent(scene);
+  return {e.views, e.height, e.width, scene.channels()};
 }
 
 std::vector<std::int64_t> Session::Impl::volume_shape() const {

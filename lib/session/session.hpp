@@ -96,7 +96,10 @@ struct Session::Impl {
                      const glm::dvec3* box = nullptr);
   void copy_volume(const DeviceArray& densities, const glm::dvec3* box = nullptr);
   void adopt_volume(DeviceArray densities, const Volume& dims, const glm::dvec3* box);
-  void upload_cameras(const std::vector<Camera>& cameras);
+  void upload_cameras(const std::vector<Camera>& cameras);  // replaces a ray list too
+  void upload_rays(const RayList& rays);                   // replaces the cameras too
+  // The new cameras or rays (validated) and their device buffers taken.
+  void geometry_changed(Scene next, const cl::Buffer& packed, const cl::Buffer& params);
   void upload_tf(const TransferFunction& tf);
   void check_target(const DeviceArray& target) const;
   void require_volume(const char* operation) const;

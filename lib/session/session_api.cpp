@@ -90,6 +90,11 @@ void Session::set_cameras(const std::vector<Camera>& cameras) {
   impl_->upload_cameras(cameras);
 }
 
+void Session::set_rays(const RayList& rays) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->upload_rays(rays);
+}
+
 void Session::set_integrator(const Integrator& integrator) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   Impl& s = *impl_;

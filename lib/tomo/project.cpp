@@ -34,6 +34,7 @@ KernelConfig projector_config(Session::Impl& s, const char* entry) {
   v.tf = TfKind::identity;
   v.scheme = Scheme::exact;
   v.precision = s.f64 ? Precision::f64 : Precision::f32;
+  v.ray_list = s.scene.has_ray_list();
   KernelConfig c = v.config("project.cl", entry);
   return with_scatter_cache(c.with_atomics(atomic_add_for(s.dev.info, s.f64)),
                             backproject_cache(s));
@@ -48,22 +49,28 @@ void set_geometry(const Session::Impl& s, cl::Kernel& k) {
   set_real4(k, 3, s.f64, scene.box_max.x, scene.box_max.y, scene.box_max.z);
   set_real4(k, 4, s.f64, 1 / h.x, 1 / h.y, 1 / h.z);
   k.setArg(5, s.cameras);
-  k.setArg(6, cl_int(scene.cameras.front().width));
-  k.setArg(7, cl_int(scene.cameras.front().height));
+  const ImageExtent e = image_extent(scene);
+  k.setArg(6, cl_int(e.width));
+  k.setArg(7, cl_int(e.height));
 }
 
 void check_projector_size(const Scene& scene) {
   if (double(scene.volume.nx) * scene.volume.ny * scene.volume.nz > 2147483647.0)
     bad("projector: the volume holds more than 2^31 voxels");
-  const Camera& c = scene.cameras.front();
-  if (double(scene.cameras.size()) * c.width * c.height > 2147483647.0)
+  if (double(image_extent(scene).pixels()) > 2147483647.0)
     bad("projector: the cameras have more than 2^31 rays");
+}
+
+// The lines' shape: the image's with one channel ((views, H, W, 1); a ray list's (rays, 1)).
+std::vector<std::int64_t> line_shape(const Session::Impl& s) {
+  std::vector<std::int64_t> shape = s.image_shape();
+  shape.back() = 1;
+  return shape;
 }
 
 // Lines N v of `volume` (reals) into a new result array.
 DeviceArray project_into_lines(Session::Impl& s, const cl::Buffer& volume, OperationRecord& op) {
-  const std::vector<std::int64_t> is = s.image_shape();
-  DeviceArray lines = s.output("lines", {is[0], is[1], is[2], 1}, real_dtype(s.f64), "the lines");
+  DeviceArray lines = s.output("lines", line_shape(s), real_dtype(s.f64), "the lines");
   op.events.push_back(enqueue_project(s, volume, buffer_of(lines)));
   mark_written(lines, op.events.back());
   return lines;
@@ -78,10 +85,8 @@ cl::Event enqueue_project(Session::Impl& s, const cl::Buffer& volume, const cl::
     k.setArg(0, volume);
     set_geometry(s, k);
     k.setArg(8, lines);
-    const Camera& c = s.scene.cameras.front();
-    return enqueue(s.dev, k,
-                   pixel_launch(s.dev, k, "project", c.width, c.height,
-                                int(s.scene.cameras.size()), false));
+    const ImageExtent c = image_extent(s.scene);
+    return enqueue(s.dev, k, pixel_launch(s.dev, k, "project", c.width, c.height, c.views, false));
   });
 }
 
@@ -98,11 +103,11 @@ cl::Event enqueue_backproject(Session::Impl& s, const cl::Buffer& lines, const c
     k.setArg(0, lines);
     set_geometry(s, k);
     k.setArg(8, volume);
-    const Camera& c = s.scene.cameras.front();
+    const ImageExtent c = image_extent(s.scene);
     // The table is a work-group's: the groups are tiles of one view, with padding items.
     events.push_back(enqueue(s.dev, k,
-                             pixel_launch(s.dev, k, "backproject", c.width, c.height,
-                                          int(s.scene.cameras.size()), cache)));
+                             pixel_launch(s.dev, k, "backproject", c.width, c.height, c.views,
+                                          cache)));
     return events.back();
   });
 }
@@ -130,8 +135,7 @@ DeviceArray Session::backproject(const DeviceArray& lines) {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   Impl& s = *impl_;
   s.check_array(lines, "backproject: lines");
-  std::vector<std::int64_t> want = s.image_shape();
-  want[3] = 1;
+  const std::vector<std::int64_t> want = line_shape(s);
   if (lines.shape() != want)
     bad("backproject: the lines have shape " + shape_text(lines.shape()) +
         "; the cameras' rays are " + shape_text(want));
@@ -173,9 +177,10 @@ Projector::Impl::Impl(Device& device, const Scene& scene, Precision prec)
       precision(prec),
       real_size(prec == Precision::f64 ? 8 : 4) {
   nx = scene.volume.nx, ny = scene.volume.ny, nz = scene.volume.nz;
-  views = int(scene.cameras.size());
-  width = scene.cameras.front().width;
-  height = scene.cameras.front().height;
+  const ImageExtent extent = image_extent(scene);
+  views = extent.views;
+  width = extent.width;
+  height = extent.height;
   voxels = std::size_t(nx) * ny * nz;
   rays = std::size_t(views) * width * height;
   KernelConfig linalg("linalg.cl", "");

@@ -294,9 +294,13 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
   if (lines.size() != P.rays)
     throw Error(Status::invalid_argument,
                 "projections: " + std::to_string(lines.size()) + " values, but the scene's " +
-                    std::to_string(P.views) + " cameras of " + std::to_string(P.width) + "x" +
-                    std::to_string(P.height) + " have " + std::to_string(P.rays) + " rays");
+                    (scene.has_ray_list()
+                         ? std::string("ray list has ")
+                         : std::to_string(P.views) + " cameras of " + std::to_string(P.width) +
+                               "x" + std::to_string(P.height) + " have ") +
+                    std::to_string(P.rays) + " rays");
   check_finite(lines, "projections", [&](std::size_t i) {
+    if (scene.has_ray_list()) return "ray " + std::to_string(i);
     return "view " + std::to_string(i / (std::size_t(P.width) * P.height)) + ", y " +
            std::to_string(i / P.width % P.height) + ", x " + std::to_string(i % P.width);
   });
@@ -351,15 +355,16 @@ std::vector<double> lines_from_intensities(const Scene& scene,
   if (!(clamp >= 0) || !(clamp < 1))
     throw Error(Status::invalid_argument,
                 "intensities: the clamp must be in [0, 1), got " + number_text(clamp));
-  if (scene.cameras.empty())
+  if (scene.cameras.empty() && !scene.has_ray_list())
     throw Error(Status::invalid_argument, "intensities: the scene has no cameras");
-  const Camera& c = scene.cameras.front();
-  const std::size_t rays = scene.cameras.size() * std::size_t(c.width) * std::size_t(c.height);
+  const ImageExtent c = image_extent(scene);
+  const std::size_t rays = c.pixels();
   if (intensities.size() != rays)
-    throw Error(Status::invalid_argument, "intensities: " + std::to_string(intensities.size()) +
-                                              " values, but the scene's " +
-                                              std::to_string(scene.cameras.size()) +
-                                              " cameras have " + std::to_string(rays) + " rays");
+    throw Error(Status::invalid_argument,
+                "intensities: " + std::to_string(intensities.size()) + " values, but the scene's " +
+                    (scene.has_ray_list() ? std::string("ray list")
+                                          : std::to_string(scene.cameras.size()) + " cameras") +
+                    " has " + std::to_string(rays) + " rays");
   std::vector<double> out(intensities.size());
   for (std::size_t i = 0; i < intensities.size(); ++i) {
     double I = intensities[i];
@@ -367,8 +372,10 @@ std::vector<double> lines_from_intensities(const Scene& scene,
       const std::size_t x = i % c.width, y = (i / c.width) % c.height,
                         view = i / (std::size_t(c.width) * c.height);
       throw Error(Status::invalid_argument,
-                  "intensities: value " + number_text(I) + " at (view " + std::to_string(view) +
-                      ", y " + std::to_string(y) + ", x " + std::to_string(x) +
+                  "intensities: value " + number_text(I) + " at (" +
+                      (scene.has_ray_list() ? "ray " + std::to_string(i)
+                                            : "view " + std::to_string(view) + ", y " +
+                                                  std::to_string(y) + ", x " + std::to_string(x)) +
                       (std::isfinite(I) ? ") is not > 0; log I needs positive intensities "
                                           "(or a clamp, --clamp-intensity)"
                                         : ") is not finite"));

@@ -140,7 +140,18 @@ IVR_API ivr_status ivr_tf_release(ivr_transfer_function* tf);
 /* Copies the transfer function into the scene, replacing its own. */
 IVR_API ivr_status ivr_scene_set_tf(ivr_scene* scene, const ivr_transfer_function* tf);
 
-/* The shape of the scene's images: (views, height, width, channels). */
+/* A ray list instead of the scene's cameras (docs/design.md, "Ray lists"): `rows` rows of
+ * `columns` doubles, row-major — 8 (ox oy oz dx dy dz t_start t_end; t_start may be -INFINITY,
+ * t_end INFINITY) or 6 (start and end points). Checked (the first bad ray and field named) and
+ * copied; the scene's cameras are dropped. Images are then one value per ray (shape (1, 1, rows,
+ * channels) below; the bindings show (rows, channels)). */
+IVR_API ivr_status ivr_scene_set_rays(ivr_scene* scene, const double* values, size_t rows,
+                                      int columns);
+/* The number of rays of the scene's ray list (0: the scene has cameras). */
+IVR_API ivr_status ivr_scene_ray_count(const ivr_scene* scene, size_t* rays);
+
+/* The shape of the scene's images: (views, height, width, channels); a ray list's (1, 1, rays,
+ * channels). */
 IVR_API ivr_status ivr_scene_image_shape(const ivr_scene* scene, int64_t shape[4]);
 /* The volume's shape (nz, ny, nx). */
 IVR_API ivr_status ivr_scene_volume_shape(const ivr_scene* scene, int64_t shape[3]);

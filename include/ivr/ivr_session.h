@@ -87,6 +87,10 @@ IVR_API ivr_status ivr_session_set_tf(ivr_session* session, const ivr_transfer_f
 IVR_API ivr_status ivr_session_set_cameras_json(ivr_session* session, const char* json);
 IVR_API ivr_status ivr_session_set_cameras(ivr_session* session, const ivr_camera* cameras,
                                            size_t count);
+/* A ray list instead of cameras (as ivr_scene_set_rays: 8 or 6 columns); images and targets are
+ * then shaped (rays, channels). ivr_session_set_cameras* go back to cameras. */
+IVR_API ivr_status ivr_session_set_rays(ivr_session* session, const double* values, size_t rows,
+                                        int columns);
 /* A scene's "integrator" JSON object ({"scheme", "step", "min_transmittance", "tolerance"}). */
 IVR_API ivr_status ivr_session_set_integrator_json(ivr_session* session, const char* json);
 /* RGB (emission-absorption), or background[0] = I_in (absorption). */

@@ -119,6 +119,10 @@ class Session : public detail::Handle<ivr_session, ivr_session_retain, ivr_sessi
   void set_cameras_json(const std::string& json) {
     detail::check(ivr_session_set_cameras_json(get(), json.c_str()));
   }
+  // rows × columns doubles (8 or 6 columns, as ivr_session_set_rays).
+  void set_rays(const double* values, size_t rows, int columns) {
+    detail::check(ivr_session_set_rays(get(), values, rows, columns));
+  }
   void set_cameras(const std::vector<ivr_camera>& cameras) {
     detail::check(ivr_session_set_cameras(get(), cameras.data(), cameras.size()));
   }

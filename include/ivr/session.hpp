@@ -176,7 +176,7 @@ class IVR_API Session {
   const Scene& scene() const;  // the description; volume.data is empty (the densities are on the device)
   const SessionOptions& options() const;
   Device& device() const;
-  std::vector<std::int64_t> image_shape() const;   // (views, H, W, C)
+  std::vector<std::int64_t> image_shape() const;   // (views, H, W, C); a ray list's (rays, C)
   std::vector<std::int64_t> volume_shape() const;  // (nz, ny, nx)
   bool has_volume() const;
   // The densities as a view of the session's own buffer (the session's precision): optimiser

@@ -150,8 +150,8 @@ ivr_status ivr_scene_image_shape(const ivr_scene* s, int64_t shape[4]) {
   return guarded(context_of(s), "ivr_scene_image_shape", [&] {
     checked(s, Kind::scene, "scene");
     not_null(shape, "shape");
-    const ivr::Camera& c = s->scene.cameras.front();
-    shape[0] = int64_t(s->scene.cameras.size());
+    const ivr::ImageExtent c = ivr::image_extent(s->scene);
+    shape[0] = c.views;
     shape[1] = c.height;
     shape[2] = c.width;
     shape[3] = s->scene.channels();
@@ -210,8 +210,8 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
     *out = nullptr;
     const ivr::Mode m = mode_of(mode);
     const ivr::Loss l = loss_of(loss);
-    const ivr::Camera& cam = s->scene.cameras.front();
-    ivr::Image t{int(s->scene.cameras.size()), cam.height, cam.width, s->scene.channels(), {}};
+    const ivr::ImageExtent cam = ivr::image_extent(s->scene);
+    ivr::Image t{cam.views, cam.height, cam.width, s->scene.channels(), {}};
     const size_t want = size_t(t.views) * t.height * t.width * t.channels;
     if (count != want)
       throw CError{IVR_ERROR_INVALID_ARGUMENT, "target has " + std::to_string(count) +

@@ -82,8 +82,8 @@ ivr_status ivr_reconstruction_create(ivr_context* c, const ivr_scene* s, const f
     // Ranges: checked by ivr::validate_reconstruct, which names them.
     const ivr::ReconstructOptions o = core_options(options);
     const ivr::Scene& scene = s->scene;
-    const ivr::Camera& cam = scene.cameras.front();
-    ivr::Image t{int(scene.cameras.size()), cam.height, cam.width, scene.channels(), {}};
+    const ivr::ImageExtent cam = ivr::image_extent(scene);
+    ivr::Image t{cam.views, cam.height, cam.width, scene.channels(), {}};
     const size_t want = size_t(t.views) * size_t(t.height) * size_t(t.width) * size_t(t.channels);
     if (count != want)
       bad("targets has " + std::to_string(count) + " floats; the scene renders " +

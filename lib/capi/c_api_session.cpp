@@ -29,6 +29,15 @@ struct ivr_density_optimizer {
 
 namespace {
 
+// The session's image shape as the C API's four dimensions: a ray list's (rays, channels) as
+// (1, 1, rays, channels), as ivr_scene_image_shape gives it.
+std::vector<int64_t> image_shape_4d(ivr::Session& session) {
+  std::vector<int64_t> shape = session.image_shape();
+  if (shape.size() == 2) shape = {1, 1, shape[0], shape[1]};
+  return shape;
+}
+
+
 ivr_context* context_of(const ivr_session* s) {
   return s && is_live(s, Kind::session) ? s->context : nullptr;
 }
@@ -296,6 +305,13 @@ ivr_status ivr_session_set_cameras_json(ivr_session* s, const char* json) {
   });
 }
 
+ivr_status ivr_session_set_rays(ivr_session* s, const double* values, size_t rows, int columns) {
+  return guarded(context_of(s), "ivr_session_set_rays", [&] {
+    ivr::Session& session = session_of(s);
+    session.set_rays(ivr::make_ray_list(not_null(values, "values"), rows, columns));
+  });
+}
+
 ivr_status ivr_session_set_cameras(ivr_session* s, const ivr_camera* cameras, size_t count) {
   return guarded(context_of(s), "ivr_session_set_cameras", [&] {
     ivr::Session& session = session_of(s);
@@ -337,7 +353,7 @@ ivr_status ivr_session_set_target(ivr_session* s, const float* target, size_t co
   return guarded(context_of(s), "ivr_session_set_target", [&] {
     ivr::Session& session = session_of(s);
     not_null(target, "target");
-    const std::vector<int64_t> shape = session.image_shape();
+    const std::vector<int64_t> shape = image_shape_4d(session);
     const size_t want = size_t(shape[0] * shape[1] * shape[2] * shape[3]);
     if (count != want)
       throw CError{IVR_ERROR_INVALID_ARGUMENT, "target has " + std::to_string(count) +
@@ -359,7 +375,7 @@ ivr_status ivr_session_image_shape(const ivr_session* s, int64_t shape[4]) {
   return guarded(context_of(s), "ivr_session_image_shape", [&] {
     checked(s, Kind::session, "session");
     not_null(shape, "shape");
-    const std::vector<int64_t> v = s->session->image_shape();
+    const std::vector<int64_t> v = image_shape_4d(*s->session);
     std::copy(v.begin(), v.end(), shape);
   });
 }

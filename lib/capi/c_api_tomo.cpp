@@ -12,8 +12,7 @@ namespace {
 
 // The scene's ray and voxel counts, as the projector counts them.
 std::size_t ray_count(const ivr::Scene& s) {
-  const ivr::Camera& c = s.cameras.front();
-  return s.cameras.size() * std::size_t(c.width) * std::size_t(c.height);
+  return ivr::image_extent(s).pixels();
 }
 
 // "<what> has 5 floats; the scene has 6144 rays": inputs need exactly, outputs at least `want`.

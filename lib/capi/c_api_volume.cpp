@@ -115,4 +115,21 @@ ivr_status ivr_scene_set_tf(ivr_scene* s, const ivr_transfer_function* t) {
   });
 }
 
+ivr_status ivr_scene_set_rays(ivr_scene* s, const double* values, size_t rows, int columns) {
+  return guarded(context_of(s), "ivr_scene_set_rays", [&] {
+    checked(s, Kind::scene, "scene");
+    not_null(values, "values");
+    ivr::RayList rays = ivr::make_ray_list(values, rows, columns);
+    s->scene.cameras.clear();
+    s->scene.rays = std::move(rays);
+  });
+}
+
+ivr_status ivr_scene_ray_count(const ivr_scene* s, size_t* rays) {
+  return guarded(context_of(s), "ivr_scene_ray_count", [&] {
+    checked(s, Kind::scene, "scene");
+    *not_null(rays, "rays") = s->scene.rays.count();
+  });
+}
+
 }  // extern "C"

@@ -112,7 +112,7 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
   if (f64 && !dev.info.fp64)
     throw Error(Status::unsupported,
                 "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
-  const int views = int(scene.cameras.size());
+  const int views = image_extent(scene).views;  // a ray list: one "view", every ray
   if (o.automatic_optimizer)
     o.optimizer.kind = o.density ? OptimizerKind::adam : OptimizerKind::lbfgs;
   if (o.optimizer.kind == OptimizerKind::lbfgs && o.batch > 0 && o.batch < views)
@@ -240,7 +240,7 @@ void Reconstruction::Impl::enter_level(int l, const std::vector<double>& density
 }
 
 DeviceArray Reconstruction::Impl::batch_targets(const std::vector<int>& views) {
-  if (int(views.size()) == int(scene.cameras.size())) return all_targets;
+  if (scene.has_ray_list() || int(views.size()) == int(scene.cameras.size())) return all_targets;
   const std::vector<std::int64_t>& shape = all_targets.shape();
   DeviceArray batch(device, {std::int64_t(views.size()), shape[1], shape[2], shape[3]},
                     all_targets.dtype());
@@ -283,9 +283,10 @@ const IterationRecord& Reconstruction::Impl::step() {
                                         dims[std::size_t(l)][2]);
     enter_level(l, std::vector<double>(fine.data.begin(), fine.data.end()));
   }
-  const std::vector<int> views = batch_views(o.seed, k, int(scene.cameras.size()), o.batch);
-  std::vector<Camera> cameras;
-  for (int v : views) cameras.push_back(scene.cameras[std::size_t(v)]);
+  const std::vector<int> views = batch_views(o.seed, k, image_extent(scene).views, o.batch);
+  std::vector<Camera> cameras;  // empty for a ray list: the session keeps its rays
+  if (!scene.has_ray_list())
+    for (int v : views) cameras.push_back(scene.cameras[std::size_t(v)]);
   const std::size_t cols = o.tf ? tf_gradient_shape(scene.tf)[1] : 1;
 
   IterationRecord r;
@@ -295,7 +296,7 @@ const IterationRecord& Reconstruction::Impl::step() {
   r.lr = learning_rate(o.optimizer, o.density ? density_opt->iterations() : k);
   if (o.density) {
     Session::Impl& s = session->impl();
-    s.upload_cameras(cameras);
+    if (!cameras.empty()) s.upload_cameras(cameras);
     AdjointRequest request;
     request.density = true;
     request.tf = o.tf;
@@ -322,7 +323,7 @@ const IterationRecord& Reconstruction::Impl::step() {
   } else {
     // The fixed volume, with this batch's cameras and targets; the TF set per evaluation.
     Session::Impl& s = session->impl();
-    s.upload_cameras(cameras);
+    if (!cameras.empty()) s.upload_cameras(cameras);
     const DeviceArray batch_target = batch_targets(views);
     GradientRequest request;
     request.wrt = {"tf"};

@@ -223,6 +223,18 @@ def _optional_choice(table, value, what):
     return None if value is None else _choice(table, value, what)
 
 
+def ray_array(rays):
+    """`rays` as the (R, 8) or (R, 6) float64 C-ordered array a ray list is made from
+    (docs/design.md, "Ray lists": ox oy oz dx dy dz t_start t_end, or start and end points)."""
+    a = np.ascontiguousarray(rays, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] not in (6, 8):
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"rays: expected shape (rays, 8) or (rays, 6), got {a.shape}")
+    if a.shape[0] == 0:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT", "rays: no rays")
+    return a
+
+
 class Context(_Owned):
     """A device and its compiled kernels. Use one context per thread; contexts on different
     threads run concurrently."""
@@ -265,12 +277,23 @@ class Context(_Owned):
 
     # One scene handle for the duration of a call.
     def _scene(self, scene, volume, base_dir):
+        rays = None
+        if isinstance(scene, dict) and "rays" in scene and not isinstance(scene["rays"], dict):
+            # A ray list in memory: the JSON names its first row (so that the scene is whole),
+            # ivr_scene_set_rays then takes every row without a trip through text.
+            rays = ray_array(scene["rays"])
+            first = [v if np.isfinite(v) else ("inf" if v > 0 else "-inf") for v in rays[0]]
+            scene = dict(scene, rays=[first])
         text = scene if isinstance(scene, str) else json.dumps(scene)
         handle = _capi.HANDLE()
         _check(self._lib.ivr_scene_from_json(self._live(), text.encode(),
                                              base_dir.encode() if base_dir else None,
                                              ctypes.byref(handle)))
         try:
+            if rays is not None:
+                _check(self._lib.ivr_scene_set_rays(
+                    handle, rays.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), rays.shape[0],
+                    rays.shape[1]))
             if volume is not None:
                 v = _volume_array(volume)
                 shape = (ctypes.c_int64 * 3)(*v.shape)
@@ -282,9 +305,12 @@ class Context(_Owned):
         return handle
 
     def _image_shape(self, scene_handle):
+        """(views, H, W, C); a ray list's (rays, C)."""
         shape = (ctypes.c_int64 * 4)()
         _check(self._lib.ivr_scene_image_shape(scene_handle, shape))
-        return tuple(shape)
+        rays = ctypes.c_size_t()
+        _check(self._lib.ivr_scene_ray_count(scene_handle, ctypes.byref(rays)))
+        return (rays.value, shape[3]) if rays.value else tuple(shape)
 
     def step(self, scene, volume=None, base_dir=None):
         """(step, estimated_error): the integrator step (voxels) a render of the scene uses — its
@@ -360,18 +386,19 @@ class Context(_Owned):
     # --- absorption tomography: log(I / I_in) = -N v (the scene's model and TF are not used) --
 
     def _ray_shape(self, scene_handle):
-        return self._image_shape(scene_handle)[:3] + (1,)
+        return self._image_shape(scene_handle)[:-1] + (1,)
 
     def _rays(self, scene_handle, values, what):
-        """`values` as contiguous float32 of the scene's ray shape; (views, H, W) also accepted."""
+        """`values` as contiguous float32 of the scene's ray shape ((views, H, W, 1), a ray
+        list's (rays, 1)); (views, H, W) or (rays,) also accepted."""
         shape = self._ray_shape(scene_handle)
         a = np.ascontiguousarray(values, dtype=np.float32)
-        if a.shape == shape[:3]:
+        if a.shape == shape[:-1]:
             a = a.reshape(shape)
         if a.shape != shape:
             raise Error("IVR_ERROR_INVALID_ARGUMENT",
-                        f"{what} have shape {a.shape} but the scene's cameras give {shape} "
-                        f"(or {shape[:3]})")
+                        f"{what} have shape {a.shape} but the scene's rays give {shape} "
+                        f"(or {shape[:-1]})")
         return a
 
     def _grid_scene(self, scene, grid, base_dir):

@@ -36,7 +36,7 @@ def _entry(it):
 def _targets(ctx, scene_handle, targets):
     shape = ctx._image_shape(scene_handle)
     t = np.ascontiguousarray(targets, dtype=np.float32)
-    if t.shape == shape[:3] and shape[3] == 1:
+    if t.shape == shape[:-1] and shape[-1] == 1:
         t = t.reshape(shape)
     if t.shape != shape:
         raise Error("IVR_ERROR_INVALID_ARGUMENT",

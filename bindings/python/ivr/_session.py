@@ -6,7 +6,8 @@ import json
 import numpy as np
 
 from . import (Context, Error, _Owned, _capi, _check, _choice, _library, _optional_choice,
-               _volume_array, _DTYPES, _FLOAT_P, _LOSSES, _MODE_NAMES, _MODES, _PRECISIONS)
+               _volume_array, ray_array, _DTYPES, _FLOAT_P, _LOSSES, _MODE_NAMES, _MODES,
+               _PRECISIONS)
 
 _ARRAY_DTYPES = {np.dtype(np.float32): 0, np.dtype(np.float64): 1}  # ivr_dtype of device arrays
 _ARRAY_NUMPY = {0: np.dtype(np.float32), 1: np.dtype(np.float64)}
@@ -245,6 +246,9 @@ class Session(_Owned):
             _volume_array(volume)
         s = context._scene(scene, None if on_device else volume, base_dir)
         try:
+            rays = ctypes.c_size_t()
+            _check(self._lib.ivr_scene_ray_count(s, ctypes.byref(rays)))
+            self._ray_list = rays.value > 0
             handle = _capi.HANDLE()
             _check(self._lib.ivr_session_create(context._live(), s, ctypes.byref(options),
                                                 ctypes.byref(handle)))
@@ -335,6 +339,18 @@ class Session(_Owned):
             cameras = [cameras]
         text = cameras if isinstance(cameras, str) else json.dumps(list(cameras))
         _check(self._lib.ivr_session_set_cameras_json(h, text.encode()))
+        self._ray_list = False
+
+    def set_rays(self, rays):
+        """A ray list instead of the cameras (docs/design.md, "Ray lists"): an (R, 8) array of
+        ox oy oz dx dy dz t_start t_end (t_start may be -inf, t_end inf: from the box entry, to
+        its exit) or (R, 6) start and end points. Images and targets are then (R, C); a bad ray
+        raises ivr.Error naming it and its field, and the session keeps its geometry."""
+        h = self._live()
+        a = ray_array(rays)
+        _check(self._lib.ivr_session_set_rays(
+            h, a.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), a.shape[0], a.shape[1]))
+        self._ray_list = True
 
     def set_integrator(self, integrator):
         """A new integrator: a scene's "integrator" object ({"scheme", "step",
@@ -370,10 +386,10 @@ class Session(_Owned):
 
     @property
     def image_shape(self):
-        """(views, H, W, C) of render()."""
+        """(views, H, W, C) of render(); (rays, C) for a ray list."""
         shape = (ctypes.c_int64 * 4)()
         _check(self._lib.ivr_session_image_shape(self._live(), shape))
-        return tuple(shape)
+        return (shape[2], shape[3]) if self._ray_list else tuple(shape)
 
     @property
     def volume_shape(self):
@@ -452,7 +468,7 @@ class Session(_Owned):
     def backproject(self, lines):
         """N^T p, the exact transpose of project: `lines` (views, H, W, 1) — a numpy array may
         also be (views, H, W) — onto the grid, (Z, Y, X)."""
-        shape = self.image_shape[:3] + (1,)
+        shape = self.image_shape[:-1] + (1,)
         p, handle = self._array(lines, "lines", None if isinstance(lines, DeviceArray) else shape,
                                 of="the session's rays are")
         out = self._one(self._lib.ivr_session_backproject, handle)

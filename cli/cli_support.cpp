@@ -24,16 +24,34 @@ std::string shape_text(const std::vector<std::size_t>& shape) {
   return s + (shape.size() == 1 ? ",)" : ")");
 }
 
+std::vector<std::size_t> image_file_shape(const Scene& scene) {
+  const ImageExtent e = image_extent(scene);
+  const std::size_t c = std::size_t(scene.channels());
+  if (scene.has_ray_list()) return {std::size_t(e.width), c};
+  return {std::size_t(e.views), std::size_t(e.height), std::size_t(e.width), c};
+}
+
+std::vector<std::vector<std::size_t>> ray_file_shapes(const Scene& scene) {
+  const ImageExtent e = image_extent(scene);
+  const std::size_t v = std::size_t(e.views), h = std::size_t(e.height), w = std::size_t(e.width);
+  if (scene.has_ray_list()) return {{w, 1}, {w}};
+  return {{v, h, w, 1}, {v, h, w}};
+}
+
 Image load_target(const std::string& path, const Scene& scene) {
   const NpyArray a = load_npy(path);
-  const Camera& cam = scene.cameras.front();
-  const std::size_t v = scene.cameras.size(), h = std::size_t(cam.height),
+  const ImageExtent cam = image_extent(scene);
+  const std::size_t v = std::size_t(cam.views), h = std::size_t(cam.height),
                     w = std::size_t(cam.width), c = std::size_t(scene.channels());
-  const std::vector<std::size_t> full{v, h, w, c};
+  const std::vector<std::size_t> full = image_file_shape(scene);
   std::vector<std::vector<std::size_t>> accepted{full};
-  if (v == 1) accepted.push_back({h, w, c});
-  if (c == 1) accepted.push_back({v, h, w});
-  if (v == 1 && c == 1) accepted.push_back({h, w});
+  if (scene.has_ray_list()) {
+    if (c == 1) accepted.push_back({w});
+  } else {
+    if (v == 1) accepted.push_back({h, w, c});
+    if (c == 1) accepted.push_back({v, h, w});
+    if (v == 1 && c == 1) accepted.push_back({h, w});
+  }
   bool ok = false;
   for (const auto& s : accepted) ok = ok || a.shape == s;
   if (!ok)

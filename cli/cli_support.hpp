@@ -14,6 +14,11 @@ Error input_error(const std::string& what);
 
 // "(2, 3, 4)", "(5,)".
 std::string shape_text(const std::vector<std::size_t>& shape);
+// The shape of the scene's images in .npy files: (views, H, W, C), a ray list's (rays, C).
+std::vector<std::size_t> image_file_shape(const Scene& scene);
+// The shapes an .npy of one value per ray may have: (views, H, W, 1) or (views, H, W), a ray
+// list's (rays, 1) or (rays,); the first is what the commands write.
+std::vector<std::vector<std::size_t>> ray_file_shapes(const Scene& scene);
 
 // Reads TARGET.npy as an image of the scene's render shape (views, H, W, C); also accepts
 // (H, W, C) for one view, and (views, H, W) / (H, W) for one channel. Values must be finite

@@ -54,8 +54,8 @@ Runner add_jacobian_command(CLI::App& app) {
     const Scene scene = with_integrator(load_scene(args->scene), args->march);
     nlohmann::json groups = nlohmann::json::array();
     const std::vector<Parameter> params = jacobian_parameters(scene, args->wrt, &groups);
-    const Camera& cam = scene.cameras.front();
-    const std::vector<std::size_t> shape{scene.cameras.size(), std::size_t(cam.height),
+    const ImageExtent cam = image_extent(scene);
+    const std::vector<std::size_t> shape{std::size_t(cam.views), std::size_t(cam.height),
                                          std::size_t(cam.width), std::size_t(scene.channels()),
                                          params.size()};
     const double bytes = (precision == Precision::f64 ? 8.0 : 4.0) * double(shape[0]) * double(shape[1]) * double(shape[2]) *

@@ -146,17 +146,16 @@ Image load_images(const std::string& path, const std::string& option, const Scen
   const std::string what = option + " '" + path + "'";
   if (a.dtype != "float32" && a.dtype != "float64")
     throw input_error(what + " has dtype " + a.dtype + "; expected float32 or float64");
-  const Camera& cam = scene.cameras.front();
-  const std::vector<std::size_t> shape = {scene.cameras.size(), std::size_t(cam.height),
-                                          std::size_t(cam.width), std::size_t(scene.channels())};
+  const std::vector<std::size_t> shape = image_file_shape(scene);
   if (a.shape != shape)
     throw input_error(what + " has shape " + shape_text(a.shape) + " but the scene renders " +
-                      shape_text(shape) + " (views, H, W, C)");
+                      shape_text(shape) + (scene.has_ray_list() ? " (rays, C)" : " (views, H, W, C)"));
+  const ImageExtent e = image_extent(scene);
   Image image;
-  image.views = int(shape[0]);
-  image.height = int(shape[1]);
-  image.width = int(shape[2]);
-  image.channels = int(shape[3]);
+  image.views = e.views;
+  image.height = e.height;
+  image.width = e.width;
+  image.channels = scene.channels();
   image.pixels.resize(a.data.size());
   for (std::size_t i = 0; i < a.data.size(); ++i) {
     const double x = a.data[i];
@@ -232,7 +231,7 @@ class Progress {
 
 // View 0 of the scene (its volume and TF as they are) at the reconstruction's precision and step.
 Image render_view0(Device& device, Scene scene, const ReconstructOptions& o) {
-  scene.cameras.resize(1);
+  if (!scene.has_ray_list()) scene.cameras.resize(1);  // a ray list: every ray
   RenderOptions r;
   r.precision = o.precision;
   r.step = o.step;
@@ -444,11 +443,13 @@ Runner add_reconstruct_command(CLI::App& app) {
     }
     write_text_atomically(p + "_loss.csv", csv_text(history));
     write_text_atomically(p + "_loss.svg", loss_svg(loss_curve(r, used)));
-    save_image_file(p + "_before.png", before);
-    save_image_file(p + "_after.png", after);
-    save_image_file(p + "_target.png", targets, 0);
-    outputs.insert(outputs.end(), {p + "_loss.csv", p + "_loss.svg", p + "_before.png",
-                                   p + "_after.png", p + "_target.png"});
+    outputs.insert(outputs.end(), {p + "_loss.csv", p + "_loss.svg"});
+    if (!scene.has_ray_list()) {  // pictures of view 0 (a ray list has no picture to show)
+      save_image_file(p + "_before.png", before);
+      save_image_file(p + "_after.png", after);
+      save_image_file(p + "_target.png", targets, 0);
+      outputs.insert(outputs.end(), {p + "_before.png", p + "_after.png", p + "_target.png"});
+    }
     Reconstruction::remove_checkpoint(p);
 
     const double loss_first = history.empty() ? NAN : history.front().loss;

@@ -49,7 +49,7 @@ Runner add_render_command(CLI::App& app) {
   cmd->add_option("scene", args->scene, "Scene JSON file (see docs/design.md)")->required();
   cmd->add_option("-o,--output", args->output,
                   "Output: .npy (views, H, W, C) float32 (float64 with --precision f64), or .png/.exr/.tif (one file per view: "
-                  "OUT_<v>.ext)")
+                  "OUT_<v>.ext); a scene of rays: .npy (rays, C)")
       ->required();
   add_march_options(cmd, args->march);
   cmd->add_option("--empty-space", args->empty_space,
@@ -79,11 +79,20 @@ Runner add_render_command(CLI::App& app) {
     options.empty_space = args->empty_space == "on"    ? EmptySpace::on
                           : args->empty_space == "off" ? EmptySpace::off
                                                        : EmptySpace::automatic;
+    if (scene.has_ray_list() && ext != ".npy")
+      throw Error(Status::invalid_argument,
+                  "output '" + args->output +
+                      "': a scene of rays renders one value per ray: write .npy (rays, C)");
     RenderStats stats;
     const Image image = render(device, scene, options, &stats);
 
     const std::vector<std::string> paths = output_paths(args->output, image.views);
-    if (ext == ".npy")
+    if (scene.has_ray_list()) {  // (rays, C), in the precision it was computed in
+      if (image.pixels_f64.empty())
+        save_npy(paths[0], image_file_shape(scene), image.pixels.data());
+      else
+        save_npy(paths[0], image_file_shape(scene), image.pixels_f64.data());
+    } else if (ext == ".npy")
       save_image_npy(paths[0], image);
     else
       for (int v = 0; v < int(paths.size()); ++v) save_image_file(paths[v], image, v);
@@ -98,6 +107,7 @@ Runner add_render_command(CLI::App& app) {
                             {"precision", args->march.precision},
                             {"variant", stats.variant},
                             {"views", image.views},
+                            {"rays", scene.rays.count()},
                             {"width", image.width},
                             {"height", image.height},
                             {"channels", image.channels},

@@ -58,21 +58,25 @@ std::vector<double> load_rays(const std::string& path, const std::string& option
   const std::string what = option + " '" + path + "'";
   if (floats_only && a.dtype != "float32" && a.dtype != "float64")
     throw input_error(what + " has dtype " + a.dtype + "; expected float32 or float64");
-  const std::size_t v = scene.cameras.size(), h = std::size_t(scene.cameras.front().height),
-                    w = std::size_t(scene.cameras.front().width);
-  if (a.shape != std::vector<std::size_t>{v, h, w, 1} &&
-      a.shape != std::vector<std::size_t>{v, h, w})
+  const ImageExtent e = image_extent(scene);
+  const std::size_t v = std::size_t(e.views), h = std::size_t(e.height), w = std::size_t(e.width);
+  const std::vector<std::vector<std::size_t>> shapes = ray_file_shapes(scene);
+  if (a.shape != shapes[0] && a.shape != shapes[1])
     throw input_error(what + " has shape " + shape_text(a.shape) + " but the scene's " +
-                      std::to_string(v) + " camera(s) of " + std::to_string(w) + "x" +
-                      std::to_string(h) + " need " + shape_text({v, h, w, 1}) + " or " +
-                      shape_text({v, h, w}));
+                      (scene.has_ray_list() ? "ray list of " + std::to_string(w) + " rays"
+                                            : std::to_string(v) + " camera(s) of " +
+                                                  std::to_string(w) + "x" + std::to_string(h)) +
+                      " need " + shape_text(shapes[0]) + " or " + shape_text(shapes[1]));
   for (std::size_t i = 0; i < a.data.size(); ++i) {
     if (std::isfinite(a.data[i])) continue;
     std::ostringstream value;
     value << a.data[i];
-    throw input_error(what + " has a non-finite value (" + value.str() + ") at (view " +
-                      std::to_string(i / (h * w)) + ", y " + std::to_string(i / w % h) + ", x " +
-                      std::to_string(i % w) + ")");
+    throw input_error(what + " has a non-finite value (" + value.str() + ") at (" +
+                      (scene.has_ray_list()
+                           ? "ray " + std::to_string(i)
+                           : "view " + std::to_string(i / (h * w)) + ", y " +
+                                 std::to_string(i / w % h) + ", x " + std::to_string(i % w)) +
+                      ")");
   }
   return a.data;
 }
@@ -137,7 +141,7 @@ Runner add_project_command(CLI::App& app) {
         projector.project({scene.volume.data.begin(), scene.volume.data.end()});
     const std::size_t views = std::size_t(projector.views()), h = std::size_t(projector.height()),
                       w = std::size_t(projector.width());
-    write_outputs({{args->output, {views, h, w, 1}, lines, precision == Precision::f64}});
+    write_outputs({{args->output, ray_file_shapes(scene)[0], lines, precision == Precision::f64}});
     const double seconds = projector.last_kernel_seconds();
     if (args->json) {
       std::cout << nlohmann::json{{"device", device.info().name},

@@ -15,6 +15,7 @@ const std::vector<Suite>& all_suites() {
        planner_suite},
       {"integrators", "every integrator's speed against its error", integrators_suite},
       {"tomo", "absorption projector and back-projector throughput", tomo_suite},
+      {"rays", "ray lists against the same rays as cameras' pixels; sightlines", rays_suite},
       {"reconstruct", "reconstruction iterations per second", reconstruct_suite},
       {"scaling", "time and memory as volume, image and step grow", scaling_suite},
       {"empty_space", "empty-space skipping on against off: render and gradient",

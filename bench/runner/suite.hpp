@@ -108,6 +108,7 @@ void gradient_suite(Context& ctx);
 void planner_suite(Context& ctx);
 void integrators_suite(Context& ctx);
 void tomo_suite(Context& ctx);
+void rays_suite(Context& ctx);
 void reconstruct_suite(Context& ctx);
 void scaling_suite(Context& ctx);
 void compile_suite(Context& ctx);

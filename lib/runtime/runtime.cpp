@@ -395,21 +395,23 @@ AtomicAdd atomic_add_for(const DeviceInfo& info, bool f64) {
   return kind;
 }
 
+bool fp64_count_usable(const DeviceInfo& info) {
+  return info.fp64 && info.platform.find("NVIDIA") == std::string::npos;
+}
+
 CountArithmetic count_arithmetic(const DeviceInfo& info) {
   const char* env = std::getenv("IVR_COUNT_ARITHMETIC");
   const std::string forced = env ? env : "";
-  if (forced.empty() || forced == "auto") {
-    if (info.fp64) return CountArithmetic::fp64;
-    if (info.correctly_rounded_divide_sqrt) return CountArithmetic::option;
-    return CountArithmetic::residual;
-  }
-  if (forced == "fp64" && info.fp64) return CountArithmetic::fp64;
+  if (forced.empty() || forced == "auto")
+    return fp64_count_usable(info) ? CountArithmetic::fp64 : CountArithmetic::residual;
+  if (forced == "fp64" && fp64_count_usable(info)) return CountArithmetic::fp64;
   if (forced == "option" && info.correctly_rounded_divide_sqrt) return CountArithmetic::option;
   if (forced == "residual") return CountArithmetic::residual;
   if (forced == "fp64" || forced == "option")
     throw Error(Status::invalid_argument,
                 "IVR_COUNT_ARITHMETIC=" + forced + ": " + info.name + " has no " +
-                    (forced == "fp64" ? "float64" : "correctly rounded float32 division"));
+                    (forced == "fp64" ? "float64 quotient its compiler keeps"
+                                      : "correctly rounded float32 division"));
   throw Error(Status::invalid_argument, "IVR_COUNT_ARITHMETIC must be auto, fp64, option or "
                                         "residual, got '" + forced + "'");
 }

@@ -40,12 +40,18 @@ AtomicAdd atomic_add_for(const DeviceInfo& info, bool f64);
 const char* atomic_add_name(AtomicAdd kind);
 
 // How kernels/sample_count.cl gets its correctly rounded float32 division and square root on this
-// device (the IVR_COUNT_ARITHMETIC values there): through float64 where the device has it, else
-// the device's own built with -cl-fp32-correctly-rounded-divide-sqrt where it offers that, else
-// corrected by fma residuals. $IVR_COUNT_ARITHMETIC=auto|fp64|option|residual forces one the
-// device offers (residual runs everywhere), for tests.
+// device (the IVR_COUNT_ARITHMETIC values there): through float64 where the device has it and its
+// compiler keeps it (fp64_count_usable), else corrected by fma residuals, which need nothing but
+// fma. $IVR_COUNT_ARITHMETIC=auto|fp64|option|residual forces one the device offers (residual
+// runs everywhere; option: the device's own division built with
+// -cl-fp32-correctly-rounded-divide-sqrt), for tests.
 enum class CountArithmetic { fp64 = 0, option = 1, residual = 2 };
 CountArithmetic count_arithmetic(const DeviceInfo& info);
+// Whether (float)((double)a / (double)b) is the correctly rounded float32 quotient on this device:
+// it has float64 and is not NVIDIA's OpenCL, whose compiler turns that expression back into its
+// float32 division (not correctly rounded by default): measured on an H200 (driver 580.159), where
+// the fp64 count took 1764 samples for the definition's 1800 and camera rays moved by an ulp.
+bool fp64_count_usable(const DeviceInfo& info);
 
 struct Device::Impl {
   DeviceInfo info;

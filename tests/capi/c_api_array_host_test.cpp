@@ -23,7 +23,9 @@ double session_loss(ivr_session* s, const ivr_array* image, const ivr_array* tar
 }
 
 TEST_F(CApiSession, WrappedHostMemoryIsReadInPlace) {
-  ASSERT_TRUE(host_unified()) << "PoCL's CPU device reports host-unified memory";
+  // In place only where the device's memory is the host's (PoCL's CPU device reports it; a
+  // discrete GPU copies CL_MEM_USE_HOST_PTR memory, as OpenCL allows).
+  if (!host_unified()) GTEST_SKIP() << "the device's memory is not the host's";
   const std::vector<int64_t> shape = image_shape(session_);
   const ArrayPtr image = render_array(session_);
   const std::vector<float> values = floats(image.get());
@@ -50,7 +52,7 @@ TEST_F(CApiSession, WrappedHostMemoryIsReadInPlace) {
 }
 
 TEST_F(CApiSession, MapsShowTheValuesWithoutACopyAndNest) {
-  ASSERT_TRUE(host_unified());
+  if (!host_unified()) GTEST_SKIP() << "the device's memory is not the host's";
   const ArrayPtr image = render_array(session_);
   const std::vector<float> want = floats(image.get());
   void* a = nullptr;

@@ -279,11 +279,10 @@ class Context(_Owned):
     def _scene(self, scene, volume, base_dir):
         rays = None
         if isinstance(scene, dict) and "rays" in scene and not isinstance(scene["rays"], dict):
-            # A ray list in memory: the JSON names its first row (so that the scene is whole),
-            # ivr_scene_set_rays then takes every row without a trip through text.
+            # A ray list in memory: the JSON holds a stand-in ray (so that the scene is whole),
+            # ivr_scene_set_rays then checks and takes every row without a trip through text.
             rays = ray_array(scene["rays"])
-            first = [v if np.isfinite(v) else ("inf" if v > 0 else "-inf") for v in rays[0]]
-            scene = dict(scene, rays=[first])
+            scene = dict(scene, rays=[[0, 0, 0, 1, 0, 0, 0, 0]])
         text = scene if isinstance(scene, str) else json.dumps(scene)
         handle = _capi.HANDLE()
         _check(self._lib.ivr_scene_from_json(self._live(), text.encode(),
@@ -413,7 +412,7 @@ class Context(_Owned):
 
     def project(self, scene, volume=None, base_dir=None):
         """Line integrals N v of the scene's volume (or `volume`, (Z, Y, X)) along every camera
-        ray, evaluated exactly: float32 (views, H, W, 1)."""
+        ray, evaluated exactly: float32 (views, H, W, 1) — a ray list's (rays, 1)."""
         s = self._scene(scene, volume, base_dir)
         try:
             out = np.empty(self._ray_shape(s), dtype=np.float32)
@@ -424,7 +423,8 @@ class Context(_Owned):
             self._lib.ivr_scene_release(s)
 
     def backproject(self, scene, lines, grid=None, base_dir=None):
-        """N^T p, the exact transpose of project: `lines` (views, H, W[, 1]) onto the scene's
+        """N^T p, the exact transpose of project: `lines` (views, H, W[, 1]) — a ray list's
+        (rays[, 1]) — onto the scene's
         grid (or a grid of shape `grid` = (Z, Y, X)): float32 (Z, Y, X)."""
         s = self._grid_scene(scene, grid, base_dir)
         try:

@@ -95,6 +95,26 @@ __kernel void tv_adjoint(const int4 dims, const real a, __global const real* res
   out[i] += a * sum;
 }
 
+// out[i] = base[i] + 2·(LᵀL)_ii of the TV rows L = S·D (S = diag(sw)): twice the diagonal of the
+// regulariser's Hessian, which bounds its Gershgorin row sums — SIRT's column weights with a
+// regulariser (lib/tomo/tomo.cpp): a voxel barely touched by rays then takes a step the
+// regulariser's curvature allows, not 1/(Nᵀ1) ≈ 1e12 times its gradient.
+__kernel void tv_diagonal(const int4 dims, __global const real* restrict sw,
+                          __global const real* restrict base, __global real* restrict out) {
+  const int i = get_global_id(0), n = dims.x * dims.y * dims.z;
+  if (i >= n) return;
+  const int ix = i % dims.x, iy = (i / dims.x) % dims.y, iz = i / (dims.x * dims.y);
+  const int step[3] = {1, dims.x, dims.x * dims.y};
+  const bool has_next[3] = {ix + 1 < dims.x, iy + 1 < dims.y, iz + 1 < dims.z};
+  const bool has_prev[3] = {ix > 0, iy > 0, iz > 0};
+  real d = (real)0;
+  for (int k = 0; k < 3; ++k) {
+    if (has_next[k]) d += sw[i] * sw[i];
+    if (has_prev[k]) d += sw[i - step[k]] * sw[i - step[k]];
+  }
+  out[i] = base[i] + (real)2 * d;
+}
+
 // The lagged-diffusivity weights of smoothed isotropic TV, λ Σ_i sqrt(|(D x)_i|² + ε²):
 // sw[i] = sqrt(λ)·(|(D x)_i|² + ε²)^(−1/4), so that sw² is the weight of its quadratic majoriser.
 __kernel void tv_weights(const int4 dims, const real epsilon, const real sqrt_lambda,

@@ -26,6 +26,7 @@ DeviceVectors::DeviceVectors(Projector::Impl& p) : p_(p), partial_host_(kPartial
     tv_forward_ = cl::Kernel(prog, "tv_forward");
     tv_adjoint_ = cl::Kernel(prog, "tv_adjoint");
     tv_weights_ = cl::Kernel(prog, "tv_weights");
+    tv_diagonal_ = cl::Kernel(prog, "tv_diagonal");
   });
   partial_ = p.vector(kPartials, "the partial sums");
 }
@@ -140,6 +141,15 @@ void DeviceVectors::tv_weights(double epsilon, double lambda, const cl::Buffer& 
   tv_weights_.setArg(3, x);
   tv_weights_.setArg(4, sw);
   run(tv_weights_, p_.voxels, "tv_weights");
+}
+
+void DeviceVectors::tv_diagonal(const cl::Buffer& sw, const cl::Buffer& base,
+                                const cl::Buffer& out) {
+  tv_diagonal_.setArg(0, cl_int4{{p_.nx, p_.ny, p_.nz, 0}});
+  tv_diagonal_.setArg(1, sw);
+  tv_diagonal_.setArg(2, base);
+  tv_diagonal_.setArg(3, out);
+  run(tv_diagonal_, p_.voxels, "tv_diagonal");
 }
 
 }  // namespace ivr

@@ -26,11 +26,13 @@ class DeviceVectors {
   void tv_forward(const cl::Buffer& x, const cl::Buffer& sw, const cl::Buffer& out);
   void tv_adjoint(double a, const cl::Buffer& g, const cl::Buffer& sw, const cl::Buffer& out);
   void tv_weights(double epsilon, double lambda, const cl::Buffer& x, const cl::Buffer& sw);
+  // out = base + 2·diag(LᵀL) of the TV rows with weights sw (kernels/linalg.cl).
+  void tv_diagonal(const cl::Buffer& sw, const cl::Buffer& base, const cl::Buffer& out);
 
  private:
   Projector::Impl& p_;
   cl::Kernel axpy_, xpby_, scale_, multiply_, reciprocal_, clamp_, dot_, tv_forward_, tv_adjoint_,
-      tv_weights_;
+      tv_weights_, tv_diagonal_;
   cl::Buffer partial_;
   std::vector<double> partial_host_;
   void run(cl::Kernel& k, std::size_t n, const char* what);

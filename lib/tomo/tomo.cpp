@@ -79,6 +79,13 @@ class StackedSystem {
   void reweight(const cl::Buffer& x) {
     if (o_.tv > 0) v_.tv_weights(o_.tv_epsilon, o_.tv, x, sw_);
   }
+  // out = base + a bound on the regulariser's Hessian row sums per voxel: λ (Tikhonov, λ·I), twice
+  // the TV rows' diagonal at the current weights; base itself without a regulariser.
+  void add_curvature(const cl::Buffer& base, const cl::Buffer& out) {
+    if (o_.tv > 0) return v_.tv_diagonal(sw_, base, out);
+    v_.fill(out, p_.voxels, o_.tikhonov);
+    v_.axpy(p_.voxels, 1.0, base, out);
+  }
   // out = A x
   void apply(const cl::Buffer& x, const Block& out) {
     p_.project(x, out.data);
@@ -201,19 +208,29 @@ void cgls(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buff
   }
 }
 
-// SIRT: x += ω·C ⊙ (Nᵀ R (p − N x) − ∇ regulariser), R = 1/(N 1) per ray, C = 1/(Nᵀ 1) per voxel.
+// SIRT: x += ω·C ⊙ (Nᵀ R (p − N x) − ∇ regulariser), R = 1/(N 1) per ray, C = 1/(Nᵀ 1) per voxel
+// — with a regulariser C = 1/(Nᵀ 1 + K), K a bound on the regulariser's Hessian row sums (λ for
+// Tikhonov, twice the TV rows' diagonal at the current weights, so refreshed with them): without
+// K a voxel that rays barely touch (Nᵀ1 ~ 1e-12 where a ray clips its corner) took 1e12 times
+// the regulariser's gradient and the iterate blew up.
 void sirt(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buffer& p,
           const cl::Buffer& x, const TomoOptions& o, Monitor& m) {
   const std::size_t n = P.voxels, rays = P.rays;
+  const bool regularised = o.tikhonov > 0 || o.tv > 0;
   const cl::Buffer R = P.vector(rays, "SIRT's row weights"),
-                   C = P.vector(n, "SIRT's column weights");
+                   C = P.vector(n, "SIRT's column weights"),
+                   column_sums = regularised ? P.vector(n, "SIRT's column sums") : C;
   const cl::Buffer ones = P.vector(std::max(n, rays), "ones");
   V.fill(ones, std::max(n, rays), 1.0);
   P.project(ones, R);
-  P.backproject(ones, C);
+  P.backproject(ones, column_sums);
   V.safe_reciprocal(rays, R);
-  V.safe_reciprocal(n, C);
-  V.scale(n, o.relaxation, C, C);
+  auto column_weights = [&] {  // C = ω / (Nᵀ1 [+ K])
+    if (regularised) A.add_curvature(column_sums, C);
+    V.safe_reciprocal(n, C);
+    V.scale(n, o.relaxation, C, C);
+  };
+  if (o.tv == 0) column_weights();
   const cl::Buffer r = P.vector(rays, "the residual"), g = P.vector(n, "the update");
   const cl::Buffer tmp3 = P.vector(o.tv > 0 ? 3 * n : 1, "TV differences");
   auto residual = [&] {
@@ -226,6 +243,7 @@ void sirt(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buff
     V.multiply(rays, R, r);
     P.backproject(r, g);
     A.reweight(x);
+    if (o.tv > 0) column_weights();  // K follows the TV weights
     A.add_regularizer_descent(x, tmp3, g);
     V.multiply(n, C, g);
     V.axpy(n, 1.0, g, x);

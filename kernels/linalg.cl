@@ -78,15 +78,23 @@ __kernel void tv_forward(const int4 dims, __global const real* restrict x,
   out[3 * i + 2] = iz + 1 < dims.z ? s * (x[i + dims.x * dims.y] - xi) : (real)0;
 }
 
+// Voxel i's index steps along x, y, z and whether it has a next and a previous neighbour on each
+// axis: the forward differences that touch it (tv_adjoint, tv_diagonal).
+inline void tv_neighbours(int4 dims, int i, int* step, bool* has_next, bool* has_prev) {
+  const int ix = i % dims.x, iy = (i / dims.x) % dims.y, iz = i / (dims.x * dims.y);
+  step[0] = 1, step[1] = dims.x, step[2] = dims.x * dims.y;
+  has_next[0] = ix + 1 < dims.x, has_next[1] = iy + 1 < dims.y, has_next[2] = iz + 1 < dims.z;
+  has_prev[0] = ix > 0, has_prev[1] = iy > 0, has_prev[2] = iz > 0;
+}
+
 // out += a · Dᵀ(sw ⊙ g), the exact transpose of tv_forward (a gather: no atomics).
 __kernel void tv_adjoint(const int4 dims, const real a, __global const real* restrict g,
                          __global const real* restrict sw, __global real* restrict out) {
   const int i = get_global_id(0), n = dims.x * dims.y * dims.z;
   if (i >= n) return;
-  const int ix = i % dims.x, iy = (i / dims.x) % dims.y, iz = i / (dims.x * dims.y);
-  const int step[3] = {1, dims.x, dims.x * dims.y};
-  const bool has_next[3] = {ix + 1 < dims.x, iy + 1 < dims.y, iz + 1 < dims.z};
-  const bool has_prev[3] = {ix > 0, iy > 0, iz > 0};
+  int step[3];
+  bool has_next[3], has_prev[3];
+  tv_neighbours(dims, i, step, has_next, has_prev);
   real sum = (real)0;
   for (int k = 0; k < 3; ++k) {
     if (has_next[k]) sum -= sw[i] * g[3 * i + k];
@@ -103,10 +111,9 @@ __kernel void tv_diagonal(const int4 dims, __global const real* restrict sw,
                           __global const real* restrict base, __global real* restrict out) {
   const int i = get_global_id(0), n = dims.x * dims.y * dims.z;
   if (i >= n) return;
-  const int ix = i % dims.x, iy = (i / dims.x) % dims.y, iz = i / (dims.x * dims.y);
-  const int step[3] = {1, dims.x, dims.x * dims.y};
-  const bool has_next[3] = {ix + 1 < dims.x, iy + 1 < dims.y, iz + 1 < dims.z};
-  const bool has_prev[3] = {ix > 0, iy > 0, iz > 0};
+  int step[3];
+  bool has_next[3], has_prev[3];
+  tv_neighbours(dims, i, step, has_next, has_prev);
   real d = (real)0;
   for (int k = 0; k < 3; ++k) {
     if (has_next[k]) d += sw[i] * sw[i];

@@ -46,20 +46,24 @@ struct Timed {
   std::vector<double> first;  // the first run's result (the check's input)
 };
 
-// One resident operation of `session`: project (N x) or backproject (Nᵀ y) or render.
+// One resident operation of `session`: project (N x), backproject (Nᵀ y) or render.
+DeviceArray run_op(Session& session, const std::string& op, const DeviceArray& x,
+                   const DeviceArray& y) {
+  if (op == "project") return session.project(x);
+  if (op == "backproject") return session.backproject(y);
+  return session.render();
+}
+
+// The operation timed (resident), with its first result for the check.
 Timed time_op(Context& ctx, Session& session, const std::string& op, const DeviceArray& x,
               const DeviceArray& y, const Check& check) {
   Timed t;
-  DeviceArray out = op == "project" ? session.project(x)
-                    : op == "backproject" ? session.backproject(y)
-                                          : session.render();
+  DeviceArray out = run_op(session, op, x, y);
   t.first = out.to_doubles();
   t.m = measure_resident(
       ctx.budget, session,
       [&] {
-        out = op == "project" ? session.project(x)
-              : op == "backproject" ? session.backproject(y)
-                                    : session.render();
+        out = run_op(session, op, x, y);
         out.wait();
       },
       [&] { return check.passed; });
@@ -101,18 +105,10 @@ void rays_suite(Context& ctx) {
       const Check ok{true, "", "", 0, 0};
       Timed tc = time_op(ctx, sc, op, x, yc, ok);
       const bool exact = std::string(op) != "backproject";
-      Timed probe;
-      {
-        DeviceArray out = std::string(op) == "project"       ? sl.project(x)
-                          : std::string(op) == "backproject" ? sl.backproject(yl)
-                                                             : sl.render();
-        probe.first = out.to_doubles();
-      }
+      const std::vector<double> first = run_op(sl, op, x, yl).to_doubles();
       const Check check =
-          exact ? check_max(difference(probe.first, tc.first),
-                            "the camera's rays, bit for bit", 0, 0)
-                : check_max(difference(probe.first, tc.first), "the camera's rays (Nᵀ)", 1e-6,
-                            1e-5);
+          exact ? check_max(difference(first, tc.first), "the camera's rays, bit for bit", 0, 0)
+                : check_max(difference(first, tc.first), "the camera's rays (Nᵀ)", 1e-6, 1e-5);
       // Alternating rounds (camera, list, camera, …): a shared machine's drift hits both alike;
       // the ratio is the median of the rounds' ratios.
       Timed tl = time_op(ctx, sl, op, x, yl, check);

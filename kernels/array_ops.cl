@@ -170,6 +170,18 @@ __kernel void gather(const int n, __global const real* restrict src,
   if (i < n) dst[i] = src[index[i]];
 }
 
+// A forward-mode gradient with a ray list's parameters (lib/jacobian/jacobian.cpp): dst[i] =
+// per_ray[index[i]] (each ray's own derivatives, reals) where index[i] >= 0, else the other
+// lanes' sums[−1 − index[i]].
+__kernel void assemble(const ulong n, __global const real* restrict per_ray,
+                       __global const acc* restrict sums, __global const long* restrict index,
+                       __global acc* restrict dst) {
+  const ulong i = get_global_id(0);
+  if (i >= n) return;
+  const long j = index[i];
+  dst[i] = j >= 0 ? (acc)per_ray[j] : sums[-1 - j];
+}
+
 // Columns [src_first, src_first + count) of a rows × src_cols real matrix into columns
 // [dst_first, …) of a rows × dst_cols one: a forward-mode pass's Jacobian lanes into the whole
 // Jacobian.

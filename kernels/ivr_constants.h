@@ -38,6 +38,7 @@
 #define IVR_LANE_CAMERA 3     /* a = view, b = component (0..6) */
 #define IVR_LANE_VOXEL 4      /* (a, b, c) = (x, y, z) */
 #define IVR_LANE_STEP 5       /* the step enters only through the sample count: derivative 0 */
+#define IVR_LANE_RAY 6        /* a = column 0..7 of every listed ray's own row (IVR_RAY_LIST) */
 /* Longs before the voxels in the deterministic (fixed-point) density gradient's buffer: the scale
  * exponent, the per-ray cap, the over-cap count, the largest contribution and the largest ray
  * (kernels/adjoint_scatter.cl). */

@@ -32,6 +32,16 @@
 #ifndef IVR_LOSS_GRADIENT
 #define IVR_LOSS_GRADIENT 1
 #endif
+// Each ray's own d loss / d lane into `jacobian` (pixel-major, IVR_LANES a pixel) instead of the
+// Jacobian: a ray list's lanes (IVR_LANE_RAY, lanes 0..7 = columns 0..7), each ray's pixel depending
+// on its own ray only. The direction's three are projected onto the plane normal to it: ivr
+// normalises the directions it is given, so only their tangential change moves the ray.
+#ifndef IVR_RAY_GRADIENT
+#define IVR_RAY_GRADIENT 0
+#endif
+#if IVR_RAY_GRADIENT && (IVR_JACOBIAN || !IVR_LOSS_GRADIENT || IVR_LANES != 8 || IVR_RAYS != 1)
+#error "IVR_RAY_GRADIENT takes the loss gradient, no Jacobian, 8 lanes and one ray per work-item"
+#endif
 
 __kernel void jacobian(__global const real* restrict volume, const int4 dims, const real4 box_min,
                        const real4 box_max, const real4 inv_voxel,
@@ -65,7 +75,7 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
         march_begin_rays(cam, x0, y0, width, height, box_min, box_max, inv_voxel, step, &m);
 #endif
     TangentRay tr;
-    tangent_ray_begin(&tr, lanes, camera_params, view, x0, y0, width, height, ray,
+    tangent_ray_begin(&tr, lanes, cam, camera_params, view, x0, y0, width, height, ray,
                       hit ? &m : (const March*)0, box_min, box_max);
     Radiance r = radiance_begin();
     if (hit)
@@ -101,6 +111,9 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
 #endif
     }
     // The pixels' tangents; the background's own lanes.
+#if IVR_RAY_GRADIENT
+    real per_ray[IVR_LANES];
+#endif
     IVR_FOR_LANES(p) {
       const int4 lane = tr.lane[p];
       real dT[IVR_RAYS], dcr[IVR_RAYS], dcg[IVR_RAYS], dcb[IVR_RAYS];
@@ -131,8 +144,22 @@ __kernel void jacobian(__global const real* restrict volume, const int4 dims, co
 #if IVR_LOSS_GRADIENT
         for (int c = 0; c < IVR_CHANNELS; ++c) dloss[p] += g[l][c] * dv[c];
 #endif
+#if IVR_RAY_GRADIENT
+        per_ray[p] = (real)0;
+        for (int c = 0; c < IVR_CHANNELS; ++c) per_ray[p] += g[l][c] * dv[c];
+#endif
       }
     }
+#if IVR_RAY_GRADIENT
+    {
+      const real along = ray.dir.x * per_ray[3] + ray.dir.y * per_ray[4] + ray.dir.z * per_ray[5];
+      per_ray[3] -= along * ray.dir.x;
+      per_ray[4] -= along * ray.dir.y;
+      per_ray[5] -= along * ray.dir.z;
+      const size_t pixel = ((size_t)view * height + y0) * width + x0;
+      IVR_FOR_LANES(p) jacobian[pixel * IVR_LANES + p] = per_ray[p];
+    }
+#endif
   }
 
 #if IVR_LOSS_GRADIENT

@@ -63,4 +63,17 @@ inline int clip_axis(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
   return -1;
 }
 
+// clip_axis() for a ray of a list, whose march may begin at a box face behind its origin (t <= 0):
+// the face whose t is `t`, or -1.
+inline int clip_axis_of_list(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
+  for (int a = 0; a < 3; ++a) {
+    const real o = component(ray.origin, a), d = component(ray.dir, a);
+    if (d == (real)0) continue;
+    const real ta = geometry_divide(component(bmin, a) - o, d),
+               tb = geometry_divide(component(bmax, a) - o, d);
+    if ((entry ? fmin(ta, tb) : fmax(ta, tb)) == t) return a;
+  }
+  return -1;
+}
+
 #endif

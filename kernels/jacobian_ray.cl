@@ -59,7 +59,10 @@ inline real plane_t_tangent(const TangentRay* tr, int p, Ray ray, int axis, real
 
 // The lanes and the ray's tangents for pixel (x, y) of `view`; entry and exit tangents for the
 // clipped ray where m is given (the ray hits the box).
-inline void tangent_ray_begin(TangentRay* tr, __global const int4* lanes,
+// A ray list's lanes (IVR_LANE_RAY, column k of the pixel's own ray: origin, direction, t_start,
+// t_end) move its origin or direction by a unit, or an end of its interval where that end, not a
+// box face, bounds the march. `cam` is the view's camera or the list.
+inline void tangent_ray_begin(TangentRay* tr, __global const int4* lanes, __global const real* cam,
                               __global const real* camera_params, int view, int x, int y, int width,
                               int height, Ray ray, const March* m, real4 box_min, real4 box_max) {
   IVR_FOR_LANES(p) {
@@ -67,7 +70,15 @@ inline void tangent_ray_begin(TangentRay* tr, __global const int4* lanes,
     tr->dox[p] = tr->doy[p] = tr->doz[p] = tr->ddx[p] = tr->ddy[p] = tr->ddz[p] = (real)0;
     tr->dt0[p] = tr->dt1[p] = (real)0;
     tr->dT[p] = tr->dcr[p] = tr->dcg[p] = tr->dcb[p] = (vreal)(real)0;
-#if IVR_TANGENT_CAMERA
+#if IVR_TANGENT_CAMERA && IVR_RAY_LIST
+    if (tr->lane[p].x == IVR_LANE_RAY) {
+      const int k = tr->lane[p].y;
+      const real one = (real)1, zero = (real)0;
+      tr->dox[p] = k == 0 ? one : zero, tr->doy[p] = k == 1 ? one : zero;
+      tr->doz[p] = k == 2 ? one : zero, tr->ddx[p] = k == 3 ? one : zero;
+      tr->ddy[p] = k == 4 ? one : zero, tr->ddz[p] = k == 5 ? one : zero;
+    }
+#elif IVR_TANGENT_CAMERA
     if (tr->lane[p].x == IVR_LANE_CAMERA && tr->lane[p].y == view) {
       const real sx = (real)2 * ((real)x + (real)0.5) / (real)width - (real)1;
       const real sy = (real)1 - (real)2 * ((real)y + (real)0.5) / (real)height;
@@ -81,14 +92,28 @@ inline void tangent_ray_begin(TangentRay* tr, __global const int4* lanes,
   }
 #if IVR_TANGENT_CAMERA
   if (!m) return;
+#if IVR_RAY_LIST
+  // Where the list's own t_start (t_end) bounds the march, that end moves with its lane only;
+  // else the box face that bounds it moves with the ray.
+  real t_start, t_end;
+  ray_interval(cam, x, &t_start, &t_end);
+  const bool own0 = m->t0 == t_start, own1 = m->t1 == t_end;
+  const int a0 = own0 ? -1 : clip_axis_of_list(ray, box_min.xyz, box_max.xyz, m->t0, true);
+  const int a1 = own1 ? -1 : clip_axis_of_list(ray, box_min.xyz, box_max.xyz, m->t1, false);
+#else
   const int a0 = clip_axis(ray, box_min.xyz, box_max.xyz, m->t0, true);
   const int a1 = clip_axis(ray, box_min.xyz, box_max.xyz, m->t1, false);
+#endif
   IVR_FOR_LANES(p) {
     tr->dt0[p] = plane_t_tangent(tr, p, ray, a0, m->t0);
     tr->dt1[p] = plane_t_tangent(tr, p, ray, a1, m->t1);
+#if IVR_RAY_LIST
+    if (tr->lane[p].x == IVR_LANE_RAY && tr->lane[p].y == 6 && own0) tr->dt0[p] = (real)1;
+    if (tr->lane[p].x == IVR_LANE_RAY && tr->lane[p].y == 7 && own1) tr->dt1[p] = (real)1;
+#endif
   }
 #else
-  (void)ray, (void)m, (void)box_min, (void)box_max;
+  (void)cam, (void)ray, (void)m, (void)box_min, (void)box_max;
 #endif
 }
 

@@ -22,7 +22,13 @@ namespace ivr {
 //   camera:     view `index`, `column` 0..6 = [eye x, y, z, target x, y, z, fov_y (degrees)].
 //   step:       the integrator step (voxel units).
 //   voxel:      density of voxel `index` (x fastest).
-enum class ParameterGroup { tf, background, camera, step, voxel };
+//   ray:        ray `index` of a ray list, `column` 0..7 = [origin x, y, z, direction x, y, z,
+//               t_start, t_end] (world units). Each ray's pixel depends on its own ray only, so
+//               every ray's parameters share 8 tangent lanes: a loss gradient over all of them
+//               costs one pass. The direction's gradient is that of the normalised direction
+//               (tangent to the unit sphere: ivr normalises the directions it is given); an
+//               infinite end (the box's entry or exit) has gradient 0. Not with `jacobian`.
+enum class ParameterGroup { tf, background, camera, step, voxel, ray };
 struct Parameter {
   ParameterGroup group = ParameterGroup::tf;
   std::int64_t index = 0;

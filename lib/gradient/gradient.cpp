@@ -67,6 +67,8 @@ GroupPlan plan_group(const Scene& scene, const std::string& g) {
                std::int64_t(tf_gradient_shape(scene.tf)[1])};
   else if (g == "camera")
     p.shape = {std::int64_t(scene.cameras.size()), 7};
+  else if (g == "rays")
+    p.shape = {std::int64_t(scene.rays.count()), RayList::kColumns};
   else
     p.shape = {std::int64_t(p.parameters.size())};
   p.adjoint = info->adjoint;
@@ -111,12 +113,14 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
   bool adjoint_possible = true, per_ray = false;
   for (const std::string& g : request.wrt) {
     plans.push_back(plan_group(s.scene, g));
-    forward_parameters += plans.back().count;
+    // A ray list's rays take 8 lanes however many rays there are (lib/jacobian/jacobian.cpp).
+    forward_parameters += plans.back().name == "rays" ? std::size_t(RayList::kColumns)
+                                                      : plans.back().count;
     adjoint_possible = adjoint_possible && plans.back().adjoint;
-    // Camera and voxel lanes (density's too, in forward mode) march one ray per work-item
+    // Camera, ray and voxel lanes (density's too, in forward mode) march one ray per work-item
     // (forward_cost).
     per_ray = per_ray || plans.back().name == "camera" || plans.back().name == "voxels" ||
-              plans.back().name == "density";
+              plans.back().name == "density" || plans.back().name == "rays";
   }
   if (plans.empty()) throw bad_group("no group asked for");
   if (request.mode == Mode::adjoint)

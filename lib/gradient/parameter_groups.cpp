@@ -13,6 +13,8 @@ const std::vector<ParameterGroupInfo>& parameter_groups() {
       {"camera", true, "every view's [eye xyz, target xyz, fov_y]"},
       {"step", true, "the integrator step (derivative 0: it enters through the sample count)"},
       {"voxels", true, "the listed voxels, voxels:LIST of indices and ranges a-b, x fastest"},
+      {"rays", false,
+       "a ray list's rays (R, 8): [origin xyz, direction xyz (normalised), t_start, t_end]"},
   };
   return groups;
 }

@@ -32,7 +32,8 @@ enum LaneKind {
   lane_background = IVR_LANE_BACKGROUND,
   lane_camera = IVR_LANE_CAMERA,
   lane_voxel = IVR_LANE_VOXEL,
-  lane_step = IVR_LANE_STEP
+  lane_step = IVR_LANE_STEP,
+  lane_ray = IVR_LANE_RAY
 };
 
 Error bad_parameter(std::size_t i, const std::string& why) {
@@ -71,6 +72,17 @@ cl_int4 lane_of(const Scene& scene, const Parameter& p, std::size_t i) {
       return {{lane_camera, cl_int(p.index), p.column, 0}};
     case ParameterGroup::step:
       return {{lane_step, 0, 0, 0}};
+    case ParameterGroup::ray:
+      if (!scene.has_ray_list())
+        throw bad_parameter(i, "ray " + std::to_string(p.index) +
+                                   ": the scene's rays are cameras' pixels, not a ray list");
+      if (p.index < 0 || std::size_t(p.index) >= scene.rays.count() || p.column < 0 ||
+          p.column >= RayList::kColumns)
+        throw bad_parameter(i, "ray " + std::to_string(p.index) + " column " +
+                                   std::to_string(p.column) + " (rays: " +
+                                   std::to_string(scene.rays.count()) + ", columns 0..7)");
+      // Every ray's column shares one lane (kernels/jacobian_ray.cl); .z keeps the ray.
+      return {{lane_ray, p.column, cl_int(p.index), 0}};
     case ParameterGroup::voxel: {
       const Volume& v = scene.volume;
       if (p.index < 0 || std::size_t(p.index) >= v.voxel_count())
@@ -127,7 +139,7 @@ std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& 
   return lanes;
 }
 
-JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& all_lanes,
+JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& requested,
                                 const DeviceArray* target, bool jacobian, Loss loss_kind,
                                 OperationRecord& op) {
   Device::Impl& dev = s.dev;
@@ -135,19 +147,61 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
   const Integrator& integrator = s.integrator();
   const ImageExtent cam0 = image_extent(scene);
   const int views = cam0.views, channels = scene.channels();
-  const std::size_t pixels = s.pixels(), params = all_lanes.size(), real = s.real_size;
+  const std::size_t pixels = s.pixels(), real = s.real_size;
   const bool loss = target != nullptr;
+
+  // A ray list's own parameters apart: each ray's pixel depends on its ray only, so column k of
+  // every ray is one lane, and one pass of all 8 columns (IVR_RAY_GRADIENT) writes every ray's
+  // d loss / d column; the gradient is then assembled from the other lanes' sums and those
+  // per-ray values. `assemble[i]`: ray · 8 + column, or −1 − the parameter's place among the
+  // other lanes.
+  std::vector<cl_int4> all_lanes;
+  std::vector<cl_long> assemble;
+  bool ray_lanes = false;
+  for (const cl_int4& l : requested) {
+    if (l.s[0] == lane_ray) {
+      assemble.push_back(cl_long(l.s[2]) * RayList::kColumns + l.s[1]);
+      ray_lanes = true;
+    } else {
+      assemble.push_back(-1 - cl_long(all_lanes.size()));
+      all_lanes.push_back(l);
+    }
+  }
+  if (ray_lanes && jacobian)
+    throw Error(Status::invalid_argument,
+                "the Jacobian of ray parameters is not built (each ray's pixel depends on its own "
+                "ray only): ask for their loss gradient, whose dot loss with one-hot weights "
+                "gives any channel's derivatives");
+  if (ray_lanes && !loss)
+    throw Error(Status::invalid_argument,
+                "ray parameters need a target: their loss gradient is what is computed");
+  const std::size_t params = all_lanes.size(), total = requested.size();
 
   RenderVariant variant = s.variant_of(integrator);
   // Empty-space skipping where every pass stays exact (as the adjoint decides, gradient_may_skip).
-  bool any_tf = false, any_position = false;
+  bool any_tf = false, any_position = ray_lanes;
   for (const cl_int4& l : all_lanes) {
     any_tf |= l.s[0] == lane_tf;
     any_position |= l.s[0] == lane_camera || l.s[0] == lane_voxel;
   }
   const cl::Buffer& occupied =
       s.plan_skipping(gradient_may_skip(scene.tf, any_tf, any_position), variant, op.stats);
-  const int pass_lanes = lanes_for(std::min<std::size_t>(params, kMaxLanes));
+
+  // The passes: up to 32 of the other lanes each (one pass without lanes where there are none,
+  // for the image and the loss), then the rays' pass.
+  struct Pass {
+    std::size_t first = 0, count = 0;  // the other lanes it carries
+    int lanes = 1;                     // IVR_LANES
+    bool rays = false;
+  };
+  std::vector<Pass> passes;
+  const int plain_lanes = lanes_for(std::min<std::size_t>(params, kMaxLanes));
+  for (std::size_t first = 0; first < params || (params == 0 && !ray_lanes && first == 0);
+       first += kMaxLanes) {
+    passes.push_back({first, std::min<std::size_t>(kMaxLanes, params - first), plain_lanes, false});
+    if (params == 0) break;
+  }
+  if (ray_lanes) passes.push_back({0, 0, RayList::kColumns, true});
 
   JacobianResult out;
   out.image = s.output("tangent image", s.image_shape(), real_dtype(s.f64), "the image");
@@ -157,46 +211,62 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
     out.jacobian = s.output("jacobian", shape, real_dtype(s.f64), "the Jacobian");
   }
   const DType acc = s.arrays.acc_dtype();
+  const std::size_t acc_size = dtype_size(acc);
   if (loss) {
     out.loss = s.output("loss", {1}, acc, "the loss");
-    out.gradient = s.output("forward gradient", {std::int64_t(params)}, acc, "the gradient");
+    out.gradient = s.output("forward gradient", {std::int64_t(total)}, acc, "the gradient");
   }
-  const std::size_t row = std::size_t(pass_lanes) + 1;
-  const std::size_t jacobian_size = jacobian ? pixels * channels * std::size_t(pass_lanes) : 1;
+  // With ray lanes the other lanes' sums gather here first, and the rays' values in ray_values.
+  const cl::Buffer& plain_gradient =
+      ray_lanes ? s.scratch("other lanes' gradient", std::max<std::size_t>(params, 1) * acc_size,
+                            "the gradient")
+                : cl::Buffer();
+  const cl::Buffer& ray_values =
+      ray_lanes ? s.scratch("ray gradients", pixels * RayList::kColumns * real,
+                            "the rays' gradients")
+                : cl::Buffer();
+  const std::size_t jacobian_size = jacobian ? pixels * channels * std::size_t(plain_lanes) : 1;
   const cl::Buffer& jacobian_pass =
       s.scratch("jacobian pass", jacobian_size * (s.f64 ? 8 : 4), "the Jacobian");
-  const cl::Buffer& sums = s.scratch("tangent sums", row * 8, "the loss gradient's sums");
+  const cl::Buffer& sums =
+      s.scratch("tangent sums", (std::size_t(kMaxLanes) + 1) * 8, "the loss gradient's sums");
   const cl::Buffer& target_buf =
       loss ? buffer_of(*target) : s.scratch("no target", real, "the target");
 
   KernelConfig base = variant.config("jacobian.cl", "jacobian");
-  base.set(Switch::lanes, pass_lanes)
-      .set(Switch::jacobian, jacobian)
+  base.set(Switch::jacobian, jacobian)
       .set(Switch::loss_gradient, loss)
       .set(Switch::loss_l1, loss && loss_kind == Loss::l1)
       .set(Switch::loss_dot, loss && loss_kind == Loss::dot);
-  op.stats.variant = base.label();
   op.stats.skipped_empty = variant.empty_space;
   op.stats.step = integrator.step;
   op.stats.mode = Mode::forward;
-  op.stats.lanes = pass_lanes;
-  for (std::size_t first = 0; first < params || (params == 0 && first == 0); first += kMaxLanes) {
-    const std::size_t count = std::min<std::size_t>(kMaxLanes, params - first);
-    std::vector<cl_int4> lanes(std::size_t(pass_lanes), cl_int4{{lane_none, 0, 0, 0}});
-    bool pass_tf = false, pass_camera = false, pass_voxel = false;
-    for (std::size_t k = 0; k < count; ++k) {
-      lanes[k] = all_lanes[first + k];
-      pass_tf |= lanes[k].s[0] == lane_tf;
-      pass_camera |= lanes[k].s[0] == lane_camera;
-      pass_voxel |= lanes[k].s[0] == lane_voxel;
+  op.stats.lanes = passes.front().lanes;
+  for (std::size_t pass = 0; pass < passes.size(); ++pass) {
+    const Pass& ps = passes[pass];
+    const std::size_t row = std::size_t(ps.lanes) + 1;
+    std::vector<cl_int4> lanes(std::size_t(ps.lanes), cl_int4{{lane_none, 0, 0, 0}});
+    bool pass_tf = false, pass_camera = ps.rays, pass_voxel = false;
+    if (ps.rays) {
+      for (int k = 0; k < RayList::kColumns; ++k) lanes[std::size_t(k)] = {{lane_ray, k, 0, 0}};
+    } else {
+      for (std::size_t k = 0; k < ps.count; ++k) {
+        lanes[k] = all_lanes[ps.first + k];
+        pass_tf |= lanes[k].s[0] == lane_tf;
+        pass_camera |= lanes[k].s[0] == lane_camera;
+        pass_voxel |= lanes[k].s[0] == lane_voxel;
+      }
     }
     KernelConfig config = base;
-    config.set(Switch::tangent_tf, pass_tf)
+    config.set(Switch::lanes, ps.lanes)
+        .set(Switch::tangent_tf, pass_tf)
         .set(Switch::tangent_camera, pass_camera)
-        .set(Switch::tangent_voxel, pass_voxel);
+        .set(Switch::tangent_voxel, pass_voxel)
+        .set(Switch::jacobian, jacobian && !ps.rays)
+        .set(Switch::ray_gradient, ps.rays);
     // On CPUs a pass of TF and background lanes marches packets of rays in vector lanes (each
-    // lane a vector of the rays' tangents); camera and voxel lanes, whose geometry is per ray,
-    // one ray per work-item.
+    // lane a vector of the rays' tangents); camera, ray and voxel lanes, whose geometry is per
+    // ray, one ray per work-item.
     const int rays =
         use_packet(dev) && !pass_camera && !pass_voxel ? packet_lanes(variant.precision) : 1;
     if (rays > 1) config.set(Switch::rays, rays);
@@ -215,43 +285,53 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& al
       const cl::Buffer lanes_buf =
           dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, lanes.size() * sizeof(cl_int4),
                      lanes.data(), "the tangent lanes");
-      op.stats.device_bytes =
+      op.stats.device_bytes = std::max<std::uint64_t>(
+          op.stats.device_bytes,
           s.scene_bytes() + (loss ? target->bytes() : real) + groups * row * real +
-          (pixels * channels + jacobian_size) * sizeof(float) + lanes.size() * sizeof(cl_int4);
+              (pixels * channels + (ps.rays ? pixels * RayList::kColumns : jacobian_size)) *
+                  sizeof(float) +
+              lanes.size() * sizeof(cl_int4));
       int a = s.set_scene_args(k, integrator);
       k.setArg(a++, lanes_buf);
       k.setArg(a++, s.camera_params);
       k.setArg(a++, target_buf);
       set_real(k, a++, s.f64, 1.0 / double(pixels * channels));
       k.setArg(a++, buffer_of(out.image));
-      k.setArg(a++, jacobian_pass);
+      k.setArg(a++, ps.rays ? ray_values : jacobian_pass);
       k.setArg(a++, partial);
       k.setArg(a++, cl::Local(std::size_t(launch.group_x) * launch.group_y * row * real));
       k.setArg(a++, occupied);
       k.setArg(a++, s.brick_counts());
       op.events.push_back(enqueue(dev, k, launch));
-      if (jacobian && count > 0)
-        op.events.push_back(s.arrays.copy_columns(pixels * channels, jacobian_pass, pass_lanes, 0,
-                                                  buffer_of(out.jacobian), int(params), int(first),
-                                                  int(count)));
+      if (jacobian && !ps.rays && ps.count > 0)
+        op.events.push_back(s.arrays.copy_columns(pixels * channels, jacobian_pass, ps.lanes, 0,
+                                                  buffer_of(out.jacobian), int(params),
+                                                  int(ps.first), int(ps.count)));
       if (loss) {
         op.events.push_back(s.arrays.sum_rows(partial, int(groups), int(row), 1, sums));
-        const std::size_t size = dtype_size(acc);
-        if (first == 0) {
+        if (pass == 0) {
           op.events.push_back(cl::Event());
-          dev.queue.enqueueCopyBuffer(sums, buffer_of(out.loss), 0, 0, size, nullptr,
+          dev.queue.enqueueCopyBuffer(sums, buffer_of(out.loss), 0, 0, acc_size, nullptr,
                                       &op.events.back());
         }
-        if (count > 0) {
+        if (ps.count > 0) {
           op.events.push_back(cl::Event());
-          dev.queue.enqueueCopyBuffer(sums, buffer_of(out.gradient), size, first * size,
-                                      count * size, nullptr, &op.events.back());
+          dev.queue.enqueueCopyBuffer(sums, ray_lanes ? plain_gradient : buffer_of(out.gradient),
+                                      acc_size, ps.first * acc_size, ps.count * acc_size, nullptr,
+                                      &op.events.back());
         }
       }
     });
     ++op.stats.passes;
-    if (params == 0) break;
   }
+  if (ray_lanes)
+    cl_call("assembling the gradient of the ray parameters", [&] {
+      const cl::Buffer index =
+          dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, assemble.size() * sizeof(cl_long),
+                     assemble.data(), "the gradient's sources");
+      op.events.push_back(s.arrays.assemble(ray_values, plain_gradient, index, total,
+                                            buffer_of(out.gradient)));
+    });
   for (DeviceArray* a : {&out.image, &out.jacobian, &out.loss, &out.gradient})
     if (a->valid()) mark_written(*a, op.events.back());
   return out;
@@ -285,6 +365,13 @@ std::vector<Parameter> parameters_of(const Scene& scene, const std::string& grou
       for (int c = 0; c < 7; ++c) out.push_back({ParameterGroup::camera, std::int64_t(v), c});
   } else if (group == "step") {
     out.push_back({ParameterGroup::step, 0, 0});
+  } else if (group == "rays") {
+    if (!scene.has_ray_list())
+      throw Error(Status::invalid_argument,
+                  "group 'rays' needs a scene of rays (a ray list); the scene's are cameras'");
+    for (std::size_t r = 0; r < scene.rays.count(); ++r)
+      for (int c = 0; c < RayList::kColumns; ++c)
+        out.push_back({ParameterGroup::ray, std::int64_t(r), c});
   } else if (group == "density") {
     for (std::size_t i = 0; i < scene.volume.voxel_count(); ++i)
       out.push_back({ParameterGroup::voxel, std::int64_t(i), 0});

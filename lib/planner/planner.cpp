@@ -166,8 +166,8 @@ Plan plan_gradient(const CostModel& model, const Scene& scene, std::size_t forwa
   // Samples of one render, roughly: every pixel marches the box's diagonal at the step.
   const glm::dvec3 h = scene.voxel_size();
   const double world_step = (step > 0 ? step : scene.integrator.step) * std::min({h.x, h.y, h.z});
-  double pixels = 0;
-  for (const Camera& c : scene.cameras) pixels += double(c.width) * double(c.height);
+  const ImageExtent extent = image_extent(scene);  // cameras' pixels, or a ray list's rays
+  const double pixels = double(extent.views) * double(extent.width) * double(extent.height);
   const double samples = pixels * glm::length(scene.box_max - scene.box_min) / world_step;
   const double render = samples * model.seconds_per_sample;
 

@@ -381,6 +381,17 @@ cl::Event ArrayKernels::gather(const cl::Buffer& src, const cl::Buffer& index, i
   return enqueue_1d(dev_, k, std::size_t(n), 64);
 }
 
+cl::Event ArrayKernels::assemble(const cl::Buffer& per_ray, const cl::Buffer& sums,
+                                 const cl::Buffer& index, std::uint64_t n, const cl::Buffer& dst) {
+  cl::Kernel& k = kernel("assemble");
+  k.setArg(0, cl_ulong(n));
+  k.setArg(1, per_ray);
+  k.setArg(2, sums);
+  k.setArg(3, index);
+  k.setArg(4, dst);
+  return enqueue_1d(dev_, k, std::size_t(n), 64);
+}
+
 cl::Event ArrayKernels::copy_columns(std::uint64_t rows, const cl::Buffer& src, int src_cols,
                                      int src_first, const cl::Buffer& dst, int dst_cols,
                                      int dst_first, int count) {

@@ -78,6 +78,10 @@ class ArrayKernels {
   cl::Event loss(const cl::Buffer& image, const cl::Buffer& target, std::uint64_t n, int kind,
                  const cl::Buffer& out, std::vector<cl::Event>& events);
   cl::Event gather(const cl::Buffer& src, const cl::Buffer& index, int n, const cl::Buffer& dst);
+  // dst[i] (acc_dtype()) = per_ray[index[i]] (reals) where index[i] >= 0, else
+  // sums[-1 - index[i]] (acc_dtype()), i < n: a forward-mode gradient with ray parameters.
+  cl::Event assemble(const cl::Buffer& per_ray, const cl::Buffer& sums, const cl::Buffer& index,
+                     std::uint64_t n, const cl::Buffer& dst);
   cl::Event copy_columns(std::uint64_t rows, const cl::Buffer& src, int src_cols, int src_first,
                          const cl::Buffer& dst, int dst_cols, int dst_first, int count);
   // n values between float32 and float64 (only where the device has float64).

@@ -53,6 +53,7 @@ constexpr SwitchInfo kInfo[kSwitches] = {
     {"IVR_FLOAT_ATOMICS", "", Shown::flag, true},  // shown as atomics=… from KernelConfig::atomics
     {"IVR_PTX_ATOMICS", "", Shown::flag, true},
     {"IVR_RAY_LIST", "ray_list", Shown::flag, true},
+    {"IVR_RAY_GRADIENT", "ray_gradient", Shown::flag, true},
 };
 
 std::string words(Switch s, int v) {

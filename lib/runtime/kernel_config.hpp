@@ -45,6 +45,7 @@ enum class Switch : int {
   float_atomics,      // IVR_FLOAT_ATOMICS: cl_ext_float_atomics adds
   ptx_atomics,        // IVR_PTX_ATOMICS: NVIDIA's red.global.add through inline PTX
   ray_list,           // IVR_RAY_LIST: the rays are a list, not cameras' pixels (geometry.cl)
+  ray_gradient,       // IVR_RAY_GRADIENT: the tangent kernel writes each ray's d loss / d column
   count_
 };
 constexpr int kSwitches = int(Switch::count_);

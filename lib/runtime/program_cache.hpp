@@ -20,8 +20,9 @@ std::string kernel_cache_dir();
 class ProgramCache {
  public:
   // A built program for `source` + `options` on `device`. Looks in process, then on disk (keyed
-  // by source, options, platform, device, driver and ivr version), then compiles; every disk
-  // cache failure falls back to compiling. Throws ivr::Error(build) with the build log.
+  // by source, options, platform, device, driver and ivr version; not on PoCL, which caches its
+  // builds itself: program_cache.cpp), then compiles; every disk cache failure falls back to
+  // compiling. Throws ivr::Error(build) with the build log.
   // `label` names the program in errors; `*seconds` receives the time spent here.
   cl::Program get(const cl::Context& context, const cl::Device& device, const DeviceInfo& info,
                   const std::string& source, const std::string& options, const std::string& label,

@@ -242,8 +242,27 @@ TEST_P(DeterministicGradient, OnePassSameBitsWhateverTheHistory) {
   EXPECT_DOUBLE_EQ(a.loss, f.loss);
 }
 
-INSTANTIATE_TEST_SUITE_P(AllCases, DeterministicGradient, ::testing::ValuesIn(all_cases()),
+// The default suite runs a covering set: every scheme under each model it supports, every TF kind
+// and both losses at least twice (a case costs its own kernel build: ~5 s cold on PoCL). The whole
+// matrix, 50 cases, is `ctest -L extended`.
+std::vector<Case> covering_cases() {
+  using M = Model;
+  using S = Scheme;
+  using K = TfKind;
+  return {{M::absorption, S::midpoint, K::identity, Loss::mse},
+          {M::absorption, S::trapezoid, K::gaussian, Loss::l1},
+          {M::absorption, S::exact, K::piecewise_linear, Loss::mse},
+          {M::absorption, S::preintegrated, K::table, Loss::l1},
+          {M::emission_absorption, S::midpoint, K::gaussian, Loss::mse},
+          {M::emission_absorption, S::trapezoid, K::piecewise_linear, Loss::l1},
+          {M::emission_absorption, S::preintegrated, K::identity, Loss::l1},
+          {M::emission_absorption, S::trapezoid, K::table, Loss::mse}};
+}
+
+INSTANTIATE_TEST_SUITE_P(Covering, DeterministicGradient, ::testing::ValuesIn(covering_cases()),
                          case_name);
+INSTANTIATE_TEST_SUITE_P(AllCasesExtended, DeterministicGradient,
+                         ::testing::ValuesIn(all_cases()), case_name);
 
 // --- the second pass ---------------------------------------------------------------------------
 

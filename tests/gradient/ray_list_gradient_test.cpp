@@ -1,11 +1,14 @@
 // ray_list_gradient_test.cpp — gradients over ray lists: a camera's rays as a list give the
-// camera's gradients (the deterministic density gradient bit for bit), and the density, TF and
+// camera's gradients (the deterministic density gradient bit for bit); the density, TF and
 // background gradients of finite rays agree with central differences of the float64 loss in
-// both modes.
+// both modes; and so do the gradients with respect to the rays themselves (origin, direction,
+// t_start, t_end) for every integrator and both models.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <cstring>
+#include <glm/geometric.hpp>
 #include <random>
 
 #include "ivr/session.hpp"
@@ -141,6 +144,209 @@ TEST(RayListGradient, FiniteRaysAgainstCentralDifferences) {
       EXPECT_NEAR(analytic, fd, 1e-5 * std::abs(fd) + 1e-10) << gg.name << ", " << mode_name(mode);
     }
   }
+}
+
+// Rays of every kind for the ray-parameter gradients: both ends inside the box, a finite start
+// outside it (a box face bounds the march), ±∞ ends (the box's entry and exit), an end past the
+// box. Directions random; lengths kept away from 0.
+RayList mixed_rays(std::size_t count, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-0.45, 0.45), dir(-1, 1);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> rows;
+  for (std::size_t i = 0; i < count; ++i) {
+    glm::dvec3 d(dir(rng), dir(rng), dir(rng));
+    d /= glm::length(d);
+    const glm::dvec3 o(u(rng), u(rng), u(rng));
+    double t0 = 0, t1 = 0.3 + 0.2 * std::abs(dir(rng));
+    switch (i % 4) {
+      case 0: break;                                    // inside to inside
+      case 1: t0 = -1.5; break;                         // from outside the box
+      case 2: t0 = -inf, t1 = inf; break;               // through the box
+      default: t0 = 0.05, t1 = 3.0; break;              // to past the box
+    }
+    rows.insert(rows.end(), {o.x, o.y, o.z, d.x, d.y, d.z, t0, t1});
+  }
+  return make_ray_list(rows.data(), count, 8);
+}
+
+// The list with column `column` of every ray moved by eps · v[ray]: origins and ends directly,
+// directions as normalize(d + eps · v) (ivr normalises the directions it is given).
+RayList moved_rays(const RayList& rays, int column, const std::vector<double>& v, double eps) {
+  std::vector<double> rows = rays.values;
+  for (std::size_t r = 0; r < rays.count(); ++r) {
+    double* row = rows.data() + r * 8;
+    if (column >= 3 && column <= 5) {
+      glm::dvec3 d(row[3], row[4], row[5]);
+      d[column - 3] += eps * v[r];
+      d /= glm::length(d);
+      row[3] = d.x, row[4] = d.y, row[5] = d.z;
+    } else if (std::isfinite(row[column])) {
+      row[column] += eps * v[r];
+    }
+  }
+  return make_ray_list(rows.data(), rays.count(), 8);
+}
+
+double session_loss(Session& s, const RayList& rays) {
+  s.set_rays(rays);
+  GradientRequest q;
+  q.wrt = {"background"};
+  q.mode = Mode::forward;
+  return s.gradient(q).loss.to_doubles()[0];
+}
+
+struct RayCase {
+  Scheme scheme;
+  Model model;
+};
+
+class RayParameterGradient : public ::testing::TestWithParam<RayCase> {};
+
+// d loss / d every ray's column k against central differences of the float64 loss, column by
+// column (a random direction over every ray's column), and the float32 gradient against the
+// float64 one.
+TEST_P(RayParameterGradient, EveryColumnAgainstCentralDifferences) {
+  Scene s = emission_scene();
+  s.integrator.scheme = GetParam().scheme;
+  s.model = GetParam().model;
+  if (s.model == Model::absorption) s.background = glm::dvec3(1.0);
+  const std::size_t count = 48;
+  s.rays = mixed_rays(count, 29);
+  Scene other = s;
+  for (std::size_t i = 0; i < other.volume.data.size(); ++i)
+    other.volume.data[i] *= float(0.7 + 0.6 * double(i % 5) / 4);
+  RenderOptions ro;
+  ro.precision = Precision::f64;
+  const Image target = render(device(), other, ro);
+
+  SessionOptions so;
+  so.precision = Precision::f64;
+  Session f64(device(), s, so);
+  f64.set_target(target);
+  GradientRequest q;
+  q.wrt = {"rays"};
+  q.mode = Mode::automatic;  // forward: the only mode with ray parameters
+  const SessionGradient g = f64.gradient(q);
+  EXPECT_EQ(g.plan.mode, Mode::forward);
+  const DeviceArray& ga = g["rays"];
+  ASSERT_EQ(ga.shape(), (std::vector<std::int64_t>{std::int64_t(count), 8}));
+  const std::vector<double> grad = ga.to_doubles();
+
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const double eps = 1e-6;
+  double largest = 0;
+  for (double x : grad) largest = std::max(largest, std::abs(x));
+  ASSERT_GT(largest, 0);
+  for (int column = 0; column < 8; ++column) {
+    std::vector<double> v(count);
+    for (double& x : v) x = u(rng);
+    double analytic = 0;
+    for (std::size_t r = 0; r < count; ++r) {
+      const double* row = s.rays.values.data() + r * 8;
+      if (column >= 6 && !std::isfinite(row[column])) {
+        EXPECT_EQ(grad[r * 8 + column], 0.0) << "ray " << r << ": an infinite end";
+        continue;
+      }
+      analytic += grad[r * 8 + column] * v[r];
+    }
+    Session probe(device(), s, so);
+    probe.set_target(target);
+    const double fd = (session_loss(probe, moved_rays(s.rays, column, v, eps)) -
+                       session_loss(probe, moved_rays(s.rays, column, v, -eps))) /
+                      (2 * eps);
+    EXPECT_NEAR(analytic, fd, 1e-5 * std::abs(fd) + 1e-9 * largest) << "column " << column;
+  }
+  // The directions' gradients are tangent to the unit sphere.
+  for (std::size_t r = 0; r < count; ++r) {
+    const double* row = s.rays.values.data() + r * 8;
+    const double along =
+        row[3] * grad[r * 8 + 3] + row[4] * grad[r * 8 + 4] + row[5] * grad[r * 8 + 5];
+    EXPECT_NEAR(along, 0, 1e-12 * largest) << "ray " << r;
+  }
+
+  Session f32(device(), s);
+  f32.set_target(target);
+  const std::vector<double> g32 = f32.gradient(q)["rays"].to_doubles();
+  for (std::size_t i = 0; i < grad.size(); ++i)
+    EXPECT_NEAR(g32[i], grad[i], 2e-3 * largest + 1e-3 * std::abs(grad[i])) << "entry " << i;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Schemes, RayParameterGradient,
+    ::testing::Values(RayCase{Scheme::midpoint, Model::emission_absorption},
+                      RayCase{Scheme::trapezoid, Model::absorption},
+                      RayCase{Scheme::exact, Model::absorption},  // absorption only
+                      RayCase{Scheme::preintegrated, Model::emission_absorption}),
+    [](const ::testing::TestParamInfo<RayCase>& i) {
+      return std::string(scheme_name(i.param.scheme)) + "_" +
+             (i.param.model == Model::absorption ? "absorption" : "emission");
+    });
+
+// The rays' gradient beside other groups and listed one by one through jacobian(): the same
+// values; and the errors.
+TEST(RayListGradient, RayParametersWithOtherGroupsAndErrors) {
+  Scene s = emission_scene();
+  s.rays = mixed_rays(20, 41);
+  Scene other = s;
+  for (float& d : other.volume.data) d *= 1.2f;
+  RenderOptions ro;
+  ro.precision = Precision::f64;
+  const Image target = render(device(), other, ro);
+  GradientOptions o;
+  o.precision = Precision::f64;
+  const Gradient alone = gradient(device(), s, target, {"rays"}, o);
+  const Gradient mixed = gradient(device(), s, target, {"background", "rays", "tf"}, o);
+  ASSERT_EQ(mixed.groups.size(), 3u);
+  EXPECT_EQ(mixed.groups[1].name, "rays");
+  EXPECT_EQ(mixed.groups[1].shape, (std::vector<std::size_t>{20, 8}));
+  EXPECT_EQ(mixed.groups[1].values, alone.groups[0].values);
+  const Gradient tf_only = gradient(device(), s, target, {"background", "tf"}, o);
+  EXPECT_EQ(mixed.groups[0].values, tf_only.groups[0].values);
+  EXPECT_EQ(mixed.groups[2].values, tf_only.groups[1].values);
+  EXPECT_DOUBLE_EQ(mixed.loss, tf_only.loss);
+
+  // Parameters listed in any order, mixed with others.
+  const std::vector<Parameter> listed = {{ParameterGroup::ray, 7, 6},
+                                         {ParameterGroup::background, 1, 0},
+                                         {ParameterGroup::ray, 3, 0},
+                                         {ParameterGroup::ray, 19, 4}};
+  JacobianOptions jo;
+  jo.precision = Precision::f64;
+  const Jacobian j = jacobian(device(), s, listed, &target, jo);
+  ASSERT_EQ(j.gradient.size(), 4u);
+  EXPECT_DOUBLE_EQ(j.gradient[0], alone.groups[0].values[7 * 8 + 6]);
+  EXPECT_DOUBLE_EQ(j.gradient[1], tf_only.groups[0].values[1]);
+  EXPECT_DOUBLE_EQ(j.gradient[2], alone.groups[0].values[3 * 8 + 0]);
+  EXPECT_DOUBLE_EQ(j.gradient[3], alone.groups[0].values[19 * 8 + 4]);
+
+  auto message = [&](auto&& call) {
+    try {
+      call();
+    } catch (const Error& e) {
+      EXPECT_EQ(e.status(), Status::invalid_argument);
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  o.mode = Mode::adjoint;
+  EXPECT_NE(message([&] { gradient(device(), s, target, {"rays"}, o); }).find("'rays'"),
+            std::string::npos);
+  jo.jacobian = true;
+  EXPECT_NE(message([&] { jacobian(device(), s, listed, &target, jo); }).find("Jacobian of ray"),
+            std::string::npos);
+  jo.jacobian = false;
+  EXPECT_NE(message([&] { jacobian(device(), s, listed, nullptr, jo); }).find("need a target"),
+            std::string::npos);
+  EXPECT_NE(message([&] {
+              jacobian(device(), s, {{ParameterGroup::ray, 20, 0}}, &target, jo);
+            }).find("ray 20 column 0 (rays: 20"),
+            std::string::npos);
+  Scene cameras = emission_scene();
+  cameras.cameras = {Camera{}};
+  EXPECT_NE(message([&] { parameters_of(cameras, "rays"); }).find("needs a scene of rays"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -83,15 +83,25 @@ TEST_F(CliFaults, KilledDuringACheckpointWriteResumes) {
 
 // A file-size limit below the output's size (as a full disk): writes fail with EFBIG (SIGXFSZ
 // ignored, as it is by processes that handle write errors); the CLI reports one line and leaves
-// neither the output nor a temporary file.
+// neither the output nor a temporary file. The limit, 4 MiB, leaves room for what PoCL writes
+// while it builds a program its cache already holds (the source and its preprocessed text, up to
+// ~2 MiB: ivr keeps no binaries of its own on PoCL, lib/runtime/program_cache.cpp); the output,
+// 1024² rays in float64, is 8 MiB.
 TEST_F(CliFaults, FullFileSystemIsOneErrorAndNoPartialFile) {
-  const std::string out = dir_ + "/P.npy";
-  // 4 views of 16² in float64: 8 KiB, over the 4 KiB limit. A first run warms the kernel caches,
-  // so that the limited run writes nothing but its output.
-  ASSERT_EQ(run_cli("project " + scene_ + " -o " + dir_ + "/warm.npy --precision f64").status, 0);
+  const std::string out = dir_ + "/P.npy", scene = dir_ + "/large.json";
+  write_file(scene, json{{"volume", {{"file", "truth.npy"}}},
+                         {"model", "absorption"},
+                         {"cameras", json::array({{{"eye", {0.3, -2, 0.4}},
+                                                   {"width", 1024},
+                                                   {"height", 1024}}})}}
+                        .dump());
+  // A first run warms the kernel caches, so that the limited run writes nothing but its output
+  // and PoCL's temporary files.
+  ASSERT_EQ(run_cli("project " + scene + " -o " + dir_ + "/warm.npy --precision f64").status, 0);
   const CliResult r = run_program(
-      "bash", "-c 'ulimit -f 4; trap \"\" XFSZ; exec \"$0\" \"$@\"' " + std::string(IVR_CLI_PATH) +
-                  " project " + scene_ + " -o " + out + " --precision f64");
+      "bash", "-c 'ulimit -f 4096; trap \"\" XFSZ; exec \"$0\" \"$@\"' " +
+                  std::string(IVR_CLI_PATH) + " project " + scene + " -o " + out +
+                  " --precision f64");
   EXPECT_EQ(r.status, 1) << r.err;
   EXPECT_EQ(r.err.rfind("ivr: error: ", 0), 0u) << r.err;
   EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << r.err;

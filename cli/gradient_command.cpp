@@ -42,7 +42,7 @@ Runner add_gradient_command(CLI::App& app) {
       ->required();
   cmd->add_option("--wrt", args->wrt,
                   "Comma-separated parameter groups: density, tf, tf_points, scales, background, "
-                  "camera, step, voxels:LIST (indices and ranges a-b)")
+                  "camera, step, voxels:LIST (indices and ranges a-b), rays (a ray list's (R, 8))")
       ->required();
   cmd->add_option("--mode", args->mode, "auto (default: the planner's choice), forward or adjoint");
   cmd->add_option("--loss", args->loss, "Image loss: mse (default), l1, or dot (the sum of target * image: the "

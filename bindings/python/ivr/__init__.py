@@ -340,7 +340,8 @@ class Context(_Owned):
              base_dir=None, info=None):
         """(loss, {group: array}) of the loss of the render against `target` (its shape).
         `wrt` names groups as `ivr gradient --wrt` (density, tf, tf_points, scales, background,
-        camera, step, "voxels:3,17,40-45"); `info`, a dict, receives the mode that ran."""
+        camera, step, "voxels:3,17,40-45", rays: a ray list's (R, 8) origins, directions and
+        ends); `info`, a dict, receives the mode that ran."""
         groups = wrt if isinstance(wrt, str) else ",".join(wrt)
         s = self._scene(scene, volume, base_dir)
         try:

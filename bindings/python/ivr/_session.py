@@ -423,7 +423,8 @@ class Session(_Owned):
         render against `target` (None: set_target's; else, for this call only, a DeviceArray of
         the image shape or a numpy array as set_target takes it) and its gradient for every
         group of `wrt` (as ivr gradient --wrt: density, tf, tf_points, scales, background, camera,
-        step, "voxels:3,17,40-45"), keyed by group name ("voxels" for voxels:LIST) in `wrt` order.
+        step, "voxels:3,17,40-45", rays), keyed by group name ("voxels" for voxels:LIST) in `wrt`
+        order.
         mode "auto", "forward" or "adjoint"; loss "mse", "l1" or "dot" (sum(target * image):
         the gradient is the vector-Jacobian product with `target` as dL/dimage); deterministic sums the
         adjoint's density gradient in fixed point. `info`, a dict, receives the mode that ran."""

@@ -98,7 +98,8 @@ def test_ray_parameter_gradient_against_the_closed_form():
     with ivr.Context(precision="f64") as ctx:
         volume = np.full((4, 4, 4), d)
         scene = scene_of(rays, dims=(4, 4, 4))
-        image = ctx.render(scene, volume=volume)[:, 0]
+        image = np.exp(-a * d * np.array([0.4, 0.5, 0.75]))   # the closed form
+        np.testing.assert_allclose(ctx.render(scene, volume=volume)[:, 0], image, rtol=1e-7)
         weights = np.array([[1.0], [2.0], [-0.5]])
         info = {}
         _, g = ctx.gradient(scene, volume, weights, wrt=["rays"], loss="dot", info=info)

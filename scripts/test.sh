@@ -2,7 +2,8 @@
 # Builds ivr and runs the whole test suite (CTest label "default"), from dependencies onward.
 # Usage: scripts/test.sh [--sanitize | --tsan]
 #   --sanitize: AddressSanitizer + UBSan build in build-asan/, the default label (with build/'s
-#               kernel caches)
+#               kernel caches; the kernel-against-kernel tests are its label kernel_equivalence:
+#               docs/reliability.md)
 #   --tsan:     ThreadSanitizer build in build-tsan/, the label tsan (every test on threads)
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,6 +1,7 @@
 // compile.cpp — the compile suite: the time to build the kernels a render, a density gradient and
-// a forward-mode gradient need, cold (an empty program cache) and from ivr's program cache (a
-// fresh device handle, so the in-process programs are gone). The render reports its build time
+// a forward-mode gradient need, cold (an empty program cache) and from the disk caches (a fresh
+// device handle, so the in-process programs are gone): ivr's, or on PoCL PoCL's own, which ivr
+// relies on there (lib/runtime/program_cache.cpp). The render reports its build time
 // itself; for the others it is the first call's time less the median of warm calls.
 #include <cstdlib>
 #include <filesystem>

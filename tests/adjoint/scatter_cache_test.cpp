@@ -145,6 +145,9 @@ TEST_P(ScatterCacheAdjoint, DensityGradientAgreesWithTheUncached) {
     ASSERT_GT(max_abs(off.density), 0);
     for (const char* slots : {"", "-DIVR_SCATTER_SLOTS=4", "-DIVR_SCATTER_KEYED"}) {
       if (f64 && has(slots, "KEYED")) continue;  // float64 is keyed anyway
+      // The table's variants (slots, keys) are the scheme's business only through the default
+      // table, which every scheme takes; the variants run under midpoint (each is a build).
+      if (c.scheme != Scheme::midpoint && *slots) continue;
       const AdjointGradient on = gradient_with(s, target, o, "1", slots);
       EXPECT_TRUE(agree(as_doubles(on.density), as_doubles(off.density), relative, absolute))
           << c.name << " " << name(p) << " " << slots;

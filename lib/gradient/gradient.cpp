@@ -109,13 +109,12 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
       request.mode != Mode::adjoint)
     throw bad_group("unknown mode " + std::to_string(int(request.mode)));
   std::vector<GroupPlan> plans;
-  std::size_t forward_parameters = 0;
-  bool adjoint_possible = true, per_ray = false;
+  std::size_t forward_parameters = 0;  // the lanes of the passes other than the rays' own
+  bool adjoint_possible = true, per_ray = false, rays = false;
   for (const std::string& g : request.wrt) {
     plans.push_back(plan_group(s.scene, g));
-    // A ray list's rays take 8 lanes however many rays there are (lib/jacobian/jacobian.cpp).
-    forward_parameters += plans.back().name == "rays" ? std::size_t(RayList::kColumns)
-                                                      : plans.back().count;
+    rays = rays || plans.back().name == "rays";
+    if (plans.back().name != "rays") forward_parameters += plans.back().count;
     adjoint_possible = adjoint_possible && plans.back().adjoint;
     // Camera, ray and voxel lanes (density's too, in forward mode) march one ray per work-item
     // (forward_cost).
@@ -134,6 +133,16 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
   SessionGradient out;
   out.plan = plan_gradient(*s.cost, s.scene, forward_parameters, true, adjoint_possible,
                            request.mode, step, per_ray);
+  if (rays) {  // a ray list's rays: one pass of 8 lanes more, whatever their count
+    Plan& p = out.plan;
+    const double others = forward_cost(*s.cost, forward_parameters, nullptr, nullptr, per_ray);
+    const double own = forward_cost(*s.cost, RayList::kColumns, nullptr, nullptr, true);
+    const bool alone = forward_parameters == 0;
+    p.forward_seconds *= (alone ? own : others + own) / others;
+    p.passes = alone ? 1 : p.passes + 1;
+    p.lanes = alone ? std::size_t(RayList::kColumns)
+                    : std::max<std::size_t>(p.lanes, RayList::kColumns);
+  }
   OperationRecord& op = s.begin("gradient");
   cl_call("splitting the gradient into its groups", [&] {
     if (out.plan.mode == Mode::forward) {

@@ -298,6 +298,12 @@ TEST(RayListGradient, RayParametersWithOtherGroupsAndErrors) {
   o.precision = Precision::f64;
   const Gradient alone = gradient(device(), s, target, {"rays"}, o);
   const Gradient mixed = gradient(device(), s, target, {"background", "rays", "tf"}, o);
+  // The plan reports the passes that run: the rays' own pass of 8 lanes, after the others'.
+  EXPECT_EQ(alone.plan.mode, Mode::forward);
+  EXPECT_EQ(alone.plan.passes, 1u);
+  EXPECT_EQ(alone.plan.lanes, 8u);
+  EXPECT_EQ(mixed.plan.passes, 2u);
+  EXPECT_EQ(mixed.plan.lanes, 16u);  // background 3 + TF 3 × 4 = 15 lanes → 16
   ASSERT_EQ(mixed.groups.size(), 3u);
   EXPECT_EQ(mixed.groups[1].name, "rays");
   EXPECT_EQ(mixed.groups[1].shape, (std::vector<std::size_t>{20, 8}));

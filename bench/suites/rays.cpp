@@ -46,11 +46,17 @@ struct Timed {
   std::vector<double> first;  // the first run's result (the check's input)
 };
 
-// One resident operation of `session`: project (N x), backproject (Nᵀ y) or render.
+// One resident operation of `session`: project (N x), backproject (Nᵀ y), the gradient of the
+// loss against the session's target with respect to the rays themselves, or render.
 DeviceArray run_op(Session& session, const std::string& op, const DeviceArray& x,
                    const DeviceArray& y) {
   if (op == "project") return session.project(x);
   if (op == "backproject") return session.backproject(y);
+  if (op == "rays_gradient") {
+    GradientRequest q;
+    q.wrt = {"rays"};
+    return session.gradient(q)["rays"];
+  }
   return session.render();
 }
 
@@ -153,6 +159,37 @@ void rays_suite(Context& ctx) {
       r.metrics["rays_per_s"] = double(rays) / t.m.wall.median;
       record_checked(ctx, std::move(r), dot_check);
     }
+    // The gradient with respect to every sightline's origin, direction and ends (one forward
+    // pass of 8 lanes) against the render of the same list, timed in the same run. Its check:
+    // finite, and every direction's gradient tangent to the unit sphere.
+    std::vector<float> target = ss.render().to_floats();
+    for (float& v : target) v *= 0.9f;
+    DeviceArray t_array(ctx.device, ss.image_shape(), DType::f32);
+    t_array.upload(target.data(), target.size());
+    ss.set_target(t_array);
+    const std::vector<double> g = run_op(ss, "rays_gradient", x, ys).to_doubles();
+    double largest = 0, worst_along = 0;
+    bool finite = g.size() == rays * RayList::kColumns;
+    for (double v : g) finite = finite && std::isfinite(v), largest = std::max(largest, std::abs(v));
+    for (std::size_t r = 0; finite && r < rays; ++r) {
+      const double* row = stars.rays.values.data() + r * RayList::kColumns;
+      const double* gr = g.data() + r * RayList::kColumns;
+      worst_along =
+          std::max(worst_along, std::abs(row[3] * gr[3] + row[4] * gr[4] + row[5] * gr[5]));
+    }
+    const double along = largest > 0 ? worst_along / largest : 1;
+    const Check grad_check{finite && along <= 1e-5, "finite; directions' gradients tangent",
+                           "relative", along, 1e-5};
+    const Timed render_t = time_op(ctx, ss, "render", x, ys, grad_check);
+    const Timed grad_t = time_op(ctx, ss, "rays_gradient", x, ys, grad_check);
+    Record r{ctx.device_key, "rays", base + "_sightlines_rays_gradient", "ivr-ray-list", params};
+    add_timing(r, grad_t.m);
+    r.metrics["rays_per_s"] = double(rays) / grad_t.m.wall.median;
+    r.metrics["vs_render"] = grad_t.m.wall.median / render_t.m.wall.median;
+    std::cerr << "ivr-bench: rays/" << base << "_sightlines_rays_gradient: "
+              << grad_t.m.wall.median * 1e3 << " ms, render " << render_t.m.wall.median * 1e3
+              << " ms (" << r.metrics["vs_render"].get<double>() << "x)\n";
+    record_checked(ctx, std::move(r), grad_check);
   }
 }
 

@@ -2,10 +2,11 @@
 // neighbouring pixels in vector lanes on CPUs, kernels/rays.cl: TF and background lanes, midpoint
 // and trapezoid): the scene's integrator's march carrying IVR_LANES tangent lanes
 // (jacobian_<scheme>.cl), each the derivative of every quantity with respect to one parameter (a
-// TF parameter, a camera component, a background channel, a voxel), through ray generation,
-// clipping, sampling, the TF and compositing. Writes the Jacobian of the pixel (IVR_JACOBIAN)
-// and/or this work-group's share of the loss and its gradient (IVR_LOSS_GRADIENT), reduced in
-// local memory without writing the Jacobian.
+// TF parameter, a camera component, a background channel, a voxel, one column of every listed
+// ray's own row), through ray generation, clipping, sampling, the TF and compositing. Writes the
+// Jacobian of the pixel (IVR_JACOBIAN), each ray's own loss gradient (IVR_RAY_GRADIENT) and/or
+// this work-group's share of the loss and its gradient (IVR_LOSS_GRADIENT), reduced in local
+// memory without writing the Jacobian.
 #include "config.cl"
 #include "geometry.cl"
 #include "loss.cl"

@@ -47,11 +47,10 @@ inline void camera_ray_tangent(__global const real* cp, real sx, real sy, int k,
   }
 }
 
-// The slab that sets t0 of clip_box() (`entry`) or t1 (exit): its axis, or -1 where t0 is the
-// ray's origin (t0 = 0: the camera is inside the box). t moves with the ray as
-// dt = -(d o_a + t · d dir_a) / dir_a on the plane of axis a.
-inline int clip_axis(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
-  if (entry && t <= (real)0) return -1;
+// The box face whose plane meets the ray at `t` as the entry (`entry`) or exit of clip_box(): its
+// axis, or -1 where none does. t moves with the ray as dt = -(d o_a + t · d dir_a) / dir_a on the
+// plane of axis a. A ray list's march may begin at a face behind its origin (t <= 0).
+inline int face_axis(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
   for (int a = 0; a < 3; ++a) {
     const real o = component(ray.origin, a), d = component(ray.dir, a);
     if (d == (real)0) continue;
@@ -63,17 +62,11 @@ inline int clip_axis(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
   return -1;
 }
 
-// clip_axis() for a ray of a list, whose march may begin at a box face behind its origin (t <= 0):
-// the face whose t is `t`, or -1.
-inline int clip_axis_of_list(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
-  for (int a = 0; a < 3; ++a) {
-    const real o = component(ray.origin, a), d = component(ray.dir, a);
-    if (d == (real)0) continue;
-    const real ta = geometry_divide(component(bmin, a) - o, d),
-               tb = geometry_divide(component(bmax, a) - o, d);
-    if ((entry ? fmin(ta, tb) : fmax(ta, tb)) == t) return a;
-  }
-  return -1;
+// The slab that sets t0 of a camera ray's clip_box() (`entry`) or t1 (exit): its axis, or -1
+// where t0 is the ray's origin (t0 = 0: the camera is inside the box).
+inline int clip_axis(Ray ray, real3 bmin, real3 bmax, real t, bool entry) {
+  if (entry && t <= (real)0) return -1;
+  return face_axis(ray, bmin, bmax, t, entry);
 }
 
 #endif

@@ -98,8 +98,8 @@ inline void tangent_ray_begin(TangentRay* tr, __global const int4* lanes, __glob
   real t_start, t_end;
   ray_interval(cam, x, &t_start, &t_end);
   const bool own0 = m->t0 == t_start, own1 = m->t1 == t_end;
-  const int a0 = own0 ? -1 : clip_axis_of_list(ray, box_min.xyz, box_max.xyz, m->t0, true);
-  const int a1 = own1 ? -1 : clip_axis_of_list(ray, box_min.xyz, box_max.xyz, m->t1, false);
+  const int a0 = own0 ? -1 : face_axis(ray, box_min.xyz, box_max.xyz, m->t0, true);
+  const int a1 = own1 ? -1 : face_axis(ray, box_min.xyz, box_max.xyz, m->t1, false);
 #else
   const int a0 = clip_axis(ray, box_min.xyz, box_max.xyz, m->t0, true);
   const int a1 = clip_axis(ray, box_min.xyz, box_max.xyz, m->t1, false);

@@ -87,15 +87,19 @@ double loss_of(const Scene& s, const Image& target) {
   return gradient(device(), s, target, {"background"}, o).loss;
 }
 
+// The float64 render of `s` with voxel i's density scaled by factor(i): a target the scene misses.
+template <class Factor>
+Image f64_target(Scene s, Factor factor) {
+  for (std::size_t i = 0; i < s.volume.data.size(); ++i) s.volume.data[i] *= float(factor(i));
+  RenderOptions ro;
+  ro.precision = Precision::f64;
+  return render(device(), s, ro);
+}
+
 TEST(RayListGradient, FiniteRaysAgainstCentralDifferences) {
   Scene s = emission_scene();
   s.rays = finite_rays(400, 17);
-  Scene other = s;
-  for (std::size_t i = 0; i < other.volume.data.size(); ++i)
-    other.volume.data[i] *= float(0.8 + 0.4 * double(i % 7) / 6);
-  RenderOptions ro;
-  ro.precision = Precision::f64;
-  const Image target = render(device(), other, ro);
+  const Image target = f64_target(s, [](std::size_t i) { return 0.8 + 0.4 * double(i % 7) / 6; });
   ASSERT_EQ(target.width, 400);
 
   for (Mode mode : {Mode::adjoint, Mode::forward}) {
@@ -213,12 +217,7 @@ TEST_P(RayParameterGradient, EveryColumnAgainstCentralDifferences) {
   if (s.model == Model::absorption) s.background = glm::dvec3(1.0);
   const std::size_t count = 48;
   s.rays = mixed_rays(count, 29);
-  Scene other = s;
-  for (std::size_t i = 0; i < other.volume.data.size(); ++i)
-    other.volume.data[i] *= float(0.7 + 0.6 * double(i % 5) / 4);
-  RenderOptions ro;
-  ro.precision = Precision::f64;
-  const Image target = render(device(), other, ro);
+  const Image target = f64_target(s, [](std::size_t i) { return 0.7 + 0.6 * double(i % 5) / 4; });
 
   SessionOptions so;
   so.precision = Precision::f64;
@@ -239,6 +238,8 @@ TEST_P(RayParameterGradient, EveryColumnAgainstCentralDifferences) {
   double largest = 0;
   for (double x : grad) largest = std::max(largest, std::abs(x));
   ASSERT_GT(largest, 0);
+  Session probe(device(), s, so);
+  probe.set_target(target);
   for (int column = 0; column < 8; ++column) {
     std::vector<double> v(count);
     for (double& x : v) x = u(rng);
@@ -251,8 +252,6 @@ TEST_P(RayParameterGradient, EveryColumnAgainstCentralDifferences) {
       }
       analytic += grad[r * 8 + column] * v[r];
     }
-    Session probe(device(), s, so);
-    probe.set_target(target);
     const double fd = (session_loss(probe, moved_rays(s.rays, column, v, eps)) -
                        session_loss(probe, moved_rays(s.rays, column, v, -eps))) /
                       (2 * eps);
@@ -289,11 +288,7 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(RayListGradient, RayParametersWithOtherGroupsAndErrors) {
   Scene s = emission_scene();
   s.rays = mixed_rays(20, 41);
-  Scene other = s;
-  for (float& d : other.volume.data) d *= 1.2f;
-  RenderOptions ro;
-  ro.precision = Precision::f64;
-  const Image target = render(device(), other, ro);
+  const Image target = f64_target(s, [](std::size_t) { return 1.2; });
   GradientOptions o;
   o.precision = Precision::f64;
   const Gradient alone = gradient(device(), s, target, {"rays"}, o);

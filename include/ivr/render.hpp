@@ -24,6 +24,10 @@ struct RenderOptions {
   EmptySpace empty_space = EmptySpace::automatic;
   double min_empty_fraction = 0.05;
   int brick_size = 0;  // cells per brick edge; 0: 4 for volumes up to 128 voxels across, else 8
+  // Out-of-core (docs/scaling.md): cells per edge of the bricks the volume is streamed through the
+  // device in; 0: in core where the volume and the render's buffers fit the device memory (or
+  // $IVR_DEVICE_MEMORY_LIMIT), else bricks chosen to fit. $IVR_VOLUME_BRICK forces one as well.
+  int volume_brick = 0;
 };
 
 // Images of shape (views, height, width, channels), float32, row 0 at the top.
@@ -57,6 +61,11 @@ struct RenderStats {
   double estimated_error = 0;      // integrator.tolerance: the chosen step's estimated error
   double step_seconds = 0;         // integrator.tolerance: host time choosing the step
   std::uint64_t device_bytes = 0;  // device memory of the render's buffers (scene, image, counts)
+  int bricks = 1;                  // bricks the volume was split into (1: in core)
+  int brick_edge = 0;              // their edge in cells (0: in core)
+  int sweeps = 0;                  // passes over the bricks (1 when every ray met them in order)
+  std::uint64_t uploaded_bytes = 0;  // bricks uploaded (each brick once where all fit at once)
+  std::uint64_t brick_uploads = 0;
 };
 
 // Validates the scene and renders it; throws ivr::Error.

@@ -134,6 +134,8 @@ struct OperationStats {
   double fixed_bound = 0;          // the a-priori bound on one ray's Σ |contribution| that set S
   double fixed_largest_ray = 0;    // the largest ray's Σ |contribution| measured (≤ fixed_bound)
   double fixed_largest = 0;        // the largest single contribution (≥ 2^24·2^−S, or 2 passes)
+  int bricks = 1;                  // out-of-core: the bricks the volume was split into (1: in core)
+  int sweeps = 0;                  // out-of-core: passes over the bricks (1 in a front-to-back order)
 };
 
 // A scene on one device. Not copyable; one thread at a time (calls from several threads are

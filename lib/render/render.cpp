@@ -8,6 +8,8 @@
 
 #include "ivr/error.hpp"
 #include "render/render.hpp"
+
+#include "brick/bricked_render.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
 
@@ -126,6 +128,8 @@ Image image_of(const DeviceArray& image) {
 }
 
 Image render(Device& device, const Scene& scene, const RenderOptions& options, RenderStats* stats) {
+  const BrickPlan plan = plan_render(device.info(), scene, options.precision, options.volume_brick);
+  if (plan.layout.edge) return render_bricked(device, scene, options, plan, stats);
   Session session = one_shot_session(device, scene,
                                      {options.precision, options.step, options.empty_space,
                                       options.min_empty_fraction, options.brick_size});

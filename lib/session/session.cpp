@@ -293,7 +293,9 @@ int Session::Impl::set_scene_args(cl::Kernel& k, const Integrator& it) const {
   const glm::dvec3 bg = scene.effective_background();
   const ImageExtent extent = image_extent(scene);
   int a = 0;
-  k.setArg(a++, buffer_of(volume));
+  // (A session without densities — the out-of-core render's, lib/brick/ — sets its bricks itself.)
+  if (has_volume) k.setArg(a, buffer_of(volume));
+  ++a;
   k.setArg(a++, cl_int4{{scene.volume.nx, scene.volume.ny, scene.volume.nz, 0}});
   set_real4(k, a++, f64, scene.box_min.x, scene.box_min.y, scene.box_min.z);
   set_real4(k, a++, f64, scene.box_max.x, scene.box_max.y, scene.box_max.z);

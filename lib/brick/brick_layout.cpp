@@ -1,0 +1,134 @@
+// brick_layout.cpp — bricks of a volume, the device-memory budget, and bricks' host copies.
+#include "brick/brick_layout.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+#include "ivr/error.hpp"
+
+namespace ivr {
+
+namespace {
+// Bricks along an axis of n voxels: n − 1 cells in runs of `edge`; one for a single voxel.
+int bricks_along(int n, int edge) { return std::max(1, (n - 1 + edge - 1) / edge); }
+}  // namespace
+
+BrickLayout brick_layout(int nx, int ny, int nz, int edge) {
+  if (edge < 1)
+    throw Error(Status::invalid_argument,
+                "brick edge: " + std::to_string(edge) + " cells, must be at least 1");
+  BrickLayout l;
+  l.edge = edge;
+  l.dims = {nx, ny, nz};
+  for (int a = 0; a < 3; ++a) l.count[a] = bricks_along(l.dims[a], edge);
+  return l;
+}
+
+std::array<int, 3> BrickLayout::index(int b) const {
+  return {b % count[0], (b / count[0]) % count[1], b / (count[0] * count[1])};
+}
+
+std::array<int, 3> BrickLayout::origin(int b) const {
+  const std::array<int, 3> i = index(b);
+  return {i[0] * edge, i[1] * edge, i[2] * edge};
+}
+
+std::array<int, 3> BrickLayout::extent(int b) const {
+  const std::array<int, 3> o = origin(b);
+  std::array<int, 3> e{};
+  for (int a = 0; a < 3; ++a) e[a] = std::min(o[a] + edge, dims[a] - 1) - o[a] + 1;
+  return e;
+}
+
+std::size_t BrickLayout::voxels(int b) const {
+  const std::array<int, 3> e = extent(b);
+  return std::size_t(e[0]) * e[1] * e[2];
+}
+
+std::size_t BrickLayout::largest_voxels() const {
+  std::size_t n = 1;
+  for (int a = 0; a < 3; ++a) n *= std::size_t(std::min(edge, dims[a] - 1) + 1);
+  return n;
+}
+
+std::array<double, 3> BrickLayout::lo(int b) const {
+  const std::array<int, 3> i = index(b);
+  std::array<double, 3> p{};
+  for (int a = 0; a < 3; ++a)
+    p[a] = i[a] == 0 ? -std::numeric_limits<double>::infinity() : double(i[a]) * edge;
+  return p;
+}
+
+std::array<double, 3> BrickLayout::hi(int b) const {
+  const std::array<int, 3> i = index(b);
+  std::array<double, 3> p{};
+  for (int a = 0; a < 3; ++a)
+    p[a] = i[a] == count[a] - 1 ? std::numeric_limits<double>::infinity()
+                                : double(i[a] + 1) * edge;
+  return p;
+}
+
+std::uint64_t device_memory_limit_from_env() {
+  const char* env = std::getenv("IVR_DEVICE_MEMORY_LIMIT");
+  if (!env || !*env) return 0;
+  const std::string text = env;
+  char* end = nullptr;
+  errno = 0;
+  const double value = std::strtod(env, &end);
+  std::string suffix(end);
+  while (!suffix.empty() && std::isspace(static_cast<unsigned char>(suffix.back()))) suffix.pop_back();
+  double scale = 1;
+  if (suffix == "K" || suffix == "KiB" || suffix == "k") scale = 1024.0;
+  else if (suffix == "M" || suffix == "MiB") scale = 1024.0 * 1024;
+  else if (suffix == "G" || suffix == "GiB") scale = 1024.0 * 1024 * 1024;
+  else if (!suffix.empty()) scale = -1;
+  if (end == env || errno || scale < 0 || !(value >= 1) || !std::isfinite(value * scale))
+    throw Error(Status::invalid_argument,
+                "IVR_DEVICE_MEMORY_LIMIT: '" + text +
+                    "' is not a byte count (an integer ≥ 1, optionally with K, M or G)");
+  return std::uint64_t(value * scale);
+}
+
+std::uint64_t device_memory_budget(const DeviceInfo& info) {
+  const std::uint64_t limit = device_memory_limit_from_env();
+  const std::uint64_t memory = info.global_memory ? info.global_memory : limit;
+  return limit ? std::min(limit, memory ? memory : limit) : memory;
+}
+
+std::string memory_text(std::uint64_t bytes) {
+  std::ostringstream s;
+  s.precision(3);
+  if (bytes >= (1ull << 30)) s << double(bytes) / double(1ull << 30) << " GiB";
+  else if (bytes >= (1ull << 20)) s << double(bytes) / double(1ull << 20) << " MiB";
+  else if (bytes >= 1024) s << double(bytes) / 1024.0 << " KiB";
+  else s << bytes << " bytes";
+  return s.str();
+}
+
+void extract_brick(const Volume& volume, const BrickLayout& layout, int b, bool f64,
+                   std::vector<unsigned char>& out) {
+  const std::array<int, 3> o = layout.origin(b), e = layout.extent(b);
+  const std::size_t real_size = f64 ? sizeof(double) : sizeof(float);
+  out.resize(layout.voxels(b) * real_size);
+  std::size_t at = 0;
+  for (int z = 0; z < e[2]; ++z)
+    for (int y = 0; y < e[1]; ++y) {
+      const float* row =
+          volume.data.data() + (std::size_t(o[2] + z) * volume.ny + (o[1] + y)) * volume.nx + o[0];
+      if (f64) {
+        double* dst = reinterpret_cast<double*>(out.data()) + at;
+        for (int x = 0; x < e[0]; ++x) dst[x] = row[x];
+      } else {
+        std::memcpy(reinterpret_cast<float*>(out.data()) + at, row, e[0] * sizeof(float));
+      }
+      at += std::size_t(e[0]);
+    }
+}
+
+}  // namespace ivr

@@ -1,0 +1,51 @@
+// brick_layout.hpp — internal: how a volume splits into bricks for the out-of-core operations
+// (kernels/bricked.cl), how much device memory an operation may use, and the bricks' host copies.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ivr/device.hpp"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+// A volume of (nx, ny, nz) voxels in bricks of `edge` cells: along an axis of N voxels, brick k
+// covers the voxel-centre coordinates [k·edge, (k+1)·edge] and holds voxels k·edge ..
+// min((k+1)·edge, N − 1), so neighbours share one plane of voxels (the halo) and every trilinear
+// lookup inside a brick reads its own voxels. The outer bricks reach the box faces.
+struct BrickLayout {
+  int edge = 0;                // cells per brick edge (0: not bricked)
+  std::array<int, 3> dims{};   // the volume's voxels per axis (x, y, z)
+  std::array<int, 3> count{};  // bricks per axis
+  int total() const { return count[0] * count[1] * count[2]; }
+  // Brick b's index per axis (x fastest), first voxel and voxels per axis.
+  std::array<int, 3> index(int b) const;
+  std::array<int, 3> origin(int b) const;
+  std::array<int, 3> extent(int b) const;
+  std::size_t voxels(int b) const;
+  std::size_t largest_voxels() const;  // of any brick
+  // Its planes in global voxel-centre coordinates: [lo, hi) per axis, ±infinity at the box faces.
+  std::array<double, 3> lo(int b) const;
+  std::array<double, 3> hi(int b) const;
+};
+
+// Bricks of `edge` cells (≥ 1) over the volume's dims.
+BrickLayout brick_layout(int nx, int ny, int nz, int edge);
+
+// The device memory an operation may use: $IVR_DEVICE_MEMORY_LIMIT (bytes; a plain integer, or
+// with a K/M/G suffix of powers of 1024) where set, else the device's global memory, whichever is
+// smaller. Throws Error(invalid_argument) naming the variable on a malformed value.
+std::uint64_t device_memory_budget(const DeviceInfo& info);
+// $IVR_DEVICE_MEMORY_LIMIT alone (0: not set).
+std::uint64_t device_memory_limit_from_env();
+// "1.5 GiB"-style text of a byte count.
+std::string memory_text(std::uint64_t bytes);
+
+// Brick b's voxels from the host volume, converted to the kernels' real (float or double) into
+// `out` (bytes, resized).
+void extract_brick(const Volume& volume, const BrickLayout& layout, int b, bool f64,
+                   std::vector<unsigned char>& out);
+
+}  // namespace ivr

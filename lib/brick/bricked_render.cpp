@@ -1,0 +1,312 @@
+// bricked_render.cpp — the out-of-core render: plan, brick order, streaming, sweeps.
+#include "brick/bricked_render.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <map>
+#include <numeric>
+
+#include "ivr/error.hpp"
+#include "render/render.hpp"
+#include "runtime/real_args.hpp"
+#include "session/session.hpp"
+
+namespace ivr {
+
+namespace {
+
+constexpr int kStateReals = 16, kStateUints = 4;  // kernels/bricked.cl IVR_BRICK_REALS / _UINTS
+enum Phase { kBegin = 0, kMarch = 1, kFinish = 2 };
+
+std::uint64_t geometry_bytes(const Scene& scene, std::size_t real_size) {
+  return (32 * scene.cameras.size() + RayList::kColumns * scene.rays.count() + 6 * 1024) *
+         real_size;
+}
+
+// Bricks in an order that every ray of the views with this key meets front to back: by the sum
+// over axes of the distance from `eye` (the brick a perspective eye lies in, clamped to the grid;
+// for an orthographic view the corner the rays come from). Along a ray each axis's brick index
+// moves away from the eye's, so that sum grows at every brick face the ray crosses.
+std::vector<int> front_to_back(const BrickLayout& l, const std::array<int, 3>& eye) {
+  std::vector<int> order(l.total());
+  std::iota(order.begin(), order.end(), 0);
+  auto distance = [&](int b) {
+    const std::array<int, 3> i = l.index(b);
+    return std::abs(i[0] - eye[0]) + std::abs(i[1] - eye[1]) + std::abs(i[2] - eye[2]);
+  };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return distance(a) < distance(b); });
+  return order;
+}
+
+// The eye brick of a point in world space.
+std::array<int, 3> eye_brick(const Scene& scene, const BrickLayout& l, const glm::dvec3& p) {
+  const glm::dvec3 h = scene.voxel_size();
+  std::array<int, 3> e{};
+  for (int a = 0; a < 3; ++a) {
+    const double u = (p[a] - scene.box_min[a]) / h[a] - 0.5;
+    const double k = std::floor(u / l.edge);
+    e[a] = int(std::clamp(std::isfinite(k) ? k : 0.0, 0.0, double(l.count[a] - 1)));
+  }
+  return e;
+}
+
+// The views that share a brick order, as runs of consecutive views.
+struct ViewGroup {
+  std::vector<int> order;
+  std::vector<std::pair<int, int>> runs;  // (first view, count)
+};
+
+std::vector<ViewGroup> view_groups(const Scene& scene, const BrickLayout& l) {
+  std::vector<std::array<int, 3>> keys;
+  if (scene.has_ray_list()) {
+    glm::dvec3 mean(0.0);
+    const std::size_t n = scene.rays.count();
+    for (std::size_t r = 0; r < n; ++r)
+      mean += glm::dvec3(scene.rays.values[r * 8], scene.rays.values[r * 8 + 1],
+                         scene.rays.values[r * 8 + 2]);
+    keys.push_back(eye_brick(scene, l, mean / double(std::max<std::size_t>(n, 1))));
+  } else {
+    for (const Camera& c : scene.cameras) {
+      if (c.projection == Projection::orthographic) {
+        const glm::dvec3 d = c.target - c.eye;
+        keys.push_back({d.x >= 0 ? 0 : l.count[0] - 1, d.y >= 0 ? 0 : l.count[1] - 1,
+                        d.z >= 0 ? 0 : l.count[2] - 1});
+      } else {
+        keys.push_back(eye_brick(scene, l, c.eye));
+      }
+    }
+  }
+  std::map<std::array<int, 3>, ViewGroup> groups;
+  for (int v = 0; v < int(keys.size()); ++v) {
+    ViewGroup& g = groups[keys[v]];
+    if (!g.runs.empty() && g.runs.back().first + g.runs.back().second == v)
+      ++g.runs.back().second;
+    else
+      g.runs.push_back({v, 1});
+  }
+  std::vector<ViewGroup> out;
+  for (auto& [key, g] : groups) {
+    g.order = front_to_back(l, key);
+    out.push_back(std::move(g));
+  }
+  return out;
+}
+
+}  // namespace
+
+int volume_brick_from_env() {
+  const char* env = std::getenv("IVR_VOLUME_BRICK");
+  if (!env || !*env) return 0;
+  char* end = nullptr;
+  const long v = std::strtol(env, &end, 10);
+  if (end == env || *end || v < 1 || v > (1 << 24))
+    throw Error(Status::invalid_argument, std::string("IVR_VOLUME_BRICK: '") + env +
+                                              "' is not a brick edge (cells, an integer ≥ 1)");
+  return int(v);
+}
+
+BrickPlan plan_render(const DeviceInfo& info, const Scene& scene, Precision precision,
+                      int forced_edge) {
+  BrickPlan plan;
+  const std::size_t real_size = precision == Precision::f64 ? 8 : 4;
+  const std::uint64_t rays = image_extent(scene).pixels();
+  const std::uint64_t voxels = scene.volume.voxel_count();
+  const std::uint64_t image = rays * (scene.channels() * real_size + 4);
+  const std::uint64_t geometry = geometry_bytes(scene, real_size);
+  plan.budget = device_memory_budget(info);
+  plan.in_core_bytes = voxels * real_size + image + geometry;
+  if (forced_edge <= 0) forced_edge = volume_brick_from_env();
+  if (forced_edge <= 0 && (plan.budget == 0 || plan.in_core_bytes <= plan.budget)) return plan;
+  const std::uint64_t fixed = image + geometry + rays * (kStateReals * real_size + kStateUints * 4) + 64;
+  const int longest = std::max({scene.volume.nx, scene.volume.ny, scene.volume.nz});
+  auto fits = [&](int edge, int slots) {
+    const BrickLayout l = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);
+    const std::uint64_t slot = l.largest_voxels() * real_size;
+    return slot <= info.max_allocation && fixed + std::uint64_t(slots) * slot <= plan.budget;
+  };
+  int edge = forced_edge;
+  if (edge <= 0) {
+    edge = 1;
+    while (edge * 2 < longest && fits(edge * 2, 2)) edge *= 2;
+  }
+  plan.layout = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);
+  const std::uint64_t slot = plan.layout.largest_voxels() * real_size;
+  const int wanted = std::min(plan.layout.total(), 2);
+  if (plan.budget && !fits(edge, wanted))
+    throw Error(Status::out_of_memory,
+                "out-of-core render: bricks of " + std::to_string(edge) + " cells (" +
+                    memory_text(slot) + " each) and the per-ray state (" + memory_text(fixed) +
+                    ") do not fit the device-memory budget of " + memory_text(plan.budget) +
+                    (device_memory_limit_from_env() ? " (IVR_DEVICE_MEMORY_LIMIT)" : ""));
+  const std::uint64_t room = plan.budget ? (plan.budget - fixed) / slot : plan.layout.total();
+  plan.slots = int(std::clamp<std::uint64_t>(room, wanted, plan.layout.total()));
+  plan.bricked_bytes = fixed + std::uint64_t(plan.slots) * slot;
+  return plan;
+}
+
+Image render_bricked(Device& device, const Scene& scene, const RenderOptions& options,
+                     const BrickPlan& plan, RenderStats* stats) {
+  const auto start = std::chrono::steady_clock::now();
+  if (scene.volume.data.size() != scene.volume.voxel_count())
+    throw Error(Status::invalid_argument,
+                "volume: holds " + std::to_string(scene.volume.data.size()) +
+                    " values but dims need " + std::to_string(scene.volume.voxel_count()));
+  if (scene.integrator.tolerance > 0 && !(options.step > 0))
+    throw Error(Status::unsupported,
+                "out-of-core render: integrator.tolerance chooses its step from the whole volume; "
+                "give the step (--step) for a bricked volume");
+  // A session without densities: the cameras, the TF, the integrator and the kernels.
+  Session session(std::make_unique<Session::Impl>(
+      device, description_of(scene),
+      SessionOptions{options.precision, options.step, EmptySpace::off, options.min_empty_fraction,
+                     options.brick_size},
+      false));
+  Session::Impl& s = session.impl();
+  Device::Impl& dev = s.dev;
+  const BrickLayout& l = plan.layout;
+  const Integrator& integrator = s.integrator();
+  RenderVariant variant = s.variant_of(integrator);
+  variant.empty_space = false;
+  const KernelConfig config = variant.config("bricked.cl", "bricked_render");
+  OperationRecord& op = s.begin("render");
+  cl::Kernel& k = s.kernels.get(config, &op.stats.build_seconds);
+
+  const ImageExtent e = image_extent(scene);
+  const std::size_t rays = e.pixels();
+  const std::size_t real_size = s.real_size;
+  cl::Buffer state = dev.buffer(CL_MEM_READ_WRITE, rays * kStateReals * real_size, nullptr,
+                                "the bricked render's per-ray state");
+  cl::Buffer state_u = dev.buffer(CL_MEM_READ_WRITE, rays * kStateUints * 4, nullptr,
+                                  "the bricked render's per-ray counters");
+  DeviceArray image = s.output("image", s.image_shape(), real_dtype(s.f64), "the image");
+  cl::Buffer samples = dev.buffer(CL_MEM_READ_WRITE, rays * 4, nullptr, "the sample counts");
+  const cl_uint zero = 0;
+  cl::Buffer pending =
+      dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, 4, &zero, "the pending-ray count");
+  const std::size_t slot_bytes = l.largest_voxels() * real_size;
+  std::vector<cl::Buffer> slot(plan.slots);
+  for (auto& b : slot)
+    b = dev.buffer(CL_MEM_READ_ONLY, slot_bytes, nullptr, "a brick of the volume");
+  std::vector<int> slot_brick(plan.slots, -1);
+  std::vector<long> slot_used(plan.slots, -1);
+  std::vector<std::vector<cl::Event>> slot_uses(plan.slots);
+  std::vector<cl::Event> slot_write(plan.slots);
+  std::vector<std::vector<unsigned char>> staging(plan.slots);
+  cl::CommandQueue uploads = cl_call("creating the upload queue on " + dev.info.name, [&] {
+    return cl::CommandQueue(dev.context, dev.device, 0);
+  });
+
+  int a0 = 0;
+  cl_call("setting the bricked render's arguments", [&] {
+    a0 = s.set_scene_args(k, integrator);
+    k.setArg(a0 + 4, state);
+    k.setArg(a0 + 5, state_u);
+    k.setArg(a0 + 6, buffer_of(image));
+    k.setArg(a0 + 7, samples);
+    k.setArg(a0 + 8, pending);
+  });
+  auto set_brick = [&](int b, int sl) {
+    const std::array<int, 3> o = l.origin(b), x = l.extent(b);
+    const std::array<double, 3> lo = l.lo(b), hi = l.hi(b);
+    k.setArg(0, slot[sl]);
+    k.setArg(1, cl_int4{{x[0], x[1], x[2], 0}});
+    set_real4(k, a0 + 1, s.f64, lo[0], lo[1], lo[2]);
+    set_real4(k, a0 + 2, s.f64, hi[0], hi[1], hi[2]);
+    k.setArg(a0 + 3, cl_int4{{o[0], o[1], o[2], 0}});
+  };
+  std::uint64_t uploaded = 0, uploads_count = 0;
+  auto launch = [&](Phase phase, int first_view, int views) {
+    k.setArg(a0, cl_int(phase));
+    cl::Event ev;
+    dev.queue.enqueueNDRangeKernel(k, cl::NDRange(0, 0, first_view),
+                                   cl::NDRange(e.width, e.height, views), cl::NullRange, nullptr,
+                                   &ev);
+    op.events.push_back(ev);
+    return ev;
+  };
+  long clock = 0;
+  // The slot holding brick b, loading it (into the least recently used slot) where none does.
+  auto resident = [&](int b) {
+    for (int i = 0; i < plan.slots; ++i)
+      if (slot_brick[i] == b) return slot_used[i] = ++clock, i;
+    const int i = int(std::min_element(slot_used.begin(), slot_used.end()) - slot_used.begin());
+    if (!slot_uses[i].empty()) cl::WaitForEvents(slot_uses[i]);  // its last brick's marches
+    slot_uses[i].clear();
+    if (slot_write[i]()) slot_write[i].wait();  // its staging copy is free again
+    extract_brick(scene.volume, l, b, s.f64, staging[i]);
+    uploads.enqueueWriteBuffer(slot[i], CL_FALSE, 0, staging[i].size(), staging[i].data(),
+                               nullptr, &slot_write[i]);
+    uploads.flush();
+    uploaded += staging[i].size();
+    ++uploads_count;
+    slot_brick[i] = b;
+    slot_used[i] = ++clock;
+    return i;
+  };
+
+  const std::vector<ViewGroup> groups = view_groups(scene, l);
+  cl_call("running the bricked render on " + dev.info.name, [&] {
+    set_brick(0, 0);
+    launch(kBegin, 0, e.views);
+    int sweeps = 0;
+    for (;;) {
+      ++sweeps;
+      for (const ViewGroup& g : groups)
+        for (int b : g.order) {
+          const int i = resident(b);
+          set_brick(b, i);
+          std::vector<cl::Event> wait{slot_write[i]};
+          for (const auto& [first, count] : g.runs) {
+            k.setArg(a0, cl_int(kMarch));
+            cl::Event ev;
+            dev.queue.enqueueNDRangeKernel(k, cl::NDRange(0, 0, first),
+                                           cl::NDRange(e.width, e.height, count), cl::NullRange,
+                                           &wait, &ev);
+            op.events.push_back(ev);
+            slot_uses[i].push_back(ev);
+          }
+          dev.queue.flush();
+        }
+      dev.queue.enqueueWriteBuffer(pending, CL_FALSE, 0, 4, &zero);
+      launch(kFinish, 0, e.views);
+      cl_uint left = 0;
+      dev.queue.enqueueReadBuffer(pending, CL_TRUE, 0, 4, &left);
+      if (left == 0) break;
+      if (sweeps > l.total() + 1)
+        throw Error(Status::opencl,
+                    "out-of-core render: " + std::to_string(left) + " rays still marching after " +
+                        std::to_string(sweeps) + " sweeps over the bricks");
+    }
+    op.stats.sweeps = sweeps;
+  });
+  mark_written(image, op.events.back());
+  op.samples = samples;
+  op.sample_count = rays;
+  op.stats.variant = config.label();
+  op.stats.step = integrator.step;
+  op.stats.bricks = l.total();
+  op.stats.device_bytes = plan.bricked_bytes;
+  const Image out = image_of(image);
+  if (stats) {
+    const OperationStats st = session.last_stats();
+    stats->kernel_seconds = st.kernel_seconds;
+    stats->build_seconds = st.build_seconds;
+    stats->samples = st.samples;
+    stats->variant = st.variant;
+    stats->scheme = scheme_name(integrator.scheme);
+    stats->step = st.step;
+    stats->device_bytes = st.device_bytes;
+    stats->bricks = l.total();
+    stats->brick_edge = l.edge;
+    stats->sweeps = st.sweeps;
+    stats->uploaded_bytes = uploaded;
+    stats->brick_uploads = uploads_count;
+    (void)start;
+  }
+  return out;
+}
+
+}  // namespace ivr

@@ -1,0 +1,208 @@
+// bricked_render_test.cpp — the out-of-core render (kernels/bricked.cl, lib/brick/) equals the
+// in-core render: every scheme under both models, bricks of one cell to one brick, cameras outside,
+// inside and grazing the bricks' planes, ray lists; and the device-memory cap that chooses it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "brick/bricked_render.hpp"
+#include "ivr/error.hpp"
+#include "ivr/render.hpp"
+#include "test_support.hpp"
+
+namespace ivr {
+namespace {
+using namespace test;
+
+// A noisy volume of odd, unequal dims (bricks end short of the edge) with a TF that has colour,
+// zero-extinction stretches and enough extinction that some rays stop early.
+Scene bricked_scene(Model model, Scheme scheme) {
+  Scene s;
+  s.volume.nx = 11, s.volume.ny = 9, s.volume.nz = 13;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  s.volume.data.resize(s.volume.voxel_count());
+  for (float& v : s.volume.data) v = u(rng);
+  set_default_box(s);
+  s.model = model;
+  s.tf.kind = TfKind::piecewise_linear;
+  s.tf.points = {{0.0, {0, 0, 0}, 0.0},
+                 {0.3, {0.2, 0.9, 0.4}, 0.0},
+                 {0.6, {1.0, 0.5, 0.1}, 60.0},
+                 {1.0, {0.3, 0.3, 1.0}, 30.0}};
+  s.integrator.scheme = scheme;
+  s.integrator.step = 0.37;
+  s.background = {0.1, 0.2, 0.3};
+  auto persp = [](glm::dvec3 eye, glm::dvec3 target) {
+    Camera c;
+    c.eye = eye, c.target = target, c.fov_y = 50, c.width = 11, c.height = 9;
+    return c;
+  };
+  s.cameras = {persp({0.3, 0.4, 2.0}, {0, 0, 0}), persp({-1.6, -0.7, -0.9}, {0.05, 0, 0}),
+               persp({0.05, -0.1, 0.1}, {1, 0.3, 0.2}),  // inside the volume
+               persp({0.3, 0.4, 2.0}, {0.01, 0, 0})};
+  // Orthographic down −z and along +x: rays whose x (and y) lie on the voxel-centre planes that
+  // the bricks' faces are made of (11 voxels, 11 pixels across the box).
+  s.cameras.push_back(ortho({0, 0, 2}, {0, 1, 0}, 11, 9, s.box_max.y - s.box_min.y));
+  Camera side = ortho({-2, 0, 0}, {0, 1, 0}, 11, 9, s.box_max.y - s.box_min.y);
+  s.cameras.push_back(side);
+  return s;
+}
+
+double largest(const std::vector<double>& v) {
+  double m = 0;
+  for (double x : v) m = std::max(m, std::abs(x));
+  return m;
+}
+
+// Every pixel within tol × the largest |value| of the in-core image; none NaN/Inf.
+void expect_same(const Image& in_core, const Image& bricked, double tol, const std::string& what) {
+  const std::vector<double> a = in_core.pixels_f64.empty()
+                                    ? std::vector<double>(in_core.pixels.begin(), in_core.pixels.end())
+                                    : in_core.pixels_f64;
+  const std::vector<double> b = bricked.pixels_f64.empty()
+                                    ? std::vector<double>(bricked.pixels.begin(), bricked.pixels.end())
+                                    : bricked.pixels_f64;
+  ASSERT_EQ(a.size(), b.size()) << what;
+  const double scale = std::max(largest(a), 1e-30);
+  int bad = 0;
+  for (std::size_t i = 0; i < a.size() && bad < 5; ++i)
+    if (!std::isfinite(b[i]) || std::abs(a[i] - b[i]) > tol * scale) {
+      ADD_FAILURE() << what << ": element " << i << " in core " << a[i] << ", bricked " << b[i];
+      ++bad;
+    }
+}
+
+Image render_with(const Scene& s, Precision p, int brick, RenderStats* st = nullptr) {
+  RenderOptions o;
+  o.precision = p;
+  o.volume_brick = brick;
+  return render(device(), s, o, st);
+}
+
+struct Case {
+  Model model;
+  Scheme scheme;
+};
+
+class BrickedRender : public ::testing::TestWithParam<Case> {};
+
+TEST_P(BrickedRender, EqualsInCoreForEveryBrickEdge) {
+  const Case c = GetParam();
+  const Scene s = bricked_scene(c.model, c.scheme);
+  for (Precision p : {Precision::f64, Precision::f32}) {
+    if (p == Precision::f64 && !device().info().fp64) continue;
+    RenderStats in_stats;
+    const Image in_core = render_with(s, p, 0, &in_stats);
+    EXPECT_EQ(in_stats.bricks, 1);
+    for (int edge : {1, 3, 4, 100}) {
+      RenderStats st;
+      const Image bricked = render_with(s, p, edge, &st);
+      const BrickLayout l = brick_layout(11, 9, 13, edge);
+      EXPECT_EQ(st.bricks, l.total()) << edge;
+      EXPECT_EQ(st.brick_edge, edge);
+      EXPECT_GE(st.sweeps, 1);
+      expect_same(in_core, bricked, p == Precision::f64 ? 1e-12 : 1e-5,
+                  std::string(name(p)) + " bricks of " + std::to_string(edge));
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Schemes, BrickedRender,
+    ::testing::Values(Case{Model::emission_absorption, Scheme::midpoint},
+                      Case{Model::emission_absorption, Scheme::trapezoid},
+                      Case{Model::emission_absorption, Scheme::preintegrated},
+                      Case{Model::absorption, Scheme::midpoint},
+                      Case{Model::absorption, Scheme::trapezoid},
+                      Case{Model::absorption, Scheme::preintegrated},
+                      Case{Model::absorption, Scheme::exact}),
+    [](const ::testing::TestParamInfo<Case>& i) {
+      return std::string(i.param.model == Model::absorption ? "absorption_" : "emission_") +
+             scheme_name(i.param.scheme);
+    });
+
+// A ray list: rays from inside and outside, ends inside the box, infinite ends.
+TEST(BrickedRenderRays, RayListEqualsInCore) {
+  Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> rows;
+  for (int r = 0; r < 64; ++r) {
+    const double o[3] = {u(rng) * (r % 2 ? 0.3 : 1.5), u(rng) * 0.3, u(rng) * (r % 2 ? 0.3 : 1.5)};
+    double d[3] = {-o[0] + 0.2 * u(rng), -o[1] + 0.2 * u(rng), -o[2] + 0.2 * u(rng)};
+    if (r % 2) d[0] = u(rng), d[1] = u(rng), d[2] = u(rng);
+    const double t0 = r % 3 == 0 ? -INFINITY : 0.1 * std::abs(u(rng));
+    const double t1 = r % 4 == 0 ? INFINITY : 0.5 + std::abs(u(rng));
+    rows.insert(rows.end(), {o[0], o[1], o[2], d[0], d[1], d[2], t0, t1});
+  }
+  s.rays = make_ray_list(rows.data(), 64, 8);
+  s.cameras.clear();
+  const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
+  const Image in_core = render_with(s, p, 0);
+  for (int edge : {2, 5}) {
+    RenderStats st;
+    expect_same(in_core, render_with(s, p, edge, &st), p == Precision::f64 ? 1e-12 : 1e-5,
+                "ray list, bricks of " + std::to_string(edge));
+    EXPECT_GE(st.sweeps, 1);
+  }
+}
+
+// The device-memory cap: a volume that does not fit is bricked by itself (and renders the same),
+// one that fits stays in core, an impossible cap and malformed values are clear errors.
+TEST(BrickedRenderMemory, CapChoosesBricksAndErrorsAreClear) {
+  Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
+  s.volume.nx = 40, s.volume.ny = 36, s.volume.nz = 44;
+  s.volume.data.assign(s.volume.voxel_count(), 0.5f);
+  for (std::size_t i = 0; i < s.volume.data.size(); ++i) s.volume.data[i] = float((i * 7919) % 101) / 100;
+  set_default_box(s);
+  const Image in_core = render_with(s, Precision::f32, 0);
+  {
+    ScopedEnv cap("IVR_DEVICE_MEMORY_LIMIT", "160K");  // the volume alone is 253 KiB
+    RenderStats st;
+    const Image capped = render_with(s, Precision::f32, 0, &st);
+    EXPECT_GT(st.bricks, 1);
+    EXPECT_LE(st.device_bytes, 160u * 1024);
+    expect_same(in_core, capped, 1e-5, "under a 160 KiB cap");
+  }
+  {
+    ScopedEnv cap("IVR_DEVICE_MEMORY_LIMIT", "64M");
+    RenderStats st;
+    render_with(s, Precision::f32, 0, &st);
+    EXPECT_EQ(st.bricks, 1);
+  }
+  {
+    ScopedEnv cap("IVR_DEVICE_MEMORY_LIMIT", "2K");
+    try {
+      render_with(s, Precision::f32, 0);
+      ADD_FAILURE() << "a 2 KiB cap rendered";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.status(), Status::out_of_memory);
+      EXPECT_TRUE(has(e.what(), "IVR_DEVICE_MEMORY_LIMIT")) << e.what();
+    }
+  }
+  for (const char* bad : {"lots", "-5", "12Q", "0"}) {
+    ScopedEnv cap("IVR_DEVICE_MEMORY_LIMIT", bad);
+    try {
+      render_with(s, Precision::f32, 0);
+      ADD_FAILURE() << bad;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.status(), Status::invalid_argument) << bad;
+      EXPECT_TRUE(has(e.what(), "IVR_DEVICE_MEMORY_LIMIT")) << e.what();
+    }
+  }
+  {
+    ScopedEnv brick("IVR_VOLUME_BRICK", "x");
+    EXPECT_THROW(render_with(s, Precision::f32, 0), Error);
+  }
+  {
+    ScopedEnv brick("IVR_VOLUME_BRICK", "16");
+    RenderStats st;
+    expect_same(in_core, render_with(s, Precision::f32, 0, &st), 1e-5, "IVR_VOLUME_BRICK=16");
+    EXPECT_EQ(st.bricks, brick_layout(40, 36, 44, 16).total());
+  }
+}
+
+}  // namespace
+}  // namespace ivr

@@ -83,7 +83,7 @@ Runner add_jacobian_command(CLI::App& app) {
                                   {"passes", t.passes},
                                   {"lanes", t.lanes},
                                   {"device_bytes", t.device_bytes},
-                                  {"device", device.info().name},
+                                  {"device", device.info().name}, {"bricks", 1},
                                   {"precision", args->march.precision},
                                   {"scheme", scheme_name(scene.integrator.scheme)},
                                   {"step", t.step},

@@ -462,7 +462,7 @@ Runner add_reconstruct_command(CLI::App& app) {
           {"iterations_per_second", rate}, {"loss_first", loss_first},
           {"loss_final", loss_final},      {"optimizer", optimizer_name(used.optimizer.kind)},
           {"lr", used.optimizer.lr},       {"levels", levels},
-          {"device", device.info().name},  {"outputs", outputs}};
+          {"device", device.info().name}, {"bricks", 1},  {"outputs", outputs}};
       if (!a.truth.empty()) j["volume_error"] = volume_error;
       if (!a.held_out.empty()) j["held_out_psnr"] = held_out_psnr;  // null where +infinity
       if (resumed_from >= 0) j["resumed_from"] = resumed_from;

@@ -20,6 +20,7 @@ struct RenderArgs {
   MarchOptions march;
   bool json = false;
   std::string empty_space = "auto";
+  int volume_brick = 0;
 };
 
 std::string lower_ext(const std::string& path) {
@@ -56,6 +57,11 @@ Runner add_render_command(CLI::App& app) {
                   "Empty-space skipping: auto (when the TF is 0 somewhere and >= 5% of the bricks "
                   "are empty), on or off; the image is the same up to rounding")
       ->check(CLI::IsMember({"auto", "on", "off"}));
+  cmd->add_option("--volume-brick", args->volume_brick,
+                  "Out-of-core: stream the volume through the device in bricks of N cells per edge "
+                  "(docs/scaling.md); by default only where it does not fit the device memory or "
+                  "$IVR_DEVICE_MEMORY_LIMIT")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--json", args->json,
                 "Print one JSON object with device, timings and sample counts");
   return [args] {
@@ -83,6 +89,7 @@ Runner add_render_command(CLI::App& app) {
       throw Error(Status::invalid_argument,
                   "output '" + args->output +
                       "': a scene of rays renders one value per ray: write .npy (rays, C)");
+    options.volume_brick = args->volume_brick;
     RenderStats stats;
     const Image image = render(device, scene, options, &stats);
 
@@ -121,6 +128,11 @@ Runner add_render_command(CLI::App& app) {
                              {{"skipped", stats.skipped_empty},
                               {"empty_fraction", stats.empty_fraction},
                               {"grid_seconds", stats.grid_seconds}}},
+                            {"bricks", stats.bricks},
+                            {"brick_edge", stats.brick_edge},
+                            {"sweeps", stats.sweeps},
+                            {"device_bytes", stats.device_bytes},
+                            {"uploaded_bytes", stats.uploaded_bytes},
                             {"outputs", paths}};
       if (scene.integrator.tolerance > 0 && options.step == 0)
         out["tolerance"] = {{"requested", scene.integrator.tolerance},

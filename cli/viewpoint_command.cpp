@@ -150,7 +150,7 @@ Runner add_viewpoint_command(CLI::App& app) {
                                   {"best_iteration", top.iteration},
                                   {"history", history},
                                   {"camera", nlohmann::json::parse(camera)},
-                                  {"device", device.info().name},
+                                  {"device", device.info().name}, {"bricks", 1},
                                   {"outputs", outputs}}
                        .dump()
                 << "\n";

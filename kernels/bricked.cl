@@ -19,8 +19,8 @@
 #include "primal.cl"
 
 // The per-ray state: reals, then uints.
-#define IVR_BRICK_REALS 16
-#define IVR_BRICK_UINTS 4
+#define IVR_BRICK_REALS 24
+#define IVR_BRICK_UINTS 5
 // reals: the Radiance sums, the carried end sample (trapezoid, preintegrated), where the march
 // stands
 #define BS_T 0
@@ -38,11 +38,18 @@
 #define BS_AEG 12
 #define BS_AEB 13
 #define BS_TNEXT 14
+// the ray's global march, from BEGIN (march_begin: its sample count costs correctly rounded
+// divisions, once per ray rather than once per brick)
+#define BS_T0 15
+#define BS_T1 16
+#define BS_DT 17
+#define BS_U0 18  // u0x, u0y, u0z, dux, duy, duz
 // uints
 #define BU_SAMPLES 0
 #define BU_END 1
 #define BU_NEXT 2  // the next sample (midpoint) or segment (endpoint schemes)
 #define BU_FLAGS 3
+#define BU_N 4
 #define IVR_BRICK_DONE 1u
 #define IVR_BRICK_STARTED 2u  // the endpoint schemes' sample 0 is taken
 
@@ -230,20 +237,27 @@ __kernel void bricked_render(__global const real* restrict volume, const int4 di
     return;
   }
 
-  const Ray ray = camera_ray(cam, x, y, width, height);
   RayMarch m;
-  const bool hit =
-      march_begin(ray, cam, x, y, width, height, box_min, box_max, inv_voxel, step, &m);
   if (phase == IVR_BRICK_BEGIN) {
+    const bool hit = march_begin(camera_ray(cam, x, y, width, height), cam, x, y, width, height,
+                                 box_min, box_max, inv_voxel, step, &m);
     for (int k = 0; k < IVR_BRICK_REALS; ++k) s[k] = (real)0;
     s[BS_T] = (real)1;
-    s[BS_TNEXT] = hit ? m.t0 : (real)0;
-    su[BU_SAMPLES] = su[BU_END] = su[BU_NEXT] = 0u;
+    su[BU_SAMPLES] = su[BU_END] = su[BU_NEXT] = su[BU_N] = 0u;
     // An empty interval: the unsplit march's samples there add nothing (dt = 0).
     su[BU_FLAGS] = hit && m.t1 > m.t0 ? 0u : IVR_BRICK_DONE;
+    if (!hit) return;
+    s[BS_TNEXT] = s[BS_T0] = m.t0;
+    s[BS_T1] = m.t1, s[BS_DT] = m.dt;
+    s[BS_U0 + 0] = m.u0x, s[BS_U0 + 1] = m.u0y, s[BS_U0 + 2] = m.u0z;
+    s[BS_U0 + 3] = m.dux, s[BS_U0 + 4] = m.duy, s[BS_U0 + 5] = m.duz;
+    su[BU_N] = m.n;
     return;
   }
   if (su[BU_FLAGS] & IVR_BRICK_DONE) return;
+  m.t0 = s[BS_T0], m.t1 = s[BS_T1], m.dt = s[BS_DT], m.n = su[BU_N];
+  m.u0x = s[BS_U0 + 0], m.u0y = s[BS_U0 + 1], m.u0z = s[BS_U0 + 2];
+  m.dux = s[BS_U0 + 3], m.duy = s[BS_U0 + 4], m.duz = s[BS_U0 + 5];
   real tb0 = m.t0, tb1 = m.t1;
   brick_slab(m.u0x, m.dux, brick_lo.x, brick_hi.x, &tb0, &tb1);
   brick_slab(m.u0y, m.duy, brick_lo.y, brick_hi.y, &tb0, &tb1);

@@ -8,6 +8,7 @@
 
 #include "ivr/device.hpp"
 #include "ivr/scene.hpp"
+#include "runtime/device_memory.hpp"
 
 namespace ivr {
 
@@ -33,15 +34,6 @@ struct BrickLayout {
 
 // Bricks of `edge` cells (≥ 1) over the volume's dims.
 BrickLayout brick_layout(int nx, int ny, int nz, int edge);
-
-// The device memory an operation may use: $IVR_DEVICE_MEMORY_LIMIT (bytes; a plain integer, or
-// with a K/M/G suffix of powers of 1024) where set, else the device's global memory, whichever is
-// smaller. Throws Error(invalid_argument) naming the variable on a malformed value.
-std::uint64_t device_memory_budget(const DeviceInfo& info);
-// $IVR_DEVICE_MEMORY_LIMIT alone (0: not set).
-std::uint64_t device_memory_limit_from_env();
-// "1.5 GiB"-style text of a byte count.
-std::string memory_text(std::uint64_t bytes);
 
 // Brick b's voxels from the host volume, converted to the kernels' real (float or double) into
 // `out` (bytes, resized).

@@ -17,12 +17,20 @@ namespace ivr {
 
 namespace {
 
-constexpr int kStateReals = 16, kStateUints = 4;  // kernels/bricked.cl IVR_BRICK_REALS / _UINTS
+constexpr int kStateReals = 24, kStateUints = 5;
+// Runs of views up to this long launch each view over its brick's pixels alone (brick_pixels);
+// longer ones launch once over every pixel of the run.
+constexpr int kCulledViews = 16;  // kernels/bricked.cl IVR_BRICK_REALS / _UINTS
 enum Phase { kBegin = 0, kMarch = 1, kFinish = 2 };
 
+// The cameras or rays, their parameters and the TF on the device (bounds), and a little for the
+// session's one-byte buffers.
 std::uint64_t geometry_bytes(const Scene& scene, std::size_t real_size) {
-  return (32 * scene.cameras.size() + RayList::kColumns * scene.rays.count() + 6 * 1024) *
-         real_size;
+  const std::size_t tf_rows =
+      std::max({scene.tf.points.size(), scene.tf.entries.size(), scene.tf.gaussians.size()}) + 1;
+  return (64 * scene.cameras.size() + RayList::kColumns * scene.rays.count() + 8 * tf_rows) *
+             real_size +
+         1024;
 }
 
 // Bricks in an order that every ray of the views with this key meets front to back: by the sum
@@ -95,6 +103,57 @@ std::vector<ViewGroup> view_groups(const Scene& scene, const BrickLayout& l) {
   return out;
 }
 
+// The pixels of `view` whose rays can meet brick b: the bounding rectangle of its corners
+// projected (a camera ray meets a convex brick only through its projection), two pixels wider for
+// rounding; the whole image where a corner lies behind a perspective eye, or for a ray list. Only
+// the work spared depends on it: a ray it left out stays pending and the next sweep takes every
+// pixel (render_bricked).
+struct PixelRect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) × [y0, y1)
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+PixelRect brick_pixels(const Scene& scene, const BrickLayout& l, int b, int view) {
+  const ImageExtent e = image_extent(scene);
+  const PixelRect all{0, 0, e.width, e.height};
+  if (scene.has_ray_list()) return all;
+  const Camera& c = scene.cameras[view];
+  const glm::dvec3 h = scene.voxel_size();
+  const std::array<double, 3> lo = l.lo(b), hi = l.hi(b);
+  glm::dvec3 wlo, whi;
+  for (int a = 0; a < 3; ++a) {
+    wlo[a] = std::isfinite(lo[a]) ? scene.box_min[a] + (lo[a] + 0.5) * h[a] : scene.box_min[a];
+    whi[a] = std::isfinite(hi[a]) ? scene.box_min[a] + (hi[a] + 0.5) * h[a] : scene.box_max[a];
+  }
+  const glm::dvec3 fwd = glm::normalize(c.target - c.eye);
+  const glm::dvec3 right = glm::normalize(glm::cross(fwd, c.up));
+  const glm::dvec3 up = glm::cross(right, fwd);
+  const double aspect = double(e.width) / e.height;
+  const bool ortho = c.projection == Projection::orthographic;
+  const double half_h = ortho ? c.ortho_height / 2 : std::tan(c.fov_y * 3.14159265358979323846 / 360);
+  double sx0 = INFINITY, sx1 = -INFINITY, sy0 = INFINITY, sy1 = -INFINITY;
+  for (int k = 0; k < 8; ++k) {
+    const glm::dvec3 p((k & 1) ? whi.x : wlo.x, (k & 2) ? whi.y : wlo.y, (k & 4) ? whi.z : wlo.z);
+    const glm::dvec3 d = p - c.eye;
+    double depth = 1;
+    if (!ortho) {
+      depth = glm::dot(d, fwd);
+      if (!(depth > 1e-6 * glm::length(d))) return all;
+    }
+    const double sx = glm::dot(d, right) / (depth * half_h * aspect);
+    const double sy = glm::dot(d, up) / (depth * half_h);
+    sx0 = std::min(sx0, sx), sx1 = std::max(sx1, sx), sy0 = std::min(sy0, sy), sy1 = std::max(sy1, sy);
+  }
+  // Pixel x's centre is at sx = (2x + 1)/W − 1; row y's at sy = 1 − (2y + 1)/H.
+  auto clampi = [](double v, int n) { return int(std::clamp(v, 0.0, double(n))); };
+  PixelRect r;
+  r.x0 = clampi(std::floor((sx0 + 1) * e.width / 2 - 0.5) - 2, e.width);
+  r.x1 = clampi(std::ceil((sx1 + 1) * e.width / 2 - 0.5) + 3, e.width);
+  r.y0 = clampi(std::floor((1 - sy1) * e.height / 2 - 0.5) - 2, e.height);
+  r.y1 = clampi(std::ceil((1 - sy0) * e.height / 2 - 0.5) + 3, e.height);
+  return r;
+}
+
 }  // namespace
 
 int volume_brick_from_env() {
@@ -108,15 +167,17 @@ int volume_brick_from_env() {
   return int(v);
 }
 
-BrickPlan plan_render(const DeviceInfo& info, const Scene& scene, Precision precision,
-                      int forced_edge) {
+BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge) {
   BrickPlan plan;
+  const DeviceInfo& info = device.info();
   const std::size_t real_size = precision == Precision::f64 ? 8 : 4;
   const std::uint64_t rays = image_extent(scene).pixels();
   const std::uint64_t voxels = scene.volume.voxel_count();
   const std::uint64_t image = rays * (scene.channels() * real_size + 4);
   const std::uint64_t geometry = geometry_bytes(scene, real_size);
   plan.budget = device_memory_budget(info);
+  const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(device.impl().live->bytes, 0));
+  if (plan.budget) plan.budget = plan.budget > in_use ? plan.budget - in_use : 1;
   plan.in_core_bytes = voxels * real_size + image + geometry;
   if (forced_edge <= 0) forced_edge = volume_brick_from_env();
   if (forced_edge <= 0 && (plan.budget == 0 || plan.in_core_bytes <= plan.budget)) return plan;
@@ -135,6 +196,9 @@ BrickPlan plan_render(const DeviceInfo& info, const Scene& scene, Precision prec
   plan.layout = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);
   const std::uint64_t slot = plan.layout.largest_voxels() * real_size;
   const int wanted = std::min(plan.layout.total(), 2);
+  // Where not even the image and the per-ray state fit, bricks cannot help: the in-core render
+  // reports what does not fit (unless bricks were asked for).
+  if (plan.budget && !fits(edge, wanted) && forced_edge <= 0) return BrickPlan{{}, 0, plan.budget, plan.in_core_bytes, 0};
   if (plan.budget && !fits(edge, wanted))
     throw Error(Status::out_of_memory,
                 "out-of-core render: bricks of " + std::to_string(edge) + " cells (" +
@@ -259,14 +323,22 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
           const int i = resident(b);
           set_brick(b, i);
           std::vector<cl::Event> wait{slot_write[i]};
-          for (const auto& [first, count] : g.runs) {
-            k.setArg(a0, cl_int(kMarch));
+          k.setArg(a0, cl_int(kMarch));
+          auto march = [&](const PixelRect& r, int first, int count) {
+            if (r.empty()) return;
             cl::Event ev;
-            dev.queue.enqueueNDRangeKernel(k, cl::NDRange(0, 0, first),
-                                           cl::NDRange(e.width, e.height, count), cl::NullRange,
-                                           &wait, &ev);
+            dev.queue.enqueueNDRangeKernel(k, cl::NDRange(r.x0, r.y0, first),
+                                           cl::NDRange(r.x1 - r.x0, r.y1 - r.y0, count),
+                                           cl::NullRange, &wait, &ev);
             op.events.push_back(ev);
             slot_uses[i].push_back(ev);
+          };
+          for (const auto& [first, count] : g.runs) {
+            if (sweeps > 1 || count > kCulledViews) {  // every pixel
+              march(PixelRect{0, 0, e.width, e.height}, first, count);
+              continue;
+            }
+            for (int v = first; v < first + count; ++v) march(brick_pixels(scene, l, b, v), v, 1);
           }
           dev.queue.flush();
         }

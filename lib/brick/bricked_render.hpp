@@ -23,8 +23,8 @@ struct BrickPlan {
 // $IVR_VOLUME_BRICK is set), else in core where the volume and the render's buffers fit the budget
 // (device_memory_budget), else the largest power-of-two edge whose two bricks and the per-ray state
 // fit. Throws Error(out_of_memory) where not even bricks of one cell fit.
-BrickPlan plan_render(const DeviceInfo& info, const Scene& scene, Precision precision,
-                      int forced_edge);
+// The budget is what the cap leaves beside the device's buffers already alive.
+BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge);
 
 // Renders `scene` brick by brick as `plan` says; the image equals render()'s in core to rounding.
 Image render_bricked(Device& device, const Scene& scene, const RenderOptions& options,

@@ -128,7 +128,7 @@ Image image_of(const DeviceArray& image) {
 }
 
 Image render(Device& device, const Scene& scene, const RenderOptions& options, RenderStats* stats) {
-  const BrickPlan plan = plan_render(device.info(), scene, options.precision, options.volume_brick);
+  const BrickPlan plan = plan_render(device, scene, options.precision, options.volume_brick);
   if (plan.layout.edge) return render_bricked(device, scene, options, plan, stats);
   Session session = one_shot_session(device, scene,
                                      {options.precision, options.step, options.empty_space,

@@ -2,6 +2,8 @@
 // context and queue creation, and readable OpenCL errors.
 #include "runtime/runtime.hpp"
 
+#include "runtime/device_memory.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
@@ -298,6 +300,14 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
   }
   if (host && !(flags & CL_MEM_USE_HOST_PTR)) flags |= CL_MEM_COPY_HOST_PTR;
   const std::size_t size = std::max<std::size_t>(bytes, 1);
+  if (const std::uint64_t limit = device_memory_limit_from_env();
+      limit && std::uint64_t(live->bytes.load()) + size > limit) {
+    std::ostringstream msg;
+    msg << what << " needs " << size << " bytes, which would take the device memory in use to "
+        << live->bytes.load() + std::int64_t(size) << " bytes, over IVR_DEVICE_MEMORY_LIMIT ("
+        << limit << " bytes; out-of-core bricks: docs/scaling.md)";
+    throw Error(Status::out_of_memory, msg.str());
+  }
   if (allocation_countdown > 0 && allocation_countdown.fetch_sub(1) == 1)
     throw_cl(cl::Error(CL_MEM_OBJECT_ALLOCATION_FAILURE, "clCreateBuffer (injected)"),
              std::string("allocating ") + what);
@@ -310,7 +320,9 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
     std::int64_t bytes;
   };
   auto* tracker = new Tracker{live, std::int64_t(size)};
-  live->bytes += tracker->bytes;
+  const std::int64_t now = live->bytes += tracker->bytes;
+  for (std::int64_t p = live->peak.load(); now > p && !live->peak.compare_exchange_weak(p, now);) {
+  }
   live->buffers += 1;
   const cl_int status = clSetMemObjectDestructorCallback(
       b(),

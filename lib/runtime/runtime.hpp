@@ -62,13 +62,17 @@ struct Device::Impl {
   ProgramCache programs;
 
   // Device buffer of `bytes`, checked against the device's limits first so that an impossible
-  // request is a clear out_of_memory error rather than a driver failure later.
+  // request is a clear out_of_memory error rather than a driver failure later. Where
+  // $IVR_DEVICE_MEMORY_LIMIT is set, the buffers alive on this device may not exceed it either
+  // (the cap that out-of-core operations plan for, lib/brick/; others fail clearly under it).
   cl::Buffer buffer(cl_mem_flags flags, std::size_t bytes, const void* host, const char* what);
 
   // The bytes and buffers of this device's allocations still alive (every buffer comes from
   // buffer(); the driver's destructor callback counts them out), for leak tests and reports.
   struct Live {
     std::atomic<std::int64_t> bytes{0}, buffers{0};
+    std::atomic<std::int64_t> peak{0};  // the most `bytes` has been (reset_peak() to measure)
+    void reset_peak() { peak = bytes.load(); }
   };
   std::shared_ptr<Live> live = std::make_shared<Live>();
 };

@@ -268,3 +268,20 @@ def test_tomo_errors_raise_ivr_error(ctx):
         raise KeyError("from the callback")
     with pytest.raises(KeyError, match="from the callback"):
         ctx.tomo(TOMO, lines + 1, iterations=5, grid=(16, 16, 16), progress=fails)
+
+
+def test_out_of_core_render_equals_the_in_core_one(ctx, monkeypatch):
+    # A volume split into bricks (forced, then chosen under a device-memory cap) renders the
+    # in-core image to float32 rounding (docs/scaling.md).
+    rng = np.random.default_rng(5)
+    vol = rng.random((20, 17, 23), dtype=np.float32)
+    scene = SCENE
+    in_core = ctx.render(scene, vol)
+    monkeypatch.setenv("IVR_VOLUME_BRICK", "4")
+    np.testing.assert_allclose(ctx.render(scene, vol), in_core, rtol=0, atol=1e-5)
+    monkeypatch.delenv("IVR_VOLUME_BRICK")
+    monkeypatch.setenv("IVR_DEVICE_MEMORY_LIMIT", "24K")  # the volume alone is 30.5 KiB
+    np.testing.assert_allclose(ctx.render(scene, vol), in_core, rtol=0, atol=1e-5)
+    monkeypatch.setenv("IVR_DEVICE_MEMORY_LIMIT", "1K")
+    with pytest.raises(ivr.Error, match="IVR_DEVICE_MEMORY_LIMIT"):
+        ctx.render(scene, vol)

@@ -13,6 +13,7 @@
 // (exact) is taken once. A brick takes a ray only where its window starts where the ray's march
 // stands (t_next): a brick met out of order leaves the ray pending for the next sweep
 // (lib/brick/bricked_render.cpp), so the order only decides the number of sweeps, never the result.
+#include "brick_window.cl"
 #include "config.cl"
 #include "geometry.cl"
 #include "march.cl"
@@ -57,18 +58,6 @@
 #define IVR_BRICK_BEGIN 0
 #define IVR_BRICK_MARCH 1
 #define IVR_BRICK_FINISH 2
-
-// Cuts [*ta, *tb] to the ray's part with lo <= u < hi on one axis (u = u0 + t·du); a ray parallel
-// to the planes is inside where lo <= u0 < hi, so that it lies in exactly one brick.
-inline void brick_slab(real u0, real du, real lo, real hi, real* ta, real* tb) {
-  if (du != (real)0) {
-    const real a = (lo - u0) / du, b = (hi - u0) / du;
-    *ta = fmax(*ta, fmin(a, b));
-    *tb = fmin(*tb, fmax(a, b));
-  } else if (!(u0 >= lo && u0 < hi)) {
-    *tb = -INFINITY;
-  }
-}
 
 inline Radiance brick_load(__global const real* s, __global const uint* su) {
   Radiance r;
@@ -259,9 +248,7 @@ __kernel void bricked_render(__global const real* restrict volume, const int4 di
   m.u0x = s[BS_U0 + 0], m.u0y = s[BS_U0 + 1], m.u0z = s[BS_U0 + 2];
   m.dux = s[BS_U0 + 3], m.duy = s[BS_U0 + 4], m.duz = s[BS_U0 + 5];
   real tb0 = m.t0, tb1 = m.t1;
-  brick_slab(m.u0x, m.dux, brick_lo.x, brick_hi.x, &tb0, &tb1);
-  brick_slab(m.u0y, m.duy, brick_lo.y, brick_hi.y, &tb0, &tb1);
-  brick_slab(m.u0z, m.duz, brick_lo.z, brick_hi.z, &tb0, &tb1);
+  brick_window(m.u0x, m.u0y, m.u0z, m.dux, m.duy, m.duz, brick_lo, brick_hi, &tb0, &tb1);
   if (!(tb1 > tb0) || tb0 != s[BS_TNEXT]) return;  // not in this brick, or not yet
   m.u0x -= (real)origin.x, m.u0y -= (real)origin.y, m.u0z -= (real)origin.z;
   Radiance r = brick_load(s, su);

@@ -3,6 +3,7 @@
 // a ray with the `exact` integrator's centre-plane pieces (kernels/exact.cl) and use the same
 // per-piece corner weights, so ⟨N x, y⟩ = ⟨x, Nᵀ y⟩ holds to rounding.
 #include "atomics.cl"
+#include "brick_window.cl"
 #include "config.cl"
 #include "exact.cl"
 #include "geometry.cl"
@@ -159,4 +160,84 @@ __kernel void backproject(__global const real* restrict line, const int4 dims, c
     backproject_ray(line, dims, box_min, box_max, inv_voxel, cameras, width, height, x, y, view,
                     sink);
   scatter_flush(sink);
+}
+
+// --- One brick of a bricked volume (docs/scaling.md; lib/brick/bricked_project.cpp) ------------
+// `volume` holds the brick's voxels (dims: their extent; origin: its first voxel); brick_lo and
+// brick_hi are its planes. A ray's pieces inside the brick are the unsplit ray's (the brick's
+// faces are centre planes), so N = Σ_bricks N_brick and Nᵀ is each brick's Nᵀ added into the
+// volume (the host adds the shared planes from both sides).
+
+// The ray's window in the brick, with the march moved to the brick's voxels and its pieces
+// begun at the window's start; false where the ray misses the brick.
+inline bool projector_brick_ray(__global const real* cameras, int x, int y, int view, int width,
+                                int height, int4 dims, real4 box_min, real4 box_max,
+                                real4 inv_voxel, real4 brick_lo, real4 brick_hi, int4 origin,
+                                March* m, Pieces* p) {
+  if (!projector_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel, m, p))
+    return false;
+  real ta = m->t0, tb = m->t1;
+  brick_window(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, brick_lo, brick_hi, &ta, &tb);
+  if (!(tb > ta)) return false;
+  m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
+  m->t1 = tb;
+  pieces_begin(p, m, dims, ta);
+  return true;
+}
+
+// N of one brick, added to `line`.
+__kernel void project_brick(__global const real* restrict volume, const int4 dims,
+                            const real4 box_min, const real4 box_max, const real4 inv_voxel,
+                            __global const real* restrict cameras, const int width,
+                            const int height, __global real* restrict line, const real4 brick_lo,
+                            const real4 brick_hi, const int4 origin) {
+  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  if (x >= width || y >= height) return;
+  March m;
+  Pieces p;
+  if (!projector_brick_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel,
+                           brick_lo, brick_hi, origin, &m, &p))
+    return;
+  real sum = (real)0, ta, tb;
+  while (pieces_next(&p, &m, dims, &ta, &tb)) {
+    if (!(tb > ta)) continue;
+    const PieceCell c = piece_cell(&m, dims, ta, tb);
+    real v[8];
+    piece_corners(volume, dims, c, v);
+    const PieceWeights w = piece_weights(c, tb - ta);
+    for (int j = 0; j < 4; ++j) {
+      const real v0 = v[2 * j], v1 = v[2 * j + 1];
+      sum += w.p[j] * (v0 + w.mx1 * (v1 - v0)) + w.q[j] * w.gx * (v1 - v0);
+    }
+  }
+  line[((size_t)view * height + y) * width + x] += sum;
+}
+
+// Nᵀ of one brick into its voxels (`volume`, zeroed first), atomically.
+__kernel void backproject_brick(__global const real* restrict line, const int4 dims,
+                                const real4 box_min, const real4 box_max, const real4 inv_voxel,
+                                __global const real* restrict cameras, const int width,
+                                const int height, __global real* volume, const real4 brick_lo,
+                                const real4 brick_hi, const int4 origin) {
+  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  if (x >= width || y >= height) return;
+  const real value = line[((size_t)view * height + y) * width + x];
+  March m;
+  Pieces p;
+  if (value == (real)0 ||
+      !projector_brick_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel,
+                           brick_lo, brick_hi, origin, &m, &p))
+    return;
+  real ta, tb;
+  while (pieces_next(&p, &m, dims, &ta, &tb)) {
+    if (!(tb > ta)) continue;
+    const PieceCell c = piece_cell(&m, dims, ta, tb);
+    int index[8];
+    piece_corner_index(dims, c, index);
+    const PieceWeights w = piece_weights(c, tb - ta);
+    for (int k = 0; k < 8; ++k) {
+      const real wk = piece_weight(&w, k);
+      if (wk != (real)0) atomic_add_global(volume + index[k], value * wk);
+    }
+  }
 }

@@ -41,6 +41,11 @@ class IVR_API Projector {
   std::vector<double> backproject(const std::vector<double>& lines) const;
   // Device time of the last project/backproject kernel, seconds.
   double last_kernel_seconds() const;
+  // The bricks the volume is split into (1: in core). Where the volume and the lines do not fit
+  // the device memory ($IVR_DEVICE_MEMORY_LIMIT), or $IVR_VOLUME_BRICK asks, project() and
+  // backproject() stream it through the device brick by brick (docs/scaling.md), the same N and
+  // its exact transpose.
+  int bricks() const;
 
   struct Impl;
   Impl& impl() const { return *impl_; }

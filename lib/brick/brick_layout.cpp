@@ -6,7 +6,6 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <cstring>
 #include <limits>
 #include <sstream>
 
@@ -74,23 +73,47 @@ std::array<double, 3> BrickLayout::hi(int b) const {
   return p;
 }
 
-void extract_brick(const Volume& volume, const BrickLayout& layout, int b, bool f64,
-                   std::vector<unsigned char>& out) {
-  const std::array<int, 3> o = layout.origin(b), e = layout.extent(b);
-  const std::size_t real_size = f64 ? sizeof(double) : sizeof(float);
-  out.resize(layout.voxels(b) * real_size);
+namespace {
+template <typename T>
+void extract(const T* values, const BrickLayout& l, int b, bool f64, std::vector<unsigned char>& out) {
+  const std::array<int, 3> o = l.origin(b), e = l.extent(b);
+  out.resize(l.voxels(b) * (f64 ? sizeof(double) : sizeof(float)));
   std::size_t at = 0;
   for (int z = 0; z < e[2]; ++z)
     for (int y = 0; y < e[1]; ++y) {
-      const float* row =
-          volume.data.data() + (std::size_t(o[2] + z) * volume.ny + (o[1] + y)) * volume.nx + o[0];
+      const T* row = values + (std::size_t(o[2] + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
       if (f64) {
         double* dst = reinterpret_cast<double*>(out.data()) + at;
-        for (int x = 0; x < e[0]; ++x) dst[x] = row[x];
+        for (int x = 0; x < e[0]; ++x) dst[x] = double(row[x]);
       } else {
-        std::memcpy(reinterpret_cast<float*>(out.data()) + at, row, e[0] * sizeof(float));
+        float* dst = reinterpret_cast<float*>(out.data()) + at;
+        for (int x = 0; x < e[0]; ++x) dst[x] = float(row[x]);
       }
       at += std::size_t(e[0]);
+    }
+}
+}  // namespace
+
+void extract_brick(const float* values, const BrickLayout& layout, int b, bool f64,
+                   std::vector<unsigned char>& out) {
+  extract(values, layout, b, f64, out);
+}
+
+void extract_brick(const double* values, const BrickLayout& layout, int b, bool f64,
+                   std::vector<unsigned char>& out) {
+  extract(values, layout, b, f64, out);
+}
+
+void add_brick(const std::vector<unsigned char>& brick, const BrickLayout& l, int b, bool f64,
+               double* values) {
+  const std::array<int, 3> o = l.origin(b), e = l.extent(b);
+  std::size_t at = 0;
+  for (int z = 0; z < e[2]; ++z)
+    for (int y = 0; y < e[1]; ++y) {
+      double* row = values + (std::size_t(o[2] + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
+      for (int x = 0; x < e[0]; ++x, ++at)
+        row[x] += f64 ? reinterpret_cast<const double*>(brick.data())[at]
+                      : double(reinterpret_cast<const float*>(brick.data())[at]);
     }
 }
 

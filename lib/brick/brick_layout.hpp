@@ -35,9 +35,19 @@ struct BrickLayout {
 // Bricks of `edge` cells (≥ 1) over the volume's dims.
 BrickLayout brick_layout(int nx, int ny, int nz, int edge);
 
-// Brick b's voxels from the host volume, converted to the kernels' real (float or double) into
-// `out` (bytes, resized).
-void extract_brick(const Volume& volume, const BrickLayout& layout, int b, bool f64,
+// Brick b's voxels from host values of the layout's dims (x fastest), converted to the kernels'
+// real (float or double) into `out` (bytes, resized).
+void extract_brick(const float* values, const BrickLayout& layout, int b, bool f64,
                    std::vector<unsigned char>& out);
+void extract_brick(const double* values, const BrickLayout& layout, int b, bool f64,
+                   std::vector<unsigned char>& out);
+inline void extract_brick(const Volume& volume, const BrickLayout& layout, int b, bool f64,
+                          std::vector<unsigned char>& out) {
+  extract_brick(volume.data.data(), layout, b, f64, out);
+}
+// Adds brick b's values (the kernels' real, `f64` or not) into the host values of the layout's
+// dims: the planes bricks share get every brick's part.
+void add_brick(const std::vector<unsigned char>& brick, const BrickLayout& layout, int b, bool f64,
+               double* values);
 
 }  // namespace ivr

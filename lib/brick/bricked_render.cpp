@@ -1,6 +1,8 @@
 // bricked_render.cpp — the out-of-core render: plan, brick order, streaming, sweeps.
 #include "brick/bricked_render.hpp"
 
+#include "brick/brick_stream.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -250,18 +252,10 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
   const cl_uint zero = 0;
   cl::Buffer pending =
       dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, 4, &zero, "the pending-ray count");
-  const std::size_t slot_bytes = l.largest_voxels() * real_size;
-  std::vector<cl::Buffer> slot(plan.slots);
-  for (auto& b : slot)
-    b = dev.buffer(CL_MEM_READ_ONLY, slot_bytes, nullptr, "a brick of the volume");
-  std::vector<int> slot_brick(plan.slots, -1);
-  std::vector<long> slot_used(plan.slots, -1);
-  std::vector<std::vector<cl::Event>> slot_uses(plan.slots);
-  std::vector<cl::Event> slot_write(plan.slots);
-  std::vector<std::vector<unsigned char>> staging(plan.slots);
-  cl::CommandQueue uploads = cl_call("creating the upload queue on " + dev.info.name, [&] {
-    return cl::CommandQueue(dev.context, dev.device, 0);
-  });
+  BrickStream stream(dev, plan.slots, l.largest_voxels() * real_size);
+  auto fill = [&](int b, std::vector<unsigned char>& out) {
+    extract_brick(scene.volume, l, b, s.f64, out);
+  };
 
   int a0 = 0;
   cl_call("setting the bricked render's arguments", [&] {
@@ -275,13 +269,12 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
   auto set_brick = [&](int b, int sl) {
     const std::array<int, 3> o = l.origin(b), x = l.extent(b);
     const std::array<double, 3> lo = l.lo(b), hi = l.hi(b);
-    k.setArg(0, slot[sl]);
+    k.setArg(0, stream.buffer(sl));
     k.setArg(1, cl_int4{{x[0], x[1], x[2], 0}});
     set_real4(k, a0 + 1, s.f64, lo[0], lo[1], lo[2]);
     set_real4(k, a0 + 2, s.f64, hi[0], hi[1], hi[2]);
     k.setArg(a0 + 3, cl_int4{{o[0], o[1], o[2], 0}});
   };
-  std::uint64_t uploaded = 0, uploads_count = 0;
   auto launch = [&](Phase phase, int first_view, int views) {
     k.setArg(a0, cl_int(phase));
     cl::Event ev;
@@ -290,25 +283,6 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
                                    &ev);
     op.events.push_back(ev);
     return ev;
-  };
-  long clock = 0;
-  // The slot holding brick b, loading it (into the least recently used slot) where none does.
-  auto resident = [&](int b) {
-    for (int i = 0; i < plan.slots; ++i)
-      if (slot_brick[i] == b) return slot_used[i] = ++clock, i;
-    const int i = int(std::min_element(slot_used.begin(), slot_used.end()) - slot_used.begin());
-    if (!slot_uses[i].empty()) cl::WaitForEvents(slot_uses[i]);  // its last brick's marches
-    slot_uses[i].clear();
-    if (slot_write[i]()) slot_write[i].wait();  // its staging copy is free again
-    extract_brick(scene.volume, l, b, s.f64, staging[i]);
-    uploads.enqueueWriteBuffer(slot[i], CL_FALSE, 0, staging[i].size(), staging[i].data(),
-                               nullptr, &slot_write[i]);
-    uploads.flush();
-    uploaded += staging[i].size();
-    ++uploads_count;
-    slot_brick[i] = b;
-    slot_used[i] = ++clock;
-    return i;
   };
 
   const std::vector<ViewGroup> groups = view_groups(scene, l);
@@ -320,9 +294,9 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
       ++sweeps;
       for (const ViewGroup& g : groups)
         for (int b : g.order) {
-          const int i = resident(b);
+          const int i = stream.resident(b, fill);
           set_brick(b, i);
-          std::vector<cl::Event> wait{slot_write[i]};
+          std::vector<cl::Event> wait{stream.ready(i)};
           k.setArg(a0, cl_int(kMarch));
           auto march = [&](const PixelRect& r, int first, int count) {
             if (r.empty()) return;
@@ -331,7 +305,7 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
                                            cl::NDRange(r.x1 - r.x0, r.y1 - r.y0, count),
                                            cl::NullRange, &wait, &ev);
             op.events.push_back(ev);
-            slot_uses[i].push_back(ev);
+            stream.used(i, ev);
           };
           for (const auto& [first, count] : g.runs) {
             if (sweeps > 1 || count > kCulledViews) {  // every pixel
@@ -374,8 +348,8 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
     stats->bricks = l.total();
     stats->brick_edge = l.edge;
     stats->sweeps = st.sweeps;
-    stats->uploaded_bytes = uploaded;
-    stats->brick_uploads = uploads_count;
+    stats->uploaded_bytes = stream.uploaded_bytes;
+    stats->brick_uploads = stream.uploads;
     (void)start;
   }
   return out;

@@ -6,6 +6,8 @@
 
 #include "ivr/error.hpp"
 #include "tomo/project.hpp"
+
+#include "brick/bricked_project.hpp"
 #include "runtime/real_args.hpp"
 #include "runtime/variants.hpp"
 #include "adjoint/scatter_cache.hpp"
@@ -183,6 +185,7 @@ Projector::Impl::Impl(Device& device, const Scene& scene, Precision prec)
   height = extent.height;
   voxels = std::size_t(nx) * ny * nz;
   rays = std::size_t(views) * width * height;
+  bricks = plan_projector(device, scene, prec);
   KernelConfig linalg("linalg.cl", "");
   linalg.set(Switch::f64, s.f64);
   linalg_program = program_for(dev, linalg);
@@ -241,6 +244,9 @@ int Projector::width() const {
 Precision Projector::precision() const {
   return impl_->precision;
 }
+int Projector::bricks() const {
+  return impl_->bricks.edge ? impl_->bricks.total() : 1;
+}
 double Projector::last_kernel_seconds() const {
   return impl_->last_seconds;
 }
@@ -249,6 +255,7 @@ std::vector<double> Projector::project(const std::vector<double>& volume) const 
   if (volume.size() != impl_->voxels)
     bad("project: the volume has " + std::to_string(volume.size()) + " values, the grid " +
         std::to_string(impl_->voxels));
+  if (impl_->bricks.edge) return project_bricked(*impl_, impl_->bricks, volume);
   const cl::Buffer v = impl_->upload(volume, "the volume");
   const cl::Buffer lines = impl_->vector(impl_->rays, "the line integrals");
   impl_->project(v, lines);
@@ -259,6 +266,7 @@ std::vector<double> Projector::backproject(const std::vector<double>& lines) con
   if (lines.size() != impl_->rays)
     bad("backproject: " + std::to_string(lines.size()) + " values for " +
         std::to_string(impl_->rays) + " rays (views × height × width)");
+  if (impl_->bricks.edge) return backproject_bricked(*impl_, impl_->bricks, lines);
   const cl::Buffer p = impl_->upload(lines, "the projections");
   const cl::Buffer v = impl_->vector(impl_->voxels, "the back-projection");
   impl_->backproject(p, v);

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "ivr/session.hpp"
+#include "brick/brick_layout.hpp"
 #include "ivr/tomo.hpp"
 #include "runtime/runtime.hpp"
 
@@ -22,6 +23,7 @@ struct Projector::Impl {
   std::size_t voxels, rays;
   cl::Program linalg_program;
   double last_seconds = 0;  // device time of the last projector kernel
+  BrickLayout bricks;       // out of core (edge > 0): N and Nᵀ brick by brick (lib/brick/)
 
   Impl(Device& device, const Scene& scene, Precision precision);
 

@@ -144,7 +144,7 @@ Runner add_project_command(CLI::App& app) {
     write_outputs({{args->output, ray_file_shapes(scene)[0], lines, precision == Precision::f64}});
     const double seconds = projector.last_kernel_seconds();
     if (args->json) {
-      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", 1},
+      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector.bricks()},
                                   {"precision", args->precision},
                                   {"views", views},
                                   {"height", h},
@@ -187,7 +187,7 @@ Runner add_backproject_command(CLI::App& app) {
     write_outputs({{c.output, volume_shape(scene), volume, precision == Precision::f64}});
     const double seconds = projector.last_kernel_seconds();
     if (c.json) {
-      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", 1}, {"precision", c.precision},
+      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector.bricks()}, {"precision", c.precision},
                                   {"shape", volume_shape(scene)}, {"rays", projector.ray_count()},
                                   {"kernel_seconds", seconds},    {"output", c.output}}
                        .dump()
@@ -268,7 +268,7 @@ Runner add_tomo_command(CLI::App& app) {
             {{"iteration", it.iteration}, {"residual", it.residual}, {"seconds", it.seconds}});
       std::cout << nlohmann::json{{"solver", solver_name(args->options.solver)},
                                   {"precision", c.precision},
-                                  {"device", device.info().name}, {"bricks", 1},
+                                  {"device", device.info().name}, {"bricks", r.bricks},
                                   {"iterations", r.history.size()},
                                   {"max_iterations", total},
                                   {"stop_reason", r.stop_reason},

@@ -91,6 +91,7 @@ struct TomoResult {
   std::vector<TomoIteration> history;  // one entry per completed iteration
   std::string stop_reason;             // "iterations", "tolerance", "interrupted"
   double setup_seconds = 0;            // compiling, uploads, SIRT's normalisations
+  int bricks = 1;                      // the projector's bricks (> 1: out of core, host CGLS)
 };
 
 // Called after each iteration with the iterate's statistics; return false to stop (the last

@@ -302,6 +302,56 @@ void lsqr(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buff
 
 }  // namespace
 
+// CGLS on host vectors with the projector streaming bricks (the volume does not fit the device,
+// docs/scaling.md): the same iteration as cgls() on the stacked system [N; √λ I] of Tikhonov,
+// with non-negativity restarting from the projected iterate; the iterates equal the in-core
+// solver's up to rounding.
+void cgls_bricked(const Projector& N, const std::vector<double>& p, std::vector<double>& x,
+                  const TomoOptions& o, Monitor& m) {
+  const double lambda = o.tikhonov;
+  auto dot = [](const std::vector<double>& a, const std::vector<double>& b) {
+    double sum = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) sum += a[i] * b[i];
+    return sum;
+  };
+  // r = p − N x (data part; the Tikhonov part −√λ x is kept implicitly through x);
+  // s = Nᵀ r − λ x.
+  auto residual = [&] {
+    std::vector<double> r = N.project(x);
+    for (std::size_t i = 0; i < r.size(); ++i) r[i] = p[i] - r[i];
+    return r;
+  };
+  auto gradient = [&](const std::vector<double>& r) {
+    std::vector<double> s = N.backproject(r);
+    if (lambda > 0)
+      for (std::size_t i = 0; i < s.size(); ++i) s[i] -= lambda * x[i];
+    return s;
+  };
+  std::vector<double> r = residual(), s = gradient(r), d = s;
+  double gamma = dot(s, s);
+  for (int k = 1;; ++k) {
+    if (gamma > 0) {
+      const std::vector<double> q = N.project(d);
+      const double delta = dot(q, q) + lambda * dot(d, d);
+      if (!(delta > 0)) return (void)m.stop("converged");
+      const double alpha = gamma / delta;
+      bool restart = false;
+      for (std::size_t i = 0; i < x.size(); ++i) x[i] += alpha * d[i];
+      for (std::size_t i = 0; i < r.size(); ++i) r[i] -= alpha * q[i];
+      if (o.nonneg)
+        for (double& v : x)
+          if (v < 0) v = 0, restart = true;
+      if (restart) r = residual();
+      s = gradient(r);
+      const double gamma_next = dot(s, s);
+      for (std::size_t i = 0; i < d.size(); ++i) d[i] = restart ? s[i] : s[i] + gamma_next / gamma * d[i];
+      gamma = gamma_next;
+    }
+    if (!m.next(k, std::sqrt(dot(r, r)))) return;
+    if (!(gamma > 0)) return (void)m.stop("converged");
+  }
+}
+
 TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& lines,
                 const TomoOptions& options, const TomoProgress& progress,
                 const std::vector<double>* x0) {
@@ -331,6 +381,27 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
       return "x " + std::to_string(i % P.nx) + ", y " + std::to_string(i / P.nx % P.ny) + ", z " +
              std::to_string(i / (std::size_t(P.nx) * P.ny));
     });
+  }
+  if (projector.bricks() > 1) {  // out of core: CGLS on host vectors, the projector in bricks
+    if (options.solver != Solver::cgls || options.tv > 0)
+      throw Error(Status::unsupported,
+                  std::string("out-of-core reconstruction (the volume is split into ") +
+                      std::to_string(projector.bricks()) +
+                      " bricks): solver " + solver_name(options.solver) +
+                      (options.tv > 0 ? " with TV" : "") +
+                      " is not available; use cgls (with nonneg or tikhonov)");
+    std::vector<double> x = x0 ? *x0 : std::vector<double>(P.voxels, 0.0);
+    TomoResult result;
+    result.bricks = projector.bricks();
+    result.setup_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    double p_norm = 0;
+    for (double v : lines) p_norm += v * v;
+    Monitor monitor(options, progress, std::sqrt(p_norm), result);
+    cgls_bricked(projector, lines, x, options, monitor);
+    result.volume.assign(x.begin(), x.end());
+    if (options.precision == Precision::f64) result.volume_f64 = std::move(x);
+    return result;
   }
   DeviceVectors V(P);
   StackedSystem A(P, V, options);

@@ -107,7 +107,7 @@ Runner add_gradient_command(CLI::App& app) {
                             {"parameters", d.parameters},
                             {"seconds", d.kernel_seconds},
                             {"device_bytes", d.device_bytes},
-                            {"device", device.info().name}, {"bricks", 1},
+                            {"device", device.info().name}, {"bricks", d.bricks},
                             {"precision", args->march.precision},
                             {"scheme", scheme_name(scene.integrator.scheme)},
                             {"step", d.step},

@@ -258,3 +258,136 @@ __kernel void bricked_render(__global const real* restrict volume, const int4 di
   s[BS_TNEXT] = tb1;
   if (stopped || tb1 >= m.t1) su[BU_FLAGS] |= IVR_BRICK_DONE;
 }
+
+// --- The density gradient brick by brick (midpoint; lib/brick/bricked_gradient.cpp) -------------
+// After the forward sweeps, ADJOINT_BEGIN turns each ray's composited state into its loss terms
+// and dL/dpixel (as adjoint.cl's pixel_adjoint) and restarts its march; ADJOINT_MARCH then walks
+// the bricks front to back again, the carried prefix (transmittance and emission, summed as the
+// in-core adjoint sums them) giving each sample's remaining radiance as C minus the prefix
+// (docs/design.md), and scatters dL/d density into the brick's voxels (`grad`, zeroed per visit;
+// the host adds it into the volume's gradient).
+#include "adjoint_tf.cl"
+#include "loss.cl"
+
+#define IVR_BRICK_ADJOINT_BEGIN 3
+#define IVR_BRICK_ADJOINT_MARCH 4
+// Per ray, beside the march state: dL/d(r, g, b, alpha) (absorption: dL/dI in 0), the pixel's
+// radiance (r, g, b) and transmittance (absorption: its intensity in 4, unused 5–6).
+#define IVR_BRICK_ADJOINT_REALS 8
+
+__kernel void bricked_adjoint(__global const real* restrict volume, const int4 dims,
+                              const real4 box_min, const real4 box_max, const real4 inv_voxel,
+                              __global const real* restrict cameras, const int width,
+                              const int height, __global const real* restrict tf,
+                              const int tf_count, const real4 tf_scalars, const real4 background,
+                              const real step, const real min_transmittance, const int phase,
+                              const real4 brick_lo, const real4 brick_hi, const int4 origin,
+                              __global real* restrict state, __global uint* restrict state_u,
+                              __global real* restrict adj, __global const real* restrict target,
+                              const real norm, __global real* restrict pixel_loss,
+                              __global real* grad) {
+  const int x = get_global_id(0), y = get_global_id(1), view = get_global_id(2);
+  if (x >= width || y >= height) return;
+  (void)cameras, (void)box_min, (void)box_max, (void)inv_voxel, (void)step, (void)min_transmittance;
+  const size_t pixel = ((size_t)view * height + y) * width + x;
+  __global real* s = state + pixel * IVR_BRICK_REALS;
+  __global uint* su = state_u + pixel * IVR_BRICK_UINTS;
+  __global real* a = adj + pixel * IVR_BRICK_ADJOINT_REALS;
+
+  if (phase == IVR_BRICK_ADJOINT_BEGIN) {
+    Radiance r = brick_load(s, su);
+    march_finish(&r);
+    __global const real* tgt = target + pixel * IVR_CHANNELS;
+    real loss = (real)0;
+    const real t = r.transmittance;
+#if IVR_EMISSION
+    const real total_r = r.cr + t * background.x, total_g = r.cg + t * background.y,
+               total_b = r.cb + t * background.z;
+    a[0] = loss_term(total_r, tgt[0], norm, &loss);
+    a[1] = loss_term(total_g, tgt[1], norm, &loss);
+    a[2] = loss_term(total_b, tgt[2], norm, &loss);
+    a[3] = loss_term((real)1 - t, tgt[3], norm, &loss);
+    a[4] = total_r, a[5] = total_g, a[6] = total_b, a[7] = t;
+#else
+    const real intensity = background.x * t;
+    a[0] = loss_term(intensity, tgt[0], norm, &loss);
+    a[1] = a[2] = a[3] = a[5] = a[6] = a[7] = (real)0;
+    a[4] = intensity;
+#endif
+    pixel_loss[pixel] = loss;
+    // The march again from its start, as far as the forward march went (its `end`).
+    const uint end = su[BU_END];
+    for (int k = 0; k <= BS_KTAU; ++k) s[k] = (real)0;
+    s[BS_T] = (real)1;
+    s[BS_TNEXT] = s[BS_T0];
+    su[BU_SAMPLES] = end;
+    su[BU_NEXT] = 0u;
+    su[BU_FLAGS] = end > 0u && su[BU_N] > 0u ? 0u : IVR_BRICK_DONE;
+    return;
+  }
+  if (su[BU_FLAGS] & IVR_BRICK_DONE) return;
+  RayMarch m;
+  m.t0 = s[BS_T0], m.t1 = s[BS_T1], m.dt = s[BS_DT], m.n = su[BU_N];
+  m.u0x = s[BS_U0 + 0], m.u0y = s[BS_U0 + 1], m.u0z = s[BS_U0 + 2];
+  m.dux = s[BS_U0 + 3], m.duy = s[BS_U0 + 4], m.duz = s[BS_U0 + 5];
+  real tb0 = m.t0, tb1 = m.t1;
+  brick_window(m.u0x, m.u0y, m.u0z, m.dux, m.duy, m.duz, brick_lo, brick_hi, &tb0, &tb1);
+  if (!(tb1 > tb0) || tb0 != s[BS_TNEXT]) return;
+  m.u0x -= (real)origin.x, m.u0y -= (real)origin.y, m.u0z -= (real)origin.z;
+  const uint end = su[BU_SAMPLES];
+  real transmittance = s[BS_T];
+  real pr = s[BS_CR], pg = s[BS_CG], pb = s[BS_CB], kr = s[BS_KR], kg = s[BS_KG], kb = s[BS_KB];
+  const real gr = a[0], gg = a[1], gb = a[2], ga = a[3];
+  int seg = 0;
+  uint i = su[BU_NEXT];
+  while (i < end) {
+    const real t = sample_t(&m, (int)i);
+    if (!(t < tb1)) break;
+    const real ux = m.u0x + t * m.dux, uy = m.u0y + t * m.duy, uz = m.u0z + t * m.duz;
+    real fx, fy, fz;
+    const int ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
+              iz = cell_axis(uz, dims.z, &fz);
+    const real d = trilinear_at(volume, dims, ux, uy, uz);
+    real er, eg, eb, dsigma, der, deg, deb;
+    TfPoint point;
+    const real sigma = tf_sample_slope(d, tf, tf_count, tf_scalars, &seg, &er, &eg, &eb, &dsigma,
+                                       &der, &deg, &deb, &point);
+    const real dt = m.dt, tau = sigma * dt;
+    real fraction;
+    const real decay = decay_and_fraction(tau, &fraction);
+#if IVR_EMISSION
+    const real weight = transmittance * dt * fraction;
+    accumulate(&pr, &kr, weight * er);
+    accumulate(&pg, &kg, weight * eg);
+    accumulate(&pb, &kb, weight * eb);
+    const real slope = transmittance * dt * dt * fraction_slope(tau, decay, fraction);
+    const real gsigma = gr * (slope * er - dt * (a[4] - pr)) + gg * (slope * eg - dt * (a[5] - pg)) +
+                        gb * (slope * eb - dt * (a[6] - pb)) + ga * dt * a[7];
+    const real ger = gr * weight, geg = gg * weight, geb = gb * weight;
+#else
+    const real gsigma = -dt * a[4] * gr;
+    const real ger = (real)0, geg = ger, geb = ger;
+    (void)gg, (void)gb, (void)ga;
+#endif
+    transmittance = attenuate(transmittance, tau, fraction, decay);
+    const real gd = gsigma * dsigma + ger * der + geg * deg + geb * deb;
+    if (gd != (real)0) {
+      const int ox = ix + 1 < dims.x ? 1 : 0, oy = iy + 1 < dims.y ? dims.x : 0,
+                oz = iz + 1 < dims.z ? dims.x * dims.y : 0;
+      const int b = (iz * dims.y + iy) * dims.x + ix;
+      const real wx[2] = {(real)1 - fx, fx}, wy[2] = {(real)1 - fy, fy}, wz[2] = {(real)1 - fz, fz};
+      for (int c = 0; c < 8; ++c) {
+        const real w = wx[c & 1] * wy[(c >> 1) & 1] * wz[c >> 2];
+        if (w != (real)0)
+          atomic_add_global(grad + b + ((c & 1) ? ox : 0) + ((c & 2) ? oy : 0) + ((c & 4) ? oz : 0),
+                            gd * w);
+      }
+    }
+    ++i;
+  }
+  s[BS_T] = transmittance;
+  s[BS_CR] = pr, s[BS_CG] = pg, s[BS_CB] = pb, s[BS_KR] = kr, s[BS_KG] = kg, s[BS_KB] = kb;
+  su[BU_NEXT] = i;
+  s[BS_TNEXT] = tb1;
+  if (i >= end || tb1 >= m.t1) su[BU_FLAGS] |= IVR_BRICK_DONE;
+}

@@ -40,6 +40,7 @@ struct Gradient {
   std::uint64_t device_bytes = 0;  // peak device memory
   std::string atomics;             // adjoint mode: the scatter's atomics
   double step = 0;                 // the integrator step used (voxel units)
+  int bricks = 1;                  // the volume's out-of-core bricks (1: in core)
 };
 
 // Splits a --wrt list ("tf,voxels:3,17,40-45,background") into group names; voxel lists take the

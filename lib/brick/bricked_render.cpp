@@ -63,12 +63,6 @@ std::array<int, 3> eye_brick(const Scene& scene, const BrickLayout& l, const glm
   return e;
 }
 
-// The views that share a brick order, as runs of consecutive views.
-struct ViewGroup {
-  std::vector<int> order;
-  std::vector<std::pair<int, int>> runs;  // (first view, count)
-};
-
 std::vector<ViewGroup> view_groups(const Scene& scene, const BrickLayout& l) {
   std::vector<std::array<int, 3>> keys;
   if (scene.has_ray_list()) {
@@ -169,7 +163,8 @@ int volume_brick_from_env() {
   return int(v);
 }
 
-BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge) {
+BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge,
+                      bool gradient) {
   BrickPlan plan;
   const DeviceInfo& info = device.info();
   const std::size_t real_size = precision == Precision::f64 ? 8 : 4;
@@ -180,15 +175,21 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   plan.budget = device_memory_budget(info);
   const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(device.impl().live->bytes, 0));
   if (plan.budget) plan.budget = plan.budget > in_use ? plan.budget - in_use : 1;
-  plan.in_core_bytes = voxels * real_size + image + geometry;
+  // The gradient adds the volume's gradient (in core), or per ray its pixel adjoints (8 reals), the
+  // target and the loss, and one brick's gradient (out of core: one slot more).
+  const std::uint64_t target = gradient ? rays * (scene.channels() + 1) * real_size : 0;
+  plan.in_core_bytes = (gradient ? 2 : 1) * voxels * real_size + image + geometry + target;
   if (forced_edge <= 0) forced_edge = volume_brick_from_env();
   if (forced_edge <= 0 && (plan.budget == 0 || plan.in_core_bytes <= plan.budget)) return plan;
-  const std::uint64_t fixed = image + geometry + rays * (kStateReals * real_size + kStateUints * 4) + 64;
+  const std::uint64_t fixed = image + geometry + target +
+                              rays * ((kStateReals + (gradient ? 8 : 0)) * real_size + kStateUints * 4) + 64;
+  const int extra_slots = gradient ? 1 : 0;  // the brick's gradient
   const int longest = std::max({scene.volume.nx, scene.volume.ny, scene.volume.nz});
   auto fits = [&](int edge, int slots) {
     const BrickLayout l = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);
     const std::uint64_t slot = l.largest_voxels() * real_size;
-    return slot <= info.max_allocation && fixed + std::uint64_t(slots) * slot <= plan.budget;
+    return slot <= info.max_allocation &&
+           fixed + std::uint64_t(slots + extra_slots) * slot <= plan.budget;
   };
   int edge = forced_edge;
   if (edge <= 0) {
@@ -207,97 +208,108 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
                     memory_text(slot) + " each) and the per-ray state (" + memory_text(fixed) +
                     ") do not fit the device-memory budget of " + memory_text(plan.budget) +
                     (device_memory_limit_from_env() ? " (IVR_DEVICE_MEMORY_LIMIT)" : ""));
-  const std::uint64_t room = plan.budget ? (plan.budget - fixed) / slot : plan.layout.total();
+  const std::uint64_t room =
+      plan.budget ? (plan.budget - fixed) / slot - extra_slots : plan.layout.total();
   plan.slots = int(std::clamp<std::uint64_t>(room, wanted, plan.layout.total()));
-  plan.bricked_bytes = fixed + std::uint64_t(plan.slots) * slot;
+  plan.bricked_bytes = fixed + std::uint64_t(plan.slots + extra_slots) * slot;
   return plan;
 }
 
-Image render_bricked(Device& device, const Scene& scene, const RenderOptions& options,
-                     const BrickPlan& plan, RenderStats* stats) {
-  const auto start = std::chrono::steady_clock::now();
+BrickedMarch::BrickedMarch(Device& device, const Scene& scene, const RenderOptions& options,
+                           const BrickPlan& plan, const char* operation)
+    : scene_(scene),
+      plan_(plan),
+      session_(std::make_unique<Session::Impl>(
+          device, description_of(scene),
+          SessionOptions{options.precision, options.step, EmptySpace::off,
+                         options.min_empty_fraction, options.brick_size},
+          false)),
+      s(session_.impl()),
+      op(s.begin(operation)),
+      e_(image_extent(scene)),
+      stream_(s.dev, plan.slots, plan.layout.largest_voxels() * s.real_size) {
   if (scene.volume.data.size() != scene.volume.voxel_count())
     throw Error(Status::invalid_argument,
                 "volume: holds " + std::to_string(scene.volume.data.size()) +
                     " values but dims need " + std::to_string(scene.volume.voxel_count()));
   if (scene.integrator.tolerance > 0 && !(options.step > 0))
     throw Error(Status::unsupported,
-                "out-of-core render: integrator.tolerance chooses its step from the whole volume; "
+                "out-of-core: integrator.tolerance chooses its step from the whole volume; "
                 "give the step (--step) for a bricked volume");
-  // A session without densities: the cameras, the TF, the integrator and the kernels.
-  Session session(std::make_unique<Session::Impl>(
-      device, description_of(scene),
-      SessionOptions{options.precision, options.step, EmptySpace::off, options.min_empty_fraction,
-                     options.brick_size},
-      false));
-  Session::Impl& s = session.impl();
   Device::Impl& dev = s.dev;
-  const BrickLayout& l = plan.layout;
   const Integrator& integrator = s.integrator();
-  RenderVariant variant = s.variant_of(integrator);
+  variant = s.variant_of(integrator);
   variant.empty_space = false;
-  const KernelConfig config = variant.config("bricked.cl", "bricked_render");
-  OperationRecord& op = s.begin("render");
-  cl::Kernel& k = s.kernels.get(config, &op.stats.build_seconds);
-
-  const ImageExtent e = image_extent(scene);
-  const std::size_t rays = e.pixels();
-  const std::size_t real_size = s.real_size;
-  cl::Buffer state = dev.buffer(CL_MEM_READ_WRITE, rays * kStateReals * real_size, nullptr,
-                                "the bricked render's per-ray state");
-  cl::Buffer state_u = dev.buffer(CL_MEM_READ_WRITE, rays * kStateUints * 4, nullptr,
-                                  "the bricked render's per-ray counters");
-  DeviceArray image = s.output("image", s.image_shape(), real_dtype(s.f64), "the image");
-  cl::Buffer samples = dev.buffer(CL_MEM_READ_WRITE, rays * 4, nullptr, "the sample counts");
+  const std::size_t rays = e_.pixels();
+  state_ = dev.buffer(CL_MEM_READ_WRITE, rays * kStateReals * s.real_size, nullptr,
+                      "the bricked march's per-ray state");
+  state_u_ = dev.buffer(CL_MEM_READ_WRITE, rays * kStateUints * 4, nullptr,
+                        "the bricked march's per-ray counters");
+  image = s.output("image", s.image_shape(), real_dtype(s.f64), "the image");
+  samples = dev.buffer(CL_MEM_READ_WRITE, rays * 4, nullptr, "the sample counts");
   const cl_uint zero = 0;
-  cl::Buffer pending =
-      dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, 4, &zero, "the pending-ray count");
-  BrickStream stream(dev, plan.slots, l.largest_voxels() * real_size);
-  auto fill = [&](int b, std::vector<unsigned char>& out) {
-    extract_brick(scene.volume, l, b, s.f64, out);
-  };
-
-  int a0 = 0;
+  pending_ = dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, 4, &zero, "the pending-ray count");
+  const KernelConfig config = variant.config("bricked.cl", "bricked_render");
+  op.stats.variant = config.label();
+  render_ = &s.kernels.get(config, &op.stats.build_seconds);
+  a0_ = arguments(*render_);
   cl_call("setting the bricked render's arguments", [&] {
-    a0 = s.set_scene_args(k, integrator);
-    k.setArg(a0 + 4, state);
-    k.setArg(a0 + 5, state_u);
-    k.setArg(a0 + 6, buffer_of(image));
-    k.setArg(a0 + 7, samples);
-    k.setArg(a0 + 8, pending);
+    render_->setArg(a0_ + 6, buffer_of(image));
+    render_->setArg(a0_ + 7, samples);
+    render_->setArg(a0_ + 8, pending_);
   });
-  auto set_brick = [&](int b, int sl) {
-    const std::array<int, 3> o = l.origin(b), x = l.extent(b);
-    const std::array<double, 3> lo = l.lo(b), hi = l.hi(b);
-    k.setArg(0, stream.buffer(sl));
-    k.setArg(1, cl_int4{{x[0], x[1], x[2], 0}});
-    set_real4(k, a0 + 1, s.f64, lo[0], lo[1], lo[2]);
-    set_real4(k, a0 + 2, s.f64, hi[0], hi[1], hi[2]);
-    k.setArg(a0 + 3, cl_int4{{o[0], o[1], o[2], 0}});
-  };
-  auto launch = [&](Phase phase, int first_view, int views) {
-    k.setArg(a0, cl_int(phase));
-    cl::Event ev;
-    dev.queue.enqueueNDRangeKernel(k, cl::NDRange(0, 0, first_view),
-                                   cl::NDRange(e.width, e.height, views), cl::NullRange, nullptr,
-                                   &ev);
-    op.events.push_back(ev);
-    return ev;
-  };
+  groups_ = view_groups(scene, plan.layout);
+}
 
-  const std::vector<ViewGroup> groups = view_groups(scene, l);
-  cl_call("running the bricked render on " + dev.info.name, [&] {
-    set_brick(0, 0);
-    launch(kBegin, 0, e.views);
-    int sweeps = 0;
+int BrickedMarch::arguments(cl::Kernel& k) {
+  return cl_call("setting the bricked march's arguments", [&] {
+    const int a = s.set_scene_args(k, s.integrator());
+    k.setArg(a + 4, state_);
+    k.setArg(a + 5, state_u_);
+    return a;
+  });
+}
+
+void BrickedMarch::set_brick(cl::Kernel& k, int b, int slot) {
+  const BrickLayout& l = plan_.layout;
+  const std::array<int, 3> o = l.origin(b), x = l.extent(b);
+  const std::array<double, 3> lo = l.lo(b), hi = l.hi(b);
+  k.setArg(0, stream_.buffer(slot));
+  k.setArg(1, cl_int4{{x[0], x[1], x[2], 0}});
+  set_real4(k, a0_ + 1, s.f64, lo[0], lo[1], lo[2]);
+  set_real4(k, a0_ + 2, s.f64, hi[0], hi[1], hi[2]);
+  k.setArg(a0_ + 3, cl_int4{{o[0], o[1], o[2], 0}});
+}
+
+void BrickedMarch::launch_all(cl::Kernel& k, int phase) {
+  cl_call("running the bricked march on " + s.dev.info.name, [&] {
+    set_brick(k, 0, 0);
+    k.setArg(a0_, cl_int(phase));
+    cl::Event ev;
+    s.dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(e_.width, e_.height, e_.views),
+                                     cl::NullRange, nullptr, &ev);
+    op.events.push_back(ev);
+  });
+}
+
+int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks) {
+  const BrickLayout& l = plan_.layout;
+  auto fill = [&](int b, std::vector<unsigned char>& out) {
+    extract_brick(scene_.volume, l, b, s.f64, out);
+  };
+  Device::Impl& dev = s.dev;
+  int sweeps = 0;
+  cl_call("running the bricked march on " + dev.info.name, [&] {
     for (;;) {
       ++sweeps;
-      for (const ViewGroup& g : groups)
+      for (const ViewGroup& g : groups_)
         for (int b : g.order) {
-          const int i = stream.resident(b, fill);
-          set_brick(b, i);
-          std::vector<cl::Event> wait{stream.ready(i)};
-          k.setArg(a0, cl_int(kMarch));
+          const int i = stream_.resident(b, fill);
+          set_brick(k, b, i);
+          std::vector<cl::Event> wait{stream_.ready(i)};
+          if (hooks.before) hooks.before(b, wait);
+          k.setArg(a0_, cl_int(phase));
+          std::vector<cl::Event> marched;
           auto march = [&](const PixelRect& r, int first, int count) {
             if (r.empty()) return;
             cl::Event ev;
@@ -305,52 +317,66 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
                                            cl::NDRange(r.x1 - r.x0, r.y1 - r.y0, count),
                                            cl::NullRange, &wait, &ev);
             op.events.push_back(ev);
-            stream.used(i, ev);
+            stream_.used(i, ev);
+            marched.push_back(ev);
           };
           for (const auto& [first, count] : g.runs) {
             if (sweeps > 1 || count > kCulledViews) {  // every pixel
-              march(PixelRect{0, 0, e.width, e.height}, first, count);
+              march(PixelRect{0, 0, e_.width, e_.height}, first, count);
               continue;
             }
-            for (int v = first; v < first + count; ++v) march(brick_pixels(scene, l, b, v), v, 1);
+            for (int v = first; v < first + count; ++v) march(brick_pixels(scene_, l, b, v), v, 1);
           }
           dev.queue.flush();
+          if (hooks.after) hooks.after(b, marched);
         }
-      dev.queue.enqueueWriteBuffer(pending, CL_FALSE, 0, 4, &zero);
-      launch(kFinish, 0, e.views);
+      const cl_uint zero = 0;
+      dev.queue.enqueueWriteBuffer(pending_, CL_FALSE, 0, 4, &zero);
+      launch_all(*render_, kFinish);
       cl_uint left = 0;
-      dev.queue.enqueueReadBuffer(pending, CL_TRUE, 0, 4, &left);
+      dev.queue.enqueueReadBuffer(pending_, CL_TRUE, 0, 4, &left);
       if (left == 0) break;
       if (sweeps > l.total() + 1)
-        throw Error(Status::opencl,
-                    "out-of-core render: " + std::to_string(left) + " rays still marching after " +
-                        std::to_string(sweeps) + " sweeps over the bricks");
+        throw Error(Status::opencl, "out-of-core march: " + std::to_string(left) +
+                                        " rays still marching after " + std::to_string(sweeps) +
+                                        " sweeps over the bricks");
     }
-    op.stats.sweeps = sweeps;
   });
+  op.stats.sweeps += sweeps;
+  return sweeps;
+}
+
+void BrickedMarch::render() {
+  launch_all(*render_, kBegin);
+  sweep(*render_, kMarch, {});
+  launch_all(*render_, kFinish);  // the image of the last sweep's state
   mark_written(image, op.events.back());
   op.samples = samples;
-  op.sample_count = rays;
-  op.stats.variant = config.label();
-  op.stats.step = integrator.step;
-  op.stats.bricks = l.total();
-  op.stats.device_bytes = plan.bricked_bytes;
-  const Image out = image_of(image);
+  op.sample_count = e_.pixels();
+  op.stats.step = s.integrator().step;
+  op.stats.bricks = plan_.layout.total();
+  op.stats.device_bytes = plan_.bricked_bytes;
+}
+
+Image render_bricked(Device& device, const Scene& scene, const RenderOptions& options,
+                     const BrickPlan& plan, RenderStats* stats) {
+  BrickedMarch march(device, scene, options, plan, "render");
+  march.render();
+  const Image out = image_of(march.image);
   if (stats) {
-    const OperationStats st = session.last_stats();
+    const OperationStats st = march.session().last_stats();
     stats->kernel_seconds = st.kernel_seconds;
     stats->build_seconds = st.build_seconds;
     stats->samples = st.samples;
     stats->variant = st.variant;
-    stats->scheme = scheme_name(integrator.scheme);
+    stats->scheme = scheme_name(march.s.integrator().scheme);
     stats->step = st.step;
     stats->device_bytes = st.device_bytes;
-    stats->bricks = l.total();
-    stats->brick_edge = l.edge;
+    stats->bricks = plan.layout.total();
+    stats->brick_edge = plan.layout.edge;
     stats->sweeps = st.sweeps;
-    stats->uploaded_bytes = stream.uploaded_bytes;
-    stats->brick_uploads = stream.uploads;
-    (void)start;
+    stats->uploaded_bytes = march.stream().uploaded_bytes;
+    stats->brick_uploads = march.stream().uploads;
   }
   return out;
 }

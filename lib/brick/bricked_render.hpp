@@ -3,9 +3,15 @@
 // marching of the bricks before them.
 #pragma once
 #include <cstdint>
+#include <functional>
+#include <memory>
 
 #include "brick/brick_layout.hpp"
+#include "brick/brick_stream.hpp"
 #include "ivr/render.hpp"
+#include "ivr/session.hpp"
+#include "runtime/variants.hpp"
+#include "session/session.hpp"
 
 namespace ivr {
 
@@ -24,11 +30,68 @@ struct BrickPlan {
 // (device_memory_budget), else the largest power-of-two edge whose two bricks and the per-ray state
 // fit. Throws Error(out_of_memory) where not even bricks of one cell fit.
 // The budget is what the cap leaves beside the device's buffers already alive.
-BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge);
+// `gradient`: the plan of the density gradient (the volume's gradient in core; out of core a
+// brick's gradient, the pixel adjoints and the target beside the render's buffers).
+BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge,
+                      bool gradient = false);
 
 // Renders `scene` brick by brick as `plan` says; the image equals render()'s in core to rounding.
 Image render_bricked(Device& device, const Scene& scene, const RenderOptions& options,
                      const BrickPlan& plan, RenderStats* stats);
+
+// The views that share a brick order (front to back for all their rays), as runs of views.
+struct ViewGroup {
+  std::vector<int> order;
+  std::vector<std::pair<int, int>> runs;  // (first view, count)
+};
+
+// Per brick of a sweep: `before` may add to the events the brick's marches wait for, `after`
+// gets the brick's march events.
+struct BrickHooks {
+  std::function<void(int brick, std::vector<cl::Event>& wait)> before;
+  std::function<void(int brick, const std::vector<cl::Event>& marched)> after;
+};
+
+// One out-of-core march (kernels/bricked.cl): a session without densities (cameras, TF,
+// integrator, kernels), the per-ray state, the brick stream and the view groups; sweeps of a
+// marching kernel over the bricks until no ray is pending. The render and the gradient
+// (lib/brick/bricked_gradient.cpp) are built from it.
+class BrickedMarch {
+ public:
+  BrickedMarch(Device& device, const Scene& scene, const RenderOptions& options,
+               const BrickPlan& plan, const char* operation);
+  // Sets a marching kernel's leading arguments (the scene's, then the state at +4, +5); returns
+  // the index of its `phase` argument.
+  int arguments(cl::Kernel& k);
+  void set_brick(cl::Kernel& k, int brick, int slot);
+  void launch_all(cl::Kernel& k, int phase);  // every ray, no brick
+  int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks);  // the sweeps it took
+  void render();  // BEGIN, the sweeps, FINISH: `image`, `samples`
+  Session& session() { return session_; }
+  BrickStream& stream() { return stream_; }
+  cl::Kernel& render_kernel() { return *render_; }
+  const BrickPlan& plan() const { return plan_; }
+
+ private:
+  const Scene& scene_;
+  const BrickPlan& plan_;
+  Session session_;
+
+ public:
+  Session::Impl& s;
+  OperationRecord& op;
+  RenderVariant variant;
+  DeviceArray image;
+  cl::Buffer samples;
+
+ private:
+  ImageExtent e_;
+  BrickStream stream_;
+  cl::Buffer state_, state_u_, pending_;
+  cl::Kernel* render_ = nullptr;
+  int a0_ = 0;
+  std::vector<ViewGroup> groups_;
+};
 
 // $IVR_VOLUME_BRICK (cells per brick edge; 0 when unset). Throws on a malformed value.
 int volume_brick_from_env();

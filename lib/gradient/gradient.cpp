@@ -15,6 +15,8 @@
 #include "adjoint/adjoint.hpp"
 #include "jacobian/jacobian.hpp"
 #include "gradient/gradient.hpp"
+
+#include "brick/bricked_gradient.hpp"
 #include "gradient/parameter_groups.hpp"
 
 namespace ivr {
@@ -218,6 +220,8 @@ Gradient gradient(Device& device, const Scene& scene, const Image& target,
                               const GradientOptions& o) {
   // The groups first: a bad --wrt is reported before any device work.
   for (const std::string& g : groups) plan_group(scene, g);
+  const BrickPlan bricks = plan_render(device, scene, o.precision, 0, true);
+  if (bricks.layout.edge) return gradient_bricked(device, scene, target, groups, o, bricks);
   Session session = one_shot_session(device, scene, {o.precision, o.step});
   session.set_target(target);
   Session::Impl& s = session.impl();

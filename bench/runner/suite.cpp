@@ -16,6 +16,7 @@ const std::vector<Suite>& all_suites() {
       {"integrators", "every integrator's speed against its error", integrators_suite},
       {"tomo", "absorption projector and back-projector throughput", tomo_suite},
       {"rays", "ray lists against the same rays as cameras' pixels; sightlines", rays_suite},
+      {"out_of_core", "bricked render and gradient against in core; 1024³ under a 1 GiB cap (--cases v1024)", out_of_core_suite},
       {"reconstruct", "reconstruction iterations per second", reconstruct_suite},
       {"scaling", "time and memory as volume, image and step grow", scaling_suite},
       {"empty_space", "empty-space skipping on against off: render and gradient",

@@ -109,6 +109,7 @@ void planner_suite(Context& ctx);
 void integrators_suite(Context& ctx);
 void tomo_suite(Context& ctx);
 void rays_suite(Context& ctx);
+void out_of_core_suite(Context& ctx);
 void reconstruct_suite(Context& ctx);
 void scaling_suite(Context& ctx);
 void compile_suite(Context& ctx);

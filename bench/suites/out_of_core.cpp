@@ -1,0 +1,160 @@
+// out_of_core.cpp — the out-of-core suite (docs/scaling.md): the render and the density gradient of
+// a volume streamed through the device in bricks against the same operation in core, end to end,
+// in alternating rounds (issue 24's target: bricked ≥ 0.7× the in-core throughput where the volume
+// fits); and, with --cases v1024, a 1024³ volume under a 1 GiB device-memory cap beside the
+// in-core 512³ scaled by volume.
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+
+#include "../bench_scene.hpp"
+#include "../bench_support.hpp"
+#include "../runner/suite.hpp"
+
+namespace ivr::bench {
+
+namespace {
+
+double seconds_of(const std::function<void()>& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The benchmark scene's densities (x fastest) filled procedurally for large n (no file).
+Scene large_scene(int n, int image) {
+  Scene s = bench_scene(32, image);
+  s.volume.nx = s.volume.ny = s.volume.nz = n;
+  s.volume.data.assign(std::size_t(n) * n * n, 0.0f);
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const double u = (x + 0.5) / n - 0.5, v = (y + 0.5) / n - 0.5, w = (z + 0.5) / n - 0.5;
+        s.volume.data[(std::size_t(z) * n + y) * n + x] =
+            float(std::exp(-(u * u + v * v + w * w) / 0.08) * (1 + 0.3 * std::sin(20 * u)));
+      }
+  return s;
+}
+
+// In core against bricks of `edge` cells: the render, then the density gradient; the ratio is the
+// median over alternating rounds of in-core / bricked wall time.
+void compare(Context& ctx, const std::string& base, const Scene& scene, int edge) {
+  const nlohmann::json params = {{"volume", scene.volume.nx}, {"image", scene.cameras[0].width},
+                                 {"brick_edge", edge}};
+  RenderOptions in_core, bricked;
+  bricked.volume_brick = edge;
+  RenderStats st;
+  const Image a = render(ctx.device, scene, in_core), b = render(ctx.device, scene, bricked, &st);
+  const Check image_check =
+      check_max(difference(b.pixels, widen(a.pixels)), "the in-core render", 1e-6, 1e-5);
+  Image target = a;
+  for (float& v : target.pixels) v = 0.9f * v + 0.02f;
+  GradientOptions go;
+  go.mode = Mode::adjoint;
+  const Gradient ga = gradient(ctx.device, scene, target, {"density"}, go);
+  Gradient gb;
+  {
+    ScopedEnv force("IVR_VOLUME_BRICK", std::to_string(edge));
+    gb = gradient(ctx.device, scene, target, {"density"}, go);
+  }
+  const Check grad_check = check_max(difference(gb.groups[0].values, ga.groups[0].values),
+                                     "the in-core adjoint", 0, 1e-5);
+  for (const char* op : {"render", "gradient"}) {
+    const bool is_render = std::string(op) == "render";
+    auto run_in_core = [&] {
+      if (is_render) (void)render(ctx.device, scene, in_core);
+      else (void)gradient(ctx.device, scene, target, {"density"}, go);
+    };
+    auto run_bricked = [&] {
+      if (is_render) {
+        (void)render(ctx.device, scene, bricked);
+      } else {
+        ScopedEnv force("IVR_VOLUME_BRICK", std::to_string(edge));
+        (void)gradient(ctx.device, scene, target, {"density"}, go);
+      }
+    };
+    const Check& check = is_render ? image_check : grad_check;
+    std::vector<double> ratios;
+    Measurement mi, mb;
+    for (int round = 0; round < 3 && check.passed; ++round) {
+      mi = measure(ctx.budget, [&] { run_in_core(); return -1.0; });
+      mb = measure(ctx.budget, [&] { run_bricked(); return -1.0; });
+      ratios.push_back(mi.wall.median / mb.wall.median);
+    }
+    std::sort(ratios.begin(), ratios.end());
+    const double ratio = ratios.empty() ? 0 : ratios[ratios.size() / 2];
+    const std::string name = base + "_" + op;
+    Record ri{ctx.device_key, "out_of_core", name, "ivr-in-core", params};
+    add_timing(ri, mi);
+    record_checked(ctx, std::move(ri), Check{true, "reference of the bricked record", "", 0, 0});
+    Record rb{ctx.device_key, "out_of_core", name, "ivr-bricked", params};
+    add_timing(rb, mb);
+    rb.metrics["throughput_vs_in_core"] = ratio;
+    rb.metrics["bricks"] = double(st.bricks);
+    std::cerr << "ivr-bench: out_of_core/" << name << ": bricked (" << st.bricks << " bricks of "
+              << edge << ") " << mb.wall.median * 1e3 << " ms, in core " << mi.wall.median * 1e3
+              << " ms (throughput " << ratio << "x)\n";
+    record_checked(ctx, std::move(rb), check);
+  }
+}
+
+// A 1024³ volume under a 1 GiB cap (render and density gradient, once each: they take minutes
+// here), beside the in-core 512³ (scaled by 8, the voxels' ratio).
+void capped(Context& ctx) {
+  std::cerr << "ivr-bench: out_of_core/v1024_capped...\n";
+  for (int n : {512, 1024}) {
+    const Scene scene = large_scene(n, 256);
+    std::optional<ScopedEnv> cap;
+    if (n == 1024) cap.emplace("IVR_DEVICE_MEMORY_LIMIT", "1G");
+    RenderStats st;
+    reset_peak_resident();
+    const std::uint64_t before = resident_bytes();
+    Image image;
+    const double render_s = seconds_of([&] { image = render(ctx.device, scene, {}, &st); });
+    for (float& v : image.pixels) v = 0.9f * v + 0.02f;
+    GradientOptions go;
+    go.mode = Mode::adjoint;
+    Gradient g;
+    const double grad_s =
+        seconds_of([&] { g = gradient(ctx.device, scene, image, {"density"}, go); });
+    double largest = 0;
+    bool finite = true;
+    for (double v : g.groups[0].values) finite = finite && std::isfinite(v), largest = std::max(largest, std::abs(v));
+    const Check check{finite && largest > 0, "finite, non-zero gradient", "", 0, 0};
+    Record r{ctx.device_key, "out_of_core", "v" + std::to_string(n) + "_capped",
+             n == 1024 ? "ivr-bricked-1GiB" : "ivr-in-core",
+             {{"volume", n}, {"image", 256}, {"cap_bytes", n == 1024 ? (1ull << 30) : 0ull}}};
+    r.metrics["render_s"] = render_s;
+    r.metrics["render_kernel_s"] = st.kernel_seconds;
+    r.metrics["gradient_s"] = grad_s;
+    r.metrics["gradient_kernel_s"] = g.kernel_seconds;
+    r.metrics["bricks"] = double(st.bricks);
+    r.metrics["device_bytes_render"] = double(st.device_bytes);
+    r.metrics["device_bytes_gradient"] = double(g.device_bytes);
+    r.metrics["host_peak_bytes"] = double(peak_resident_bytes());
+    r.metrics["host_before_bytes"] = double(before);
+    std::cerr << "ivr-bench: out_of_core/v" << n << ": render " << render_s << " s (kernels "
+              << st.kernel_seconds << " s, " << st.bricks << " bricks, device "
+              << st.device_bytes / 1048576.0 << " MiB), gradient " << grad_s << " s (kernels "
+              << g.kernel_seconds << " s, device " << g.device_bytes / 1048576.0
+              << " MiB), host peak " << peak_resident_bytes() / 1048576.0 << " MiB\n";
+    record_checked(ctx, std::move(r), check);
+  }
+}
+
+}  // namespace
+
+void out_of_core_suite(Context& ctx) {
+  const std::vector<int> sizes = ctx.quick ? std::vector<int>{32} : std::vector<int>{64, 128};
+  for (int n : sizes) {
+    const std::string base = "v" + std::to_string(n) + "_i256";
+    if (!ctx.wants(base)) continue;
+    std::cerr << "ivr-bench: out_of_core/" << base << "...\n";
+    const Scene scene = bench_scene(n, ctx.quick ? 64 : 256);
+    compare(ctx, base + "_b" + std::to_string(n / 2), scene, n / 2);
+  }
+  // Minutes and ~14 GB of host memory: only when asked for by name.
+  if (std::find(ctx.cases.begin(), ctx.cases.end(), "v1024") != ctx.cases.end()) capped(ctx);
+}
+
+}  // namespace ivr::bench

@@ -128,7 +128,29 @@ void add_march_options(CLI::App* cmd, MarchOptions& o) {
       "--tolerance", o.tolerance,
       "Choose the step for this relative RMS image error (overrides the scene's tolerance)");
   cmd->add_option("--device", o.device,
-                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE); "
+                  "render and gradient: several, comma-separated, share the views");
+}
+
+std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors) {
+  std::vector<std::unique_ptr<Device>> out;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = selectors.find(',', start);
+    const std::string one = selectors.substr(start, comma == std::string::npos ? comma : comma - start);
+    if (one.empty() && selectors.find(',') != std::string::npos)
+      throw Error(Status::invalid_argument, "--device '" + selectors + "': an empty selector");
+    out.push_back(std::make_unique<Device>(one));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+std::vector<Device*> pointers(const std::vector<std::unique_ptr<Device>>& devices) {
+  std::vector<Device*> out;
+  for (const auto& d : devices) out.push_back(d.get());
+  return out;
 }
 
 Precision checked_precision(const MarchOptions& o) {

@@ -1,6 +1,7 @@
 // cli_support.hpp — what several subcommands share: input errors, reading a loss target, and
 // writing .npy outputs all or nothing.
 #pragma once
+#include <memory>
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <string>
@@ -55,6 +56,9 @@ struct MarchOptions {
   CLI::Option* tolerance_option = nullptr;
 };
 void add_march_options(CLI::App* cmd, MarchOptions& options);
+// The devices of a --device value: one, or several comma-separated (each a selector).
+std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors);
+std::vector<Device*> pointers(const std::vector<std::unique_ptr<Device>>& devices);
 // Checks them before any work (one-line errors); returns the precision.
 Precision checked_precision(const MarchOptions& options);
 // The scene with --scheme and --tolerance applied (--step is passed to the operations).

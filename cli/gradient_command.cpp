@@ -78,11 +78,12 @@ Runner add_gradient_command(CLI::App& app) {
     const Precision precision = checked_precision(args->march);
     const Scene scene = with_integrator(load_scene(args->scene), args->march);
     const Image target = load_target(args->target, scene);
-    Device device(args->march.device);
+    const std::vector<std::unique_ptr<Device>> devices = open_devices(args->march.device);
+    Device& device = *devices[0];
     options.precision = precision;
     options.step = args->march.step;
     options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;
-    const Gradient d = gradient(device, scene, target, groups, options);
+    const Gradient d = gradient(pointers(devices), scene, target, groups, options);
 
     std::vector<Output> outputs;
     std::vector<std::string> paths, names;
@@ -107,7 +108,7 @@ Runner add_gradient_command(CLI::App& app) {
                             {"parameters", d.parameters},
                             {"seconds", d.kernel_seconds},
                             {"device_bytes", d.device_bytes},
-                            {"device", device.info().name}, {"bricks", d.bricks},
+                            {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices},
                             {"precision", args->march.precision},
                             {"scheme", scheme_name(scene.integrator.scheme)},
                             {"step", d.step},

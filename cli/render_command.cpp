@@ -78,7 +78,8 @@ Runner add_render_command(CLI::App& app) {
     const Precision precision = checked_precision(args->march);
 
     const Scene scene = with_integrator(load_scene(args->scene), args->march);
-    Device device(args->march.device);
+    const std::vector<std::unique_ptr<Device>> devices = open_devices(args->march.device);
+    Device& device = *devices[0];
     RenderOptions options;
     options.precision = precision;
     options.step = args->march.step;
@@ -91,7 +92,7 @@ Runner add_render_command(CLI::App& app) {
                       "': a scene of rays renders one value per ray: write .npy (rays, C)");
     options.volume_brick = args->volume_brick;
     RenderStats stats;
-    const Image image = render(device, scene, options, &stats);
+    const Image image = render(pointers(devices), scene, options, &stats);
 
     const std::vector<std::string> paths = output_paths(args->output, image.views);
     if (scene.has_ray_list()) {  // (rays, C), in the precision it was computed in
@@ -129,6 +130,7 @@ Runner add_render_command(CLI::App& app) {
                               {"empty_fraction", stats.empty_fraction},
                               {"grid_seconds", stats.grid_seconds}}},
                             {"bricks", stats.bricks},
+                            {"devices", stats.devices},
                             {"brick_edge", stats.brick_edge},
                             {"sweeps", stats.sweeps},
                             {"device_bytes", stats.device_bytes},

@@ -41,6 +41,7 @@ struct Gradient {
   std::string atomics;             // adjoint mode: the scatter's atomics
   double step = 0;                 // the integrator step used (voxel units)
   int bricks = 1;                  // the volume's out-of-core bricks (1: in core)
+  int devices = 1;                 // the devices the views were spread over
 };
 
 // Splits a --wrt list ("tf,voxels:3,17,40-45,background") into group names; voxel lists take the
@@ -50,5 +51,13 @@ IVR_API std::vector<std::string> parse_groups(const std::string& list);
 IVR_API Gradient gradient(Device& device, const Scene& scene, const Image& target,
                                       const std::vector<std::string>& groups,
                                       const GradientOptions& options = {});
+
+// The same on several devices (docs/scaling.md): each device differentiates the loss of its
+// share of the views (a ray list's rays); the loss and the gradients are the shares' weighted by
+// their sizes (the mean losses; `dot`: summed), added in device order on the host; the rays'
+// own gradients are joined in ray order.
+IVR_API Gradient gradient(const std::vector<Device*>& devices, const Scene& scene,
+                          const Image& target, const std::vector<std::string>& groups,
+                          const GradientOptions& options = {});
 
 }  // namespace ivr

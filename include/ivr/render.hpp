@@ -66,11 +66,19 @@ struct RenderStats {
   int sweeps = 0;                  // passes over the bricks (1 when every ray met them in order)
   std::uint64_t uploaded_bytes = 0;  // bricks uploaded (each brick once where all fit at once)
   std::uint64_t brick_uploads = 0;
+  int devices = 1;                   // the devices the views were spread over
 };
 
 // Validates the scene and renders it; throws ivr::Error.
 IVR_API Image render(Device& device, const Scene& scene, const RenderOptions& options = {},
                      RenderStats* stats = nullptr);
+
+// The same on several devices (docs/scaling.md): the views (a ray list's rays) split into
+// contiguous shares, one per device, rendered at once on threads of their own and joined in view
+// order — each view's pixels are the one-device render's. Stats: samples summed, the slowest
+// device's kernel time, the largest device's memory.
+IVR_API Image render(const std::vector<Device*>& devices, const Scene& scene,
+                     const RenderOptions& options = {}, RenderStats* stats = nullptr);
 
 // Writes the images as .npy (views, H, W, C): float64 when the image has pixels_f64, else float32.
 IVR_API void save_image_npy(const std::string& path, const Image& image);

@@ -1,0 +1,167 @@
+// multi_device.cpp — several devices in one process: a scene's views (or a ray list's rays) split
+// into contiguous shares, one per device, each share rendered or differentiated on its device in a
+// thread of its own, and the results combined on the host in device order (docs/scaling.md).
+#include <algorithm>
+#include <exception>
+#include <thread>
+
+#include "ivr/error.hpp"
+#include "ivr/gradient.hpp"
+#include "ivr/render.hpp"
+
+namespace ivr {
+
+namespace {
+
+// The scene with views [first, first + count) (a ray list: rays).
+Scene share_of(const Scene& scene, std::size_t first, std::size_t count) {
+  Scene s = scene;
+  if (scene.has_ray_list()) {
+    s.rays.values.assign(scene.rays.values.begin() + first * RayList::kColumns,
+                         scene.rays.values.begin() + (first + count) * RayList::kColumns);
+  } else {
+    s.cameras.assign(scene.cameras.begin() + first, scene.cameras.begin() + first + count);
+  }
+  return s;
+}
+
+// Contiguous shares of n items over `parts` devices, as equal as can be; empty shares dropped.
+std::vector<std::pair<std::size_t, std::size_t>> shares(std::size_t n, std::size_t parts) {
+  std::vector<std::pair<std::size_t, std::size_t>> out;
+  std::size_t first = 0;
+  for (std::size_t d = 0; d < parts; ++d) {
+    const std::size_t count = n / parts + (d < n % parts ? 1 : 0);
+    if (count) out.push_back({first, count});
+    first += count;
+  }
+  return out;
+}
+
+// Groups with a row per view (camera) or per ray (rays): each share's rows, joined.
+bool per_share(const std::string& group) { return group == "camera" || group == "rays"; }
+
+std::size_t items_of(const Scene& scene) {
+  return scene.has_ray_list() ? scene.rays.count() : scene.cameras.size();
+}
+
+// Runs job(i) for every share on its own thread; rethrows the first share's error (in order).
+template <class Job>
+void run_shares(std::size_t count, Job&& job) {
+  std::vector<std::exception_ptr> errors(count);
+  std::vector<std::thread> threads;
+  for (std::size_t i = 0; i < count; ++i)
+    threads.emplace_back([&, i] {
+      try {
+        job(i);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
+void check_devices(const std::vector<Device*>& devices) {
+  if (devices.empty()) throw Error(Status::invalid_argument, "devices: none given");
+  for (std::size_t i = 0; i < devices.size(); ++i)
+    if (!devices[i])
+      throw Error(Status::invalid_argument, "devices[" + std::to_string(i) + "]: null");
+}
+
+}  // namespace
+
+Image render(const std::vector<Device*>& devices, const Scene& scene, const RenderOptions& options,
+             RenderStats* stats) {
+  check_devices(devices);
+  if (devices.size() == 1) return render(*devices[0], scene, options, stats);
+  const auto parts = shares(items_of(scene), devices.size());
+  std::vector<Image> images(parts.size());
+  std::vector<RenderStats> st(parts.size());
+  run_shares(parts.size(), [&](std::size_t i) {
+    images[i] = render(*devices[i], share_of(scene, parts[i].first, parts[i].second), options, &st[i]);
+  });
+  Image out = images[0];
+  for (std::size_t i = 1; i < images.size(); ++i) {
+    out.pixels.insert(out.pixels.end(), images[i].pixels.begin(), images[i].pixels.end());
+    out.pixels_f64.insert(out.pixels_f64.end(), images[i].pixels_f64.begin(),
+                          images[i].pixels_f64.end());
+    if (scene.has_ray_list())
+      out.width += images[i].width;  // (1, 1, rays, C)
+    else
+      out.views += images[i].views;
+  }
+  if (stats) {
+    *stats = st[0];
+    for (std::size_t i = 1; i < st.size(); ++i) {
+      stats->kernel_seconds = std::max(stats->kernel_seconds, st[i].kernel_seconds);
+      stats->samples += st[i].samples;
+      stats->device_bytes = std::max(stats->device_bytes, st[i].device_bytes);
+      stats->bricks = std::max(stats->bricks, st[i].bricks);
+    }
+    stats->devices = int(parts.size());
+  }
+  return out;
+}
+
+Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
+                  const std::vector<std::string>& groups, const GradientOptions& options) {
+  check_devices(devices);
+  if (devices.size() == 1) return gradient(*devices[0], scene, target, groups, options);
+  const std::size_t n = items_of(scene);
+  const std::size_t per_item = scene.has_ray_list()
+                                   ? std::size_t(scene.channels())
+                                   : std::size_t(target.height) * target.width * target.channels;
+  if (target.pixels.size() != n * per_item)
+    throw Error(Status::invalid_argument,
+                "target: " + std::to_string(target.pixels.size()) + " values, the scene's images " +
+                    std::to_string(n * per_item));
+  const auto parts = shares(n, devices.size());
+  std::vector<Gradient> g(parts.size());
+  run_shares(parts.size(), [&](std::size_t i) {
+    const auto [first, count] = parts[i];
+    Image t = target;
+    t.pixels.assign(target.pixels.begin() + first * per_item,
+                    target.pixels.begin() + (first + count) * per_item);
+    t.pixels_f64.clear();
+    if (!target.pixels_f64.empty())
+      t.pixels_f64.assign(target.pixels_f64.begin() + first * per_item,
+                          target.pixels_f64.begin() + (first + count) * per_item);
+    if (scene.has_ray_list())
+      t.width = int(count);
+    else
+      t.views = int(count);
+    g[i] = gradient(*devices[i], share_of(scene, first, count), t, groups, options);
+  });
+  // A mean loss over every element is the shares' means weighted by their sizes; the dot loss is
+  // a plain sum. The gradients combine alike, in device order (deterministic).
+  Gradient out = g[0];
+  auto weight = [&](std::size_t i) {
+    return options.loss == Loss::dot ? 1.0 : double(parts[i].second) / double(n);
+  };
+  out.loss = 0;
+  for (GroupGradient& group : out.groups)
+    std::fill(group.values.begin(), group.values.end(), 0.0);
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    out.loss += weight(i) * g[i].loss;
+    for (std::size_t k = 0; k < out.groups.size(); ++k) {
+      if (per_share(out.groups[k].name)) continue;  // per view or ray: joined below
+      for (std::size_t j = 0; j < out.groups[k].values.size(); ++j)
+        out.groups[k].values[j] += weight(i) * g[i].groups[k].values[j];
+    }
+    out.kernel_seconds = std::max(out.kernel_seconds, g[i].kernel_seconds);
+    out.device_bytes = std::max(out.device_bytes, g[i].device_bytes);
+    out.bricks = std::max(out.bricks, g[i].bricks);
+  }
+  for (std::size_t k = 0; k < out.groups.size(); ++k)
+    if (per_share(out.groups[k].name)) {
+      out.groups[k].values.clear();
+      for (std::size_t i = 0; i < g.size(); ++i)
+        for (double v : g[i].groups[k].values) out.groups[k].values.push_back(weight(i) * v);
+      out.groups[k].shape[0] = n;
+    }
+  out.devices = int(parts.size());
+  return out;
+}
+
+}  // namespace ivr

@@ -1,0 +1,121 @@
+// multi_device_test.cpp — several devices in one process (lib/multi_device/): the views or rays
+// split over devices (here: separate contexts on the test device) give the one-device render
+// exactly and the one-device gradients to rounding, in every group; the command line too.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <memory>
+#include <random>
+
+#include "ivr/error.hpp"
+#include "ivr/gradient.hpp"
+#include "ivr/render.hpp"
+#include "test_support.hpp"
+
+namespace ivr::test {
+namespace {
+
+Scene five_views() {
+  Scene s = constant_scene(0.5f, 6, 8);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (float& v : s.volume.data) v = u(rng);
+  s.model = Model::emission_absorption;
+  s.tf.kind = TfKind::piecewise_linear;
+  s.tf.points = {{0.0, {0.1, 0.2, 0.3}, 0.5}, {0.6, {1.0, 0.6, 0.2}, 12.0}, {1.0, {0.3, 0.9, 0.4}, 4.0}};
+  s.background = {0.1, 0.2, 0.3};
+  s.cameras.clear();
+  for (int v = 0; v < 5; ++v) {
+    Camera c;
+    c.eye = {2 * std::sin(v * 1.3), 0.4, 2 * std::cos(v * 1.3)};
+    c.width = 8, c.height = 7;
+    s.cameras.push_back(c);
+  }
+  return s;
+}
+
+// `count` devices: separate contexts on the test device.
+std::vector<std::unique_ptr<Device>> copies(int count) {
+  std::vector<std::unique_ptr<Device>> d;
+  for (int i = 0; i < count; ++i) d.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
+  return d;
+}
+
+std::vector<Device*> raw(const std::vector<std::unique_ptr<Device>>& d) {
+  std::vector<Device*> out;
+  for (const auto& p : d) out.push_back(p.get());
+  return out;
+}
+
+TEST(MultiDevice, RenderAndGradientsEqualOneDevice) {
+  const Scene s = five_views();
+  const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
+  RenderOptions ro;
+  ro.precision = p;
+  const Image one = render(device(), s, ro);
+  Image target = one;
+  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+  target.pixels_f64.clear();
+  GradientOptions go;
+  go.precision = p;
+  go.mode = Mode::adjoint;
+  const std::vector<std::string> groups = {"density", "tf", "background", "camera"};
+  const Gradient g1 = gradient(device(), s, target, groups, go);
+  for (int count : {2, 3, 7}) {  // 7 devices for 5 views: two get none
+    const auto devices = copies(count);
+    RenderStats st;
+    const Image many = render(raw(devices), s, ro, &st);
+    EXPECT_EQ(st.devices, std::min(count, 5));
+    ASSERT_EQ(many.views, one.views);
+    EXPECT_EQ(many.pixels, one.pixels) << count << " devices";
+    EXPECT_EQ(many.pixels_f64, one.pixels_f64) << count << " devices";
+    const Gradient gm = gradient(raw(devices), s, target, groups, go);
+    EXPECT_EQ(gm.devices, std::min(count, 5));
+    const double tol = p == Precision::f64 ? 1e-12 : 1e-5;
+    EXPECT_NEAR(gm.loss, g1.loss, tol * std::abs(g1.loss)) << count;
+    ASSERT_EQ(gm.groups.size(), g1.groups.size());
+    for (std::size_t k = 0; k < groups.size(); ++k) {
+      const std::vector<double>& a = g1.groups[k].values;
+      const std::vector<double>& b = gm.groups[k].values;
+      ASSERT_EQ(a.size(), b.size()) << groups[k];
+      EXPECT_EQ(gm.groups[k].shape, g1.groups[k].shape) << groups[k];
+      double scale = 1e-30;
+      for (double v : a) scale = std::max(scale, std::abs(v));
+      for (std::size_t i = 0; i < a.size(); ++i)
+        ASSERT_NEAR(a[i], b[i], tol * scale) << groups[k] << "[" << i << "], " << count << " devices";
+    }
+  }
+  EXPECT_THROW(render(std::vector<Device*>{}, s), Error);
+  EXPECT_THROW(render(std::vector<Device*>{nullptr, &device()}, s), Error);
+}
+
+TEST(MultiDevice, CommandLine) {
+  const std::string dir = temp_dir("multi_device_cli");
+  const std::string scene = write_file(dir + "/scene.json", R"({
+    "volume": {"synthetic": "sphere", "dims": [16, 16, 16]}, "model": "emission_absorption",
+    "tf": {"type": "piecewise_linear", "points": [
+      {"density": 0.1, "color": [0.2, 0.3, 0.9], "extinction": 0},
+      {"density": 0.6, "color": [1, 0.8, 0.6], "extinction": 20}]},
+    "cameras": [{"eye": [1.2, 0.8, 1.5], "width": 12, "height": 10},
+                {"eye": [-1.4, 0.3, -1.0], "width": 12, "height": 10},
+                {"eye": [0.2, -1.6, 1.0], "width": 12, "height": 10}],
+    "integrator": {"scheme": "midpoint", "step": 0.5}})");
+  const std::string d = std::to_string(device().info().index);
+  CliResult r = run_cli("render '" + scene + "' -o '" + dir + "/a.npy' --device " + d);
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run_cli("render '" + scene + "' -o '" + dir + "/b.npy' --json --device " + d + "," + d);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["devices"], 2) << r.out;
+  EXPECT_EQ(file_text(dir + "/a.npy"), file_text(dir + "/b.npy"));
+  r = run_cli("gradient '" + scene + "' --target '" + dir + "/a.npy' --wrt density -o '" + dir +
+              "/g' --json --device " + d + "," + d + "," + d);
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["devices"], 3) << r.out;
+  r = run_cli("render '" + scene + "' -o '" + dir + "/c.npy' --device " + d + ",");
+  EXPECT_NE(r.status, 0);
+  EXPECT_TRUE(has(r.err, "empty selector")) << r.err;
+}
+
+}  // namespace
+}  // namespace ivr::test

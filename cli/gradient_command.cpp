@@ -15,6 +15,7 @@
 
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "mpi_world.hpp"
 #include "ivr/core.hpp"
 
 namespace fs = std::filesystem;
@@ -30,6 +31,52 @@ struct GradientArgs {
 };
 
 }  // namespace
+
+// Under mpirun, each rank differentiates the loss of its share of the views (a ray list: rays);
+// the loss and the gradients are the shares' weighted by their sizes (dot: summed) and summed
+// over the ranks (MPI_Allreduce); per-view groups (camera, rays) are gathered in order. Rank 0
+// gets the result; else the gradient itself.
+Gradient gradient_ranks(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
+                        const std::vector<std::string>& groups, const GradientOptions& options) {
+  const World& w = world();
+  if (w.size == 1) return gradient(devices, scene, target, groups, options);
+  const std::size_t n = share_items(scene);
+  const auto parts = view_shares(n, std::size_t(w.size));
+  const bool active = std::size_t(w.rank) < parts.size();
+  // Every rank needs the groups' shapes: rank 0's share always exists; the others' zeros.
+  Gradient mine;
+  if (active) {
+    const auto [first, count] = parts[w.rank];
+    mine = gradient(devices, scene_share(scene, first, count),
+                    target_share(scene, target, first, count), groups, options);
+  } else {
+    mine = gradient(devices, scene_share(scene, 0, 1), target_share(scene, target, 0, 1), groups,
+                    options);
+  }
+  const double weight = !active ? 0.0
+                        : options.loss == Loss::dot ? 1.0
+                                                    : double(parts[w.rank].second) / double(n);
+  std::vector<double> sums{weight * mine.loss};
+  for (const GroupGradient& g : mine.groups)
+    if (!per_view_group(g.name))
+      for (double v : g.values) sums.push_back(weight * v);
+  sum_all(sums);
+  Gradient out = mine;
+  out.loss = sums[0];
+  std::size_t at = 1;
+  for (GroupGradient& g : out.groups) {
+    if (per_view_group(g.name)) {
+      std::vector<double> rows;
+      if (active)
+        for (double v : g.values) rows.push_back(weight * v);
+      g.values = gather(rows);
+      g.shape[0] = n;
+    } else {
+      for (double& v : g.values) v = sums[at++];
+    }
+  }
+  return out;
+}
 
 Runner add_gradient_command(CLI::App& app) {
   auto args = std::make_shared<GradientArgs>();
@@ -83,7 +130,8 @@ Runner add_gradient_command(CLI::App& app) {
     options.precision = precision;
     options.step = args->march.step;
     options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;
-    const Gradient d = gradient(pointers(devices), scene, target, groups, options);
+    const Gradient d = gradient_ranks(pointers(devices), scene, target, groups, options);
+    if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
 
     std::vector<Output> outputs;
     std::vector<std::string> paths, names;
@@ -108,7 +156,7 @@ Runner add_gradient_command(CLI::App& app) {
                             {"parameters", d.parameters},
                             {"seconds", d.kernel_seconds},
                             {"device_bytes", d.device_bytes},
-                            {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices},
+                            {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices}, {"ranks", world().size},
                             {"precision", args->march.precision},
                             {"scheme", scheme_name(scene.integrator.scheme)},
                             {"step", d.step},

@@ -6,9 +6,24 @@
 #include <string>
 
 #include "commands.hpp"
+#include "mpi_world.hpp"
 #include "ivr/core.hpp"
 
+namespace {
+int run(int argc, char** argv);
+}
+
 int main(int argc, char** argv) {
+  ivr::cli::mpi_begin(&argc, &argv);
+  const int status = run(argc, argv);
+  // An error in one rank of an mpirun ends them all: the others may be waiting in a collective.
+  if (status != 0 && ivr::cli::world().size > 1) ivr::cli::mpi_abort(status);
+  ivr::cli::mpi_end();
+  return status;
+}
+
+namespace {
+int run(int argc, char** argv) {
   CLI::App app{"ivr " IVR_VERSION_STRING " — differentiable volume rendering on OpenCL"};
   app.require_subcommand(1);
   app.set_version_flag("--version", IVR_VERSION_STRING);
@@ -58,3 +73,4 @@ int main(int argc, char** argv) {
   }
   return 1;
 }
+}  // namespace

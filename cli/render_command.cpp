@@ -7,6 +7,7 @@
 
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "mpi_world.hpp"
 #include "ivr/core.hpp"
 
 namespace fs = std::filesystem;
@@ -40,6 +41,35 @@ std::vector<std::string> output_paths(const std::string& out, int views) {
         (p.parent_path() / (p.stem().string() + "_" + std::to_string(v) + p.extension().string()))
             .string());
   return paths;
+}
+
+// Under mpirun, each rank renders its share of the views (a ray list: rays) and rank 0 gathers
+// the images in view order (the other ranks get an empty image); else the render itself.
+Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
+                   const RenderOptions& options, RenderStats* stats) {
+  const World& w = world();
+  if (w.size == 1) return render(devices, scene, options, stats);
+  const auto parts = view_shares(share_items(scene), std::size_t(w.size));
+  Image mine;
+  if (std::size_t(w.rank) < parts.size())
+    mine = render(devices, scene_share(scene, parts[w.rank].first, parts[w.rank].second), options,
+                  stats);
+  const bool f64 = options.precision == Precision::f64;
+  const std::vector<double> values =
+      f64 ? mine.pixels_f64 : std::vector<double>(mine.pixels.begin(), mine.pixels.end());
+  std::vector<double> samples{double(stats->samples)};
+  sum_all(samples);
+  stats->samples = std::uint64_t(samples[0]);
+  const std::vector<double> all = gather(values);
+  if (w.rank != 0) return {};
+  Image out = mine;
+  if (scene.has_ray_list())
+    out.width = int(scene.rays.count());
+  else
+    out.views = int(scene.cameras.size());
+  out.pixels.assign(all.begin(), all.end());
+  if (f64) out.pixels_f64 = all;
+  return out;
 }
 
 }  // namespace
@@ -92,7 +122,8 @@ Runner add_render_command(CLI::App& app) {
                       "': a scene of rays renders one value per ray: write .npy (rays, C)");
     options.volume_brick = args->volume_brick;
     RenderStats stats;
-    const Image image = render(pointers(devices), scene, options, &stats);
+    const Image image = render_ranks(pointers(devices), scene, options, &stats);
+    if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
 
     const std::vector<std::string> paths = output_paths(args->output, image.views);
     if (scene.has_ray_list()) {  // (rays, C), in the precision it was computed in
@@ -131,6 +162,7 @@ Runner add_render_command(CLI::App& app) {
                               {"grid_seconds", stats.grid_seconds}}},
                             {"bricks", stats.bricks},
                             {"devices", stats.devices},
+                            {"ranks", world().size},
                             {"brick_edge", stats.brick_edge},
                             {"sweeps", stats.sweeps},
                             {"device_bytes", stats.device_bytes},

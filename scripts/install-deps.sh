@@ -11,6 +11,7 @@ packages=(
   python3-pip python3-venv  # the test of `pip install .` in a fresh virtual environment (label package)
   python3-torch  # ivr.torch's tests and examples (skipped where absent)
   clang libclang-rt-dev  # the loaders' libFuzzer harnesses (scripts/fuzz.sh, CTest label fuzz)
+  libopenmpi-dev openmpi-bin  # `mpirun -np N ivr …` (docs/scaling.md; CTest label mpi)
 )
 
 missing=()

@@ -31,7 +31,14 @@ jobs=$(nproc 2>/dev/null || echo 2)
 cmake -S . -B "$build" "${flags[@]}"
 cmake --build "$build" -j"$jobs"
 log="$build/ctest-$label.log"
+# The mpirun tests (label mpi) after the default suite, in the plain build (built with MPI).
+mpi_tests() {
+  if [ "$build" = build ] && ctest --test-dir "$build" -N -L mpi | grep -q "Total Tests: [1-9]"; then
+    ctest --test-dir "$build" -L mpi --output-on-failure --timeout 600
+  fi
+}
 if ctest --test-dir "$build" -L "$label" -j"$jobs" --output-on-failure --timeout 600 --output-log "$log"; then
+  mpi_tests
   exit 0
 fi
 # LeakSanitizer's stop-the-world tracer itself crashed in processes whose tests all passed

@@ -52,6 +52,13 @@ IVR_API Gradient gradient(Device& device, const Scene& scene, const Image& targe
                                       const std::vector<std::string>& groups,
                                       const GradientOptions& options = {});
 
+// The target of views (a ray list: rays) [first, first + count) of `scene` (scene_share()).
+IVR_API Image target_share(const Scene& scene, const Image& target, std::size_t first,
+                           std::size_t count);
+// Groups with a row per view or ray (camera, rays): data-parallel shares join them in order
+// rather than summing them.
+IVR_API bool per_view_group(const std::string& group);
+
 // The same on several devices (docs/scaling.md): each device differentiates the loss of its
 // share of the views (a ray list's rays); the loss and the gradients are the shares' weighted by
 // their sizes (the mean losses; `dot`: summed), added in device order on the host; the rays'

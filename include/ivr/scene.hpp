@@ -139,6 +139,15 @@ struct ImageExtent {
 };
 IVR_API ImageExtent image_extent(const Scene& scene);
 
+// Data parallelism over views (several devices, MPI ranks; docs/scaling.md): contiguous shares
+// (first, count) of n views or rays over `parts` workers, as equal as can be, empty ones dropped;
+// and the scene of views (a ray list: rays) [first, first + count).
+IVR_API std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
+                                                                     std::size_t parts);
+IVR_API Scene scene_share(const Scene& scene, std::size_t first, std::size_t count);
+// The views of a scene, or a ray list's rays: what view_shares() splits.
+IVR_API std::size_t share_items(const Scene& scene);
+
 // Box centred at the origin, longest side 1, proportional to dims x spacing.
 IVR_API void set_default_box(Scene& scene);
 

@@ -13,36 +13,6 @@ namespace ivr {
 
 namespace {
 
-// The scene with views [first, first + count) (a ray list: rays).
-Scene share_of(const Scene& scene, std::size_t first, std::size_t count) {
-  Scene s = scene;
-  if (scene.has_ray_list()) {
-    s.rays.values.assign(scene.rays.values.begin() + first * RayList::kColumns,
-                         scene.rays.values.begin() + (first + count) * RayList::kColumns);
-  } else {
-    s.cameras.assign(scene.cameras.begin() + first, scene.cameras.begin() + first + count);
-  }
-  return s;
-}
-
-// Contiguous shares of n items over `parts` devices, as equal as can be; empty shares dropped.
-std::vector<std::pair<std::size_t, std::size_t>> shares(std::size_t n, std::size_t parts) {
-  std::vector<std::pair<std::size_t, std::size_t>> out;
-  std::size_t first = 0;
-  for (std::size_t d = 0; d < parts; ++d) {
-    const std::size_t count = n / parts + (d < n % parts ? 1 : 0);
-    if (count) out.push_back({first, count});
-    first += count;
-  }
-  return out;
-}
-
-// Groups with a row per view (camera) or per ray (rays): each share's rows, joined.
-bool per_share(const std::string& group) { return group == "camera" || group == "rays"; }
-
-std::size_t items_of(const Scene& scene) {
-  return scene.has_ray_list() ? scene.rays.count() : scene.cameras.size();
-}
 
 // Runs job(i) for every share on its own thread; rethrows the first share's error (in order).
 template <class Job>
@@ -71,15 +41,68 @@ void check_devices(const std::vector<Device*>& devices) {
 
 }  // namespace
 
+std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n, std::size_t parts) {
+  std::vector<std::pair<std::size_t, std::size_t>> out;
+  std::size_t first = 0;
+  for (std::size_t d = 0; d < parts; ++d) {
+    const std::size_t count = n / parts + (d < n % parts ? 1 : 0);
+    if (count) out.push_back({first, count});
+    first += count;
+  }
+  return out;
+}
+
+Scene scene_share(const Scene& scene, std::size_t first, std::size_t count) {
+  if (first + count > share_items(scene))
+    throw Error(Status::invalid_argument, "scene share [" + std::to_string(first) + ", " +
+                                              std::to_string(first + count) + ") past its " +
+                                              std::to_string(share_items(scene)) + " views or rays");
+  Scene s = scene;
+  if (scene.has_ray_list())
+    s.rays.values.assign(scene.rays.values.begin() + first * RayList::kColumns,
+                         scene.rays.values.begin() + (first + count) * RayList::kColumns);
+  else
+    s.cameras.assign(scene.cameras.begin() + first, scene.cameras.begin() + first + count);
+  return s;
+}
+
+std::size_t share_items(const Scene& scene) {
+  return scene.has_ray_list() ? scene.rays.count() : scene.cameras.size();
+}
+
+Image target_share(const Scene& scene, const Image& target, std::size_t first, std::size_t count) {
+  const std::size_t n = share_items(scene);
+  const std::size_t per_item = n ? target.pixels.size() / n : 0;
+  if (first + count > n || per_item * n != target.pixels.size())
+    throw Error(Status::invalid_argument,
+                "target share [" + std::to_string(first) + ", " + std::to_string(first + count) +
+                    ") of " + std::to_string(target.pixels.size()) + " values for " +
+                    std::to_string(n) + " views or rays");
+  Image t = target;
+  t.pixels.assign(target.pixels.begin() + first * per_item,
+                  target.pixels.begin() + (first + count) * per_item);
+  t.pixels_f64.clear();
+  if (!target.pixels_f64.empty())
+    t.pixels_f64.assign(target.pixels_f64.begin() + first * per_item,
+                        target.pixels_f64.begin() + (first + count) * per_item);
+  if (scene.has_ray_list())
+    t.width = int(count);
+  else
+    t.views = int(count);
+  return t;
+}
+
+bool per_view_group(const std::string& group) { return group == "camera" || group == "rays"; }
+
 Image render(const std::vector<Device*>& devices, const Scene& scene, const RenderOptions& options,
              RenderStats* stats) {
   check_devices(devices);
   if (devices.size() == 1) return render(*devices[0], scene, options, stats);
-  const auto parts = shares(items_of(scene), devices.size());
+  const auto parts = view_shares(share_items(scene), devices.size());
   std::vector<Image> images(parts.size());
   std::vector<RenderStats> st(parts.size());
   run_shares(parts.size(), [&](std::size_t i) {
-    images[i] = render(*devices[i], share_of(scene, parts[i].first, parts[i].second), options, &st[i]);
+    images[i] = render(*devices[i], scene_share(scene, parts[i].first, parts[i].second), options, &st[i]);
   });
   Image out = images[0];
   for (std::size_t i = 1; i < images.size(); ++i) {
@@ -108,7 +131,7 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
                   const std::vector<std::string>& groups, const GradientOptions& options) {
   check_devices(devices);
   if (devices.size() == 1) return gradient(*devices[0], scene, target, groups, options);
-  const std::size_t n = items_of(scene);
+  const std::size_t n = share_items(scene);
   const std::size_t per_item = scene.has_ray_list()
                                    ? std::size_t(scene.channels())
                                    : std::size_t(target.height) * target.width * target.channels;
@@ -116,22 +139,12 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
     throw Error(Status::invalid_argument,
                 "target: " + std::to_string(target.pixels.size()) + " values, the scene's images " +
                     std::to_string(n * per_item));
-  const auto parts = shares(n, devices.size());
+  const auto parts = view_shares(n, devices.size());
   std::vector<Gradient> g(parts.size());
   run_shares(parts.size(), [&](std::size_t i) {
     const auto [first, count] = parts[i];
-    Image t = target;
-    t.pixels.assign(target.pixels.begin() + first * per_item,
-                    target.pixels.begin() + (first + count) * per_item);
-    t.pixels_f64.clear();
-    if (!target.pixels_f64.empty())
-      t.pixels_f64.assign(target.pixels_f64.begin() + first * per_item,
-                          target.pixels_f64.begin() + (first + count) * per_item);
-    if (scene.has_ray_list())
-      t.width = int(count);
-    else
-      t.views = int(count);
-    g[i] = gradient(*devices[i], share_of(scene, first, count), t, groups, options);
+    const Image t = target_share(scene, target, first, count);
+    g[i] = gradient(*devices[i], scene_share(scene, first, count), t, groups, options);
   });
   // A mean loss over every element is the shares' means weighted by their sizes; the dot loss is
   // a plain sum. The gradients combine alike, in device order (deterministic).
@@ -145,7 +158,7 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
   for (std::size_t i = 0; i < g.size(); ++i) {
     out.loss += weight(i) * g[i].loss;
     for (std::size_t k = 0; k < out.groups.size(); ++k) {
-      if (per_share(out.groups[k].name)) continue;  // per view or ray: joined below
+      if (per_view_group(out.groups[k].name)) continue;  // per view or ray: joined below
       for (std::size_t j = 0; j < out.groups[k].values.size(); ++j)
         out.groups[k].values[j] += weight(i) * g[i].groups[k].values[j];
     }
@@ -154,7 +167,7 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
     out.bricks = std::max(out.bricks, g[i].bricks);
   }
   for (std::size_t k = 0; k < out.groups.size(); ++k)
-    if (per_share(out.groups[k].name)) {
+    if (per_view_group(out.groups[k].name)) {
       out.groups[k].values.clear();
       for (std::size_t i = 0; i < g.size(); ++i)
         for (double v : g[i].groups[k].values) out.groups[k].values.push_back(weight(i) * v);

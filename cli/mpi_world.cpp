@@ -1,0 +1,77 @@
+// mpi_world.cpp — Open MPI where built with it, a single process otherwise.
+#include "mpi_world.hpp"
+
+#include <cstdlib>
+
+#ifdef IVR_WITH_MPI
+#include <mpi.h>
+#endif
+
+namespace ivr::cli {
+
+namespace {
+World the_world;
+bool started = false;
+}  // namespace
+
+const World& world() { return the_world; }
+
+void mpi_begin(int* argc, char*** argv) {
+#ifdef IVR_WITH_MPI
+  // Only under a launcher: a plain `ivr` run stays one process without MPI's start-up.
+  if (!std::getenv("OMPI_COMM_WORLD_SIZE") && !std::getenv("PMIX_RANK") && !std::getenv("PMI_RANK"))
+    return;
+  MPI_Init(argc, argv);
+  started = true;
+  MPI_Comm_rank(MPI_COMM_WORLD, &the_world.rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &the_world.size);
+#else
+  (void)argc, (void)argv;
+#endif
+}
+
+void mpi_end() {
+#ifdef IVR_WITH_MPI
+  if (started) MPI_Finalize();
+#endif
+  started = false;
+}
+
+void mpi_abort(int status) {
+#ifdef IVR_WITH_MPI
+  if (started && the_world.size > 1) MPI_Abort(MPI_COMM_WORLD, status);
+#endif
+  std::exit(status);
+}
+
+void sum_all(std::vector<double>& values) {
+#ifdef IVR_WITH_MPI
+  if (started && the_world.size > 1)
+    MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_DOUBLE, MPI_SUM,
+                  MPI_COMM_WORLD);
+#else
+  (void)values;
+#endif
+}
+
+std::vector<double> gather(const std::vector<double>& mine) {
+#ifdef IVR_WITH_MPI
+  if (started && the_world.size > 1) {
+    int count = int(mine.size());
+    std::vector<int> counts(the_world.size), offsets(the_world.size);
+    MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+    std::vector<double> all;
+    if (the_world.rank == 0) {
+      int at = 0;
+      for (int r = 0; r < the_world.size; ++r) offsets[r] = at, at += counts[r];
+      all.resize(std::size_t(at));
+    }
+    MPI_Gatherv(mine.data(), count, MPI_DOUBLE, all.data(), counts.data(), offsets.data(),
+                MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    return all;
+  }
+#endif
+  return mine;
+}
+
+}  // namespace ivr::cli

@@ -1,0 +1,26 @@
+// mpi_world.hpp — the processes of an `mpirun` (docs/scaling.md, data-parallel over views): each
+// rank renders or differentiates its share of the views, rank 0 gathers and writes. Built on Open
+// MPI where the build found it (IVR_WITH_MPI); one process otherwise, and whenever the tool was
+// not started by mpirun.
+#pragma once
+#include <vector>
+
+namespace ivr::cli {
+
+struct World {
+  int rank = 0, size = 1;
+};
+const World& world();
+
+// MPI_Init where started by mpirun (and built with MPI); mpi_end() finalises.
+void mpi_begin(int* argc, char*** argv);
+void mpi_end();
+// On an error in one rank: ends every rank (a collective would wait for it forever).
+[[noreturn]] void mpi_abort(int status);
+
+// Σ over ranks, every rank getting the sum.
+void sum_all(std::vector<double>& values);
+// Every rank's values joined in rank order, on rank 0 (others get an empty vector).
+std::vector<double> gather(const std::vector<double>& mine);
+
+}  // namespace ivr::cli

@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# mpi_cli_test.sh — `mpirun -np 2` and `-np 4` of `ivr render` and `ivr gradient` (data-parallel
+# over views, docs/scaling.md) give one process's results: the render bit for bit, the float64
+# gradients (density, TF, cameras) within 1e-12 of the largest entry; an error in the ranks is one
+# non-zero status with nothing written. CTest label `mpi`.
+# Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
+set -euo pipefail
+ivr=$1 mpiexec=$2 python=$3
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+cd "$dir"
+cat > scene.json <<'JSON'
+{"volume": {"synthetic": "sphere", "dims": [16, 16, 16]}, "model": "emission_absorption",
+ "tf": {"type": "piecewise_linear", "points": [
+   {"density": 0.1, "color": [0.2, 0.3, 0.9], "extinction": 0.5},
+   {"density": 0.6, "color": [1, 0.8, 0.6], "extinction": 20}]},
+ "cameras": [{"eye": [1.2, 0.8, 1.5], "width": 12, "height": 10},
+             {"eye": [-1.4, 0.3, -1.0], "width": 12, "height": 10},
+             {"eye": [0.2, -1.6, 1.0], "width": 12, "height": 10},
+             {"eye": [1.6, 0.1, -0.6], "width": 12, "height": 10},
+             {"eye": [-0.3, 1.5, 1.1], "width": 12, "height": 10}],
+ "integrator": {"scheme": "midpoint", "step": 0.5}}
+JSON
+"$ivr" render scene.json -o one.npy --precision f64
+"$python" -c "import numpy as np; np.save('target.npy', (0.8 * np.load('one.npy') + 0.05).astype(np.float32))"
+"$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o g1 --precision f64
+run() { "$mpiexec" -np "$1" --oversubscribe "${@:2}"; }
+for np in 2 4; do
+  out=$(run "$np" "$ivr" render scene.json -o "r$np.npy" --precision f64 --json)
+  echo "$out" | grep -q "\"ranks\":$np" || { echo "render -np $np: no \"ranks\":$np in $out"; exit 1; }
+  run "$np" "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o "g$np" \
+    --precision f64 >/dev/null
+done
+"$python" - <<'PY'
+import numpy as np
+one = np.load("one.npy")
+for n in (2, 4):
+    r = np.load(f"r{n}.npy")
+    assert r.shape == one.shape and np.array_equal(r, one), f"render -np {n} differs"
+    for g in ("density", "tf", "camera"):
+        a, b = np.load(f"g1_{g}.npy"), np.load(f"g{n}_{g}.npy")
+        assert a.shape == b.shape, (n, g, a.shape, b.shape)
+        err = np.max(np.abs(a - b)) / max(np.max(np.abs(a)), 1e-300)
+        assert np.all(np.isfinite(b)) and err <= 1e-12, f"gradient {g} -np {n}: {err}"
+        print(f"-np {n} {g}: {err:.2e}")
+PY
+# An error (a missing target) ends every rank with a non-zero status and writes nothing.
+if run 2 "$ivr" gradient scene.json --target missing.npy --wrt density -o bad 2>err.txt; then
+  echo "a missing target under mpirun succeeded"; exit 1
+fi
+grep -q "missing.npy" err.txt || { echo "no error naming the target:"; cat err.txt; exit 1; }
+[ ! -e bad_density.npy ] || { echo "bad_density.npy written"; exit 1; }
+echo "mpi_cli_test: passed"

@@ -1,10 +1,7 @@
 // bricked_render.cpp — the out-of-core render: plan, brick order, streaming, sweeps.
 #include "brick/bricked_render.hpp"
 
-#include "brick/brick_stream.hpp"
-
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <map>
@@ -19,10 +16,10 @@ namespace ivr {
 
 namespace {
 
-constexpr int kStateReals = 24, kStateUints = 5;
+constexpr int kStateReals = 24, kStateUints = 5;  // kernels/bricked.cl IVR_BRICK_REALS / _UINTS
 // Runs of views up to this long launch each view over its brick's pixels alone (brick_pixels);
 // longer ones launch once over every pixel of the run.
-constexpr int kCulledViews = 16;  // kernels/bricked.cl IVR_BRICK_REALS / _UINTS
+constexpr int kCulledViews = 16;
 enum Phase { kBegin = 0, kMarch = 1, kFinish = 2 };
 
 // The cameras or rays, their parameters and the TF on the device (bounds), and a little for the

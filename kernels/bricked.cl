@@ -159,7 +159,6 @@ inline bool brick_march(__global const real* volume, int4 dims, const RayMarch* 
   su[BU_NEXT] = i;
   return stopped;
 #else  // exact (absorption): the pieces of the window
-  (void)s;
   const real tau_stop =
       min_transmittance > (real)0 ? -log(min_transmittance) : (real)INFINITY;
   RayMarch w = *m;

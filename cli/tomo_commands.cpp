@@ -14,6 +14,7 @@
 
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "mpi_world.hpp"
 #include "ivr/core.hpp"
 
 namespace fs = std::filesystem;
@@ -247,14 +248,34 @@ Runner add_tomo_command(CLI::App& app) {
 
     const InterruptGuard interrupt;
     const int total = args->options.iterations;
-    const TomoResult r = tomo(device, scene, lines, args->options, [&](const TomoIteration& it) {
-      std::ostringstream line;
-      line << "iteration " << it.iteration << "/" << total << "  residual " << std::scientific
-           << std::setprecision(3) << it.residual << "  " << std::fixed << std::setprecision(2)
-           << it.seconds << " s\n";
-      std::cerr << line.str() << std::flush;
+    const TomoProgress progress = [&](const TomoIteration& it) {
+      if (world().rank == 0) {
+        std::ostringstream line;
+        line << "iteration " << it.iteration << "/" << total << "  residual " << std::scientific
+             << std::setprecision(3) << it.residual << "  " << std::fixed << std::setprecision(2)
+             << it.seconds << " s\n";
+        std::cerr << line.str() << std::flush;
+      }
       return interrupt.signal() == 0;
-    });
+    };
+    TomoResult r;
+    if (world().size > 1) {
+      // mpirun: each rank its share of the views and their projections (docs/scaling.md).
+      const std::size_t items = share_items(scene);
+      if (items < std::size_t(world().size))
+        throw Error(Status::invalid_argument,
+                    std::to_string(world().size) + " ranks for " + std::to_string(items) +
+                        (scene.has_ray_list() ? " rays" : " views") + ": at most one rank each");
+      const std::size_t per_item = lines.size() / items;
+      const auto [first, count] = view_shares(items, std::size_t(world().size))[world().rank];
+      const std::vector<double> mine(lines.begin() + first * per_item,
+                                     lines.begin() + (first + count) * per_item);
+      r = tomo_shared(device, scene_share(scene, first, count), mine, args->options, sum_all,
+                      progress);
+      if (world().rank != 0) return 0;  // rank 0 writes
+    } else {
+      r = tomo(device, scene, lines, args->options, progress);
+    }
     if (args->options.precision == Precision::f64)
       write_outputs({{c.output, volume_shape(scene), r.volume_f64, true}});
     else
@@ -269,6 +290,7 @@ Runner add_tomo_command(CLI::App& app) {
       std::cout << nlohmann::json{{"solver", solver_name(args->options.solver)},
                                   {"precision", c.precision},
                                   {"device", device.info().name}, {"bricks", r.bricks},
+                                  {"ranks", world().size},
                                   {"iterations", r.history.size()},
                                   {"max_iterations", total},
                                   {"stop_reason", r.stop_reason},

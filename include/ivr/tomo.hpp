@@ -104,6 +104,15 @@ IVR_API TomoResult tomo(Device& device, const Scene& scene, const std::vector<do
                         const TomoOptions& options, const TomoProgress& progress = {},
                         const std::vector<double>* x0 = nullptr);
 
+// One worker's part of a reconstruction spread over workers by views (MPI ranks; docs/scaling.md):
+// `share` holds this worker's views (scene_share()) and `lines` their projections; `sum` adds a
+// vector over the workers in place (every worker getting the sum; an MPI_Allreduce). CGLS (with
+// nonneg or Tikhonov) on host vectors; every worker returns the same iterate.
+IVR_API TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<double>& lines,
+                               const TomoOptions& options,
+                               const std::function<void(std::vector<double>&)>& sum,
+                               const TomoProgress& progress = {});
+
 // Line integrals from intensities: p = −log(I / I_in) / a, with I_in the scene's background and a
 // the identity TF's extinction_scale (other TFs are refused: only the identity TF keeps log I
 // linear in the voxels). I ≤ 0 or non-finite → ivr::Error naming the view and pixel, unless

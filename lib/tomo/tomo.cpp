@@ -302,17 +302,26 @@ void lsqr(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buff
 
 }  // namespace
 
-// CGLS on host vectors with the projector streaming bricks (the volume does not fit the device,
-// docs/scaling.md): the same iteration as cgls() on the stacked system [N; √λ I] of Tikhonov,
+// CGLS on host vectors, with the projector streaming bricks (the volume does not fit the device)
+// or over one worker's share of the views (docs/scaling.md): the same iteration as cgls() on the stacked system [N; √λ I] of Tikhonov,
 // with non-negativity restarting from the projected iterate; the iterates equal the in-core
 // solver's up to rounding.
-void cgls_bricked(const Projector& N, const std::vector<double>& p, std::vector<double>& x,
-                  const TomoOptions& o, Monitor& m) {
+// `sum` (where given): the workers' sum over the views they share out (data-parallel over views,
+// docs/scaling.md), every worker getting it: their Nᵀ r and their dot products over lines.
+void cgls_host(const Projector& N, const std::vector<double>& p, std::vector<double>& x,
+               const TomoOptions& o, Monitor& m,
+               const std::function<void(std::vector<double>&)>& sum = {}) {
   const double lambda = o.tikhonov;
   auto dot = [](const std::vector<double>& a, const std::vector<double>& b) {
-    double sum = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) sum += a[i] * b[i];
-    return sum;
+    double total = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) total += a[i] * b[i];
+    return total;
+  };
+  // Over lines: this worker's share, summed over the workers.
+  auto dot_lines = [&](const std::vector<double>& a, const std::vector<double>& b) {
+    std::vector<double> d{dot(a, b)};
+    if (sum) sum(d);
+    return d[0];
   };
   // r = p − N x (data part; the Tikhonov part −√λ x is kept implicitly through x);
   // s = Nᵀ r − λ x.
@@ -323,6 +332,7 @@ void cgls_bricked(const Projector& N, const std::vector<double>& p, std::vector<
   };
   auto gradient = [&](const std::vector<double>& r) {
     std::vector<double> s = N.backproject(r);
+    if (sum) sum(s);
     if (lambda > 0)
       for (std::size_t i = 0; i < s.size(); ++i) s[i] -= lambda * x[i];
     return s;
@@ -332,7 +342,7 @@ void cgls_bricked(const Projector& N, const std::vector<double>& p, std::vector<
   for (int k = 1;; ++k) {
     if (gamma > 0) {
       const std::vector<double> q = N.project(d);
-      const double delta = dot(q, q) + lambda * dot(d, d);
+      const double delta = dot_lines(q, q) + lambda * dot(d, d);
       if (!(delta > 0)) return (void)m.stop("converged");
       const double alpha = gamma / delta;
       bool restart = false;
@@ -347,7 +357,7 @@ void cgls_bricked(const Projector& N, const std::vector<double>& p, std::vector<
       for (std::size_t i = 0; i < d.size(); ++i) d[i] = restart ? s[i] : s[i] + gamma_next / gamma * d[i];
       gamma = gamma_next;
     }
-    if (!m.next(k, std::sqrt(dot(r, r)))) return;
+    if (!m.next(k, std::sqrt(dot_lines(r, r)))) return;
     if (!(gamma > 0)) return (void)m.stop("converged");
   }
 }
@@ -398,7 +408,7 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
     double p_norm = 0;
     for (double v : lines) p_norm += v * v;
     Monitor monitor(options, progress, std::sqrt(p_norm), result);
-    cgls_bricked(projector, lines, x, options, monitor);
+    cgls_host(projector, lines, x, options, monitor);
     result.volume.assign(x.begin(), x.end());
     if (options.precision == Precision::f64) result.volume_f64 = std::move(x);
     return result;
@@ -426,6 +436,37 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
   const std::vector<double> values = P.download(x, P.voxels);
   result.volume.assign(values.begin(), values.end());
   if (options.precision == Precision::f64) result.volume_f64 = values;
+  return result;
+}
+
+TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<double>& lines,
+                       const TomoOptions& options,
+                       const std::function<void(std::vector<double>&)>& sum,
+                       const TomoProgress& progress) {
+  check_options(options);
+  if (options.solver != Solver::cgls || options.tv > 0)
+    throw Error(Status::unsupported,
+                std::string("data-parallel reconstruction: solver ") + solver_name(options.solver) +
+                    (options.tv > 0 ? " with TV" : "") +
+                    " is not available; use cgls (with nonneg or tikhonov)");
+  const auto t0 = std::chrono::steady_clock::now();
+  const Projector projector(device, share, options.precision);
+  if (lines.size() != projector.ray_count())
+    throw Error(Status::invalid_argument,
+                "projections: " + std::to_string(lines.size()) + " values for this share's " +
+                    std::to_string(projector.ray_count()) + " rays");
+  TomoResult result;
+  result.bricks = projector.bricks();
+  std::vector<double> norm{0.0};
+  for (double v : lines) norm[0] += v * v;
+  sum(norm);
+  std::vector<double> x(projector.voxel_count(), 0.0);
+  result.setup_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  Monitor monitor(options, progress, std::sqrt(norm[0]), result);
+  cgls_host(projector, lines, x, options, monitor, sum);
+  result.volume.assign(x.begin(), x.end());
+  if (options.precision == Precision::f64) result.volume_f64 = std::move(x);
   return result;
 }
 

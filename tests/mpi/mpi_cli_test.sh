@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# mpi_cli_test.sh — `mpirun -np 2` and `-np 4` of `ivr render` and `ivr gradient` (data-parallel
-# over views, docs/scaling.md) give one process's results: the render bit for bit, the float64
-# gradients (density, TF, cameras) within 1e-12 of the largest entry; an error in the ranks is one
-# non-zero status with nothing written. CTest label `mpi`.
+# mpi_cli_test.sh — `mpirun -np 2` and `-np 4` of `ivr render`, `ivr gradient` and `ivr tomo`
+# (data-parallel over views, docs/scaling.md) give one process's results: the render bit for bit,
+# the float64 gradients (density, TF, cameras) within 1e-12 of the largest entry, CGLS's iterate
+# within 1e-12; an error in the ranks is one non-zero status with nothing written. CTest label
+# `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
 ivr=$1 mpiexec=$2 python=$3
@@ -24,12 +25,17 @@ JSON
 "$ivr" render scene.json -o one.npy --precision f64
 "$python" -c "import numpy as np; np.save('target.npy', (0.8 * np.load('one.npy') + 0.05).astype(np.float32))"
 "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o g1 --precision f64
+"$ivr" project scene.json -o p.npy --precision f64 >/dev/null
+"$ivr" tomo scene.json --projections p.npy --iterations 5 -o x1.npy --precision f64 2>/dev/null
 run() { "$mpiexec" -np "$1" --oversubscribe "${@:2}"; }
 for np in 2 4; do
   out=$(run "$np" "$ivr" render scene.json -o "r$np.npy" --precision f64 --json)
   echo "$out" | grep -q "\"ranks\":$np" || { echo "render -np $np: no \"ranks\":$np in $out"; exit 1; }
   run "$np" "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o "g$np" \
     --precision f64 >/dev/null
+  out=$(run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 -o "x$np.npy" \
+    --precision f64 --json 2>/dev/null)
+  echo "$out" | grep -q "\"ranks\":$np" || { echo "tomo -np $np: no \"ranks\":$np in $out"; exit 1; }
 done
 "$python" - <<'PY'
 import numpy as np
@@ -43,6 +49,10 @@ for n in (2, 4):
         err = np.max(np.abs(a - b)) / max(np.max(np.abs(a)), 1e-300)
         assert np.all(np.isfinite(b)) and err <= 1e-12, f"gradient {g} -np {n}: {err}"
         print(f"-np {n} {g}: {err:.2e}")
+    a, b = np.load("x1.npy"), np.load(f"x{n}.npy")
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert a.shape == b.shape and err <= 1e-12, f"tomo -np {n}: {err}"
+    print(f"-np {n} tomo: {err:.2e}")
 PY
 # An error (a missing target) ends every rank with a non-zero status and writes nothing.
 if run 2 "$ivr" gradient scene.json --target missing.npy --wrt density -o bad 2>err.txt; then

@@ -89,6 +89,23 @@ inline bool brick_stopped(const Radiance* r, real min_transmittance) {
 #endif
 }
 
+// The ray's global march from its state, moved to the brick's voxels, and the end *tb1 of its
+// window in the brick; false where the ray is done, misses the brick, or its march does not stand
+// at the window's start (met out of order: a later sweep takes it).
+inline bool brick_enter(__global const real* s, __global const uint* su, real4 brick_lo,
+                        real4 brick_hi, int4 origin, RayMarch* m, real* tb1) {
+  if (su[BU_FLAGS] & IVR_BRICK_DONE) return false;
+  m->t0 = s[BS_T0], m->t1 = s[BS_T1], m->dt = s[BS_DT], m->n = su[BU_N];
+  m->u0x = s[BS_U0 + 0], m->u0y = s[BS_U0 + 1], m->u0z = s[BS_U0 + 2];
+  m->dux = s[BS_U0 + 3], m->duy = s[BS_U0 + 4], m->duz = s[BS_U0 + 5];
+  real tb0 = m->t0;
+  *tb1 = m->t1;
+  brick_window(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, brick_lo, brick_hi, &tb0, tb1);
+  if (!(*tb1 > tb0) || tb0 != s[BS_TNEXT]) return false;
+  m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
+  return true;
+}
+
 // Marches the ray's window [tb0, tb1] in this brick (m: the global march with u0 moved to the
 // brick's voxels); true where the ray stopped early.
 inline bool brick_march(__global const real* volume, int4 dims, const RayMarch* m, real tb1,
@@ -242,14 +259,8 @@ __kernel void bricked_render(__global const real* restrict volume, const int4 di
     su[BU_N] = m.n;
     return;
   }
-  if (su[BU_FLAGS] & IVR_BRICK_DONE) return;
-  m.t0 = s[BS_T0], m.t1 = s[BS_T1], m.dt = s[BS_DT], m.n = su[BU_N];
-  m.u0x = s[BS_U0 + 0], m.u0y = s[BS_U0 + 1], m.u0z = s[BS_U0 + 2];
-  m.dux = s[BS_U0 + 3], m.duy = s[BS_U0 + 4], m.duz = s[BS_U0 + 5];
-  real tb0 = m.t0, tb1 = m.t1;
-  brick_window(m.u0x, m.u0y, m.u0z, m.dux, m.duy, m.duz, brick_lo, brick_hi, &tb0, &tb1);
-  if (!(tb1 > tb0) || tb0 != s[BS_TNEXT]) return;  // not in this brick, or not yet
-  m.u0x -= (real)origin.x, m.u0y -= (real)origin.y, m.u0z -= (real)origin.z;
+  real tb1;
+  if (!brick_enter(s, su, brick_lo, brick_hi, origin, &m, &tb1)) return;
   Radiance r = brick_load(s, su);
   const bool stopped =
       brick_march(volume, dims, &m, tb1, tf, tf_count, tf_scalars, min_transmittance, &r, s, su);
@@ -324,15 +335,9 @@ __kernel void bricked_adjoint(__global const real* restrict volume, const int4 d
     su[BU_FLAGS] = end > 0u && su[BU_N] > 0u ? 0u : IVR_BRICK_DONE;
     return;
   }
-  if (su[BU_FLAGS] & IVR_BRICK_DONE) return;
   RayMarch m;
-  m.t0 = s[BS_T0], m.t1 = s[BS_T1], m.dt = s[BS_DT], m.n = su[BU_N];
-  m.u0x = s[BS_U0 + 0], m.u0y = s[BS_U0 + 1], m.u0z = s[BS_U0 + 2];
-  m.dux = s[BS_U0 + 3], m.duy = s[BS_U0 + 4], m.duz = s[BS_U0 + 5];
-  real tb0 = m.t0, tb1 = m.t1;
-  brick_window(m.u0x, m.u0y, m.u0z, m.dux, m.duy, m.duz, brick_lo, brick_hi, &tb0, &tb1);
-  if (!(tb1 > tb0) || tb0 != s[BS_TNEXT]) return;
-  m.u0x -= (real)origin.x, m.u0y -= (real)origin.y, m.u0z -= (real)origin.z;
+  real tb1;
+  if (!brick_enter(s, su, brick_lo, brick_hi, origin, &m, &tb1)) return;
   const uint end = su[BU_SAMPLES];
   real transmittance = s[BS_T];
   real pr = s[BS_CR], pg = s[BS_CG], pb = s[BS_CB], kr = s[BS_KR], kg = s[BS_KG], kb = s[BS_KB];

@@ -71,6 +71,24 @@ inline bool projector_ray(__global const real* cameras, int x, int y, int view, 
   return true;
 }
 
+// ∫ v(t) dt over the pieces left of a ray (its whole march, or its window in a brick).
+inline real pieces_integral(__global const real* volume, int4 dims, March* m, Pieces* p) {
+  real sum = (real)0, ta, tb;
+  while (pieces_next(p, m, dims, &ta, &tb)) {
+    if (!(tb > ta)) continue;
+    const PieceCell c = piece_cell(m, dims, ta, tb);
+    real v[8];
+    piece_corners(volume, dims, c, v);
+    const PieceWeights w = piece_weights(c, tb - ta);
+    // Σ_k weight_k·v_k, the x pairs first: v0·(mx0·p + dx0·q) + v1·(mx1·p + dx1·q).
+    for (int j = 0; j < 4; ++j) {
+      const real v0 = v[2 * j], v1 = v[2 * j + 1];
+      sum += w.p[j] * (v0 + w.mx1 * (v1 - v0)) + w.q[j] * w.gx * (v1 - v0);
+    }
+  }
+  return sum;
+}
+
 // N: one work-item per ray; line[ray] = ∫ v(t) dt over the ray's part in the box.
 __kernel void project(__global const real* restrict volume, const int4 dims, const real4 box_min,
                       const real4 box_max, const real4 inv_voxel,
@@ -82,21 +100,8 @@ __kernel void project(__global const real* restrict volume, const int4 dims, con
   Pieces p;
   real sum = (real)0;
   if (projector_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel, &m,
-                    &p)) {
-    real ta, tb;
-    while (pieces_next(&p, &m, dims, &ta, &tb)) {
-      if (!(tb > ta)) continue;
-      const PieceCell c = piece_cell(&m, dims, ta, tb);
-      real v[8];
-      piece_corners(volume, dims, c, v);
-      const PieceWeights w = piece_weights(c, tb - ta);
-      // Σ_k weight_k·v_k, the x pairs first: v0·(mx0·p + dx0·q) + v1·(mx1·p + dx1·q).
-      for (int j = 0; j < 4; ++j) {
-        const real v0 = v[2 * j], v1 = v[2 * j + 1];
-        sum += w.p[j] * (v0 + w.mx1 * (v1 - v0)) + w.q[j] * w.gx * (v1 - v0);
-      }
-    }
-  }
+                    &p))
+    sum = pieces_integral(volume, dims, &m, &p);
   line[((size_t)view * height + y) * width + x] = sum;
 }
 
@@ -198,19 +203,7 @@ __kernel void project_brick(__global const real* restrict volume, const int4 dim
   if (!projector_brick_ray(cameras, x, y, view, width, height, dims, box_min, box_max, inv_voxel,
                            brick_lo, brick_hi, origin, &m, &p))
     return;
-  real sum = (real)0, ta, tb;
-  while (pieces_next(&p, &m, dims, &ta, &tb)) {
-    if (!(tb > ta)) continue;
-    const PieceCell c = piece_cell(&m, dims, ta, tb);
-    real v[8];
-    piece_corners(volume, dims, c, v);
-    const PieceWeights w = piece_weights(c, tb - ta);
-    for (int j = 0; j < 4; ++j) {
-      const real v0 = v[2 * j], v1 = v[2 * j + 1];
-      sum += w.p[j] * (v0 + w.mx1 * (v1 - v0)) + w.q[j] * w.gx * (v1 - v0);
-    }
-  }
-  line[((size_t)view * height + y) * width + x] += sum;
+  line[((size_t)view * height + y) * width + x] += pieces_integral(volume, dims, &m, &p);
 }
 
 // Nᵀ of one brick into its voxels (`volume`, zeroed first), atomically.

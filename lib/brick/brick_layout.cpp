@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "ivr/error.hpp"
+#include "runtime/runtime.hpp"
 
 namespace ivr {
 
@@ -71,6 +72,12 @@ std::array<double, 3> BrickLayout::hi(int b) const {
     p[a] = i[a] == count[a] - 1 ? std::numeric_limits<double>::infinity()
                                 : double(i[a] + 1) * edge;
   return p;
+}
+
+std::uint64_t brick_budget(Device& device) {
+  const std::uint64_t budget = device_memory_budget(device.info());
+  const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(device.impl().live->bytes, 0));
+  return budget ? (budget > in_use ? budget - in_use : 1) : 0;
 }
 
 namespace {

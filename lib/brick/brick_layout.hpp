@@ -35,6 +35,10 @@ struct BrickLayout {
 // Bricks of `edge` cells (≥ 1) over the volume's dims.
 BrickLayout brick_layout(int nx, int ny, int nz, int edge);
 
+// What the device-memory budget (device_memory_budget) leaves beside the device's buffers alive
+// now: what an out-of-core plan may take (0: no budget known).
+std::uint64_t brick_budget(Device& device);
+
 // Brick b's voxels from host values of the layout's dims (x fastest), converted to the kernels'
 // real (float or double) into `out` (bytes, resized).
 void extract_brick(const float* values, const BrickLayout& layout, int b, bool f64,

@@ -7,7 +7,6 @@
 #include "brick/bricked_render.hpp"
 #include "ivr/error.hpp"
 #include "runtime/real_args.hpp"
-#include "runtime/variants.hpp"
 #include "session/session.hpp"
 #include "runtime/launch.hpp"
 #include "tomo/project.hpp"
@@ -17,17 +16,6 @@ namespace ivr {
 namespace {
 
 constexpr int kSlots = 2;
-
-KernelConfig brick_config(Projector::Impl& p, const char* entry) {
-  RenderVariant v;
-  v.model = Model::absorption;
-  v.tf = TfKind::identity;
-  v.scheme = Scheme::exact;
-  v.precision = p.precision;
-  v.ray_list = p.s.scene.has_ray_list();
-  KernelConfig c = v.config("project.cl", entry);
-  return c.with_atomics(atomic_add_for(p.dev.info, p.s.f64));
-}
 
 // The geometry (arguments 1 … 7) and brick b's planes, extent and origin (arguments 1, 9 … 11).
 void set_brick_args(Projector::Impl& p, cl::Kernel& k, const BrickLayout& l, int b) {
@@ -53,9 +41,7 @@ BrickLayout plan_projector(Device& device, const Scene& scene, Precision precisi
                            int forced_edge) {
   const std::size_t real = precision == Precision::f64 ? 8 : 4;
   const std::uint64_t voxels = scene.volume.voxel_count(), rays = image_extent(scene).pixels();
-  std::uint64_t budget = device_memory_budget(device.info());
-  const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(device.impl().live->bytes, 0));
-  if (budget) budget = budget > in_use ? budget - in_use : 1;
+  const std::uint64_t budget = brick_budget(device);
   const std::uint64_t geometry = (64 * scene.cameras.size() + 8 * scene.rays.count()) * real + 1024;
   if (forced_edge <= 0) forced_edge = volume_brick_from_env();
   if (forced_edge <= 0 && (budget == 0 || (voxels + rays) * real + geometry <= budget)) return {};
@@ -89,7 +75,7 @@ std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& l,
   double seconds = 0;
   cl_call("running the bricked projector on " + p.dev.info.name, [&] {
     p.dev.queue.enqueueFillBuffer(lines, cl_uchar(0), 0, p.rays * p.real_size);
-    cl::Kernel& k = p.s.kernels.get(brick_config(p, "project_brick"));
+    cl::Kernel& k = p.s.kernels.get(projector_config(p.s, "project_brick"));
     k.setArg(8, lines);
     std::vector<cl::Event> events;
     for (int b = 0; b < l.total(); ++b) {
@@ -126,7 +112,7 @@ std::vector<double> backproject_bricked(Projector::Impl& p, const BrickLayout& l
   double seconds = 0;
   std::vector<cl::Event> events;
   cl_call("running the bricked back-projector on " + p.dev.info.name, [&] {
-    cl::Kernel& k = p.s.kernels.get(brick_config(p, "backproject_brick"));
+    cl::Kernel& k = p.s.kernels.get(projector_config(p.s, "backproject_brick"));
     k.setArg(0, y);
     // Brick b on slot b % 2: its kernel runs while the host adds brick b − 1 into the volume.
     auto finish = [&](int b) {

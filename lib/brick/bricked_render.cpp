@@ -169,9 +169,7 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   const std::uint64_t voxels = scene.volume.voxel_count();
   const std::uint64_t image = rays * (scene.channels() * real_size + 4);
   const std::uint64_t geometry = geometry_bytes(scene, real_size);
-  plan.budget = device_memory_budget(info);
-  const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(device.impl().live->bytes, 0));
-  if (plan.budget) plan.budget = plan.budget > in_use ? plan.budget - in_use : 1;
+  plan.budget = brick_budget(device);
   // The gradient adds the volume's gradient (in core), or per ray its pixel adjoints (8 reals), the
   // target and the loss, and one brick's gradient (out of core: one slot more).
   const std::uint64_t target = gradient ? rays * (scene.channels() + 1) * real_size : 0;

@@ -28,6 +28,8 @@ bool backproject_cache(Session::Impl& s) {
   return scatter_cache_for(s.dev, s.real_size, 0);
 }
 
+}  // namespace
+
 // N and Nᵀ share one program: the scatter cache's define changes Nᵀ alone.
 KernelConfig projector_config(Session::Impl& s, const char* entry) {
   // Absorption line integrals, evaluated exactly (the exact scheme's splitting): no TF.
@@ -41,6 +43,8 @@ KernelConfig projector_config(Session::Impl& s, const char* entry) {
   return with_scatter_cache(c.with_atomics(atomic_add_for(s.dev.info, s.f64)),
                             backproject_cache(s));
 }
+
+namespace {
 
 // The grid and cameras of the ray kernels (arguments 1 … 7 of project and backproject).
 void set_geometry(const Session::Impl& s, cl::Kernel& k) {

@@ -8,6 +8,7 @@
 #include "ivr/session.hpp"
 #include "brick/brick_layout.hpp"
 #include "ivr/tomo.hpp"
+#include "runtime/kernel_config.hpp"
 #include "runtime/runtime.hpp"
 
 namespace ivr {
@@ -37,6 +38,10 @@ struct Projector::Impl {
   void project(const cl::Buffer& volume, const cl::Buffer& lines);
   void backproject(const cl::Buffer& lines, const cl::Buffer& volume);
 };
+
+// The configuration of the projector program's kernel `entry` (kernels/project.cl: project,
+// backproject, and the bricks' project_brick, backproject_brick) for the session's device.
+KernelConfig projector_config(Session::Impl& s, const char* entry);
 
 // The session's projector kernels on buffers of its precision: lines = N volume; volume = Nᵀ
 // lines (zeroed first; both commands' events appended). Enqueued, not waited for.

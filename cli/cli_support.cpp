@@ -132,6 +132,14 @@ void add_march_options(CLI::App* cmd, MarchOptions& o) {
                   "render and gradient: several, comma-separated, share the views");
 }
 
+void add_split_option(CLI::App* cmd, std::string& split) {
+  cmd->add_option("--split", split,
+                  "Under mpirun: views (default: each rank its share of the views, the whole "
+                  "volume on every rank) or slabs (each rank one slab of z planes, the rays' "
+                  "march states passed between ranks; one device per rank; docs/scaling.md)")
+      ->check(CLI::IsMember({"views", "slabs"}));
+}
+
 std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors) {
   std::vector<std::unique_ptr<Device>> out;
   std::size_t start = 0;

@@ -56,6 +56,8 @@ struct MarchOptions {
   CLI::Option* tolerance_option = nullptr;
 };
 void add_march_options(CLI::App* cmd, MarchOptions& options);
+// --split views|slabs: how the ranks of an mpirun share the work (docs/scaling.md).
+void add_split_option(CLI::App* cmd, std::string& split);
 // The devices of a --device value: one, or several comma-separated (each a selector).
 std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors);
 std::vector<Device*> pointers(const std::vector<std::unique_ptr<Device>>& devices);

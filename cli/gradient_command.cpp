@@ -25,7 +25,7 @@ namespace ivr::cli {
 namespace {
 
 struct GradientArgs {
-  std::string scene, target, wrt, mode = "auto", loss = "mse", prefix;
+  std::string scene, target, wrt, mode = "auto", loss = "mse", prefix, split = "views";
   MarchOptions march;
   bool json = false;
 };
@@ -36,8 +36,31 @@ struct GradientArgs {
 // the loss and the gradients are the shares' weighted by their sizes (dot: summed) and summed
 // over the ranks (MPI_Allreduce); per-view groups (camera, rays) are gathered in order. Rank 0
 // gets the result; else the gradient itself.
+// With --split slabs each rank differentiates over its slab and rank 0 joins the slabs.
+Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
+                        const Image& target, const std::vector<std::string>& groups,
+                        const GradientOptions& options) {
+  if (groups != std::vector<std::string>{"density"})
+    throw Error(Status::unsupported, "--split slabs: only --wrt density so far (docs/scaling.md)");
+  if (devices.size() > 1)
+    throw Error(Status::invalid_argument, "--split slabs: one device per rank, not --device with " +
+                                              std::to_string(devices.size()));
+  const World& w = world();
+  Gradient mine =
+      gradient_domain(*devices[0], domain_share(scene, w.rank, w.size), target, domain_part(), options);
+  const std::vector<std::vector<double>> slabs = gather_parts(mine.groups[0].values);
+  if (w.rank != 0) return {};
+  GroupGradient& g = mine.groups[0];
+  g.values = domain_join(scene.volume.nx, scene.volume.ny, scene.volume.nz, slabs);
+  g.shape[0] = std::size_t(scene.volume.nz);
+  mine.parameters = g.values.size();
+  return mine;
+}
+
 Gradient gradient_ranks(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
-                        const std::vector<std::string>& groups, const GradientOptions& options) {
+                        const std::vector<std::string>& groups, const GradientOptions& options,
+                        const std::string& split) {
+  if (split == "slabs") return gradient_slabs(devices, scene, target, groups, options);
   const World& w = world();
   if (w.size == 1) return gradient(devices, scene, target, groups, options);
   const std::size_t n = share_items(scene);
@@ -95,6 +118,7 @@ Runner add_gradient_command(CLI::App& app) {
   cmd->add_option("--loss", args->loss, "Image loss: mse (default), l1, or dot (the sum of target * image: the "
                   "gradient is the vector-Jacobian product with the target as dL/dimage)");
   add_march_options(cmd, args->march);
+  add_split_option(cmd, args->split);
   cmd->add_option("-o,--output", args->prefix,
                   "Output prefix: writes PREFIX_<group>.npy for every group asked for (float32; "
                   "float64 with --precision f64)")
@@ -130,7 +154,8 @@ Runner add_gradient_command(CLI::App& app) {
     options.precision = precision;
     options.step = args->march.step;
     options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;
-    const Gradient d = gradient_ranks(pointers(devices), scene, target, groups, options);
+    const Gradient d =
+        gradient_ranks(pointers(devices), scene, target, groups, options, args->split);
     if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
 
     std::vector<Output> outputs;
@@ -156,7 +181,7 @@ Runner add_gradient_command(CLI::App& app) {
                             {"parameters", d.parameters},
                             {"seconds", d.kernel_seconds},
                             {"device_bytes", d.device_bytes},
-                            {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices}, {"ranks", world().size},
+                            {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices}, {"ranks", world().size}, {"split", args->split},
                             {"precision", args->march.precision},
                             {"scheme", scheme_name(scene.integrator.scheme)},
                             {"step", d.step},

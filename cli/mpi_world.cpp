@@ -1,6 +1,8 @@
 // mpi_world.cpp — Open MPI where built with it, a single process otherwise.
 #include "mpi_world.hpp"
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdlib>
 
 #ifdef IVR_WITH_MPI
@@ -72,6 +74,47 @@ std::vector<double> gather(const std::vector<double>& mine) {
   }
 #endif
   return mine;
+}
+
+std::vector<std::vector<double>> gather_parts(const std::vector<double>& mine) {
+  std::vector<double> counts{double(mine.size())};
+  const std::vector<double> all_counts = gather(counts);
+  const std::vector<double> all = gather(mine);
+  std::vector<std::vector<double>> parts;
+  std::size_t at = 0;
+  for (double c : all_counts) {
+    parts.emplace_back(all.begin() + std::ptrdiff_t(at), all.begin() + std::ptrdiff_t(at + std::size_t(c)));
+    at += std::size_t(c);
+  }
+  return parts;
+}
+
+std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned char>& mine) {
+#ifdef IVR_WITH_MPI
+  if (started && the_world.size > 1) {
+    int count = int(mine.size());
+    std::vector<int> counts(the_world.size), offsets(the_world.size);
+    MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
+    int total = 0;
+    for (int r = 0; r < the_world.size; ++r) offsets[r] = total, total += counts[r];
+    std::vector<unsigned char> all(std::size_t(std::max(total, 1)));
+    MPI_Allgatherv(mine.data(), count, MPI_BYTE, all.data(), counts.data(), offsets.data(),
+                   MPI_BYTE, MPI_COMM_WORLD);
+    std::vector<std::vector<unsigned char>> parts;
+    for (int r = 0; r < the_world.size; ++r)
+      parts.emplace_back(all.begin() + offsets[r], all.begin() + offsets[r] + counts[r]);
+    return parts;
+  }
+#endif
+  return {mine};
+}
+
+DomainPart domain_part() {
+  DomainPart part;
+  part.rank = the_world.rank;
+  part.ranks = the_world.size;
+  part.all_gather = [](const std::vector<unsigned char>& mine) { return all_gather(mine); };
+  return part;
 }
 
 }  // namespace ivr::cli

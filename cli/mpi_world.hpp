@@ -1,9 +1,12 @@
-// mpi_world.hpp — the processes of an `mpirun` (docs/scaling.md, data-parallel over views): each
-// rank renders or differentiates its share of the views, rank 0 gathers and writes. Built on Open
+// mpi_world.hpp — the processes of an `mpirun` (docs/scaling.md): data-parallel over views (each
+// rank renders or differentiates its share of the views, rank 0 gathers and writes) or over slabs
+// of the volume (the rays' states exchanged between ranks). Built on Open
 // MPI where the build found it (IVR_WITH_MPI); one process otherwise, and whenever the tool was
 // not started by mpirun.
 #pragma once
 #include <vector>
+
+#include "ivr/domain.hpp"
 
 namespace ivr::cli {
 
@@ -22,5 +25,11 @@ void mpi_end();
 void sum_all(std::vector<double>& values);
 // Every rank's values joined in rank order, on rank 0 (others get an empty vector).
 std::vector<double> gather(const std::vector<double>& mine);
+// Every rank's values by rank, on rank 0 (others get an empty vector).
+std::vector<std::vector<double>> gather_parts(const std::vector<double>& mine);
+// Every rank's bytes by rank, on every rank (MPI_Allgatherv).
+std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned char>& mine);
+// This rank's part of a domain-parallel operation over the world (--split slabs).
+DomainPart domain_part();
 
 }  // namespace ivr::cli

@@ -22,6 +22,7 @@ struct RenderArgs {
   bool json = false;
   std::string empty_space = "auto";
   int volume_brick = 0;
+  std::string split = "views";
 };
 
 std::string lower_ext(const std::string& path) {
@@ -44,10 +45,19 @@ std::vector<std::string> output_paths(const std::string& out, int views) {
 }
 
 // Under mpirun, each rank renders its share of the views (a ray list: rays) and rank 0 gathers
-// the images in view order (the other ranks get an empty image); else the render itself.
+// the images in view order (the other ranks get an empty image); with --split slabs each rank its
+// slab, every rank getting the image; else the render itself.
 Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
-                   const RenderOptions& options, RenderStats* stats) {
+                   const RenderOptions& options, RenderStats* stats, const std::string& split,
+                   DomainStats* domain) {
   const World& w = world();
+  if (split == "slabs") {
+    if (devices.size() > 1)
+      throw Error(Status::invalid_argument, "--split slabs: one device per rank, not --device with " +
+                                                std::to_string(devices.size()));
+    return render_domain(*devices[0], domain_share(scene, w.rank, w.size), domain_part(), options,
+                         stats, domain);
+  }
   if (w.size == 1) return render(devices, scene, options, stats);
   const auto parts = view_shares(share_items(scene), std::size_t(w.size));
   Image mine;
@@ -92,6 +102,7 @@ Runner add_render_command(CLI::App& app) {
                   "(docs/scaling.md); by default only where it does not fit the device memory or "
                   "$IVR_DEVICE_MEMORY_LIMIT")
       ->check(CLI::PositiveNumber);
+  add_split_option(cmd, args->split);
   cmd->add_flag("--json", args->json,
                 "Print one JSON object with device, timings and sample counts");
   return [args] {
@@ -122,7 +133,9 @@ Runner add_render_command(CLI::App& app) {
                       "': a scene of rays renders one value per ray: write .npy (rays, C)");
     options.volume_brick = args->volume_brick;
     RenderStats stats;
-    const Image image = render_ranks(pointers(devices), scene, options, &stats);
+    DomainStats domain;
+    const Image image =
+        render_ranks(pointers(devices), scene, options, &stats, args->split, &domain);
     if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
 
     const std::vector<std::string> paths = output_paths(args->output, image.views);
@@ -163,6 +176,9 @@ Runner add_render_command(CLI::App& app) {
                             {"bricks", stats.bricks},
                             {"devices", stats.devices},
                             {"ranks", world().size},
+                            {"split", args->split},
+                            {"exchanges", domain.exchanges},
+                            {"exchanged_bytes", domain.sent_bytes},
                             {"brick_edge", stats.brick_edge},
                             {"sweeps", stats.sweeps},
                             {"device_bytes", stats.device_bytes},

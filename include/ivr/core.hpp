@@ -3,6 +3,7 @@
 #pragma once
 #include "ivr/calibrate.hpp"
 #include "ivr/device.hpp"
+#include "ivr/domain.hpp"
 #include "ivr/gradient.hpp"
 #include "ivr/error.hpp"
 #include "ivr/adjoint.hpp"

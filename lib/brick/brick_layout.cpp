@@ -19,14 +19,22 @@ namespace {
 int bricks_along(int n, int edge) { return std::max(1, (n - 1 + edge - 1) / edge); }
 }  // namespace
 
-BrickLayout brick_layout(int nx, int ny, int nz, int edge) {
+BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first, int z_last) {
   if (edge < 1)
     throw Error(Status::invalid_argument,
                 "brick edge: " + std::to_string(edge) + " cells, must be at least 1");
+  if (z_last < 0) z_last = nz - 1;
+  if (z_first < 0 || z_last >= nz || z_first > z_last)
+    throw Error(Status::invalid_argument, "bricks: planes " + std::to_string(z_first) + ".." +
+                                              std::to_string(z_last) + " of a volume of " +
+                                              std::to_string(nz) + " planes");
   BrickLayout l;
   l.edge = edge;
   l.dims = {nx, ny, nz};
-  for (int a = 0; a < 3; ++a) l.count[a] = bricks_along(l.dims[a], edge);
+  l.z_first = z_first, l.z_last = z_last;
+  l.count[0] = bricks_along(nx, edge);
+  l.count[1] = bricks_along(ny, edge);
+  l.count[2] = bricks_along(z_last - z_first + 1, edge);
   return l;
 }
 
@@ -36,13 +44,14 @@ std::array<int, 3> BrickLayout::index(int b) const {
 
 std::array<int, 3> BrickLayout::origin(int b) const {
   const std::array<int, 3> i = index(b);
-  return {i[0] * edge, i[1] * edge, i[2] * edge};
+  return {i[0] * edge, i[1] * edge, z_first + i[2] * edge};
 }
 
 std::array<int, 3> BrickLayout::extent(int b) const {
   const std::array<int, 3> o = origin(b);
+  const std::array<int, 3> last{dims[0] - 1, dims[1] - 1, z_last};
   std::array<int, 3> e{};
-  for (int a = 0; a < 3; ++a) e[a] = std::min(o[a] + edge, dims[a] - 1) - o[a] + 1;
+  for (int a = 0; a < 3; ++a) e[a] = std::min(o[a] + edge, last[a]) - o[a] + 1;
   return e;
 }
 
@@ -52,25 +61,29 @@ std::size_t BrickLayout::voxels(int b) const {
 }
 
 std::size_t BrickLayout::largest_voxels() const {
+  const std::array<int, 3> cells{dims[0] - 1, dims[1] - 1, z_last - z_first};
   std::size_t n = 1;
-  for (int a = 0; a < 3; ++a) n *= std::size_t(std::min(edge, dims[a] - 1) + 1);
+  for (int a = 0; a < 3; ++a) n *= std::size_t(std::min(edge, cells[a]) + 1);
   return n;
 }
 
+// A brick's planes are those it starts and ends at; at the outer bricks, ±∞ where the bricks
+// reach the box face (a slab's inner face stays a plane: the next process's bricks start there).
 std::array<double, 3> BrickLayout::lo(int b) const {
-  const std::array<int, 3> i = index(b);
+  const std::array<int, 3> o = origin(b);
   std::array<double, 3> p{};
   for (int a = 0; a < 3; ++a)
-    p[a] = i[a] == 0 ? -std::numeric_limits<double>::infinity() : double(i[a]) * edge;
+    p[a] = o[a] == 0 ? -std::numeric_limits<double>::infinity() : double(o[a]);
   return p;
 }
 
 std::array<double, 3> BrickLayout::hi(int b) const {
-  const std::array<int, 3> i = index(b);
+  const std::array<int, 3> o = origin(b), e = extent(b);
   std::array<double, 3> p{};
-  for (int a = 0; a < 3; ++a)
-    p[a] = i[a] == count[a] - 1 ? std::numeric_limits<double>::infinity()
-                                : double(i[a] + 1) * edge;
+  for (int a = 0; a < 3; ++a) {
+    const int end = o[a] + e[a] - 1;
+    p[a] = end == dims[a] - 1 ? std::numeric_limits<double>::infinity() : double(end);
+  }
   return p;
 }
 
@@ -88,7 +101,8 @@ void extract(const T* values, const BrickLayout& l, int b, bool f64, std::vector
   std::size_t at = 0;
   for (int z = 0; z < e[2]; ++z)
     for (int y = 0; y < e[1]; ++y) {
-      const T* row = values + (std::size_t(o[2] + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
+      const T* row =
+          values + (std::size_t(o[2] - l.z_first + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
       if (f64) {
         double* dst = reinterpret_cast<double*>(out.data()) + at;
         for (int x = 0; x < e[0]; ++x) dst[x] = double(row[x]);
@@ -111,17 +125,30 @@ void extract_brick(const double* values, const BrickLayout& layout, int b, bool 
   extract(values, layout, b, f64, out);
 }
 
-void add_brick(const std::vector<unsigned char>& brick, const BrickLayout& l, int b, bool f64,
-               double* values) {
+namespace {
+template <typename T>
+void add(const std::vector<unsigned char>& brick, const BrickLayout& l, int b, bool f64, T* values) {
   const std::array<int, 3> o = l.origin(b), e = l.extent(b);
   std::size_t at = 0;
   for (int z = 0; z < e[2]; ++z)
     for (int y = 0; y < e[1]; ++y) {
-      double* row = values + (std::size_t(o[2] + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
+      T* row =
+          values + (std::size_t(o[2] - l.z_first + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
       for (int x = 0; x < e[0]; ++x, ++at)
-        row[x] += f64 ? reinterpret_cast<const double*>(brick.data())[at]
-                      : double(reinterpret_cast<const float*>(brick.data())[at]);
+        row[x] += f64 ? T(reinterpret_cast<const double*>(brick.data())[at])
+                      : T(reinterpret_cast<const float*>(brick.data())[at]);
     }
+}
+}  // namespace
+
+void add_brick(const std::vector<unsigned char>& brick, const BrickLayout& l, int b, bool f64,
+               double* values) {
+  add(brick, l, b, f64, values);
+}
+
+void add_brick(const std::vector<unsigned char>& brick, const BrickLayout& l, int b, bool f64,
+               float* values) {
+  add(brick, l, b, f64, values);
 }
 
 }  // namespace ivr

@@ -16,10 +16,16 @@ namespace ivr {
 // covers the voxel-centre coordinates [k·edge, (k+1)·edge] and holds voxels k·edge ..
 // min((k+1)·edge, N − 1), so neighbours share one plane of voxels (the halo) and every trilinear
 // lookup inside a brick reads its own voxels. The outer bricks reach the box faces.
+//
+// Along z the bricks may cover only planes [z_first, z_last] of the volume (a domain-parallel
+// process's slab, lib/brick/domain.cpp): cut from z_first, reaching ±∞ only where the slab reaches
+// the box face, and the host values they are cut from (extract_brick, add_brick) start at plane
+// z_first.
 struct BrickLayout {
   int edge = 0;                // cells per brick edge (0: not bricked)
   std::array<int, 3> dims{};   // the volume's voxels per axis (x, y, z)
   std::array<int, 3> count{};  // bricks per axis
+  int z_first = 0, z_last = 0;  // the planes the bricks cover (all: 0, dims[2] − 1)
   int total() const { return count[0] * count[1] * count[2]; }
   // Brick b's index per axis (x fastest), first voxel and voxels per axis.
   std::array<int, 3> index(int b) const;
@@ -32,14 +38,15 @@ struct BrickLayout {
   std::array<double, 3> hi(int b) const;
 };
 
-// Bricks of `edge` cells (≥ 1) over the volume's dims.
-BrickLayout brick_layout(int nx, int ny, int nz, int edge);
+// Bricks of `edge` cells (≥ 1) over the volume's dims; along z over planes [z_first, z_last]
+// (z_last < 0: to the last plane).
+BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first = 0, int z_last = -1);
 
 // What the device-memory budget (device_memory_budget) leaves beside the device's buffers alive
 // now: what an out-of-core plan may take (0: no budget known).
 std::uint64_t brick_budget(Device& device);
 
-// Brick b's voxels from host values of the layout's dims (x fastest), converted to the kernels'
+// Brick b's voxels from host values of the layout's dims (x fastest; planes from z_first), converted to the kernels'
 // real (float or double) into `out` (bytes, resized).
 void extract_brick(const float* values, const BrickLayout& layout, int b, bool f64,
                    std::vector<unsigned char>& out);
@@ -53,5 +60,7 @@ inline void extract_brick(const Volume& volume, const BrickLayout& layout, int b
 // dims: the planes bricks share get every brick's part.
 void add_brick(const std::vector<unsigned char>& brick, const BrickLayout& layout, int b, bool f64,
                double* values);
+void add_brick(const std::vector<unsigned char>& brick, const BrickLayout& layout, int b, bool f64,
+               float* values);
 
 }  // namespace ivr

@@ -1,6 +1,7 @@
 // bricked_gradient.cpp — the out-of-core density gradient.
 #include "brick/bricked_gradient.hpp"
 
+#include "brick/domain.hpp"
 #include "ivr/error.hpp"
 #include "runtime/real_args.hpp"
 
@@ -13,7 +14,8 @@ constexpr int kAdjointReals = 8;
 
 Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
                           const std::vector<std::string>& groups, const GradientOptions& o,
-                          const BrickPlan& plan) {
+                          const BrickPlan& plan, const DomainPart* domain,
+                          DomainStats* domain_stats) {
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
   if (groups != std::vector<std::string>{"density"})
@@ -27,6 +29,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   ro.precision = o.precision;
   ro.step = o.step;
   BrickedMarch march(device, scene, ro, plan, "gradient");
+  if (domain) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
   march.session().set_target(target);
   march.render();
@@ -56,7 +59,8 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   });
   march.launch_all(k, kAdjointBegin);
 
-  std::vector<double> gradient(scene.volume.voxel_count(), 0.0);
+  const std::size_t planes = std::size_t(l.z_last - l.z_first + 1);  // all, or a worker's slab
+  std::vector<double> gradient(planes * l.dims[1] * l.dims[0], 0.0);
   std::vector<unsigned char> host;
   BrickHooks hooks;
   hooks.before = [&](int b, std::vector<cl::Event>& wait) {
@@ -79,10 +83,9 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   d.plan.mode = Mode::adjoint;
   d.plan.model = "out of core";
   d.groups.push_back({"density",
-                      {std::size_t(scene.volume.nz), std::size_t(scene.volume.ny),
-                       std::size_t(scene.volume.nx)},
+                      {planes, std::size_t(scene.volume.ny), std::size_t(scene.volume.nx)},
                       std::move(gradient)});
-  d.parameters = scene.volume.voxel_count();
+  d.parameters = d.groups[0].values.size();
   const OperationStats st = march.session().last_stats();
   d.kernel_seconds = st.kernel_seconds;
   d.device_bytes = plan.bricked_bytes;

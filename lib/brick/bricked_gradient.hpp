@@ -11,9 +11,11 @@
 namespace ivr {
 
 // Runs gradient() out of core; throws Error(unsupported) for what it does not cover yet (groups
-// other than density, schemes other than midpoint).
+// other than density, schemes other than midpoint). `domain`: this worker's slab alone (as
+// render_bricked); the gradient of its planes.
 Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
                           const std::vector<std::string>& groups, const GradientOptions& options,
-                          const BrickPlan& plan);
+                          const BrickPlan& plan, const DomainPart* domain = nullptr,
+                          DomainStats* domain_stats = nullptr);
 
 }  // namespace ivr

@@ -67,8 +67,8 @@ BrickLayout plan_projector(Device& device, const Scene& scene, Precision precisi
   return brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);
 }
 
-std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& l,
-                                    const std::vector<double>& volume) {
+template <typename T>
+std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& l, const T* volume) {
   const bool f64 = p.s.f64;
   const cl::Buffer lines = p.vector(p.rays, "the line integrals");
   BrickStream stream(p.dev, kSlots, l.largest_voxels() * p.real_size);
@@ -80,7 +80,7 @@ std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& l,
     std::vector<cl::Event> events;
     for (int b = 0; b < l.total(); ++b) {
       const int i = stream.resident(b, [&](int brick, std::vector<unsigned char>& out) {
-        extract_brick(volume.data(), l, brick, f64, out);
+        extract_brick(volume, l, brick, f64, out);
       });
       k.setArg(0, stream.buffer(i));
       set_brick_args(p, k, l, b);
@@ -98,15 +98,16 @@ std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& l,
   return p.download(lines, p.rays);
 }
 
-std::vector<double> backproject_bricked(Projector::Impl& p, const BrickLayout& l,
-                                        const std::vector<double>& lines) {
+template <typename T>
+void backproject_bricked(Projector::Impl& p, const BrickLayout& l, const std::vector<double>& lines,
+                         T* volume) {
   const bool f64 = p.s.f64;
   const cl::Buffer y = p.upload(lines, "the projections");
   const std::size_t slot_bytes = l.largest_voxels() * p.real_size;
   cl::Buffer out[kSlots];
   for (auto& o : out)
     o = p.dev.buffer(CL_MEM_READ_WRITE, slot_bytes, nullptr, "a brick's back-projection");
-  std::vector<double> volume(p.voxels, 0.0);
+  std::fill(volume, volume + p.voxels, T(0));
   std::vector<unsigned char> host[kSlots];
   cl::Event read[kSlots];
   double seconds = 0;
@@ -118,7 +119,7 @@ std::vector<double> backproject_bricked(Projector::Impl& p, const BrickLayout& l
     auto finish = [&](int b) {
       const int i = b % kSlots;
       read[i].wait();
-      add_brick(host[i], l, b, f64, volume.data());
+      add_brick(host[i], l, b, f64, volume);
     };
     for (int b = 0; b < l.total(); ++b) {
       const int i = b % kSlots;
@@ -139,7 +140,13 @@ std::vector<double> backproject_bricked(Projector::Impl& p, const BrickLayout& l
     for (const cl::Event& e : events) seconds += event_seconds(e);
   });
   p.last_seconds = seconds;
-  return volume;
 }
+
+template std::vector<double> project_bricked(Projector::Impl&, const BrickLayout&, const float*);
+template std::vector<double> project_bricked(Projector::Impl&, const BrickLayout&, const double*);
+template void backproject_bricked(Projector::Impl&, const BrickLayout&, const std::vector<double>&,
+                                  float*);
+template void backproject_bricked(Projector::Impl&, const BrickLayout&, const std::vector<double>&,
+                                  double*);
 
 }  // namespace ivr

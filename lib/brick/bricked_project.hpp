@@ -17,9 +17,13 @@ namespace ivr {
 BrickLayout plan_projector(Device& device, const Scene& scene, Precision precision,
                            int forced_edge = 0);
 
-std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& layout,
-                                    const std::vector<double>& volume);
-std::vector<double> backproject_bricked(Projector::Impl& p, const BrickLayout& layout,
-                                        const std::vector<double>& lines);
+// N volume, the volume's `voxels` values on the host as float or double (the out-of-core CGLS keeps
+// float32 iterates where the precision is float32: half the host memory).
+template <typename T>
+std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& layout, const T* volume);
+// out = Nᵀ lines (out: the grid's voxels, overwritten).
+template <typename T>
+void backproject_bricked(Projector::Impl& p, const BrickLayout& layout,
+                         const std::vector<double>& lines, T* out);
 
 }  // namespace ivr

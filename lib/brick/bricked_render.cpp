@@ -1,6 +1,8 @@
 // bricked_render.cpp — the out-of-core render: plan, brick order, streaming, sweeps.
 #include "brick/bricked_render.hpp"
 
+#include "brick/domain.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -53,7 +55,7 @@ std::array<int, 3> eye_brick(const Scene& scene, const BrickLayout& l, const glm
   const glm::dvec3 h = scene.voxel_size();
   std::array<int, 3> e{};
   for (int a = 0; a < 3; ++a) {
-    const double u = (p[a] - scene.box_min[a]) / h[a] - 0.5;
+    const double u = (p[a] - scene.box_min[a]) / h[a] - 0.5 - (a == 2 ? l.z_first : 0);
     const double k = std::floor(u / l.edge);
     e[a] = int(std::clamp(std::isfinite(k) ? k : 0.0, 0.0, double(l.count[a] - 1)));
   }
@@ -223,10 +225,15 @@ BrickedMarch::BrickedMarch(Device& device, const Scene& scene, const RenderOptio
       op(s.begin(operation)),
       e_(image_extent(scene)),
       stream_(s.dev, plan.slots, plan.layout.largest_voxels() * s.real_size) {
-  if (scene.volume.data.size() != scene.volume.voxel_count())
+  const BrickLayout& l = plan.layout;
+  const std::size_t held = std::size_t(l.dims[0]) * l.dims[1] * (l.z_last - l.z_first + 1);
+  if (scene.volume.data.size() != held)
     throw Error(Status::invalid_argument,
-                "volume: holds " + std::to_string(scene.volume.data.size()) +
-                    " values but dims need " + std::to_string(scene.volume.voxel_count()));
+                "volume: holds " + std::to_string(scene.volume.data.size()) + " values but " +
+                    (held == scene.volume.voxel_count()
+                         ? "dims need " + std::to_string(held)
+                         : "planes " + std::to_string(l.z_first) + ".." + std::to_string(l.z_last) +
+                               " need " + std::to_string(held)));
   if (scene.integrator.tolerance > 0 && !(options.step > 0))
     throw Error(Status::unsupported,
                 "out-of-core: integrator.tolerance chooses its step from the whole volume; "
@@ -295,6 +302,7 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks) {
   Device::Impl& dev = s.dev;
   int sweeps = 0;
   cl_call("running the bricked march on " + dev.info.name, [&] {
+    if (before_sweeps) before_sweeps();
     for (;;) {
       ++sweeps;
       for (const ViewGroup& g : groups_)
@@ -325,13 +333,14 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks) {
           dev.queue.flush();
           if (hooks.after) hooks.after(b, marched);
         }
+      if (after_sweep) after_sweep();
       const cl_uint zero = 0;
       dev.queue.enqueueWriteBuffer(pending_, CL_FALSE, 0, 4, &zero);
       launch_all(*render_, kFinish);
       cl_uint left = 0;
       dev.queue.enqueueReadBuffer(pending_, CL_TRUE, 0, 4, &left);
       if (left == 0) break;
-      if (sweeps > l.total() + 1)
+      if (sweeps > (l.total() + 1) * workers)
         throw Error(Status::opencl, "out-of-core march: " + std::to_string(left) +
                                         " rays still marching after " + std::to_string(sweeps) +
                                         " sweeps over the bricks");
@@ -354,8 +363,10 @@ void BrickedMarch::render() {
 }
 
 Image render_bricked(Device& device, const Scene& scene, const RenderOptions& options,
-                     const BrickPlan& plan, RenderStats* stats) {
+                     const BrickPlan& plan, RenderStats* stats, const DomainPart* domain,
+                     DomainStats* domain_stats) {
   BrickedMarch march(device, scene, options, plan, "render");
+  if (domain) attach_exchange(march, *domain, domain_stats);
   march.render();
   const Image out = image_of(march.image);
   if (stats) {

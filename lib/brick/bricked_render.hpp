@@ -35,9 +35,15 @@ struct BrickPlan {
 BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge,
                       bool gradient = false);
 
+struct DomainPart;
+struct DomainStats;
+
 // Renders `scene` brick by brick as `plan` says; the image equals render()'s in core to rounding.
+// `domain` (lib/brick/domain.cpp): this worker marches its slab's bricks alone (plan.layout's
+// planes; scene.volume.data holds them) and exchanges the rays' states with the other workers.
 Image render_bricked(Device& device, const Scene& scene, const RenderOptions& options,
-                     const BrickPlan& plan, RenderStats* stats);
+                     const BrickPlan& plan, RenderStats* stats, const DomainPart* domain = nullptr,
+                     DomainStats* domain_stats = nullptr);
 
 // The views that share a brick order (front to back for all their rays), as runs of views.
 struct ViewGroup {
@@ -68,6 +74,13 @@ class BrickedMarch {
   int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks);  // the sweeps it took
   void render();  // BEGIN, the sweeps, FINISH: `image`, `samples`
   Session& session() { return session_; }
+  const cl::Buffer& state() const { return state_; }
+  const cl::Buffer& state_u() const { return state_u_; }
+  std::size_t rays() const { return e_.pixels(); }
+  // Domain-parallel (lib/brick/domain.cpp): called before a sweep() begins and after each sweep's
+  // bricks (before the pending rays are counted), and how many workers march the volume.
+  std::function<void()> before_sweeps, after_sweep;
+  int workers = 1;
   BrickStream& stream() { return stream_; }
   cl::Kernel& render_kernel() { return *render_; }
   const BrickPlan& plan() const { return plan_; }

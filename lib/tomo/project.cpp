@@ -259,7 +259,7 @@ std::vector<double> Projector::project(const std::vector<double>& volume) const 
   if (volume.size() != impl_->voxels)
     bad("project: the volume has " + std::to_string(volume.size()) + " values, the grid " +
         std::to_string(impl_->voxels));
-  if (impl_->bricks.edge) return project_bricked(*impl_, impl_->bricks, volume);
+  if (impl_->bricks.edge) return project_bricked(*impl_, impl_->bricks, volume.data());
   const cl::Buffer v = impl_->upload(volume, "the volume");
   const cl::Buffer lines = impl_->vector(impl_->rays, "the line integrals");
   impl_->project(v, lines);
@@ -270,7 +270,11 @@ std::vector<double> Projector::backproject(const std::vector<double>& lines) con
   if (lines.size() != impl_->rays)
     bad("backproject: " + std::to_string(lines.size()) + " values for " +
         std::to_string(impl_->rays) + " rays (views × height × width)");
-  if (impl_->bricks.edge) return backproject_bricked(*impl_, impl_->bricks, lines);
+  if (impl_->bricks.edge) {
+    std::vector<double> volume(impl_->voxels);
+    backproject_bricked(*impl_, impl_->bricks, lines, volume.data());
+    return volume;
+  }
   const cl::Buffer p = impl_->upload(lines, "the projections");
   const cl::Buffer v = impl_->vector(impl_->voxels, "the back-projection");
   impl_->backproject(p, v);

@@ -5,9 +5,12 @@
 #include <chrono>
 #include <cmath>
 #include <string>
+#include <type_traits>
 
 #include "ivr/error.hpp"
+#include "brick/bricked_project.hpp"
 #include "tomo/linalg.hpp"
+#include "tomo/project.hpp"
 #include "scene/scene.hpp"
 
 namespace ivr {
@@ -303,18 +306,25 @@ void lsqr(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buff
 }  // namespace
 
 // CGLS on host vectors, with the projector streaming bricks (the volume does not fit the device)
-// or over one worker's share of the views (docs/scaling.md): the same iteration as cgls() on the stacked system [N; √λ I] of Tikhonov,
-// with non-negativity restarting from the projected iterate; the iterates equal the in-core
-// solver's up to rounding.
-// `sum` (where given): the workers' sum over the views they share out (data-parallel over views,
-// docs/scaling.md), every worker getting it: their Nᵀ r and their dot products over lines.
-void cgls_host(const Projector& N, const std::vector<double>& p, std::vector<double>& x,
+// or over one worker's share of the views (docs/scaling.md): the same iteration as cgls() on the
+// stacked system [N; √λ I] of Tikhonov, with non-negativity restarting from the projected iterate;
+// the iterates equal the in-core solver's up to rounding.
+// T: the volume vectors' type — float where the precision is float32 and the projector is in
+// bricks (the device's iterates are float32 then too; three float32 volumes are 12 GiB at 1024³
+// where double would take 24), double otherwise. Dot products sum in double.
+// `sum` (where given; T = double): the workers' sum over the views they share out (data-parallel
+// over views, docs/scaling.md), every worker getting it: their Nᵀ r and their dot products over
+// lines.
+template <typename T>
+void cgls_host(const Projector& N, const std::vector<double>& p, std::vector<T>& x,
                const TomoOptions& o, Monitor& m,
                const std::function<void(std::vector<double>&)>& sum = {}) {
+  static_assert(std::is_same_v<T, double> || std::is_same_v<T, float>);
+  Projector::Impl& P = N.impl();
   const double lambda = o.tikhonov;
-  auto dot = [](const std::vector<double>& a, const std::vector<double>& b) {
+  auto dot = [](const auto& a, const auto& b) {
     double total = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) total += a[i] * b[i];
+    for (std::size_t i = 0; i < a.size(); ++i) total += double(a[i]) * double(b[i]);
     return total;
   };
   // Over lines: this worker's share, summed over the workers.
@@ -323,38 +333,50 @@ void cgls_host(const Projector& N, const std::vector<double>& p, std::vector<dou
     if (sum) sum(d);
     return d[0];
   };
+  auto project = [&](const std::vector<T>& v) {
+    if constexpr (std::is_same_v<T, float>) return project_bricked(P, P.bricks, v.data());
+    else return N.project(v);
+  };
   // r = p − N x (data part; the Tikhonov part −√λ x is kept implicitly through x);
-  // s = Nᵀ r − λ x.
+  // s = Nᵀ r − λ x, written into `s` (no second volume alive).
   auto residual = [&] {
-    std::vector<double> r = N.project(x);
+    std::vector<double> r = project(x);
     for (std::size_t i = 0; i < r.size(); ++i) r[i] = p[i] - r[i];
     return r;
   };
-  auto gradient = [&](const std::vector<double>& r) {
-    std::vector<double> s = N.backproject(r);
-    if (sum) sum(s);
+  auto gradient = [&](const std::vector<double>& r, std::vector<T>& s) {
+    if constexpr (std::is_same_v<T, float>) {
+      s.resize(x.size());
+      backproject_bricked(P, P.bricks, r, s.data());
+    } else {
+      s = N.backproject(r);
+      if (sum) sum(s);
+    }
     if (lambda > 0)
-      for (std::size_t i = 0; i < s.size(); ++i) s[i] -= lambda * x[i];
-    return s;
+      for (std::size_t i = 0; i < s.size(); ++i) s[i] = T(s[i] - lambda * x[i]);
   };
-  std::vector<double> r = residual(), s = gradient(r), d = s;
+  std::vector<double> r = residual();
+  std::vector<T> s;
+  gradient(r, s);
+  std::vector<T> d = s;
   double gamma = dot(s, s);
   for (int k = 1;; ++k) {
     if (gamma > 0) {
-      const std::vector<double> q = N.project(d);
+      const std::vector<double> q = project(d);
       const double delta = dot_lines(q, q) + lambda * dot(d, d);
       if (!(delta > 0)) return (void)m.stop("converged");
       const double alpha = gamma / delta;
       bool restart = false;
-      for (std::size_t i = 0; i < x.size(); ++i) x[i] += alpha * d[i];
+      for (std::size_t i = 0; i < x.size(); ++i) x[i] = T(x[i] + alpha * d[i]);
       for (std::size_t i = 0; i < r.size(); ++i) r[i] -= alpha * q[i];
       if (o.nonneg)
-        for (double& v : x)
+        for (T& v : x)
           if (v < 0) v = 0, restart = true;
       if (restart) r = residual();
-      s = gradient(r);
+      gradient(r, s);
       const double gamma_next = dot(s, s);
-      for (std::size_t i = 0; i < d.size(); ++i) d[i] = restart ? s[i] : s[i] + gamma_next / gamma * d[i];
+      for (std::size_t i = 0; i < d.size(); ++i)
+        d[i] = restart ? s[i] : T(s[i] + gamma_next / gamma * d[i]);
       gamma = gamma_next;
     }
     if (!m.next(k, std::sqrt(dot_lines(r, r)))) return;
@@ -400,7 +422,6 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
                       " bricks): solver " + solver_name(options.solver) +
                       (options.tv > 0 ? " with TV" : "") +
                       " is not available; use cgls (with nonneg or tikhonov)");
-    std::vector<double> x = x0 ? *x0 : std::vector<double>(P.voxels, 0.0);
     TomoResult result;
     result.bricks = projector.bricks();
     result.setup_seconds =
@@ -408,9 +429,16 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
     double p_norm = 0;
     for (double v : lines) p_norm += v * v;
     Monitor monitor(options, progress, std::sqrt(p_norm), result);
+    if (options.precision == Precision::f32) {
+      result.volume = x0 ? std::vector<float>(x0->begin(), x0->end())
+                         : std::vector<float>(P.voxels, 0.0f);
+      cgls_host(projector, lines, result.volume, options, monitor);
+      return result;
+    }
+    std::vector<double> x = x0 ? *x0 : std::vector<double>(P.voxels, 0.0);
     cgls_host(projector, lines, x, options, monitor);
     result.volume.assign(x.begin(), x.end());
-    if (options.precision == Precision::f64) result.volume_f64 = std::move(x);
+    result.volume_f64 = std::move(x);
     return result;
   }
   DeviceVectors V(P);

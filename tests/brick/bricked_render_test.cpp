@@ -10,69 +10,11 @@
 #include "ivr/error.hpp"
 #include "ivr/render.hpp"
 #include "test_support.hpp"
+#include "brick_support.hpp"
 
 namespace ivr {
 namespace {
 using namespace test;
-
-// A noisy volume of odd, unequal dims (bricks end short of the edge) with a TF that has colour,
-// zero-extinction stretches and enough extinction that some rays stop early.
-Scene bricked_scene(Model model, Scheme scheme) {
-  Scene s;
-  s.volume.nx = 11, s.volume.ny = 9, s.volume.nz = 13;
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  s.volume.data.resize(s.volume.voxel_count());
-  for (float& v : s.volume.data) v = u(rng);
-  set_default_box(s);
-  s.model = model;
-  s.tf.kind = TfKind::piecewise_linear;
-  s.tf.points = {{0.0, {0, 0, 0}, 0.0},
-                 {0.3, {0.2, 0.9, 0.4}, 0.0},
-                 {0.6, {1.0, 0.5, 0.1}, 60.0},
-                 {1.0, {0.3, 0.3, 1.0}, 30.0}};
-  s.integrator.scheme = scheme;
-  s.integrator.step = 0.37;
-  s.background = {0.1, 0.2, 0.3};
-  auto persp = [](glm::dvec3 eye, glm::dvec3 target) {
-    Camera c;
-    c.eye = eye, c.target = target, c.fov_y = 50, c.width = 11, c.height = 9;
-    return c;
-  };
-  s.cameras = {persp({0.3, 0.4, 2.0}, {0, 0, 0}), persp({-1.6, -0.7, -0.9}, {0.05, 0, 0}),
-               persp({0.05, -0.1, 0.1}, {1, 0.3, 0.2}),  // inside the volume
-               persp({0.3, 0.4, 2.0}, {0.01, 0, 0})};
-  // Orthographic down −z and along +x: rays whose x (and y) lie on the voxel-centre planes that
-  // the bricks' faces are made of (11 voxels, 11 pixels across the box).
-  s.cameras.push_back(ortho({0, 0, 2}, {0, 1, 0}, 11, 9, s.box_max.y - s.box_min.y));
-  Camera side = ortho({-2, 0, 0}, {0, 1, 0}, 11, 9, s.box_max.y - s.box_min.y);
-  s.cameras.push_back(side);
-  return s;
-}
-
-double largest(const std::vector<double>& v) {
-  double m = 0;
-  for (double x : v) m = std::max(m, std::abs(x));
-  return m;
-}
-
-// Every pixel within tol × the largest |value| of the in-core image; none NaN/Inf.
-void expect_same(const Image& in_core, const Image& bricked, double tol, const std::string& what) {
-  const std::vector<double> a = in_core.pixels_f64.empty()
-                                    ? std::vector<double>(in_core.pixels.begin(), in_core.pixels.end())
-                                    : in_core.pixels_f64;
-  const std::vector<double> b = bricked.pixels_f64.empty()
-                                    ? std::vector<double>(bricked.pixels.begin(), bricked.pixels.end())
-                                    : bricked.pixels_f64;
-  ASSERT_EQ(a.size(), b.size()) << what;
-  const double scale = std::max(largest(a), 1e-30);
-  int bad = 0;
-  for (std::size_t i = 0; i < a.size() && bad < 5; ++i)
-    if (!std::isfinite(b[i]) || std::abs(a[i] - b[i]) > tol * scale) {
-      ADD_FAILURE() << what << ": element " << i << " in core " << a[i] << ", bricked " << b[i];
-      ++bad;
-    }
-}
 
 Image render_with(const Scene& s, Precision p, int brick, RenderStats* st = nullptr) {
   RenderOptions o;

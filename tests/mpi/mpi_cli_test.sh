@@ -2,8 +2,9 @@
 # mpi_cli_test.sh — `mpirun -np 2` and `-np 4` of `ivr render`, `ivr gradient` and `ivr tomo`
 # (data-parallel over views, docs/scaling.md) give one process's results: the render bit for bit,
 # the float64 gradients (density, TF, cameras) within 1e-12 of the largest entry, CGLS's iterate
-# within 1e-12; an error in the ranks is one non-zero status with nothing written. CTest label
-# `mpi`.
+# within 1e-12; over slabs (--split slabs: each rank one slab, the rays' states exchanged) the
+# render and the density gradient within 1e-12; an error in the ranks is one non-zero status with
+# nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
 ivr=$1 mpiexec=$2 python=$3
@@ -36,6 +37,11 @@ for np in 2 4; do
   out=$(run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 -o "x$np.npy" \
     --precision f64 --json 2>/dev/null)
   echo "$out" | grep -q "\"ranks\":$np" || { echo "tomo -np $np: no \"ranks\":$np in $out"; exit 1; }
+  out=$(run "$np" "$ivr" render scene.json -o "s$np.npy" --precision f64 --split slabs --json)
+  echo "$out" | grep -q '"split":"slabs"' || { echo "render --split slabs -np $np: $out"; exit 1; }
+  echo "$out" | grep -q '"exchanged_bytes":0,' && { echo "render --split slabs -np $np exchanged nothing: $out"; exit 1; }
+  run "$np" "$ivr" gradient scene.json --target target.npy --wrt density -o "sg$np" \
+    --precision f64 --split slabs >/dev/null
 done
 "$python" - <<'PY'
 import numpy as np
@@ -49,6 +55,13 @@ for n in (2, 4):
         err = np.max(np.abs(a - b)) / max(np.max(np.abs(a)), 1e-300)
         assert np.all(np.isfinite(b)) and err <= 1e-12, f"gradient {g} -np {n}: {err}"
         print(f"-np {n} {g}: {err:.2e}")
+    s = np.load(f"s{n}.npy")
+    err = np.max(np.abs(s - one)) / np.max(np.abs(one))
+    assert s.shape == one.shape and err <= 1e-12, f"render --split slabs -np {n}: {err}"
+    a, b = np.load("g1_density.npy"), np.load(f"sg{n}_density.npy")
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-12, f"slabs gradient -np {n}: {err}"
+    print(f"-np {n} slabs: render and density gradient {err:.2e}")
     a, b = np.load("x1.npy"), np.load(f"x{n}.npy")
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert a.shape == b.shape and err <= 1e-12, f"tomo -np {n}: {err}"
@@ -60,4 +73,10 @@ if run 2 "$ivr" gradient scene.json --target missing.npy --wrt density -o bad 2>
 fi
 grep -q "missing.npy" err.txt || { echo "no error naming the target:"; cat err.txt; exit 1; }
 [ ! -e bad_density.npy ] || { echo "bad_density.npy written"; exit 1; }
+# Over slabs, what is not built yet is refused on every rank, nothing written.
+if run 2 "$ivr" gradient scene.json --target target.npy --wrt tf -o badtf --split slabs 2>err.txt; then
+  echo "--split slabs --wrt tf succeeded"; exit 1
+fi
+grep -q "only --wrt density" err.txt || { echo "no error naming --wrt:"; cat err.txt; exit 1; }
+[ ! -e badtf_tf.npy ] || { echo "badtf_tf.npy written"; exit 1; }
 echo "mpi_cli_test: passed"

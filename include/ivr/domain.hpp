@@ -1,0 +1,74 @@
+// ivr/domain.hpp — domain-parallel render and density gradient (docs/scaling.md): the volume cut
+// into slabs of z planes, one per worker (an MPI rank); each worker holds only its slab and
+// marches the parts of the rays inside it, and the rays' march states pass between the workers
+// until every ray is done, so that the image and the gradient equal one process's.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "ivr/device.hpp"
+#include "ivr/export.h"
+#include "ivr/gradient.hpp"
+#include "ivr/render.hpp"
+#include "ivr/scene.hpp"
+
+namespace ivr {
+
+// A worker's planes of the volume: [first, last] (neighbours share one plane, the halo).
+struct Slab {
+  int first = 0, last = 0;
+  int planes() const { return last - first + 1; }
+};
+
+// Worker `rank` of `ranks`' slab of a volume of nz planes: its nz − 1 cells in near-equal runs.
+// Throws Error(invalid_argument) where there are more workers than cells (ranks > nz − 1).
+IVR_API Slab domain_slab(int nz, int rank, int ranks);
+
+// `scene` with only worker rank's slab of its densities in volume.data (what render_domain() and
+// gradient_domain() take; a worker that loads the whole volume keeps only this).
+IVR_API Scene domain_share(const Scene& scene, int rank, int ranks);
+
+// Every worker's bytes, in rank order, handed to every worker (an MPI_Allgatherv); called by all
+// workers together.
+using AllGather =
+    std::function<std::vector<std::vector<unsigned char>>(const std::vector<unsigned char>& mine)>;
+
+// This worker's part of a domain-parallel operation.
+struct DomainPart {
+  int rank = 0, ranks = 1;
+  AllGather all_gather;  // the exchange of the rays' states after each sweep over the slabs
+};
+
+// How a domain-parallel operation went, per worker.
+struct DomainStats {
+  int exchanges = 0;                  // rounds of the rays' states passed between workers
+  std::uint64_t sent_bytes = 0;       // this worker's changed ray states sent, all rounds
+  std::uint64_t received_bytes = 0;   // the other workers' states received
+};
+
+// The scene's description (dims, box, cameras, TF, integrator) and, in scene.volume.data, only
+// this worker's slab: planes domain_slab(nz, rank, ranks) of the densities (x fastest,
+// planes × ny × nx values). Every worker gets the whole image. The midpoint, trapezoid,
+// preintegrated and exact schemes; the step must be given (integrator.step or options.step) where
+// integrator.tolerance is set. options.volume_brick cuts the slab further (else as its device
+// memory needs).
+IVR_API Image render_domain(Device& device, const Scene& scene, const DomainPart& part,
+                            const RenderOptions& options = {}, RenderStats* stats = nullptr,
+                            DomainStats* domain = nullptr);
+
+// The density gradient of the loss against `target` (every worker passes the whole target), for
+// this worker's slab: one group "density" of shape (planes, ny, nx). The planes a slab shares with
+// its neighbours hold only this worker's part: add the slabs where they overlap to get the
+// volume's gradient (domain_join()). Midpoint scheme, adjoint mode (as the out-of-core gradient);
+// `loss` is the whole loss on every worker.
+IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
+                                 const DomainPart& part, const GradientOptions& options = {},
+                                 DomainStats* domain = nullptr);
+
+// The volume's values (nz × ny × nx) from every worker's slab values, in rank order: the shared
+// planes summed.
+IVR_API std::vector<double> domain_join(int nx, int ny, int nz,
+                                        const std::vector<std::vector<double>>& slabs);
+
+}  // namespace ivr

@@ -1,0 +1,21 @@
+// domain.hpp — internal: the domain-parallel parts of the out-of-core march (include/ivr/domain.hpp):
+// a worker's slab plan, and the exchange of the rays' march states between workers after each sweep.
+#pragma once
+#include "brick/bricked_render.hpp"
+#include "ivr/domain.hpp"
+
+namespace ivr {
+
+// The plan of worker part.rank's slab: its planes in bricks (forced_edge, else as its device's
+// memory needs, else one brick of the whole slab).
+BrickPlan plan_domain(Device& device, const Scene& scene, Precision precision, int forced_edge,
+                      bool gradient, const Slab& slab);
+
+// Makes `march` pass the rays' states between the workers: before its sweeps it keeps a host copy
+// of the states; after each sweep the rays this worker's bricks moved go to every worker
+// (part.all_gather) and the rays the others moved are written into its states. A ray's march
+// stands at the start of exactly one brick's window, so in one sweep only one worker moves it:
+// every worker ends each sweep with the same states (checked: a ray moved twice is an error).
+void attach_exchange(BrickedMarch& march, const DomainPart& part, DomainStats* stats);
+
+}  // namespace ivr

@@ -1,0 +1,220 @@
+// domain_test.cpp — domain-parallel render and density gradient (lib/brick/domain.cpp): workers on
+// threads, each with its own device context and only its slab of the volume, exchanging the rays'
+// states through an in-process all-gather, give one process's image and gradient; bad input is
+// refused with clear errors.
+#include <gtest/gtest.h>
+
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "brick_support.hpp"
+#include "ivr/domain.hpp"
+#include "ivr/error.hpp"
+#include "ivr/gradient.hpp"
+#include "test_support.hpp"
+
+namespace ivr::test {
+namespace {
+
+// Every worker's bytes to every worker, in rank order (what MPI_Allgatherv does for mpirun).
+class Rendezvous {
+ public:
+  explicit Rendezvous(int ranks) : ranks_(ranks), parts_(ranks) {}
+  std::vector<std::vector<unsigned char>> all_gather(int rank,
+                                                     const std::vector<unsigned char>& mine) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const long round = round_;
+    parts_[rank] = mine;
+    if (++arrived_ == ranks_) {
+      result_ = parts_;
+      arrived_ = 0;
+      ++round_;
+      ready_.notify_all();
+    } else {
+      ready_.wait(lock, [&] { return round_ != round; });
+    }
+    ++calls_;
+    return result_;
+  }
+  long calls() const { return calls_; }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  int ranks_, arrived_ = 0;
+  long round_ = 0, calls_ = 0;
+  std::vector<std::vector<unsigned char>> parts_, result_;
+};
+
+// Contexts of their own on the test device, one per worker, kept for the whole test program.
+Device& worker_device(int w) {
+  static std::vector<std::unique_ptr<Device>> devices;
+  static std::mutex m;
+  std::lock_guard<std::mutex> lock(m);
+  while (int(devices.size()) <= w)
+    devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
+  return *devices[w];
+}
+
+// Runs f(w, part, device) on `ranks` threads; what each returns, by worker.
+template <typename T, typename F>
+std::vector<T> on_workers(int ranks, F f) {
+  for (int w = 0; w < ranks; ++w) worker_device(w);
+  Rendezvous meeting(ranks);
+  std::vector<T> out(ranks);
+  std::vector<std::string> errors(ranks);
+  std::vector<std::thread> threads;
+  for (int w = 0; w < ranks; ++w)
+    threads.emplace_back([&, w] {
+      DomainPart part;
+      part.rank = w, part.ranks = ranks;
+      part.all_gather = [&, w](const std::vector<unsigned char>& mine) {
+        return meeting.all_gather(w, mine);
+      };
+      try {
+        out[w] = f(w, part, worker_device(w));
+      } catch (const std::exception& e) {
+        errors[w] = e.what();
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  for (int w = 0; w < ranks; ++w) EXPECT_EQ(errors[w], "") << "worker " << w;
+  return out;
+}
+
+TEST(Domain, SlabsCutTheCellsEvenlyAndShareOnePlane) {
+  for (int ranks : {1, 2, 3, 5, 12}) {
+    int next = 0;
+    for (int w = 0; w < ranks; ++w) {
+      const Slab s = domain_slab(13, w, ranks);
+      EXPECT_EQ(s.first, next) << ranks << " workers, worker " << w;
+      EXPECT_GE(s.planes(), 1 + 12 / ranks);
+      EXPECT_LE(s.planes(), 2 + 12 / ranks);
+      next = s.last;
+    }
+    EXPECT_EQ(next, 12);
+  }
+}
+
+TEST(Domain, RenderEqualsOneProcessForEveryScheme) {
+  for (Model model : {Model::emission_absorption, Model::absorption})
+    for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact}) {
+      if (scheme == Scheme::exact && model != Model::absorption) continue;  // absorption only
+      const Scene s = bricked_scene(model, scheme);
+      for (Precision p : {Precision::f64, Precision::f32}) {
+        if (p == Precision::f64 && !device().info().fp64) continue;
+        RenderOptions o;
+        o.precision = p;
+        const Image one = render(device(), s, o);
+        for (int ranks : {2, 5})
+          for (int edge : {0, 3}) {
+            const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") +
+                                     scheme_name(scheme) + " " + name(p) + ", " +
+                                     std::to_string(ranks) + " workers, bricks " + std::to_string(edge);
+            o.volume_brick = edge;
+            std::vector<DomainStats> ds(ranks);
+            const std::vector<Image> images =
+                on_workers<Image>(ranks, [&](int w, const DomainPart& part, Device& d) {
+                  RenderStats st;
+                  Image img = render_domain(d, domain_share(s, w, ranks), part, o, &st, &ds[w]);
+                  EXPECT_GE(st.sweeps, 1) << what;
+                  return img;
+                });
+            expect_same(one, images[0], p == Precision::f64 ? 1e-12 : 1e-5, what);
+            for (int w = 1; w < ranks; ++w) {
+              EXPECT_EQ(images[w].pixels, images[0].pixels) << what << ": worker " << w;
+              EXPECT_EQ(images[w].pixels_f64, images[0].pixels_f64) << what << ": worker " << w;
+            }
+            // The rays cross slabs: some worker sent states, and every worker received some.
+            std::uint64_t sent = 0;
+            for (const DomainStats& d : ds) sent += d.sent_bytes;
+            EXPECT_GT(sent, 0u) << what;
+            for (int w = 0; w < ranks; ++w) {
+              EXPECT_GT(ds[w].received_bytes, 0u) << what << ": worker " << w;
+              EXPECT_EQ(ds[w].exchanges, ds[0].exchanges) << what;
+            }
+          }
+      }
+    }
+}
+
+TEST(Domain, GradientEqualsOneProcess) {
+  for (Model model : {Model::emission_absorption, Model::absorption})
+    for (Precision p : {Precision::f64, Precision::f32}) {
+      if (p == Precision::f64 && !device().info().fp64) continue;
+      const Scene s = bricked_scene(model, Scheme::midpoint);
+      Image target = render(device(), s);
+      for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+      GradientOptions o;
+      o.precision = p;
+      o.mode = Mode::adjoint;
+      const Gradient one = gradient(device(), s, target, {"density"}, o);
+      const std::vector<double>& a = one.groups[0].values;
+      const double scale = std::max(largest(a), 1e-30);
+      const double tol = p == Precision::f64 ? 1e-12 : 1e-5;
+      for (int ranks : {2, 4}) {
+        const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") +
+                                 name(p) + ", " + std::to_string(ranks) + " workers";
+        const std::vector<Gradient> parts =
+            on_workers<Gradient>(ranks, [&](int w, const DomainPart& part, Device& d) {
+              return gradient_domain(d, domain_share(s, w, ranks), target, part, o);
+            });
+        std::vector<std::vector<double>> slabs;
+        for (int w = 0; w < ranks; ++w) {
+          const Slab slab = domain_slab(s.volume.nz, w, ranks);
+          ASSERT_EQ(parts[w].groups.size(), 1u) << what;
+          EXPECT_EQ(parts[w].groups[0].shape,
+                    (std::vector<std::size_t>{std::size_t(slab.planes()), 9, 11}))
+              << what;
+          EXPECT_NEAR(parts[w].loss, one.loss, tol * std::abs(one.loss) + 1e-15) << what;
+          slabs.push_back(parts[w].groups[0].values);
+        }
+        const std::vector<double> b = domain_join(11, 9, 13, slabs);
+        ASSERT_EQ(a.size(), b.size());
+        int bad = 0;
+        for (std::size_t i = 0; i < a.size() && bad < 5; ++i)
+          if (!std::isfinite(b[i]) || std::abs(a[i] - b[i]) > tol * scale)
+            ADD_FAILURE() << what << " voxel " << i << ": " << a[i] << " vs " << b[i], ++bad;
+      }
+    }
+}
+
+template <typename F>
+void expect_error(F f, Status status, const std::string& part) {
+  try {
+    f();
+    ADD_FAILURE() << "no error; expected one naming '" << part << "'";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.status(), status) << e.what();
+    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+  }
+}
+
+TEST(Domain, BadInputIsRefusedClearly) {
+  const Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
+  DomainPart part;
+  part.ranks = 13;  // 12 cells
+  expect_error([&] { render_domain(device(), s, part); }, Status::invalid_argument, "13 workers");
+  part.ranks = 2;
+  expect_error([&] { render_domain(device(), domain_share(s, 0, 2), part); },
+               Status::invalid_argument, "all_gather");
+  part.rank = 2;
+  part.all_gather = [](const std::vector<unsigned char>& m) {
+    return std::vector<std::vector<unsigned char>>{m, m};
+  };
+  expect_error([&] { render_domain(device(), s, part); }, Status::invalid_argument, "worker 2 of 2");
+  part.rank = 0;
+  // The whole volume where worker 0's slab (planes 0..6) was wanted.
+  expect_error([&] { render_domain(device(), s, part); }, Status::invalid_argument, "planes 0..6");
+  Scene trapezoid = domain_share(s, 0, 2);
+  trapezoid.integrator.scheme = Scheme::trapezoid;
+  expect_error([&] { gradient_domain(device(), trapezoid, render(device(), s), part); },
+               Status::unsupported, "midpoint");
+  expect_error([&] { domain_join(11, 9, 13, {std::vector<double>(11 * 9 * 7), {1.0}}); },
+               Status::invalid_argument, "worker 1");
+}
+
+}  // namespace
+}  // namespace ivr::test

@@ -23,6 +23,7 @@
 #include "commands.hpp"
 #include "ivr/core.hpp"
 #include "loss_plot.hpp"
+#include "mpi_world.hpp"
 
 namespace fs = std::filesystem;
 
@@ -344,7 +345,15 @@ Runner add_reconstruct_command(CLI::App& app) {
     const ReconstructArgs& a = *args;
     // Every input is checked before any work, so that a bad call wastes nothing and writes
     // nothing.
-    const ReconstructOptions options = checked_options(a);
+    ReconstructOptions options = checked_options(a);
+    // Under mpirun: data-parallel over each batch's views (docs/scaling.md); rank 0 reports and
+    // writes (checkpoints too: every rank holds the same state).
+    const World& w = world();
+    const bool writer = w.rank == 0;
+    if (w.size > 1) {
+      options.worker = w.rank, options.workers = w.size;
+      options.sum = [](std::vector<double>& v) { sum_all(v); };
+    }
     check_output_folder(a.prefix);
     const std::string checkpoint = a.prefix + "_checkpoint.json";
     if (a.resume && !fs::exists(checkpoint))
@@ -393,22 +402,31 @@ Runner add_reconstruct_command(CLI::App& app) {
     const auto stop_code = [&] {
       return interrupt.signal() == SIGINT ? 130 : interrupt.signal() == SIGTERM ? 143 : 0;
     };
+    // A signal to any rank stops every rank after the same iteration.
+    const auto interrupted = [&] {
+      std::vector<double> signal{double(interrupt.signal() != 0)};
+      if (w.size > 1) sum_all(signal);
+      return signal[0] > 0;
+    };
     while (!r.done()) {
-      if (interrupt.signal() != 0) break;
+      if (interrupted()) break;
       const IterationRecord& rec = r.step();
-      progress.update(rec);
-      if (a.checkpoint_every > 0 && rec.iteration % a.checkpoint_every == 0 && !r.done())
+      if (writer) progress.update(rec);
+      if (writer && a.checkpoint_every > 0 && rec.iteration % a.checkpoint_every == 0 &&
+          !r.done())
         r.save_checkpoint(a.prefix);
     }
     const double seconds = progress.seconds(), rate = progress.rate(r.iteration());
     progress.finish();
     if (!r.done()) {
       // Interrupted: the state to continue from, then 128 + the signal, as a shell reports it.
+      if (!writer) return stop_code() ? stop_code() : 130;
       r.save_checkpoint(a.prefix);
       std::cerr << "interrupted after iteration " << r.iteration() << " of " << total
                 << "; continue with --resume\n";
-      return stop_code();
+      return stop_code() ? stop_code() : 130;
     }
+    if (!writer) return 0;
 
     // Everything is computed before the first file is written.
     const Scene result = r.result();
@@ -462,7 +480,8 @@ Runner add_reconstruct_command(CLI::App& app) {
           {"iterations_per_second", rate}, {"loss_first", loss_first},
           {"loss_final", loss_final},      {"optimizer", optimizer_name(used.optimizer.kind)},
           {"lr", used.optimizer.lr},       {"levels", levels},
-          {"device", device.info().name}, {"bricks", 1},  {"outputs", outputs}};
+          {"device", device.info().name}, {"bricks", 1},  {"ranks", w.size},
+          {"outputs", outputs}};
       if (!a.truth.empty()) j["volume_error"] = volume_error;
       if (!a.held_out.empty()) j["held_out_psnr"] = held_out_psnr;  // null where +infinity
       if (resumed_from >= 0) j["resumed_from"] = resumed_from;

@@ -3,6 +3,7 @@
 // batches, priors), with checkpoints that continue bit-for-bit. What `ivr reconstruct` runs.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -62,6 +63,14 @@ struct ReconstructOptions {
   // scheduling, so a resumed run equals an uninterrupted one. The joint mode's TF rows keep
   // their float atomics (their last bits vary).
   bool deterministic = true;
+  // Data-parallel over views (mpirun -np N ivr reconstruct; docs/scaling.md): this worker is
+  // `worker` of `workers`. Every worker draws the same batch, differentiates its contiguous share
+  // of the batch's views, and `sum` adds the loss and the gradients over the workers in place
+  // (every worker getting the sum: an MPI_Allreduce), so that every worker takes the same step and
+  // holds the same iterate — the one process's up to the rounding of the sums. Cameras only (not a
+  // ray list); every batch needs at least `workers` views; checkpoints are every worker's.
+  int worker = 0, workers = 1;
+  std::function<void(std::vector<double>&)> sum;
 };
 
 // Throws ivr::Error(invalid_argument) naming the first bad option.

@@ -76,6 +76,10 @@ void validate_reconstruct(const ReconstructOptions& o) {
   if (o.loss == Loss::dot)
     fail("reconstruct: loss dot is a vector-Jacobian product, not a loss to minimise (mse or l1)");
   if (o.batch < 0) fail("batch must be >= 0 (0: every view), got " + std::to_string(o.batch));
+  if (o.workers < 1 || o.worker < 0 || o.worker >= o.workers)
+    fail("worker " + std::to_string(o.worker) + " of " + std::to_string(o.workers) + " workers");
+  if (o.workers > 1 && !o.sum)
+    fail(std::to_string(o.workers) + " workers need a sum over the workers");
   if (o.levels < 0 || o.levels > 8)
     fail("levels must be in 0 .. 8 (0: automatic), got " + std::to_string(o.levels));
   const std::pair<const char*, double> weights[] = {
@@ -113,6 +117,13 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
     throw Error(Status::unsupported,
                 "device " + dev.info.name + " has no float64 support (cl_khr_fp64)");
   const int views = image_extent(scene).views;  // a ray list: one "view", every ray
+  if (o.workers > 1 && scene.has_ray_list())
+    fail("data-parallel reconstruction (" + std::to_string(o.workers) +
+         " workers) shares out views: a ray list is one view");
+  if (o.workers > 1 && std::min(o.batch > 0 ? o.batch : views, views) < o.workers)
+    fail("data-parallel reconstruction: batches of " +
+         std::to_string(std::min(o.batch > 0 ? o.batch : views, views)) + " view(s) for " +
+         std::to_string(o.workers) + " workers (each needs one)");
   if (o.automatic_optimizer)
     o.optimizer.kind = o.density ? OptimizerKind::adam : OptimizerKind::lbfgs;
   if (o.optimizer.kind == OptimizerKind::lbfgs && o.batch > 0 && o.batch < views)
@@ -283,7 +294,28 @@ const IterationRecord& Reconstruction::Impl::step() {
                                         dims[std::size_t(l)][2]);
     enter_level(l, std::vector<double>(fine.data.begin(), fine.data.end()));
   }
-  const std::vector<int> views = batch_views(o.seed, k, image_extent(scene).views, o.batch);
+  std::vector<int> views = batch_views(o.seed, k, image_extent(scene).views, o.batch);
+  // Data-parallel: this worker's share of the batch, and its weight in the batch's mean loss.
+  const std::size_t batch_size = views.size();
+  double weight = 1;
+  if (o.workers > 1) {
+    const auto [first, count] = view_shares(batch_size, std::size_t(o.workers))[std::size_t(o.worker)];
+    views = std::vector<int>(views.begin() + std::ptrdiff_t(first),
+                             views.begin() + std::ptrdiff_t(first + count));
+    weight = double(count) / double(batch_size);  // the losses are means (mse, l1)
+  }
+  // Σ over the workers of weight × (the loss, then the gradients), every worker getting it.
+  auto sum_workers = [&](double& loss, std::vector<std::vector<double>*> grads) {
+    if (o.workers <= 1) return;
+    std::vector<double> all{weight * loss};
+    for (const std::vector<double>* g : grads)
+      for (double v : *g) all.push_back(weight * v);
+    o.sum(all);
+    loss = all[0];
+    std::size_t at = 1;
+    for (std::vector<double>* g : grads)
+      for (double& v : *g) v = all[at++];
+  };
   std::vector<Camera> cameras;  // empty for a ray list: the session keeps its rays
   if (!scene.has_ray_list())
     for (int v : views) cameras.push_back(scene.cameras[std::size_t(v)]);
@@ -292,7 +324,7 @@ const IterationRecord& Reconstruction::Impl::step() {
   IterationRecord r;
   r.iteration = k + 1;
   r.level = o.density ? level : 0;
-  r.views = int(views.size());
+  r.views = int(batch_size);
   r.lr = learning_rate(o.optimizer, o.density ? density_opt->iterations() : k);
   if (o.density) {
     Session::Impl& s = session->impl();
@@ -303,8 +335,14 @@ const IterationRecord& Reconstruction::Impl::step() {
     request.loss = o.loss;
     request.deterministic = o.deterministic;
     OperationRecord& op = s.begin("gradient");
-    const AdjointResult gr = enqueue_adjoint(s, batch_targets(views), request, op);
+    AdjointResult gr = enqueue_adjoint(s, batch_targets(views), request, op);
     r.loss = gr.loss.to_doubles()[0];
+    std::vector<double> tf_grad = o.tf ? gr.tf.to_doubles() : std::vector<double>{};
+    if (o.workers > 1) {  // the batch's gradient from the workers' shares
+      std::vector<double> density = gr.density.to_doubles();
+      sum_workers(r.loss, {&density, &tf_grad});
+      gr.density.upload(density.data(), density.size());
+    }
     const std::uint64_t real_size = f64 ? 8 : 4, voxels = level_scene.volume.voxel_count();
     r.device_bytes = op.stats.device_bytes +
                      voxels * real_size * (o.optimizer.kind == OptimizerKind::adam ? 2 : 1);
@@ -313,7 +351,6 @@ const IterationRecord& Reconstruction::Impl::step() {
                                     level_scene.volume.nz, o.tv, o.smoothness, o.tv_epsilon,
                                     buffer_of(s.volume), buffer_of(gr.density));
     if (o.tf) {
-      const std::vector<double> tf_grad = gr.tf.to_doubles();
       std::vector<double> gu(u.size());
       for (std::size_t i = 0; i < u.size(); ++i) gu[i] = tf_grad[i] * bounds.scale[i];
       r.prior += tf_prior(u, cols, o.tf_smoothness, gu);
@@ -336,8 +373,9 @@ const IterationRecord& Reconstruction::Impl::step() {
       set_tf_parameters(tf, values);
       s.upload_tf(tf);
       const SessionGradient diff = session_gradient(s, batch_target, request);
-      const std::vector<double> gv = diff.groups.front().second.to_doubles();
-      const double loss = diff.loss.to_doubles()[0];
+      std::vector<double> gv = diff.groups.front().second.to_doubles();
+      double loss = diff.loss.to_doubles()[0];
+      sum_workers(loss, {&gv});
       grad.assign(at.size(), 0.0);
       for (std::size_t i = 0; i < at.size(); ++i) grad[i] = gv[i] * bounds.scale[i];
       const double p = tf_prior(at, cols, o.tf_smoothness, grad);

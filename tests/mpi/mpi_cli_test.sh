@@ -3,8 +3,9 @@
 # (data-parallel over views, docs/scaling.md) give one process's results: the render bit for bit,
 # the float64 gradients (density, TF, cameras) within 1e-12 of the largest entry, CGLS's iterate
 # within 1e-12; over slabs (--split slabs: each rank one slab, the rays' states exchanged) the
-# render and the density gradient within 1e-12; an error in the ranks is one non-zero status with
-# nothing written. CTest label `mpi`.
+# render and the density gradient within 1e-12; `ivr reconstruct` (views of each batch shared out)
+# follows one process's losses within 1e-10 and its densities to float32 output rounding; an error
+# in the ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
 ivr=$1 mpiexec=$2 python=$3
@@ -28,6 +29,8 @@ JSON
 "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o g1 --precision f64
 "$ivr" project scene.json -o p.npy --precision f64 >/dev/null
 "$ivr" tomo scene.json --projections p.npy --iterations 5 -o x1.npy --precision f64 2>/dev/null
+rec=(--targets one.npy --init constant:0.3 --iterations 12 --batch 4 --levels 2 --precision f64)
+"$ivr" reconstruct scene.json "${rec[@]}" -o rec1 2>/dev/null >/dev/null
 run() { "$mpiexec" -np "$1" --oversubscribe "${@:2}"; }
 for np in 2 4; do
   out=$(run "$np" "$ivr" render scene.json -o "r$np.npy" --precision f64 --json)
@@ -42,6 +45,8 @@ for np in 2 4; do
   echo "$out" | grep -q '"exchanged_bytes":0,' && { echo "render --split slabs -np $np exchanged nothing: $out"; exit 1; }
   run "$np" "$ivr" gradient scene.json --target target.npy --wrt density -o "sg$np" \
     --precision f64 --split slabs >/dev/null
+  out=$(run "$np" "$ivr" reconstruct scene.json "${rec[@]}" -o "rec$np" --json 2>/dev/null)
+  echo "$out" | grep -q "\"ranks\":$np" || { echo "reconstruct -np $np: $out"; exit 1; }
 done
 "$python" - <<'PY'
 import numpy as np
@@ -62,6 +67,14 @@ for n in (2, 4):
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-12, f"slabs gradient -np {n}: {err}"
     print(f"-np {n} slabs: render and density gradient {err:.2e}")
+    la = np.loadtxt("rec1_loss.csv", delimiter=",", skiprows=1)[:, 3]
+    lb = np.loadtxt(f"rec{n}_loss.csv", delimiter=",", skiprows=1)[:, 3]
+    lerr = np.max(np.abs(la - lb) / la)
+    assert la.shape == lb.shape and lerr <= 1e-10, f"reconstruct -np {n} losses: {lerr}"
+    a, b = np.load("rec1_density.npy"), np.load(f"rec{n}_density.npy")
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert a.shape == b.shape and err <= 1e-6, f"reconstruct -np {n} densities: {err}"
+    print(f"-np {n} reconstruct: losses {lerr:.2e}, densities (float32 files) {err:.2e}")
     a, b = np.load("x1.npy"), np.load(f"x{n}.npy")
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert a.shape == b.shape and err <= 1e-12, f"tomo -np {n}: {err}"

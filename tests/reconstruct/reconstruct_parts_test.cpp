@@ -5,6 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
 #include <filesystem>
 #include <random>
 
@@ -154,6 +157,78 @@ TEST(ReconstructPartsTest, BatchesAndJointDensityAndTf) {
   EXPECT_NE(got, tf);  // the TF moved
 }
 
+// Data-parallel over views (ReconstructOptions::workers; what mpirun -np N ivr reconstruct runs):
+// two workers on threads, each with its own context and half of every batch, summing through a
+// rendezvous, follow the one-process run — density and TF, batches of 3 views split 2 + 1.
+TEST(ReconstructPartsTest, WorkersSharingTheBatchFollowOneProcess) {
+  const Small p;
+  const Precision precision = device().info().fp64 ? Precision::f64 : Precision::f32;
+  ReconstructOptions o;
+  o.tf = true;
+  o.iterations = 8;
+  o.batch = 3;
+  o.init = Init::constant;
+  o.precision = precision;
+  Reconstruction one(device(), p.scene, p.targets, o);
+  while (!one.done()) one.step();
+
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<double> total;
+  int arrived = 0;
+  long round = 0;
+  auto sum = [&](std::vector<double>& v) {  // every worker gets Σ of both, in worker order
+    std::unique_lock<std::mutex> lock(m);
+    const long mine = round;
+    if (arrived == 0) total.assign(v.size(), 0.0);
+    for (std::size_t i = 0; i < v.size(); ++i) total[i] += v[i];
+    if (++arrived == 2) {
+      arrived = 0, ++round;
+      cv.notify_all();
+    } else {
+      cv.wait(lock, [&] { return round != mine; });
+    }
+    v = total;
+  };
+  std::vector<std::vector<IterationRecord>> histories(2);
+  std::vector<std::vector<double>> densities(2);
+  std::vector<std::string> errors(2);
+  std::vector<std::thread> threads;
+  for (int w = 0; w < 2; ++w)
+    threads.emplace_back([&, w] {
+      try {
+        Device d(std::to_string(device().info().index));
+        ReconstructOptions ow = o;
+        ow.worker = w, ow.workers = 2, ow.sum = sum;
+        Reconstruction r(d, p.scene, p.targets, ow);
+        while (!r.done()) r.step();
+        histories[w] = r.history();
+        const std::vector<float>& v = r.result().volume.data;
+        densities[w].assign(v.begin(), v.end());
+      } catch (const std::exception& e) {
+        errors[w] = e.what();
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  ASSERT_EQ(errors, (std::vector<std::string>{"", ""}));
+  const double tol = precision == Precision::f64 ? 1e-10 : 1e-4;
+  for (int w = 0; w < 2; ++w) {
+    ASSERT_EQ(histories[w].size(), one.history().size());
+    for (std::size_t k = 0; k < histories[w].size(); ++k) {
+      EXPECT_EQ(histories[w][k].views, 3);
+      EXPECT_NEAR(histories[w][k].loss, one.history()[k].loss, tol * one.history()[k].loss)
+          << "worker " << w << ", iteration " << k + 1;
+    }
+  }
+  EXPECT_EQ(densities[0], densities[1]);  // the same step on both workers
+  const std::vector<float>& a = one.result().volume.data;
+  ASSERT_EQ(a.size(), densities[0].size());
+  double worst = 0, scale = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    worst = std::max(worst, std::abs(a[i] - densities[0][i])), scale = std::max(scale, double(std::abs(a[i])));
+  EXPECT_LE(worst, (precision == Precision::f64 ? 1e-6 : 1e-3) * scale);
+}
+
 // In forward mode the loss gradient is reduced in a fixed order (no atomics): resuming from a
 // checkpoint reproduces the uninterrupted run bit for bit (Adam and L-BFGS). (The planner picks
 // the adjoint for this 12-parameter TF with the default cost model; its atomic adds would make
@@ -290,6 +365,14 @@ TEST(ReconstructPartsTest, BadOptionsAreNamed) {
   wrong.pixels.resize(wrong.pixels.size() / 8 * 7);
   EXPECT_NE(message({}, wrong).find("target"), std::string::npos);
   EXPECT_THROW(parse_optimizer("adamw"), Error);
+  o = {};
+  o.workers = 2;
+  EXPECT_NE(message(o, p.targets).find("need a sum"), std::string::npos);
+  o.worker = 2;
+  EXPECT_NE(message(o, p.targets).find("worker 2 of 2"), std::string::npos);
+  o = {};
+  o.workers = 2, o.sum = [](std::vector<double>&) {}, o.batch = 1;
+  EXPECT_NE(message(o, p.targets).find("each needs one"), std::string::npos);
 
   // A checkpoint of other options is refused, naming the option.
   const std::string dir = test::temp_dir("resume_mismatch");

@@ -54,8 +54,7 @@ class StateExchange {
       std::memcpy(&mine[at + 4], &reals[r], reals_bytes_);
       std::memcpy(&mine[at + 4 + reals_bytes_], &uints[u], uints_bytes_);
     }
-    const std::vector<std::vector<unsigned char>> all =
-        part_.ranks == 1 ? std::vector<std::vector<unsigned char>>{mine} : part_.all_gather(mine);
+    const std::vector<std::vector<unsigned char>> all = part_.all_gather(mine);
     if (int(all.size()) != part_.ranks)
       throw Error(Status::invalid_argument, "domain exchange: all_gather gave " +
                                         std::to_string(all.size()) + " parts for " +
@@ -155,8 +154,9 @@ BrickPlan plan_domain(Device& device, const Scene& scene, Precision precision, i
 
 void attach_exchange(BrickedMarch& march, const DomainPart& part, DomainStats* stats) {
   check_part(part);
-  auto exchange = std::make_shared<StateExchange>(march, part, stats);
   march.workers = part.ranks;
+  if (part.ranks == 1) return;  // nothing to exchange
+  auto exchange = std::make_shared<StateExchange>(march, part, stats);
   march.before_sweeps = [exchange] { exchange->keep(); };
   march.after_sweep = [exchange] { exchange->exchange(); };
 }

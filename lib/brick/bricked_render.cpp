@@ -255,10 +255,22 @@ BrickedMarch::BrickedMarch(Device& device, const Scene& scene, const RenderOptio
   op.stats.variant = config.label();
   render_ = &s.kernels.get(config, &op.stats.build_seconds);
   a0_ = arguments(*render_);
+  if (use_packet(dev) && variant.scheme == Scheme::midpoint) {
+    const int lanes = packet_lanes(variant.precision);
+    const KernelConfig packet = variant.config("bricked_packet.cl", "bricked_render_packet")
+                                    .set(Switch::rays, lanes);
+    march_packet_ = &s.kernels.get(packet, &op.stats.build_seconds);
+    tile_ = packet_shape(lanes, scene.has_ray_list());
+    arguments(*march_packet_);
+    op.stats.variant = packet.label();
+  }
   cl_call("setting the bricked render's arguments", [&] {
-    render_->setArg(a0_ + 6, buffer_of(image));
-    render_->setArg(a0_ + 7, samples);
-    render_->setArg(a0_ + 8, pending_);
+    for (cl::Kernel* k : {render_, march_packet_}) {
+      if (!k) continue;
+      k->setArg(a0_ + 6, buffer_of(image));
+      k->setArg(a0_ + 7, samples);
+      k->setArg(a0_ + 8, pending_);
+    }
   });
   groups_ = view_groups(scene, plan.layout);
 }
@@ -294,7 +306,7 @@ void BrickedMarch::launch_all(cl::Kernel& k, int phase) {
   });
 }
 
-int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks) {
+int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, PacketShape tile) {
   const BrickLayout& l = plan_.layout;
   auto fill = [&](int b, std::vector<unsigned char>& out) {
     extract_brick(scene_.volume, l, b, s.f64, out);
@@ -315,10 +327,13 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks) {
           std::vector<cl::Event> marched;
           auto march = [&](const PixelRect& r, int first, int count) {
             if (r.empty()) return;
+            // In work-items: tiles of tile.w × tile.h pixels.
+            const int x0 = r.x0 / tile.w, y0 = r.y0 / tile.h;
+            const int x1 = tile.across(r.x1), y1 = tile.down(r.y1);
             cl::Event ev;
-            dev.queue.enqueueNDRangeKernel(k, cl::NDRange(r.x0, r.y0, first),
-                                           cl::NDRange(r.x1 - r.x0, r.y1 - r.y0, count),
-                                           cl::NullRange, &wait, &ev);
+            dev.queue.enqueueNDRangeKernel(k, cl::NDRange(x0, y0, first),
+                                           cl::NDRange(x1 - x0, y1 - y0, count), cl::NullRange,
+                                           &wait, &ev);
             op.events.push_back(ev);
             stream_.used(i, ev);
             marched.push_back(ev);
@@ -352,7 +367,10 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks) {
 
 void BrickedMarch::render() {
   launch_all(*render_, kBegin);
-  sweep(*render_, kMarch, {});
+  if (march_packet_)
+    sweep(*march_packet_, kMarch, {}, tile_);
+  else
+    sweep(*render_, kMarch, {});
   launch_all(*render_, kFinish);  // the image of the last sweep's state
   mark_written(image, op.events.back());
   op.samples = samples;

@@ -10,6 +10,7 @@
 #include "brick/brick_stream.hpp"
 #include "ivr/render.hpp"
 #include "ivr/session.hpp"
+#include "render/render.hpp"
 #include "runtime/variants.hpp"
 #include "session/session.hpp"
 
@@ -71,7 +72,8 @@ class BrickedMarch {
   int arguments(cl::Kernel& k);
   void set_brick(cl::Kernel& k, int brick, int slot);
   void launch_all(cl::Kernel& k, int phase);  // every ray, no brick
-  int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks);  // the sweeps it took
+  // The sweeps it took; `tile`: the pixels a work-item of k marches (a packet kernel's tile).
+  int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, PacketShape tile = {});
   void render();  // BEGIN, the sweeps, FINISH: `image`, `samples`
   Session& session() { return session_; }
   const cl::Buffer& state() const { return state_; }
@@ -102,6 +104,9 @@ class BrickedMarch {
   BrickStream stream_;
   cl::Buffer state_, state_u_, pending_;
   cl::Kernel* render_ = nullptr;
+  // On CPUs, the midpoint march in packets of rays (kernels/bricked_packet.cl), and its tile.
+  cl::Kernel* march_packet_ = nullptr;
+  PacketShape tile_;
   int a0_ = 0;
   std::vector<ViewGroup> groups_;
 };

@@ -93,6 +93,36 @@ TEST(BrickedRenderRays, RayListEqualsInCore) {
 
 // The device-memory cap: a volume that does not fit is bricked by itself (and renders the same),
 // one that fits stays in core, an impossible cap and malformed values are clear errors.
+// On CPUs the midpoint march goes through the bricks in packets of rays (kernels/bricked_packet.cl):
+// the image and the sample counts are the one-ray kernel's (IVR_PACKET=0) bit for bit, under both
+// models and precisions, for bricks of one cell to one brick, with rays that stop early.
+TEST(BrickedPacket, MarchesAsTheOneRayKernelBitForBit) {
+  for (Model model : {Model::emission_absorption, Model::absorption})
+    for (Precision p : {Precision::f32, Precision::f64}) {
+      if (p == Precision::f64 && !device().info().fp64) continue;
+      const Scene s = bricked_scene(model, Scheme::midpoint);
+      for (int edge : {1, 3, 100}) {
+        const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") +
+                                 name(p) + ", bricks of " + std::to_string(edge);
+        RenderStats packet_stats, one_stats;
+        const Image packet = render_with(s, p, edge, &packet_stats);
+        Image one;
+        {
+          ScopedEnv off("IVR_PACKET", "0");
+          one = render_with(s, p, edge, &one_stats);
+        }
+        if (device().info().type == "cpu")
+          EXPECT_NE(packet_stats.variant.find("packet"), std::string::npos)
+              << what << ": " << packet_stats.variant;
+        EXPECT_EQ(one_stats.variant.find("packet"), std::string::npos) << what;
+        EXPECT_EQ(packet.pixels, one.pixels) << what;
+        EXPECT_EQ(packet.pixels_f64, one.pixels_f64) << what;
+        EXPECT_EQ(packet_stats.samples, one_stats.samples) << what;
+        EXPECT_EQ(packet_stats.sweeps, one_stats.sweeps) << what;
+      }
+    }
+}
+
 TEST(BrickedRenderMemory, CapChoosesBricksAndErrorsAreClear) {
   Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
   s.volume.nx = 40, s.volume.ny = 36, s.volume.nz = 44;

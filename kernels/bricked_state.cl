@@ -1,0 +1,61 @@
+// bricked_state.cl — the out-of-core march's per-ray state (kernels/bricked.cl, bricked_packet.cl):
+// its layout, and how a brick takes a ray from it.
+#ifndef IVR_BRICKED_STATE_CL
+#define IVR_BRICKED_STATE_CL
+#include "brick_window.cl"
+#include "config.cl"
+#include "march.cl"
+
+// The per-ray state: reals, then uints.
+#define IVR_BRICK_REALS 24
+#define IVR_BRICK_UINTS 5
+// reals: the Radiance sums, the carried end sample (trapezoid, preintegrated), where the march
+// stands
+#define BS_T 0
+#define BS_CR 1
+#define BS_CG 2
+#define BS_CB 3
+#define BS_KR 4
+#define BS_KG 5
+#define BS_KB 6
+#define BS_TAU 7
+#define BS_KTAU 8
+#define BS_AD 9
+#define BS_ASIGMA 10
+#define BS_AER 11
+#define BS_AEG 12
+#define BS_AEB 13
+#define BS_TNEXT 14
+// the ray's global march, from BEGIN (march_begin: its sample count costs correctly rounded
+// divisions, once per ray rather than once per brick)
+#define BS_T0 15
+#define BS_T1 16
+#define BS_DT 17
+#define BS_U0 18  // u0x, u0y, u0z, dux, duy, duz
+// uints
+#define BU_SAMPLES 0
+#define BU_END 1
+#define BU_NEXT 2  // the next sample (midpoint) or segment (endpoint schemes)
+#define BU_FLAGS 3
+#define BU_N 4
+#define IVR_BRICK_DONE 1u
+#define IVR_BRICK_STARTED 2u  // the endpoint schemes' sample 0 is taken
+
+// The ray's global march from its state, moved to the brick's voxels, and the end *tb1 of its
+// window in the brick; false where the ray is done, misses the brick, or its march does not stand
+// at the window's start (met out of order: a later sweep takes it).
+inline bool brick_enter(__global const real* s, __global const uint* su, real4 brick_lo,
+                        real4 brick_hi, int4 origin, RayMarch* m, real* tb1) {
+  if (su[BU_FLAGS] & IVR_BRICK_DONE) return false;
+  m->t0 = s[BS_T0], m->t1 = s[BS_T1], m->dt = s[BS_DT], m->n = su[BU_N];
+  m->u0x = s[BS_U0 + 0], m->u0y = s[BS_U0 + 1], m->u0z = s[BS_U0 + 2];
+  m->dux = s[BS_U0 + 3], m->duy = s[BS_U0 + 4], m->duz = s[BS_U0 + 5];
+  real tb0 = m->t0;
+  *tb1 = m->t1;
+  brick_window(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, brick_lo, brick_hi, &tb0, tb1);
+  if (!(*tb1 > tb0) || tb0 != s[BS_TNEXT]) return false;
+  m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
+  return true;
+}
+
+#endif

@@ -48,20 +48,13 @@ class Rendezvous {
   std::vector<std::vector<unsigned char>> parts_, result_;
 };
 
-// Contexts of their own on the test device, one per worker, kept for the whole test program.
-Device& worker_device(int w) {
-  static std::vector<std::unique_ptr<Device>> devices;
-  static std::mutex m;
-  std::lock_guard<std::mutex> lock(m);
-  while (int(devices.size()) <= w)
-    devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
-  return *devices[w];
-}
-
 // Runs f(w, part, device) on `ranks` threads; what each returns, by worker.
+// Each worker has a context of its own on the test device.
 template <typename T, typename F>
 std::vector<T> on_workers(int ranks, F f) {
-  for (int w = 0; w < ranks; ++w) worker_device(w);
+  std::vector<std::unique_ptr<Device>> devices;
+  for (int w = 0; w < ranks; ++w)
+    devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
   Rendezvous meeting(ranks);
   std::vector<T> out(ranks);
   std::vector<std::string> errors(ranks);
@@ -74,7 +67,7 @@ std::vector<T> on_workers(int ranks, F f) {
         return meeting.all_gather(w, mine);
       };
       try {
-        out[w] = f(w, part, worker_device(w));
+        out[w] = f(w, part, *devices[w]);
       } catch (const std::exception& e) {
         errors[w] = e.what();
       }

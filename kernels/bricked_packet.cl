@@ -69,23 +69,23 @@ __kernel void bricked_render_packet(
   if (!any) return;
 
   March m;
-  m.t0 = IVR_VLOAD(0, t0), m.t1 = IVR_VLOAD(0, t1), m.dt = IVR_VLOAD(0, dt);
-  m.n = IVR_VLOAD(0, n);
-  m.u0x = IVR_VLOAD(0, u0x), m.u0y = IVR_VLOAD(0, u0y), m.u0z = IVR_VLOAD(0, u0z);
-  m.dux = IVR_VLOAD(0, dux), m.duy = IVR_VLOAD(0, duy), m.duz = IVR_VLOAD(0, duz);
+  m.t0 = IVR_LOAD_RAYS(t0), m.t1 = IVR_LOAD_RAYS(t1), m.dt = IVR_LOAD_RAYS(dt);
+  m.n = IVR_LOAD_RAYS(n);
+  m.u0x = IVR_LOAD_RAYS(u0x), m.u0y = IVR_LOAD_RAYS(u0y), m.u0z = IVR_LOAD_RAYS(u0z);
+  m.dux = IVR_LOAD_RAYS(dux), m.duy = IVR_LOAD_RAYS(duy), m.duz = IVR_LOAD_RAYS(duz);
   Radiance r;
-  r.transmittance = IVR_VLOAD(0, T);
-  r.cr = IVR_VLOAD(0, cr), r.cg = IVR_VLOAD(0, cg), r.cb = IVR_VLOAD(0, cb);
-  r.kr = IVR_VLOAD(0, kr), r.kg = IVR_VLOAD(0, kg), r.kb = IVR_VLOAD(0, kb);
-  r.tau = IVR_VLOAD(0, tau), r.ktau = IVR_VLOAD(0, ktau);
-  r.samples = IVR_VLOAD(0, taken), r.end = IVR_VLOAD(0, end);
-  const vreal window_end = IVR_VLOAD(0, tb1);
-  vint i = IVR_VLOAD(0, next);
+  r.transmittance = IVR_LOAD_RAYS(T);
+  r.cr = IVR_LOAD_RAYS(cr), r.cg = IVR_LOAD_RAYS(cg), r.cb = IVR_LOAD_RAYS(cb);
+  r.kr = IVR_LOAD_RAYS(kr), r.kg = IVR_LOAD_RAYS(kg), r.kb = IVR_LOAD_RAYS(kb);
+  r.tau = IVR_LOAD_RAYS(tau), r.ktau = IVR_LOAD_RAYS(ktau);
+  r.samples = IVR_LOAD_RAYS(taken), r.end = IVR_LOAD_RAYS(end);
+  const vreal window_end = IVR_LOAD_RAYS(tb1);
+  vint i = IVR_LOAD_RAYS(next);
   const real threshold = march_threshold(min_transmittance);
   vint segment = (vint)0;  // the TF's search cursor (tf_sample)
   // bricked.cl's brick_march, lane by lane: sample i while it lies before the window's end and
   // the march has neither ended nor stopped early.
-  vint live = (IVR_VLOAD(0, entered) != (vint)0) && (i < m.n);
+  vint live = (IVR_LOAD_RAYS(entered) != (vint)0) && (i < m.n);
   while (vany(live)) {
     const vreal t = sample_t(&m, i);
     live = live && vmask_of(t < window_end);

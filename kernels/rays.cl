@@ -207,11 +207,13 @@ IVR_PER_LANE(vexpm1, expm1)
 #define IVR_LANE_X(l) ((l) % IVR_PACKET_W)
 #define IVR_LANE_Y(l) ((l) / IVR_PACKET_W)
 
-// A value per ray into the array v[0 .. IVR_RAYS).
+// A value per ray into the array v[0 .. IVR_RAYS), and one per ray from it.
 #if IVR_RAYS == 1
 #define IVR_STORE_RAYS(x, v) ((v)[0] = (x))
+#define IVR_LOAD_RAYS(v) ((v)[0])
 #else
 #define IVR_STORE_RAYS(x, v) IVR_VSTORE(x, 0, v)
+#define IVR_LOAD_RAYS(v) IVR_VLOAD(0, v)
 #endif
 
 // A mask true in every lane.

@@ -42,9 +42,9 @@ struct DomainPart {
 
 // How a domain-parallel operation went, per worker.
 struct DomainStats {
-  int exchanges = 0;                  // rounds of the rays' states passed between workers
-  std::uint64_t sent_bytes = 0;       // this worker's changed ray states sent, all rounds
-  std::uint64_t received_bytes = 0;   // the other workers' states received
+  int exchanges = 0;                 // rounds of the rays' states passed between workers
+  std::uint64_t sent_bytes = 0;      // this worker's changed ray states sent, all rounds
+  std::uint64_t received_bytes = 0;  // the other workers' states received
 };
 
 // The scene's description (dims, box, cameras, TF, integrator) and, in scene.volume.data, only

@@ -57,15 +57,16 @@ class StateExchange {
     const std::vector<std::vector<unsigned char>> all = part_.all_gather(mine);
     if (int(all.size()) != part_.ranks)
       throw Error(Status::invalid_argument, "domain exchange: all_gather gave " +
-                                        std::to_string(all.size()) + " parts for " +
-                                        std::to_string(part_.ranks) + " workers");
+                                                std::to_string(all.size()) + " parts for " +
+                                                std::to_string(part_.ranks) + " workers");
     bool others = false;
     for (int w = 0; w < part_.ranks; ++w) {
       if (w == part_.rank) continue;
       const std::vector<unsigned char>& from = all[w];
       if (from.size() % entry_)
-        throw Error(Status::invalid_argument, "domain exchange: worker " + std::to_string(w) + " sent " +
-                                          std::to_string(from.size()) + " bytes, not whole rays");
+        throw Error(Status::invalid_argument, "domain exchange: worker " + std::to_string(w) +
+                                                  " sent " + std::to_string(from.size()) +
+                                                  " bytes, not whole rays");
       for (std::size_t at = 0; at < from.size(); at += entry_) {
         std::uint32_t ray = 0;
         std::memcpy(&ray, &from[at], 4);
@@ -118,10 +119,10 @@ Slab domain_slab(int nz, int rank, int ranks) {
     throw Error(Status::invalid_argument, "domain: worker " + std::to_string(rank) + " of " +
                                               std::to_string(ranks) + " workers");
   if (ranks > cells)
-    throw Error(Status::invalid_argument,
-                "domain: " + std::to_string(ranks) + " workers for a volume of " +
-                    std::to_string(nz) + " planes: at most one worker per cell (" +
-                    std::to_string(std::max(cells, 0)) + ")");
+    throw Error(Status::invalid_argument, "domain: " + std::to_string(ranks) +
+                                              " workers for a volume of " + std::to_string(nz) +
+                                              " planes: at most one worker per cell (" +
+                                              std::to_string(std::max(cells, 0)) + ")");
   return Slab{int(std::int64_t(rank) * cells / ranks), int(std::int64_t(rank + 1) * cells / ranks)};
 }
 
@@ -186,11 +187,11 @@ std::vector<double> domain_join(int nx, int ny, int nz,
   for (int r = 0; r < int(slabs.size()); ++r) {
     const Slab s = domain_slab(nz, r, int(slabs.size()));
     if (slabs[r].size() != plane * s.planes())
-      throw Error(Status::invalid_argument,
-                  "domain_join: worker " + std::to_string(r) + "'s slab has " +
-                      std::to_string(slabs[r].size()) + " values, planes " +
-                      std::to_string(s.first) + ".." + std::to_string(s.last) + " need " +
-                      std::to_string(plane * s.planes()));
+      throw Error(Status::invalid_argument, "domain_join: worker " + std::to_string(r) +
+                                                "'s slab has " + std::to_string(slabs[r].size()) +
+                                                " values, planes " + std::to_string(s.first) +
+                                                ".." + std::to_string(s.last) + " need " +
+                                                std::to_string(plane * s.planes()));
     double* at = out.data() + plane * s.first;
     for (std::size_t i = 0; i < slabs[r].size(); ++i) at[i] += slabs[r][i];
   }

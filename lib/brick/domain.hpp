@@ -1,5 +1,6 @@
-// domain.hpp — internal: the domain-parallel parts of the out-of-core march (include/ivr/domain.hpp):
-// a worker's slab plan, and the exchange of the rays' march states between workers after each sweep.
+// domain.hpp — internal: the domain-parallel parts of the out-of-core march
+// (include/ivr/domain.hpp): a worker's slab plan, and the exchange of the rays' march states
+// between workers after each sweep.
 #pragma once
 #include "brick/bricked_render.hpp"
 #include "ivr/domain.hpp"

@@ -55,13 +55,14 @@ inline double largest(const std::vector<double>& v) {
 }
 
 // Every pixel within tol × the largest |value| of the in-core image; none NaN/Inf.
-inline void expect_same(const Image& in_core, const Image& bricked, double tol, const std::string& what) {
-  const std::vector<double> a = in_core.pixels_f64.empty()
-                                    ? std::vector<double>(in_core.pixels.begin(), in_core.pixels.end())
-                                    : in_core.pixels_f64;
-  const std::vector<double> b = bricked.pixels_f64.empty()
-                                    ? std::vector<double>(bricked.pixels.begin(), bricked.pixels.end())
-                                    : bricked.pixels_f64;
+inline void expect_same(const Image& in_core, const Image& bricked, double tol,
+                        const std::string& what) {
+  const std::vector<double> a =
+      in_core.pixels_f64.empty() ? std::vector<double>(in_core.pixels.begin(), in_core.pixels.end())
+                                 : in_core.pixels_f64;
+  const std::vector<double> b =
+      bricked.pixels_f64.empty() ? std::vector<double>(bricked.pixels.begin(), bricked.pixels.end())
+                                 : bricked.pixels_f64;
   ASSERT_EQ(a.size(), b.size()) << what;
   const double scale = std::max(largest(a), 1e-30);
   int bad = 0;

@@ -2,6 +2,8 @@
 // threads, each with its own device context and only its slab of the volume, exchanging the rays'
 // states through an in-process all-gather, give one process's image and gradient; bad input is
 // refused with clear errors.
+#include "ivr/domain.hpp"
+
 #include <gtest/gtest.h>
 
 #include <condition_variable>
@@ -10,7 +12,6 @@
 #include <thread>
 
 #include "brick_support.hpp"
-#include "ivr/domain.hpp"
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "test_support.hpp"
@@ -93,7 +94,8 @@ TEST(Domain, SlabsCutTheCellsEvenlyAndShareOnePlane) {
 
 TEST(Domain, RenderEqualsOneProcessForEveryScheme) {
   for (Model model : {Model::emission_absorption, Model::absorption})
-    for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact}) {
+    for (Scheme scheme :
+         {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact}) {
       if (scheme == Scheme::exact && model != Model::absorption) continue;  // absorption only
       const Scene s = bricked_scene(model, scheme);
       for (Precision p : {Precision::f64, Precision::f32}) {
@@ -101,34 +103,37 @@ TEST(Domain, RenderEqualsOneProcessForEveryScheme) {
         RenderOptions o;
         o.precision = p;
         const Image one = render(device(), s, o);
-        for (int ranks : {2, 5})
-          for (int edge : {0, 3}) {
-            const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") +
-                                     scheme_name(scheme) + " " + name(p) + ", " +
-                                     std::to_string(ranks) + " workers, bricks " + std::to_string(edge);
-            o.volume_brick = edge;
-            std::vector<DomainStats> ds(ranks);
-            const std::vector<Image> images =
-                on_workers<Image>(ranks, [&](int w, const DomainPart& part, Device& d) {
-                  RenderStats st;
-                  Image img = render_domain(d, domain_share(s, w, ranks), part, o, &st, &ds[w]);
-                  EXPECT_GE(st.sweeps, 1) << what;
-                  return img;
-                });
-            expect_same(one, images[0], p == Precision::f64 ? 1e-12 : 1e-5, what);
-            for (int w = 1; w < ranks; ++w) {
-              EXPECT_EQ(images[w].pixels, images[0].pixels) << what << ": worker " << w;
-              EXPECT_EQ(images[w].pixels_f64, images[0].pixels_f64) << what << ": worker " << w;
-            }
-            // The rays cross slabs: some worker sent states, and every worker received some.
-            std::uint64_t sent = 0;
-            for (const DomainStats& d : ds) sent += d.sent_bytes;
-            EXPECT_GT(sent, 0u) << what;
-            for (int w = 0; w < ranks; ++w) {
-              EXPECT_GT(ds[w].received_bytes, 0u) << what << ": worker " << w;
-              EXPECT_EQ(ds[w].exchanges, ds[0].exchanges) << what;
-            }
+        // Two workers with bricks of 3 cells in their slabs, five with one brick per slab.
+        for (const std::pair<int, int>& c :
+             {std::pair<int, int>{2, 3}, std::pair<int, int>{5, 0}}) {
+          const int ranks = c.first, edge = c.second;
+          const std::string what =
+              std::string(model == Model::absorption ? "absorption " : "emission ") +
+              scheme_name(scheme) + " " + name(p) + ", " + std::to_string(ranks) +
+              " workers, bricks " + std::to_string(edge);
+          o.volume_brick = edge;
+          std::vector<DomainStats> ds(ranks);
+          const std::vector<Image> images =
+              on_workers<Image>(ranks, [&](int w, const DomainPart& part, Device& d) {
+                RenderStats st;
+                Image img = render_domain(d, domain_share(s, w, ranks), part, o, &st, &ds[w]);
+                EXPECT_GE(st.sweeps, 1) << what;
+                return img;
+              });
+          expect_same(one, images[0], p == Precision::f64 ? 1e-12 : 1e-5, what);
+          for (int w = 1; w < ranks; ++w) {
+            EXPECT_EQ(images[w].pixels, images[0].pixels) << what << ": worker " << w;
+            EXPECT_EQ(images[w].pixels_f64, images[0].pixels_f64) << what << ": worker " << w;
           }
+          // The rays cross slabs: some worker sent states, and every worker received some.
+          std::uint64_t sent = 0;
+          for (const DomainStats& d : ds) sent += d.sent_bytes;
+          EXPECT_GT(sent, 0u) << what;
+          for (int w = 0; w < ranks; ++w) {
+            EXPECT_GT(ds[w].received_bytes, 0u) << what << ": worker " << w;
+            EXPECT_EQ(ds[w].exchanges, ds[0].exchanges) << what;
+          }
+        }
       }
     }
 }
@@ -148,8 +153,9 @@ TEST(Domain, GradientEqualsOneProcess) {
       const double scale = std::max(largest(a), 1e-30);
       const double tol = p == Precision::f64 ? 1e-12 : 1e-5;
       for (int ranks : {2, 4}) {
-        const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") +
-                                 name(p) + ", " + std::to_string(ranks) + " workers";
+        const std::string what =
+            std::string(model == Model::absorption ? "absorption " : "emission ") + name(p) + ", " +
+            std::to_string(ranks) + " workers";
         const std::vector<Gradient> parts =
             on_workers<Gradient>(ranks, [&](int w, const DomainPart& part, Device& d) {
               return gradient_domain(d, domain_share(s, w, ranks), target, part, o);
@@ -197,7 +203,8 @@ TEST(Domain, BadInputIsRefusedClearly) {
   part.all_gather = [](const std::vector<unsigned char>& m) {
     return std::vector<std::vector<unsigned char>>{m, m};
   };
-  expect_error([&] { render_domain(device(), s, part); }, Status::invalid_argument, "worker 2 of 2");
+  expect_error([&] { render_domain(device(), s, part); }, Status::invalid_argument,
+               "worker 2 of 2");
   part.rank = 0;
   // The whole volume where worker 0's slab (planes 0..6) was wanted.
   expect_error([&] { render_domain(device(), s, part); }, Status::invalid_argument, "planes 0..6");
@@ -205,8 +212,11 @@ TEST(Domain, BadInputIsRefusedClearly) {
   trapezoid.integrator.scheme = Scheme::trapezoid;
   expect_error([&] { gradient_domain(device(), trapezoid, render(device(), s), part); },
                Status::unsupported, "midpoint");
-  expect_error([&] { domain_join(11, 9, 13, {std::vector<double>(11 * 9 * 7), {1.0}}); },
-               Status::invalid_argument, "worker 1");
+  expect_error(
+      [&] {
+        domain_join(11, 9, 13, {std::vector<double>(11 * 9 * 7), {1.0}});
+      },
+      Status::invalid_argument, "worker 1");
 }
 
 }  // namespace

@@ -42,12 +42,9 @@ Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
                         const GradientOptions& options) {
   if (groups != std::vector<std::string>{"density"})
     throw Error(Status::unsupported, "--split slabs: only --wrt density so far (docs/scaling.md)");
-  if (devices.size() > 1)
-    throw Error(Status::invalid_argument, "--split slabs: one device per rank, not --device with " +
-                                              std::to_string(devices.size()));
   const World& w = world();
-  Gradient mine =
-      gradient_domain(*devices[0], domain_share(scene, w.rank, w.size), target, domain_part(), options);
+  Gradient mine = gradient_domain(one_device_per_rank(devices), domain_share(scene, w.rank, w.size),
+                                  target, domain_part(), options);
   const std::vector<std::vector<double>> slabs = gather_parts(mine.groups[0].values);
   if (w.rank != 0) return {};
   GroupGradient& g = mine.groups[0];

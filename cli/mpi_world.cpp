@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdlib>
+#include <string>
+
+#include "ivr/error.hpp"
 
 #ifdef IVR_WITH_MPI
 #include <mpi.h>
@@ -56,17 +59,23 @@ void sum_all(std::vector<double>& values) {
 #endif
 }
 
-std::vector<double> gather(const std::vector<double>& mine) {
+namespace {
+// Every rank's values joined in rank order on rank 0 (others: empty), and how many each sent.
+std::vector<double> gather_counted(const std::vector<double>& mine, std::vector<int>& counts) {
+  counts.assign(1, int(mine.size()));
 #ifdef IVR_WITH_MPI
   if (started && the_world.size > 1) {
     int count = int(mine.size());
-    std::vector<int> counts(the_world.size), offsets(the_world.size);
+    counts.assign(std::size_t(the_world.size), 0);
+    std::vector<int> offsets(the_world.size);
     MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
     std::vector<double> all;
     if (the_world.rank == 0) {
       int at = 0;
       for (int r = 0; r < the_world.size; ++r) offsets[r] = at, at += counts[r];
       all.resize(std::size_t(at));
+    } else {
+      counts.clear();
     }
     MPI_Gatherv(mine.data(), count, MPI_DOUBLE, all.data(), counts.data(), offsets.data(),
                 MPI_DOUBLE, 0, MPI_COMM_WORLD);
@@ -75,15 +84,20 @@ std::vector<double> gather(const std::vector<double>& mine) {
 #endif
   return mine;
 }
+}  // namespace
+
+std::vector<double> gather(const std::vector<double>& mine) {
+  std::vector<int> counts;
+  return gather_counted(mine, counts);
+}
 
 std::vector<std::vector<double>> gather_parts(const std::vector<double>& mine) {
-  std::vector<double> counts{double(mine.size())};
-  const std::vector<double> all_counts = gather(counts);
-  const std::vector<double> all = gather(mine);
+  std::vector<int> counts;
+  const std::vector<double> all = gather_counted(mine, counts);
   std::vector<std::vector<double>> parts;
   std::size_t at = 0;
-  for (double c : all_counts) {
-    parts.emplace_back(all.begin() + std::ptrdiff_t(at), all.begin() + std::ptrdiff_t(at + std::size_t(c)));
+  for (int c : counts) {
+    parts.emplace_back(all.begin() + std::ptrdiff_t(at), all.begin() + std::ptrdiff_t(at + c));
     at += std::size_t(c);
   }
   return parts;
@@ -107,6 +121,13 @@ std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned ch
   }
 #endif
   return {mine};
+}
+
+Device& one_device_per_rank(const std::vector<Device*>& devices) {
+  if (devices.size() > 1)
+    throw Error(Status::invalid_argument, "--split slabs: one device per rank, not --device with " +
+                                              std::to_string(devices.size()));
+  return *devices[0];
 }
 
 DomainPart domain_part() {

@@ -29,7 +29,9 @@ std::vector<double> gather(const std::vector<double>& mine);
 std::vector<std::vector<double>> gather_parts(const std::vector<double>& mine);
 // Every rank's bytes by rank, on every rank (MPI_Allgatherv).
 std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned char>& mine);
-// This rank's part of a domain-parallel operation over the world (--split slabs).
+// This rank's part of a domain-parallel operation over the world (--split slabs), and its one
+// device (several are refused).
 DomainPart domain_part();
+Device& one_device_per_rank(const std::vector<Device*>& devices);
 
 }  // namespace ivr::cli

@@ -52,11 +52,8 @@ Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
                    DomainStats* domain) {
   const World& w = world();
   if (split == "slabs") {
-    if (devices.size() > 1)
-      throw Error(Status::invalid_argument, "--split slabs: one device per rank, not --device with " +
-                                                std::to_string(devices.size()));
-    return render_domain(*devices[0], domain_share(scene, w.rank, w.size), domain_part(), options,
-                         stats, domain);
+    return render_domain(one_device_per_rank(devices), domain_share(scene, w.rank, w.size),
+                         domain_part(), options, stats, domain);
   }
   if (w.size == 1) return render(devices, scene, options, stats);
   const auto parts = view_shares(share_items(scene), std::size_t(w.size));

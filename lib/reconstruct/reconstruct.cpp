@@ -120,9 +120,9 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
   if (o.workers > 1 && scene.has_ray_list())
     fail("data-parallel reconstruction (" + std::to_string(o.workers) +
          " workers) shares out views: a ray list is one view");
-  if (o.workers > 1 && std::min(o.batch > 0 ? o.batch : views, views) < o.workers)
-    fail("data-parallel reconstruction: batches of " +
-         std::to_string(std::min(o.batch > 0 ? o.batch : views, views)) + " view(s) for " +
+  const int batch = o.batch > 0 ? std::min(o.batch, views) : views;
+  if (o.workers > 1 && batch < o.workers)
+    fail("data-parallel reconstruction: batches of " + std::to_string(batch) + " view(s) for " +
          std::to_string(o.workers) + " workers (each needs one)");
   if (o.automatic_optimizer)
     o.optimizer.kind = o.density ? OptimizerKind::adam : OptimizerKind::lbfgs;

@@ -333,25 +333,29 @@ void cgls_host(const Projector& N, const std::vector<double>& p, std::vector<T>&
     if (sum) sum(d);
     return d[0];
   };
+  // A bricked projector works on the host arrays themselves (float iterates come with one only:
+  // tomo()); the in-core one on double vectors.
   auto project = [&](const std::vector<T>& v) {
-    if constexpr (std::is_same_v<T, float>) return project_bricked(P, P.bricks, v.data());
-    else return N.project(v);
+    if constexpr (std::is_same_v<T, double>)
+      if (!P.bricks.edge) return N.project(v);
+    return project_bricked(P, P.bricks, v.data());
   };
   // r = p − N x (data part; the Tikhonov part −√λ x is kept implicitly through x);
-  // s = Nᵀ r − λ x, written into `s` (no second volume alive).
+  // s = Nᵀ r − λ x.
   auto residual = [&] {
     std::vector<double> r = project(x);
     for (std::size_t i = 0; i < r.size(); ++i) r[i] = p[i] - r[i];
     return r;
   };
   auto gradient = [&](const std::vector<double>& r, std::vector<T>& s) {
-    if constexpr (std::is_same_v<T, float>) {
+    if (P.bricks.edge) {  // written into s: no second volume alive
       s.resize(x.size());
       backproject_bricked(P, P.bricks, r, s.data());
-    } else {
+    } else if constexpr (std::is_same_v<T, double>) {
       s = N.backproject(r);
-      if (sum) sum(s);
     }
+    if constexpr (std::is_same_v<T, double>)
+      if (sum) sum(s);
     if (lambda > 0)
       for (std::size_t i = 0; i < s.size(); ++i) s[i] = T(s[i] - lambda * x[i]);
   };

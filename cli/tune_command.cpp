@@ -170,12 +170,12 @@ Runner add_tune_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--kernels", args->kernels,
                   "Kernels to tune, comma-separated (default: all of render, render_packet, "
-                  "adjoint, adjoint_packet, jacobian, project, backproject that the device "
-                  "launches)")
+                  "adjoint, adjoint_packet, jacobian, jacobian_packet, project, backproject, "
+                  "bricked, bricked_packet that the device launches)")
       ->delimiter(',');
   cmd->add_option("--candidates", args->candidates,
                   "Shapes to try, e.g. 0x0,8x8,16x16 (0x0: the driver's choice; default: 0x0, "
-                  "8x8, 16x8, 16x16, 32x4, 32x8, 64x1, 64x4, 128x1, 256x1)");
+                  "1x1, 2x2, 4x4, 8x8, 16x8, 16x16, 32x4, 32x8, 64x1, 64x4, 128x1, 256x1)");
   cmd->add_option("--statistic", args->statistic,
                   "What ranks the shapes: median of the rounds (default) or min (on a machine "
                   "others share: load only adds time)")

@@ -88,16 +88,10 @@ inline void pixel_adjoint(real cr, real cg, real cb, real t, size_t pixel,
 
 // The AdjointRay of a work-item's rays from their pixels' adjoints.
 inline void adjoint_ray_of(const PixelAdjoints* p, vreal t_end, vint end, AdjointRay* ar) {
-#if IVR_RAYS == 1
-#define IVR_LOAD_RAYS(v) ((v)[0])
-#else
-#define IVR_LOAD_RAYS(v) IVR_VLOAD(0, v)
-#endif
   ar->gr = IVR_LOAD_RAYS(p->gr), ar->gg = IVR_LOAD_RAYS(p->gg), ar->gb = IVR_LOAD_RAYS(p->gb);
   ar->ga = IVR_LOAD_RAYS(p->ga), ar->gi = IVR_LOAD_RAYS(p->gi);
   ar->total_r = IVR_LOAD_RAYS(p->total_r), ar->total_g = IVR_LOAD_RAYS(p->total_g);
   ar->total_b = IVR_LOAD_RAYS(p->total_b), ar->intensity = IVR_LOAD_RAYS(p->intensity);
-#undef IVR_LOAD_RAYS
   ar->t_end = t_end;
   ar->end = end;
 }

@@ -8,18 +8,35 @@
 #include "empty_space.cl"
 #include "rays.cl"
 
+// Where a ray's adjoint march stands: the prefix (transmittance and emission, summed exactly as the
+// primal march summed C) before sample i. In core a march starts at sample 0 with nothing in
+// front; out of core (kernels/bricked_adjoint.cl) each brick goes on from where the one before
+// left it.
+typedef struct {
+  vreal transmittance, pr, pg, pb, kr, kg, kb;
+  vint i;
+} AdjointPrefix;
+
+inline AdjointPrefix adjoint_prefix_begin(void) {
+  AdjointPrefix p;
+  p.transmittance = (vreal)(real)1;
+  p.pr = p.pg = p.pb = p.kr = p.kg = p.kb = (vreal)(real)0;
+  p.i = (vint)0;
+  return p;
+}
+
 // One ray, or every ray of a packet (kernels/rays.cl) written once as primal.cl's marches are:
 // `take` holds the rays that sample in this round (the constant true for one ray), and each lane
-// does its own ray's arithmetic.
-inline void adjoint_march_midpoint(__global const real* volume, int4 dims, const March* m, Ray ray,
-                                   real4 inv_voxel, __global const real* tf, int tf_count,
-                                   real4 tf_scalars, const AdjointRay* ar,
-                                   __global const uchar* occupied, int4 bricks,
-                                   const ScatterSink grad_volume, TfGradCache* tf_cache,
-                                   __local real* tf_acc, CameraSums* cs) {
-  vreal transmittance = (vreal)(real)1;
-  // The emission prefix, summed exactly as the primal march summed C.
-  vreal pr = (vreal)(real)0, pg = pr, pb = pr, kr = pr, kg = pr, kb = pr;
+// does its own ray's arithmetic. The samples from `at` on that lie before `window_end` (in core:
+// ∞) and before the primal march's end; `at` is left where the march stopped.
+__attribute__((always_inline)) inline void adjoint_march_midpoint_window(
+    __global const real* volume, int4 dims, const March* m, Ray ray, real4 inv_voxel,
+    __global const real* tf, int tf_count, real4 tf_scalars, const AdjointRay* ar,
+    __global const uchar* occupied, int4 bricks, const ScatterSink grad_volume,
+    TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs, vreal window_end,
+    AdjointPrefix* at) {
+  vreal transmittance = at->transmittance;
+  vreal pr = at->pr, pg = at->pg, pb = at->pb, kr = at->kr, kg = at->kg, kb = at->kb;
   vint seg_value = (vint)0, seg_scatter = (vint)0;
   CellCache cell;
   cell_init(&cell);
@@ -27,10 +44,12 @@ inline void adjoint_march_midpoint(__global const real* volume, int4 dims, const
   real along = 0, indexed = 0, direct = 0;  // camera: fixed_step_ends()
 #endif
   const vint end = ar->end;
-  vint i = (vint)0;
-  vint live = (vint)0 < end;
+  vint i = at->i;
+  vint live = i < end;
   while (vany(live)) {
     const vreal t = sample_t(m, i);
+    live = live && vmask_of(t < window_end);
+    if (!vany(live)) break;
     const vreal ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
 #if IVR_EMPTY_SPACE
     const vint take = midpoint_skip(&i, end, &live, ux, uy, uz, m, dims, occupied, bricks);
@@ -98,6 +117,21 @@ inline void adjoint_march_midpoint(__global const real* volume, int4 dims, const
 #if IVR_GRAD_CAMERA
   fixed_step_ends(cs, m, along, indexed, direct);
 #endif
+  at->transmittance = transmittance;
+  at->pr = pr, at->pg = pg, at->pb = pb, at->kr = kr, at->kg = kg, at->kb = kb;
+  at->i = i;
+}
+
+// The whole ray's adjoint march (in core).
+__attribute__((always_inline)) inline void adjoint_march_midpoint(
+    __global const real* volume, int4 dims, const March* m, Ray ray, real4 inv_voxel,
+    __global const real* tf, int tf_count, real4 tf_scalars, const AdjointRay* ar,
+    __global const uchar* occupied, int4 bricks, const ScatterSink grad_volume,
+    TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs) {
+  AdjointPrefix at = adjoint_prefix_begin();
+  adjoint_march_midpoint_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars, ar,
+                                occupied, bricks, grad_volume, tf_cache, tf_acc, cs,
+                                (vreal)(real)INFINITY, &at);
 }
 
 #endif

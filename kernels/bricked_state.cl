@@ -5,6 +5,7 @@
 #include "brick_window.cl"
 #include "config.cl"
 #include "march.cl"
+#include "primal.cl"
 
 // The per-ray state: reals, then uints.
 #define IVR_BRICK_REALS 24
@@ -57,5 +58,28 @@ inline bool brick_enter(__global const real* s, __global const uint* su, real4 b
   m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
   return true;
 }
+
+// One ray's Radiance sums from its state, and back (the one-ray kernels').
+#if IVR_RAYS == 1
+inline Radiance brick_load(__global const real* s, __global const uint* su) {
+  Radiance r;
+  r.transmittance = s[BS_T];
+  r.cr = s[BS_CR], r.cg = s[BS_CG], r.cb = s[BS_CB];
+  r.kr = s[BS_KR], r.kg = s[BS_KG], r.kb = s[BS_KB];
+  r.tau = s[BS_TAU], r.ktau = s[BS_KTAU];
+  r.samples = (int)su[BU_SAMPLES];
+  r.end = (int)su[BU_END];
+  return r;
+}
+
+inline void brick_store(const Radiance* r, __global real* s, __global uint* su) {
+  s[BS_T] = r->transmittance;
+  s[BS_CR] = r->cr, s[BS_CG] = r->cg, s[BS_CB] = r->cb;
+  s[BS_KR] = r->kr, s[BS_KG] = r->kg, s[BS_KB] = r->kb;
+  s[BS_TAU] = r->tau, s[BS_KTAU] = r->ktau;
+  su[BU_SAMPLES] = (uint)r->samples;
+  su[BU_END] = (uint)r->end;
+}
+#endif
 
 #endif

@@ -1,15 +1,45 @@
 // bricked_gradient.cpp — the out-of-core density gradient.
 #include "brick/bricked_gradient.hpp"
 
+#include <cstdlib>
+#include <string>
+
+#include "adjoint/private_sums.hpp"
 #include "brick/domain.hpp"
 #include "ivr/error.hpp"
+#include "runtime/launch.hpp"
 #include "runtime/real_args.hpp"
 
 namespace ivr {
 
 namespace {
-constexpr int kAdjointBegin = 3, kAdjointMarch = 4;  // kernels/bricked.cl
+constexpr int kAdjointBegin = 3, kAdjointMarch = 4;  // kernels/bricked_adjoint.cl
 constexpr int kAdjointReals = 8;
+// Private sums (lib/adjoint/private_sums.hpp) for the packet march over one brick at a time:
+// their copies hold a brick's gradient each, beside what the plan counted.
+PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan, bool packet,
+                                 std::size_t real_size, std::size_t rays) {
+  if (tuning_probe()) return {};
+  PrivateSumsQuery q;
+  q.packet = packet;
+  q.density = true;
+  q.eligible = true;
+  q.voxels = plan.layout.largest_voxels();
+  q.real_size = real_size;
+  q.pixels = rays;
+  q.longest_edge = plan.layout.edge + 1;
+  PrivateSums p = private_sums_for(dev.info, q);
+  if (p.on && plan.budget && plan.bricked_bytes + p.bytes(real_size) > plan.budget) {
+    const char* forced = std::getenv("IVR_PRIVATE_SUMS");
+    if (forced && std::string(forced) == "1")
+      throw Error(Status::invalid_argument,
+                  "IVR_PRIVATE_SUMS=1: " + std::to_string(p.groups) +
+                      " copies of a brick's gradient do not fit the device-memory budget");
+    p.on = false;
+  }
+  return p;
+}
+
 }  // namespace
 
 Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
@@ -21,10 +51,9 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   if (groups != std::vector<std::string>{"density"})
     throw Error(Status::unsupported, where + ": only --wrt density so far");
   if (scene.integrator.scheme != Scheme::midpoint)
-    throw Error(Status::unsupported,
-                where + ": only the midpoint scheme so far, not " + scheme_name(scene.integrator.scheme));
-  if (o.mode == Mode::forward)
-    throw Error(Status::unsupported, where + ": adjoint mode only");
+    throw Error(Status::unsupported, where + ": only the midpoint scheme so far, not " +
+                                         scheme_name(scene.integrator.scheme));
+  if (o.mode == Mode::forward) throw Error(Status::unsupported, where + ": adjoint mode only");
   RenderOptions ro;
   ro.precision = o.precision;
   ro.step = o.step;
@@ -38,11 +67,20 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   const ImageExtent e = image_extent(scene);
   const std::size_t rays = e.pixels();
   Device::Impl& dev = s.dev;
-  KernelConfig config = march.variant.config("bricked.cl", "bricked_adjoint");
+  // BEGIN one ray per work-item; the sweeps' march in packets of rays where the render's is,
+  // there with private sums where they pay and fit beside the plan's bricks (their copies are a
+  // brick's gradient per compute unit).
+  KernelConfig config = march.variant.config("bricked_adjoint.cl", "bricked_adjoint");
   config.set(Switch::loss_l1, o.loss == Loss::l1).set(Switch::loss_dot, o.loss == Loss::dot);
   config.with_atomics(atomic_add_for(dev.info, s.f64));
   cl::Kernel& k = s.kernels.get(config, &march.op.stats.build_seconds);
-  const int a0 = march.arguments(k);
+  const PrivateSums priv = bricked_private_sums(dev, plan, march.lanes() > 1, s.real_size, rays);
+  cl::Kernel* marching = &k;
+  KernelConfig packet = config;
+  if (march.lanes() > 1) {
+    packet.set(Switch::rays, march.lanes()).set(Switch::private_sums, priv.on);
+    marching = &s.kernels.get(packet, &march.op.stats.build_seconds);
+  }
   const cl::Buffer adj = dev.buffer(CL_MEM_READ_WRITE, rays * kAdjointReals * s.real_size, nullptr,
                                     "the per-ray pixel adjoints");
   const cl::Buffer pixel_loss =
@@ -50,31 +88,76 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   const std::size_t slot_bytes = l.largest_voxels() * s.real_size;
   const cl::Buffer grad =
       dev.buffer(CL_MEM_READ_WRITE, slot_bytes, nullptr, "a brick's density gradient");
-  cl_call("setting the bricked adjoint's arguments", [&] {
-    k.setArg(a0 + 4 + 2, adj);
-    k.setArg(a0 + 4 + 3, buffer_of(s.target));
-    set_real(k, a0 + 4 + 4, s.f64, 1.0 / double(rays * scene.channels()));
-    k.setArg(a0 + 4 + 5, pixel_loss);
-    k.setArg(a0 + 4 + 6, grad);
-  });
+  cl::Buffer copies;
+  if (priv.on) {  // zero once: each brick's sum of the copies leaves them 0
+    copies = dev.buffer(CL_MEM_READ_WRITE, priv.bytes(s.real_size), nullptr,
+                        "the brick gradient's private copies");
+    dev.queue.enqueueFillBuffer(copies, cl_uchar(0), 0, priv.bytes(s.real_size));
+  }
+  for (cl::Kernel* kernel : {&k, marching}) {
+    const int a0 = march.arguments(*kernel);
+    cl_call("setting the bricked adjoint's arguments", [&] {
+      kernel->setArg(a0 + 4 + 2, adj);
+      kernel->setArg(a0 + 4 + 3, buffer_of(s.target));
+      set_real(*kernel, a0 + 4 + 4, s.f64, 1.0 / double(rays * scene.channels()));
+      kernel->setArg(a0 + 4 + 5, pixel_loss);
+      kernel->setArg(a0 + 4 + 6, kernel == marching && priv.on ? copies : grad);
+      kernel->setArg(a0 + 4 + 7, cl_int4{{0, 0, 0, 0}});
+      kernel->setArg(a0 + 4 + 8, cl_int(0));
+      kernel->setArg(a0 + 4 + 9, cl_int(0));
+    });
+  }
+  const int a_rect = march.arguments(*marching) + 4 + 7;
   march.launch_all(k, kAdjointBegin);
 
   const std::size_t planes = std::size_t(l.z_last - l.z_first + 1);  // all, or a worker's slab
   std::vector<double> gradient(planes * l.dims[1] * l.dims[0], 0.0);
   std::vector<unsigned char> host;
   BrickHooks hooks;
-  hooks.before = [&](int b, std::vector<cl::Event>& wait) {
-    cl::Event zeroed;
-    dev.queue.enqueueFillBuffer(grad, cl_uchar(0), 0, l.voxels(b) * s.real_size, nullptr, &zeroed);
-    wait.push_back(zeroed);
-  };
+  if (!priv.on) {
+    hooks.before = [&](int b, std::vector<cl::Event>& wait) {
+      cl::Event zeroed;
+      dev.queue.enqueueFillBuffer(grad, cl_uchar(0), 0, l.voxels(b) * s.real_size, nullptr,
+                                  &zeroed);
+      wait.push_back(zeroed);
+    };
+  } else {
+    // One work-group of one item per compute unit, each taking its turns of the rectangle's tiles.
+    hooks.launch = [&](const TileRect& r, const std::vector<cl::Event>& wait) {
+      marching->setArg(a_rect, cl_int4{{r.x, r.y, r.across, r.down}});
+      marching->setArg(a_rect + 1, cl_int(r.first_view));
+      marching->setArg(a_rect + 2, cl_int(r.across * r.down * r.views));
+      cl::Event ev;
+      dev.queue.enqueueNDRangeKernel(*marching, cl::NullRange, cl::NDRange(priv.groups),
+                                     cl::NDRange(1), &wait, &ev);
+      return ev;
+    };
+  }
+  cl::Kernel* sum = priv.on ? &s.kernels.get(packet.with_entry("sum_private_copies")) : nullptr;
   hooks.after = [&](int b, const std::vector<cl::Event>& marched) {
     if (marched.empty()) return;
+    std::vector<cl::Event> done = marched;
+    if (sum) {  // the copies into the brick's gradient (which leaves them 0)
+      const std::size_t voxels = l.voxels(b);
+      sum->setArg(0, cl_int(voxels));
+      sum->setArg(1, cl_int(priv.groups));
+      sum->setArg(2, copies);
+      sum->setArg(3, grad);
+      cl::Event summed;
+      dev.queue.enqueueNDRangeKernel(
+          *sum, cl::NullRange, cl::NDRange((voxels + IVR_PRIVATE_ALIGN - 1) / IVR_PRIVATE_ALIGN),
+          cl::NullRange, &marched, &summed);
+      march.op.events.push_back(summed);
+      done = {summed};
+    }
     host.resize(l.voxels(b) * s.real_size);
-    dev.queue.enqueueReadBuffer(grad, CL_TRUE, 0, host.size(), host.data(), &marched);
+    dev.queue.enqueueReadBuffer(grad, CL_TRUE, 0, host.size(), host.data(), &done);
     add_brick(host, l, b, s.f64, gradient.data());
   };
-  march.sweep(k, kAdjointMarch, hooks);
+  if (marching == &k)
+    march.sweep(k, kAdjointMarch, hooks, "bricked");
+  else
+    march.sweep(*marching, kAdjointMarch, hooks, "bricked_packet", march.tile());
 
   const std::vector<double> losses = download_reals(dev, s.f64, pixel_loss, rays);
   Gradient d;

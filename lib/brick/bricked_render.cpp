@@ -1,14 +1,13 @@
 // bricked_render.cpp — the out-of-core render: plan, brick order, streaming, sweeps.
 #include "brick/bricked_render.hpp"
 
-#include "brick/domain.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <map>
 #include <numeric>
 
+#include "brick/domain.hpp"
 #include "ivr/error.hpp"
 #include "render/render.hpp"
 #include "runtime/real_args.hpp"
@@ -125,7 +124,8 @@ PixelRect brick_pixels(const Scene& scene, const BrickLayout& l, int b, int view
   const glm::dvec3 up = glm::cross(right, fwd);
   const double aspect = double(e.width) / e.height;
   const bool ortho = c.projection == Projection::orthographic;
-  const double half_h = ortho ? c.ortho_height / 2 : std::tan(c.fov_y * 3.14159265358979323846 / 360);
+  const double half_h =
+      ortho ? c.ortho_height / 2 : std::tan(c.fov_y * 3.14159265358979323846 / 360);
   double sx0 = INFINITY, sx1 = -INFINITY, sy0 = INFINITY, sy1 = -INFINITY;
   for (int k = 0; k < 8; ++k) {
     const glm::dvec3 p((k & 1) ? whi.x : wlo.x, (k & 2) ? whi.y : wlo.y, (k & 4) ? whi.z : wlo.z);
@@ -137,7 +137,8 @@ PixelRect brick_pixels(const Scene& scene, const BrickLayout& l, int b, int view
     }
     const double sx = glm::dot(d, right) / (depth * half_h * aspect);
     const double sy = glm::dot(d, up) / (depth * half_h);
-    sx0 = std::min(sx0, sx), sx1 = std::max(sx1, sx), sy0 = std::min(sy0, sy), sy1 = std::max(sy1, sy);
+    sx0 = std::min(sx0, sx), sx1 = std::max(sx1, sx), sy0 = std::min(sy0, sy),
+    sy1 = std::max(sy1, sy);
   }
   // Pixel x's centre is at sx = (2x + 1)/W − 1; row y's at sy = 1 − (2y + 1)/H.
   auto clampi = [](double v, int n) { return int(std::clamp(v, 0.0, double(n))); };
@@ -178,8 +179,9 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   plan.in_core_bytes = (gradient ? 2 : 1) * voxels * real_size + image + geometry + target;
   if (forced_edge <= 0) forced_edge = volume_brick_from_env();
   if (forced_edge <= 0 && (plan.budget == 0 || plan.in_core_bytes <= plan.budget)) return plan;
-  const std::uint64_t fixed = image + geometry + target +
-                              rays * ((kStateReals + (gradient ? 8 : 0)) * real_size + kStateUints * 4) + 64;
+  const std::uint64_t fixed =
+      image + geometry + target +
+      rays * ((kStateReals + (gradient ? 8 : 0)) * real_size + kStateUints * 4) + 64;
   const int extra_slots = gradient ? 1 : 0;  // the brick's gradient
   const int longest = std::max({scene.volume.nx, scene.volume.ny, scene.volume.nz});
   auto fits = [&](int edge, int slots) {
@@ -198,7 +200,8 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   const int wanted = std::min(plan.layout.total(), 2);
   // Where not even the image and the per-ray state fit, bricks cannot help: the in-core render
   // reports what does not fit (unless bricks were asked for).
-  if (plan.budget && !fits(edge, wanted) && forced_edge <= 0) return BrickPlan{{}, 0, plan.budget, plan.in_core_bytes, 0};
+  if (plan.budget && !fits(edge, wanted) && forced_edge <= 0)
+    return BrickPlan{{}, 0, plan.budget, plan.in_core_bytes, 0};
   if (plan.budget && !fits(edge, wanted))
     throw Error(Status::out_of_memory,
                 "out-of-core render: bricks of " + std::to_string(edge) + " cells (" +
@@ -250,15 +253,16 @@ BrickedMarch::BrickedMarch(Device& device, const Scene& scene, const RenderOptio
   image = s.output("image", s.image_shape(), real_dtype(s.f64), "the image");
   samples = dev.buffer(CL_MEM_READ_WRITE, rays * 4, nullptr, "the sample counts");
   const cl_uint zero = 0;
-  pending_ = dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, 4, &zero, "the pending-ray count");
+  pending_ =
+      dev.buffer(CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, 4, &zero, "the pending-ray count");
   const KernelConfig config = variant.config("bricked.cl", "bricked_render");
   op.stats.variant = config.label();
   render_ = &s.kernels.get(config, &op.stats.build_seconds);
   a0_ = arguments(*render_);
   if (use_packet(dev) && variant.scheme == Scheme::midpoint) {
-    const int lanes = packet_lanes(variant.precision);
-    const KernelConfig packet = variant.config("bricked_packet.cl", "bricked_render_packet")
-                                    .set(Switch::rays, lanes);
+    const int lanes = lanes_ = packet_lanes(variant.precision);
+    const KernelConfig packet =
+        variant.config("bricked_packet.cl", "bricked_render_packet").set(Switch::rays, lanes);
     march_packet_ = &s.kernels.get(packet, &op.stats.build_seconds);
     tile_ = packet_shape(lanes, scene.has_ray_list());
     arguments(*march_packet_);
@@ -299,14 +303,13 @@ void BrickedMarch::launch_all(cl::Kernel& k, int phase) {
   cl_call("running the bricked march on " + s.dev.info.name, [&] {
     set_brick(k, 0, 0);
     k.setArg(a0_, cl_int(phase));
-    cl::Event ev;
-    s.dev.queue.enqueueNDRangeKernel(k, cl::NullRange, cl::NDRange(e_.width, e_.height, e_.views),
-                                     cl::NullRange, nullptr, &ev);
-    op.events.push_back(ev);
+    op.events.push_back(
+        enqueue(s.dev, k, pixel_launch(s.dev, k, "bricked", e_.width, e_.height, e_.views, true)));
   });
 }
 
-int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, PacketShape tile) {
+int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const char* tuning,
+                        PacketShape tile) {
   const BrickLayout& l = plan_.layout;
   auto fill = [&](int b, std::vector<unsigned char>& out) {
     extract_brick(scene_.volume, l, b, s.f64, out);
@@ -330,10 +333,17 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, Packe
             // In work-items: tiles of tile.w × tile.h pixels.
             const int x0 = r.x0 / tile.w, y0 = r.y0 / tile.h;
             const int x1 = tile.across(r.x1), y1 = tile.down(r.y1);
+            // Explicit work-groups (the database's, else 8x8), rounded up past the rectangle (the
+            // kernels skip what lies outside the image, and a pixel the brick does not hold is
+            // left as it was): the driver's choice for a small rectangle can be one group, which
+            // one thread of a CPU marches alone.
             cl::Event ev;
-            dev.queue.enqueueNDRangeKernel(k, cl::NDRange(x0, y0, first),
-                                           cl::NDRange(x1 - x0, y1 - y0, count), cl::NullRange,
-                                           &wait, &ev);
+            if (hooks.launch) {
+              ev = hooks.launch(TileRect{x0, y0, x1 - x0, y1 - y0, first, count}, wait);
+            } else {
+              const PixelLaunch shape = pixel_launch(dev, k, tuning, x1 - x0, y1 - y0, count, true);
+              ev = enqueue(dev, k, shape, cl::NDRange(x0, y0, first), &wait);
+            }
             op.events.push_back(ev);
             stream_.used(i, ev);
             marched.push_back(ev);
@@ -368,9 +378,9 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, Packe
 void BrickedMarch::render() {
   launch_all(*render_, kBegin);
   if (march_packet_)
-    sweep(*march_packet_, kMarch, {}, tile_);
+    sweep(*march_packet_, kMarch, {}, "bricked_packet", tile_);
   else
-    sweep(*render_, kMarch, {});
+    sweep(*render_, kMarch, {}, "bricked");
   launch_all(*render_, kFinish);  // the image of the last sweep's state
   mark_written(image, op.events.back());
   op.samples = samples;

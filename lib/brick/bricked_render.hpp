@@ -19,8 +19,8 @@ namespace ivr {
 // How a render runs: in core (bricks = 1, layout.edge = 0) or in bricks, with how many bricks the
 // device holds at once.
 struct BrickPlan {
-  BrickLayout layout;   // edge 0: in core
-  int slots = 0;        // bricks resident at once
+  BrickLayout layout;        // edge 0: in core
+  int slots = 0;             // bricks resident at once
   std::uint64_t budget = 0;  // the device memory the plan keeps within
   std::uint64_t in_core_bytes = 0, bricked_bytes = 0;
   int bricks() const { return layout.edge ? layout.total() : 1; }
@@ -52,11 +52,20 @@ struct ViewGroup {
   std::vector<std::pair<int, int>> runs;  // (first view, count)
 };
 
+// A rectangle of a sweep's work-items (tiles of pixels): the first's x and y, how many across and
+// down, and the views.
+struct TileRect {
+  int x = 0, y = 0, across = 0, down = 0;
+  int first_view = 0, views = 0;
+};
+
 // Per brick of a sweep: `before` may add to the events the brick's marches wait for, `after`
-// gets the brick's march events.
+// gets the brick's march events; `launch`, where set, enqueues the marching kernel (its brick
+// arguments set) over a rectangle in place of the sweep's pixel launch.
 struct BrickHooks {
   std::function<void(int brick, std::vector<cl::Event>& wait)> before;
   std::function<void(int brick, const std::vector<cl::Event>& marched)> after;
+  std::function<cl::Event(const TileRect& tiles, const std::vector<cl::Event>& wait)> launch;
 };
 
 // One out-of-core march (kernels/bricked.cl): a session without densities (cameras, TF,
@@ -71,9 +80,12 @@ class BrickedMarch {
   // the index of its `phase` argument.
   int arguments(cl::Kernel& k);
   void set_brick(cl::Kernel& k, int brick, int slot);
-  void launch_all(cl::Kernel& k, int phase);  // every ray, no brick
-  // The sweeps it took; `tile`: the pixels a work-item of k marches (a packet kernel's tile).
-  int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, PacketShape tile = {});
+  void launch_all(cl::Kernel& k, int phase);  // every ray (one per work-item), no brick
+  // The sweeps it took; `tuning`: k's name in the launch-parameter database
+  // (lib/runtime/device_params_db.inc); `tile`: the pixels a work-item of k marches (a packet
+  // kernel's tile).
+  int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const char* tuning,
+            PacketShape tile = {});
   void render();  // BEGIN, the sweeps, FINISH: `image`, `samples`
   Session& session() { return session_; }
   const cl::Buffer& state() const { return state_; }
@@ -85,6 +97,9 @@ class BrickedMarch {
   int workers = 1;
   BrickStream& stream() { return stream_; }
   cl::Kernel& render_kernel() { return *render_; }
+  // On CPUs (midpoint), the rays a packet kernel marches in lanes, and their tile; 0 elsewhere.
+  int lanes() const { return lanes_; }
+  PacketShape tile() const { return tile_; }
   const BrickPlan& plan() const { return plan_; }
 
  private:
@@ -107,6 +122,7 @@ class BrickedMarch {
   // On CPUs, the midpoint march in packets of rays (kernels/bricked_packet.cl), and its tile.
   cl::Kernel* march_packet_ = nullptr;
   PacketShape tile_;
+  int lanes_ = 0;
   int a0_ = 0;
   std::vector<ViewGroup> groups_;
 };

@@ -90,10 +90,10 @@ PixelLaunch pixel_launch(Device::Impl& dev, const cl::Kernel& kernel, const std:
   return l;
 }
 
-cl::Event enqueue(Device::Impl& dev, const cl::Kernel& kernel, const PixelLaunch& launch) {
+cl::Event enqueue(Device::Impl& dev, const cl::Kernel& kernel, const PixelLaunch& launch,
+                  const cl::NDRange& offset, const std::vector<cl::Event>* wait) {
   cl::Event done;
-  dev.queue.enqueueNDRangeKernel(kernel, cl::NullRange, launch.global, launch.local, nullptr,
-                                 &done);
+  dev.queue.enqueueNDRangeKernel(kernel, offset, launch.global, launch.local, wait, &done);
   if (TuningProbe* probe = current_probe) probe->launches.push_back({launch, done});
   return done;
 }

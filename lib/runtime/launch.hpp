@@ -75,8 +75,11 @@ class ScopedTuningProbe {
 };
 TuningProbe* tuning_probe();  // this thread's, or null
 
-// Enqueues and returns the kernel's event (profiling is on for the device's queue).
-cl::Event enqueue(Device::Impl& dev, const cl::Kernel& kernel, const PixelLaunch& launch);
+// Enqueues and returns the kernel's event (profiling is on for the device's queue); `offset`: the
+// first work-item's ids (a rectangle of the image), `wait`: what it waits for.
+cl::Event enqueue(Device::Impl& dev, const cl::Kernel& kernel, const PixelLaunch& launch,
+                  const cl::NDRange& offset = cl::NullRange,
+                  const std::vector<cl::Event>* wait = nullptr);
 // One work-item per element: n rounded up to `group` (0: the driver's choice, n as is).
 cl::Event enqueue_1d(Device::Impl& dev, const cl::Kernel& kernel, std::size_t n,
                      std::size_t group = 0);

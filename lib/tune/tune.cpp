@@ -12,6 +12,7 @@
 #include <functional>
 
 #include "ivr/calibrate.hpp"
+#include "ivr/core.hpp"
 #include "ivr/error.hpp"
 #include "ivr/session.hpp"
 #include "runtime/device_params.hpp"
@@ -52,7 +53,22 @@ struct Operation {
   std::function<std::vector<Output>(Session&)> run;
 };
 
-std::vector<Operation> operations(const DeviceArray& lines) {
+// The scene rendered in 8 bricks (lib/brick/): the out-of-core sweeps' kernels. The image is the
+// host's, wrapped for the comparison (kept until the next call).
+std::vector<Output> render_in_bricks(Session& s, const Scene& scene, double step) {
+  static thread_local std::vector<float> pixels;
+  RenderOptions o;
+  o.step = step;
+  o.volume_brick = std::max({scene.volume.nx, scene.volume.ny, scene.volume.nz, 2}) / 2;
+  Image image = render(s.device(), scene, o);
+  pixels = std::move(image.pixels);
+  const DeviceArray a =
+      DeviceArray::wrap(s.device(), pixels.data(),
+                        {image.views, image.height, image.width, image.channels}, DType::f32);
+  return {{"image", a, true}};
+}
+
+std::vector<Operation> operations(const DeviceArray& lines, const Scene& scene, double step) {
   GradientRequest adjoint;
   adjoint.mode = Mode::adjoint;
   const auto render = [](Session& s) { return std::vector<Output>{{"image", s.render(), true}}; };
@@ -89,6 +105,12 @@ std::vector<Operation> operations(const DeviceArray& lines) {
        [lines](Session& s) {
          return std::vector<Output>{{"volume", s.backproject(lines), false}};
        }},
+      {"bricked", "render in 8 bricks (out of core, one ray per work-item)", false,
+       "image bit-identical",
+       [&scene, step](Session& s) { return render_in_bricks(s, scene, step); }},
+      {"bricked_packet", "render in 8 bricks (out of core, CPU packet kernel)", true,
+       "image bit-identical",
+       [&scene, step](Session& s) { return render_in_bricks(s, scene, step); }},
   };
 }
 
@@ -324,8 +346,8 @@ std::vector<std::pair<int, int>> tune_candidates() {
 }
 
 std::vector<std::string> tune_kernels() {
-  return {"render",   "render_packet",   "adjoint", "adjoint_packet",
-          "jacobian", "jacobian_packet", "project", "backproject"};
+  return {"render",          "render_packet", "adjoint",     "adjoint_packet", "jacobian",
+          "jacobian_packet", "project",       "backproject", "bricked",        "bricked_packet"};
 }
 
 TuneResult tune(Device& device, const TuneOptions& options) {
@@ -353,7 +375,7 @@ TuneResult tune(Device& device, const TuneOptions& options) {
   const std::size_t device_max = cl_call("querying the device's work-group limit", [&] {
     return dev.device.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
   });
-  for (const Operation& op : operations(lines)) {
+  for (const Operation& op : operations(lines, scene, options.step)) {
     if (!options.kernels.empty() && std::find(options.kernels.begin(), options.kernels.end(),
                                               op.kernel) == options.kernels.end())
       continue;

@@ -72,7 +72,8 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
     const int4 dims, const real4 inv_voxel, const int width, const int height,
     __global const real* restrict tf, const int tf_count, const real4 tf_scalars,
     const real4 brick_lo, const real4 brick_hi, const int4 origin, __global real* restrict state,
-    __global uint* restrict state_u, __global const real* restrict adj, const ScatterSink sink) {
+    __global uint* restrict state_u, __global const real* restrict adj, const ScatterSink sink,
+    __local real* tf_acc) {
   // Each lane's ray from its state (bricked_state.cl's brick_enter); lanes that do not enter
   // march nothing (end = 0) and write nothing.
   real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], tb1[IVR_RAYS];
@@ -145,8 +146,11 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
   CameraSums cs;
   camera_sums_init(&cs, (real)0);
   adjoint_march_midpoint_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar,
-                                (__global const uchar*)0, (int4)0, sink, &tf_cache,
-                                (__local real*)0, &cs, IVR_LOAD_RAYS(tb1), &at);
+                                (__global const uchar*)0, (int4)0, sink, &tf_cache, tf_acc, &cs,
+                                IVR_LOAD_RAYS(tb1), &at);
+#if IVR_GRAD_TF
+  tf_cache_flush(&tf_cache, tf_acc);
+#endif
 
   IVR_STORE_RAYS(at.transmittance, T);
   IVR_STORE_RAYS(at.pr, pr);
@@ -175,7 +179,9 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
 // adjoint's. A work-item is the tile with corner (IVR_PACKET_W · x, IVR_PACKET_H · y) of view z;
 // with IVR_PRIVATE_SUMS (CPU packets, kernels/private_sums.cl) a work-group of one item takes its
 // turns of the `packets` tiles of the rectangle `rect` (first tile x, y; tiles across, down) of
-// views first_view… and adds into its own copy of the brick's gradient in `grad`.
+// views first_view… and adds into its own copy of the brick's gradient in `grad`. With IVR_GRAD_TF
+// the TF gradient is summed in the group's `tf_acc` (tf_acc_size values) and added to `grad_tf`
+// once per group, as in core.
 __kernel void bricked_adjoint(
     __global const real* restrict volume, const int4 dims, const real4 box_min, const real4 box_max,
     const real4 inv_voxel, __global const real* restrict cameras, const int width, const int height,
@@ -184,8 +190,18 @@ __kernel void bricked_adjoint(
     const real4 brick_lo, const real4 brick_hi, const int4 origin, __global real* restrict state,
     __global uint* restrict state_u, __global real* restrict adj,
     __global const real* restrict target, const real norm, __global real* restrict pixel_loss,
-    __global real* grad, const int4 rect, const int first_view, const int packets) {
+    __global real* grad, const int4 rect, const int first_view, const int packets,
+    __global real* grad_tf, __local real* tf_acc, const int tf_acc_size) {
   (void)cameras, (void)box_min, (void)box_max, (void)step, (void)min_transmittance;
+#if IVR_GRAD_TF
+  const int lid = (get_local_id(2) * get_local_size(1) + get_local_id(1)) * get_local_size(0) +
+                  get_local_id(0);
+  const int lsize = get_local_size(0) * get_local_size(1) * get_local_size(2);
+  for (int i = lid; i < tf_acc_size; i += lsize) tf_acc[i] = (real)0;
+  barrier(CLK_LOCAL_MEM_FENCE);
+#else
+  (void)grad_tf, (void)tf_acc_size;
+#endif
 #if IVR_PRIVATE_SUMS
   (void)phase, (void)target, (void)norm, (void)pixel_loss, (void)background;
   const ScatterSink sink = {grad + private_copy_offset(get_group_id(0), dims.x * dims.y * dims.z)};
@@ -199,26 +215,34 @@ __kernel void bricked_adjoint(
       if (x0 < width && y0 < height)
         brick_adjoint_tile(x0, y0, first_view + p / per_view, volume, dims, inv_voxel, width,
                            height, tf, tf_count, tf_scalars, brick_lo, brick_hi, origin, state,
-                           state_u, adj, sink);
+                           state_u, adj, sink, tf_acc);
     }
 #else
   (void)rect, (void)first_view, (void)packets;
   const int x0 = get_global_id(0) * IVR_PACKET_W, y0 = get_global_id(1) * IVR_PACKET_H;
   const int view = get_global_id(2);
-  if (x0 >= width || y0 >= height) return;
+  // (No early return: with the TF gradient every item of the group meets the barriers.)
+  if (x0 < width && y0 < height) {
 #if IVR_RAYS == 1
-  if (phase == IVR_BRICK_ADJOINT_BEGIN) {  // (a packet kernel marches; BEGIN runs one ray a pixel)
-    const size_t pixel = ((size_t)view * height + y0) * width + x0;
-    brick_adjoint_begin(state + pixel * IVR_BRICK_REALS, state_u + pixel * IVR_BRICK_UINTS,
-                        adj + pixel * IVR_BRICK_ADJOINT_REALS, target + pixel * IVR_CHANNELS, norm,
-                        background, pixel_loss + pixel);
-    return;
-  }
+    if (phase == IVR_BRICK_ADJOINT_BEGIN) {  // (packet kernels march; BEGIN runs one ray a pixel)
+      const size_t pixel = ((size_t)view * height + y0) * width + x0;
+      brick_adjoint_begin(state + pixel * IVR_BRICK_REALS, state_u + pixel * IVR_BRICK_UINTS,
+                          adj + pixel * IVR_BRICK_ADJOINT_REALS, target + pixel * IVR_CHANNELS,
+                          norm, background, pixel_loss + pixel);
+    } else
 #else
-  (void)phase, (void)target, (void)norm, (void)pixel_loss, (void)background;
+    (void)phase, (void)target, (void)norm, (void)pixel_loss, (void)background;
 #endif
-  const ScatterSink sink = {grad};
-  brick_adjoint_tile(x0, y0, view, volume, dims, inv_voxel, width, height, tf, tf_count, tf_scalars,
-                     brick_lo, brick_hi, origin, state, state_u, adj, sink);
+    {
+      const ScatterSink sink = {grad};
+      brick_adjoint_tile(x0, y0, view, volume, dims, inv_voxel, width, height, tf, tf_count,
+                         tf_scalars, brick_lo, brick_hi, origin, state, state_u, adj, sink, tf_acc);
+    }
+  }
+#endif
+#if IVR_GRAD_TF
+  barrier(CLK_LOCAL_MEM_FENCE);
+  for (int i = lid; i < tf_acc_size; i += lsize)
+    if (tf_acc[i] != (real)0) atomic_add_global(grad_tf + i, tf_acc[i]);
 #endif
 }

@@ -1,4 +1,4 @@
-// bricked_gradient.cpp — the out-of-core density gradient.
+// bricked_gradient.cpp — the out-of-core gradient: density and transfer function.
 #include "brick/bricked_gradient.hpp"
 
 #include <cstdlib>
@@ -7,6 +7,7 @@
 #include "adjoint/private_sums.hpp"
 #include "brick/domain.hpp"
 #include "ivr/error.hpp"
+#include "ivr/tf_parameters.hpp"
 #include "runtime/launch.hpp"
 #include "runtime/real_args.hpp"
 
@@ -48,8 +49,14 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
                           DomainStats* domain_stats) {
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
-  if (groups != std::vector<std::string>{"density"})
-    throw Error(Status::unsupported, where + ": only --wrt density so far");
+  bool density = false, tf = false;
+  for (const std::string& g : groups) {
+    if (g == "density" && !density) density = true;
+    else if (g == "tf" && !tf) tf = true;
+    else
+      throw Error(Status::unsupported,
+                  where + ": --wrt " + g + " is not differentiated out of core yet (density, tf)");
+  }
   if (scene.integrator.scheme != Scheme::midpoint)
     throw Error(Status::unsupported, where + ": only the midpoint scheme so far, not " +
                                          scheme_name(scene.integrator.scheme));
@@ -71,10 +78,17 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   // there with private sums where they pay and fit beside the plan's bricks (their copies are a
   // brick's gradient per compute unit).
   KernelConfig config = march.variant.config("bricked_adjoint.cl", "bricked_adjoint");
+  const std::vector<std::size_t> tf_shape = tf_gradient_shape(scene.tf);
+  const std::size_t tf_size = tf_shape[0] * tf_shape[1];
   config.set(Switch::loss_l1, o.loss == Loss::l1).set(Switch::loss_dot, o.loss == Loss::dot);
+  config.set(Switch::grad_density, density).set(Switch::grad_tf, tf);
+  // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/adjoint_tf.cl), as in core.
+  config.set(Switch::tf_rows, int(std::min<std::size_t>(tf_shape[0], 1 << 20)));
   config.with_atomics(atomic_add_for(dev.info, s.f64));
   cl::Kernel& k = s.kernels.get(config, &march.op.stats.build_seconds);
-  const PrivateSums priv = bricked_private_sums(dev, plan, march.lanes() > 1, s.real_size, rays);
+  const PrivateSums priv =
+      density ? bricked_private_sums(dev, plan, march.lanes() > 1, s.real_size, rays)
+              : PrivateSums{};
   cl::Kernel* marching = &k;
   KernelConfig packet = config;
   if (march.lanes() > 1) {
@@ -86,8 +100,12 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   const cl::Buffer pixel_loss =
       dev.buffer(CL_MEM_READ_WRITE, rays * s.real_size, nullptr, "the per-pixel loss");
   const std::size_t slot_bytes = l.largest_voxels() * s.real_size;
-  const cl::Buffer grad =
-      dev.buffer(CL_MEM_READ_WRITE, slot_bytes, nullptr, "a brick's density gradient");
+  const cl::Buffer grad = dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size,
+                                    nullptr, "a brick's density gradient");
+  const std::size_t tf_bytes = std::max<std::size_t>(tf_size, 1) * s.real_size;
+  const cl::Buffer grad_tf =
+      dev.buffer(CL_MEM_READ_WRITE, tf_bytes, nullptr, "the transfer-function gradient");
+  if (tf) dev.queue.enqueueFillBuffer(grad_tf, cl_uchar(0), 0, tf_bytes);
   cl::Buffer copies;
   if (priv.on) {  // zero once: each brick's sum of the copies leaves them 0
     copies = dev.buffer(CL_MEM_READ_WRITE, priv.bytes(s.real_size), nullptr,
@@ -105,16 +123,21 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       kernel->setArg(a0 + 4 + 7, cl_int4{{0, 0, 0, 0}});
       kernel->setArg(a0 + 4 + 8, cl_int(0));
       kernel->setArg(a0 + 4 + 9, cl_int(0));
+      kernel->setArg(a0 + 4 + 10, grad_tf);
+      kernel->setArg(a0 + 4 + 11, cl::Local(tf ? tf_bytes : s.real_size));
+      kernel->setArg(a0 + 4 + 12, cl_int(tf ? tf_size : 0));
     });
   }
   const int a_rect = march.arguments(*marching) + 4 + 7;
   march.launch_all(k, kAdjointBegin);
 
   const std::size_t planes = std::size_t(l.z_last - l.z_first + 1);  // all, or a worker's slab
-  std::vector<double> gradient(planes * l.dims[1] * l.dims[0], 0.0);
+  std::vector<double> gradient(density ? planes * l.dims[1] * l.dims[0] : 0, 0.0);
   std::vector<unsigned char> host;
   BrickHooks hooks;
-  if (!priv.on) {
+  if (!density) {
+    // (the TF gradient alone: nothing per brick)
+  } else if (!priv.on) {
     hooks.before = [&](int b, std::vector<cl::Event>& wait) {
       cl::Event zeroed;
       dev.queue.enqueueFillBuffer(grad, cl_uchar(0), 0, l.voxels(b) * s.real_size, nullptr,
@@ -135,7 +158,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   }
   cl::Kernel* sum = priv.on ? &s.kernels.get(packet.with_entry("sum_private_copies")) : nullptr;
   hooks.after = [&](int b, const std::vector<cl::Event>& marched) {
-    if (marched.empty()) return;
+    if (marched.empty() || !density) return;
     std::vector<cl::Event> done = marched;
     if (sum) {  // the copies into the brick's gradient (which leaves them 0)
       const std::size_t voxels = l.voxels(b);
@@ -165,10 +188,17 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   d.step = s.integrator().step;
   d.plan.mode = Mode::adjoint;
   d.plan.model = "out of core";
-  d.groups.push_back({"density",
-                      {planes, std::size_t(scene.volume.ny), std::size_t(scene.volume.nx)},
-                      std::move(gradient)});
-  d.parameters = d.groups[0].values.size();
+  std::vector<double> tf_values;
+  if (tf) tf_values = download_reals(dev, s.f64, grad_tf, tf_size);
+  for (const std::string& g : groups) {  // in the order asked for
+    if (g == "density")
+      d.groups.push_back({"density",
+                          {planes, std::size_t(scene.volume.ny), std::size_t(scene.volume.nx)},
+                          std::move(gradient)});
+    else
+      d.groups.push_back({"tf", tf_shape, std::move(tf_values)});
+    d.parameters += d.groups.back().values.size();
+  }
   const OperationStats st = march.session().last_stats();
   d.kernel_seconds = st.kernel_seconds;
   d.device_bytes = plan.bricked_bytes;

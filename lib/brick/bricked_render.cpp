@@ -381,7 +381,7 @@ void BrickedMarch::render() {
     sweep(*march_packet_, kMarch, {}, "bricked_packet", tile_);
   else
     sweep(*render_, kMarch, {}, "bricked");
-  launch_all(*render_, kFinish);  // the image of the last sweep's state
+  // The last sweep's FINISH, which counted no pending ray, wrote the image from the final states.
   mark_written(image, op.events.back());
   op.samples = samples;
   op.sample_count = e_.pixels();

@@ -1,5 +1,5 @@
 // bricked_gradient_test.cpp — the out-of-core density gradient (kernels/bricked_adjoint.cl,
-// lib/brick/bricked_gradient.cpp) equals the in-core adjoint's, under both models,
+// lib/brick/bricked_gradient.cpp) and the TF's equal the in-core adjoint's, under both models,
 // for bricks of one cell to one brick, with early termination, every loss; what it does not cover
 // yet is refused clearly.
 #include <gtest/gtest.h>
@@ -114,16 +114,61 @@ TEST(BrickedGradient, EveryMarchFormEqualsTheInCoreAdjoint) {
     }
 }
 
+// The TF gradient out of core (alone, and beside the density's in either order) equals the
+// in-core adjoint's, through every form of the march.
+TEST(BrickedGradient, TfGradientEqualsTheInCoreAdjoint) {
+  for (Model model : {Model::emission_absorption, Model::absorption})
+    for (Precision p : {Precision::f64, Precision::f32}) {
+      if (p == Precision::f64 && !device().info().fp64) continue;
+      const Scene s = gradient_scene(model);
+      Image target = render(device(), s);
+      for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+      GradientOptions o;
+      o.precision = p;
+      o.mode = Mode::adjoint;
+      const Gradient in_core = gradient(device(), s, target, {"density", "tf"}, o);
+      for (const char* packet : {"1", "0"})
+        for (const std::vector<std::string>& groups :
+             {std::vector<std::string>{"tf"}, std::vector<std::string>{"tf", "density"},
+              std::vector<std::string>{"density", "tf"}}) {
+          ScopedEnv brick("IVR_VOLUME_BRICK", "3");
+          ScopedEnv packets("IVR_PACKET", packet);
+          const Gradient g = gradient(device(), s, target, groups, o);
+          ASSERT_EQ(g.groups.size(), groups.size());
+          EXPECT_GT(g.bricks, 1);
+          for (std::size_t k = 0; k < groups.size(); ++k) {
+            const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") +
+                                     name(p) + (*packet == '1' ? " packets " : " one ray ") +
+                                     groups[k] + " of " + std::to_string(groups.size());
+            const GroupGradient& want = in_core.groups[groups[k] == "density" ? 0 : 1];
+            EXPECT_EQ(g.groups[k].name, groups[k]) << what;
+            EXPECT_EQ(g.groups[k].shape, want.shape) << what;
+            const std::vector<double>& a = want.values;
+            const std::vector<double>& b = g.groups[k].values;
+            ASSERT_EQ(a.size(), b.size()) << what;
+            double scale = 1e-30;
+            for (double v : a) scale = std::max(scale, std::abs(v));
+            EXPECT_GT(scale, 1e-6) << what;
+            const double tol = p == Precision::f64 ? 1e-12 : 1e-5;
+            int bad = 0;
+            for (std::size_t i = 0; i < a.size() && bad < 5; ++i)
+              if (!std::isfinite(b[i]) || std::abs(a[i] - b[i]) > tol * scale)
+                ADD_FAILURE() << what << " entry " << i << ": " << a[i] << " vs " << b[i], ++bad;
+          }
+        }
+    }
+}
+
 TEST(BrickedGradient, WhatIsNotCoveredYetIsRefused) {
   Scene s = gradient_scene(Model::emission_absorption);
   const Image target = render(device(), s);
   ScopedEnv brick("IVR_VOLUME_BRICK", "4");
-  for (const char* what : {"tf", "density,tf"}) {
+  for (const char* what : {"background", "density,camera", "tf_points"}) {
     try {
       gradient(device(), s, target, parse_groups(what));
       ADD_FAILURE() << what;
     } catch (const Error& e) {
-      EXPECT_EQ(e.status(), Status::unsupported);
+      EXPECT_EQ(e.status(), Status::unsupported) << e.what();
       EXPECT_TRUE(has(e.what(), "out-of-core gradient")) << e.what();
     }
   }

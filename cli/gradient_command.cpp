@@ -36,21 +36,31 @@ struct GradientArgs {
 // the loss and the gradients are the shares' weighted by their sizes (dot: summed) and summed
 // over the ranks (MPI_Allreduce); per-view groups (camera, rays) are gathered in order. Rank 0
 // gets the result; else the gradient itself.
-// With --split slabs each rank differentiates over its slab and rank 0 joins the slabs.
+// With --split slabs each rank differentiates over its slab: rank 0 joins the density's slabs, the
+// TF gradient's parts are summed over the ranks.
 Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
                         const Image& target, const std::vector<std::string>& groups,
                         const GradientOptions& options) {
-  if (groups != std::vector<std::string>{"density"})
-    throw Error(Status::unsupported, "--split slabs: only --wrt density so far (docs/scaling.md)");
+  for (const std::string& g : groups)
+    if (g != "density" && g != "tf")
+      throw Error(Status::unsupported,
+                  "--split slabs: only --wrt density and tf so far, not " + g + " (docs/scaling.md)");
   const World& w = world();
   Gradient mine = gradient_domain(one_device_per_rank(devices), domain_share(scene, w.rank, w.size),
-                                  target, domain_part(), options);
-  const std::vector<std::vector<double>> slabs = gather_parts(mine.groups[0].values);
+                                  target, domain_part(), options, nullptr, groups);
+  for (GroupGradient& g : mine.groups) {  // every rank takes part in each collective
+    if (g.name == "tf") {
+      sum_all(g.values);
+      continue;
+    }
+    const std::vector<std::vector<double>> slabs = gather_parts(g.values);
+    if (w.rank != 0) continue;
+    g.values = domain_join(scene.volume.nx, scene.volume.ny, scene.volume.nz, slabs);
+    g.shape[0] = std::size_t(scene.volume.nz);
+  }
   if (w.rank != 0) return {};
-  GroupGradient& g = mine.groups[0];
-  g.values = domain_join(scene.volume.nx, scene.volume.ny, scene.volume.nz, slabs);
-  g.shape[0] = std::size_t(scene.volume.nz);
-  mine.parameters = g.values.size();
+  mine.parameters = 0;
+  for (const GroupGradient& g : mine.groups) mine.parameters += g.values.size();
   return mine;
 }
 

@@ -57,14 +57,16 @@ IVR_API Image render_domain(Device& device, const Scene& scene, const DomainPart
                             const RenderOptions& options = {}, RenderStats* stats = nullptr,
                             DomainStats* domain = nullptr);
 
-// The density gradient of the loss against `target` (every worker passes the whole target), for
-// this worker's slab: one group "density" of shape (planes, ny, nx). The planes a slab shares with
-// its neighbours hold only this worker's part: add the slabs where they overlap to get the
-// volume's gradient (domain_join()). Midpoint scheme, adjoint mode (as the out-of-core gradient);
-// `loss` is the whole loss on every worker.
+// The gradient of the loss against `target` (every worker passes the whole target) from this
+// worker's slab, the groups `groups` asks for in its order: "density" of shape (planes, ny, nx) —
+// the planes a slab shares with its neighbours hold only this worker's part: add the slabs where
+// they overlap to get the volume's gradient (domain_join()) — and "tf" (tf_gradient_shape), the
+// part of the samples in this slab: sum it over the workers. Midpoint scheme, adjoint mode (as the
+// out-of-core gradient); `loss` is the whole loss on every worker.
 IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
                                  const DomainPart& part, const GradientOptions& options = {},
-                                 DomainStats* domain = nullptr);
+                                 DomainStats* domain = nullptr,
+                                 const std::vector<std::string>& groups = {"density"});
 
 // The volume's values (nz × ny × nx) from every worker's slab values, in rank order: the shared
 // planes summed.

@@ -173,11 +173,11 @@ Image render_domain(Device& device, const Scene& scene, const DomainPart& part,
 
 Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
                          const DomainPart& part, const GradientOptions& options,
-                         DomainStats* domain) {
+                         DomainStats* domain, const std::vector<std::string>& groups) {
   check_part(part);
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
   const BrickPlan plan = plan_domain(device, scene, options.precision, 0, true, slab);
-  return gradient_bricked(device, scene, target, {"density"}, options, plan, &part, domain);
+  return gradient_bricked(device, scene, target, groups, options, plan, &part, domain);
 }
 
 std::vector<double> domain_join(int nx, int ny, int nz,

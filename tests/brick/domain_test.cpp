@@ -148,9 +148,10 @@ TEST(Domain, GradientEqualsOneProcess) {
       GradientOptions o;
       o.precision = p;
       o.mode = Mode::adjoint;
-      const Gradient one = gradient(device(), s, target, {"density"}, o);
+      const Gradient one = gradient(device(), s, target, {"density", "tf"}, o);
       const std::vector<double>& a = one.groups[0].values;
       const double scale = std::max(largest(a), 1e-30);
+      const std::vector<double>& tf_one = one.groups[1].values;
       const double tol = p == Precision::f64 ? 1e-12 : 1e-5;
       for (int ranks : {2, 4}) {
         const std::string what =
@@ -158,12 +159,16 @@ TEST(Domain, GradientEqualsOneProcess) {
             std::to_string(ranks) + " workers";
         const std::vector<Gradient> parts =
             on_workers<Gradient>(ranks, [&](int w, const DomainPart& part, Device& d) {
-              return gradient_domain(d, domain_share(s, w, ranks), target, part, o);
+              return gradient_domain(d, domain_share(s, w, ranks), target, part, o, nullptr,
+                                     {"density", "tf"});
             });
         std::vector<std::vector<double>> slabs;
+        std::vector<double> tf(tf_one.size(), 0.0);  // the workers' parts summed
         for (int w = 0; w < ranks; ++w) {
           const Slab slab = domain_slab(s.volume.nz, w, ranks);
-          ASSERT_EQ(parts[w].groups.size(), 1u) << what;
+          ASSERT_EQ(parts[w].groups.size(), 2u) << what;
+          ASSERT_EQ(parts[w].groups[1].values.size(), tf.size()) << what;
+          for (std::size_t i = 0; i < tf.size(); ++i) tf[i] += parts[w].groups[1].values[i];
           EXPECT_EQ(parts[w].groups[0].shape,
                     (std::vector<std::size_t>{std::size_t(slab.planes()), 9, 11}))
               << what;
@@ -176,6 +181,9 @@ TEST(Domain, GradientEqualsOneProcess) {
         for (std::size_t i = 0; i < a.size() && bad < 5; ++i)
           if (!std::isfinite(b[i]) || std::abs(a[i] - b[i]) > tol * scale)
             ADD_FAILURE() << what << " voxel " << i << ": " << a[i] << " vs " << b[i], ++bad;
+        const double tf_scale = std::max(largest(tf_one), 1e-30);
+        for (std::size_t i = 0; i < tf.size(); ++i)
+          EXPECT_NEAR(tf[i], tf_one[i], tol * tf_scale) << what << " tf " << i;
       }
     }
 }

@@ -12,6 +12,7 @@ packages=(
   python3-torch  # ivr.torch's tests and examples (skipped where absent)
   clang libclang-rt-dev  # the loaders' libFuzzer harnesses (scripts/fuzz.sh, CTest label fuzz)
   libopenmpi-dev openmpi-bin  # `mpirun -np N ivr …` (docs/scaling.md; CTest label mpi)
+  python3-mpi4py  # ivr.mpi, the Python API under mpirun (CTest label mpi)
 )
 
 missing=()

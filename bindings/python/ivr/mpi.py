@@ -1,0 +1,128 @@
+"""ivr.mpi — ivr under MPI from Python (mpi4py): data-parallel over views, as `mpirun -np N ivr
+render|gradient` (docs/scaling.md). Each rank renders or differentiates its contiguous share of the
+views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
+loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
+summed over the ranks, the per-view groups (camera, rays) gathered in view order. Every rank gets
+the whole result, which equals one process's to rounding.
+
+    from mpi4py import MPI
+    import ivr, ivr.mpi
+    ctx = ivr.Context(precision="f64")
+    loss, grads = ivr.mpi.gradient(ctx, scene, volume, target, wrt=("density", "tf"))
+
+Run with `mpirun -np N python3 script.py`; `comm` defaults to MPI.COMM_WORLD. The scene is a dict
+(or its JSON text) whose "cameras" list, or in-memory "rays" array, is shared out.
+"""
+import json
+
+import numpy as np
+
+from . import Error, ray_array
+
+# Groups with one row per view (camera) or ray (rays): gathered, not summed.
+_PER_VIEW = ("camera", "rays")
+
+
+def _comm(comm):
+    if comm is None:
+        from mpi4py import MPI
+        comm = MPI.COMM_WORLD
+    return comm
+
+
+def view_shares(n, parts):
+    """[(first, count)]: n views cut into at most `parts` contiguous near-equal shares (the first
+    n % parts one longer), as the C++ view_shares(); empty shares are left out."""
+    if n < 0 or parts < 1:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT", f"view_shares: {n} views over {parts} parts")
+    out, first = [], 0
+    for d in range(parts):
+        count = n // parts + (1 if d < n % parts else 0)
+        if count:
+            out.append((first, count))
+        first += count
+    return out
+
+
+def _scene_dict(scene):
+    if isinstance(scene, str):
+        scene = json.loads(scene)
+    if not isinstance(scene, dict):
+        raise Error("IVR_ERROR_INVALID_ARGUMENT", "ivr.mpi: the scene must be a dict or its JSON text")
+    return scene
+
+
+def _items(scene):
+    """How many views (or rays of an in-memory ray list) the scene has."""
+    if "rays" in scene:
+        if isinstance(scene["rays"], dict):
+            raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                        "ivr.mpi: give the scene's rays as an array (not a file) to share them out")
+        return len(ray_array(scene["rays"]))
+    cameras = scene.get("cameras")
+    if not isinstance(cameras, list) or not cameras:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT", "ivr.mpi: the scene has no \"cameras\" list")
+    return len(cameras)
+
+
+def scene_share(scene, first, count):
+    """The scene with views (or rays) first … first + count − 1 alone."""
+    scene = _scene_dict(scene)
+    out = dict(scene)
+    if "rays" in scene:
+        out["rays"] = ray_array(scene["rays"])[first:first + count]
+    else:
+        out["cameras"] = scene["cameras"][first:first + count]
+    return out
+
+
+def _mine(comm, n):
+    """This rank's (first, count), or None where it has no share (more ranks than views)."""
+    shares = view_shares(n, comm.Get_size())
+    rank = comm.Get_rank()
+    return shares[rank] if rank < len(shares) else None
+
+
+def render(ctx, scene, volume=None, comm=None, **options):
+    """ctx.render of the whole scene, each rank rendering its share: every rank gets the images of
+    every view (views, H, W, C) (a ray list: (rays, C)). `options` are ctx.render's."""
+    comm = _comm(comm)
+    scene = _scene_dict(scene)
+    mine = _mine(comm, _items(scene))
+    image = ctx.render(scene_share(scene, *mine), volume, **options) if mine else None
+    return np.concatenate([p for p in comm.allgather(image) if p is not None], axis=0)
+
+
+def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None, **options):
+    """ctx.gradient of the whole scene, each rank differentiating its share of the views (the
+    target's first axis: views, or a ray list's rays): every rank gets (loss, {group: array}), one
+    process's result to rounding. `options` are ctx.gradient's (mode, step, base_dir)."""
+    comm = _comm(comm)
+    scene = _scene_dict(scene)
+    n = _items(scene)
+    target = np.asarray(target, dtype=np.float32)
+    if n > 1 and target.shape[0] != n:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.gradient: target has {target.shape[0]} rows on its first axis but "
+                    f"the scene has {n} views or rays")
+    mine = _mine(comm, n)
+    # Every rank needs the groups' shapes: a rank without a share differentiates view 0 and
+    # weighs it 0.
+    first, count = mine if mine else (0, 1)
+    part = target[first:first + count] if n > 1 else target
+    value, arrays = ctx.gradient(scene_share(scene, first, count), volume, part, wrt=wrt,
+                                 loss=loss, **options)
+    weight = 0.0 if not mine else 1.0 if loss == "dot" else count / n
+    from mpi4py import MPI
+    total = comm.allreduce(weight * value, op=MPI.SUM)
+    out = {}
+    for name, a in arrays.items():
+        a = np.ascontiguousarray(a, dtype=np.float64) * weight
+        if name in _PER_VIEW:
+            rows = comm.allgather(a if mine else None)
+            out[name] = np.concatenate([r for r in rows if r is not None], axis=0)
+        else:
+            summed = np.empty_like(a)
+            comm.Allreduce(a, summed, op=MPI.SUM)
+            out[name] = summed
+    return total, out

@@ -1,0 +1,103 @@
+"""ivr.mpi under `mpirun -np N python3 -m pytest test_mpi.py` (CTest label mpi): every rank's render
+and gradient, each rank doing its share of the views, equal one process's (float64: the images
+and gradients within 1e-12 of the largest entry); more ranks than views; a ray list; bad input.
+Each rank also computes the one-process result itself, as the reference."""
+import copy
+import json
+import os
+
+import numpy as np
+import pytest
+
+# (Not skipped where absent: scripts/install-deps.sh installs python3-mpi4py with Open MPI.)
+from mpi4py import MPI  # noqa: E402
+
+import ivr  # noqa: E402
+import ivr.mpi  # noqa: E402
+
+with open(os.path.join(os.path.dirname(__file__), "../../../tests/data/binding_scene.json")) as f:
+    BASE = json.load(f)
+
+COMM = MPI.COMM_WORLD
+
+
+def volume():
+    i = np.arange(4 * 5 * 6, dtype=np.float64)
+    return (0.4 + 0.3 * np.sin(0.7 * i)).astype(np.float32).reshape(4, 5, 6)
+
+
+def scene_of(views):
+    """The binding scene seen from `views` cameras around it."""
+    s = copy.deepcopy(BASE)
+    cam = BASE["cameras"][0]
+    s["cameras"] = []
+    for k in range(views):
+        a = 2 * np.pi * k / views
+        s["cameras"].append(dict(cam, eye=[2 * np.sin(a) + 0.3, 0.4, 2 * np.cos(a)]))
+    return s
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    with ivr.Context(precision="f64") as c:
+        yield c
+
+
+def close(a, b, what):
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    assert a.shape == b.shape, (what, a.shape, b.shape)
+    scale = max(np.max(np.abs(a)), 1e-300)
+    err = np.max(np.abs(a - b)) / scale
+    assert np.all(np.isfinite(b)) and err <= 1e-12, f"{what}: {err} on {COMM.Get_size()} ranks"
+
+
+def test_view_shares():
+    assert ivr.mpi.view_shares(7, 3) == [(0, 3), (3, 2), (5, 2)]
+    assert ivr.mpi.view_shares(2, 4) == [(0, 1), (1, 1)]
+    with pytest.raises(ivr.Error):
+        ivr.mpi.view_shares(3, 0)
+
+
+@pytest.mark.parametrize("views", [1, 3, 5])
+def test_render_and_gradient_equal_one_process(ctx, views):
+    s, v = scene_of(views), volume()
+    one = ctx.render(s, v)
+    close(one, ivr.mpi.render(ctx, s, v), f"render of {views} views")
+    target = 0.8 * one + 0.05
+    for loss in ("mse", "dot"):
+        wrt = ("density", "tf", "background", "camera")
+        l1, g1 = ctx.gradient(s, v, target, wrt=wrt, mode="adjoint", loss=loss)
+        ln, gn = ivr.mpi.gradient(ctx, s, v, target, wrt=wrt, mode="adjoint", loss=loss)
+        assert abs(ln - l1) <= 1e-12 * abs(l1) + 1e-300, (views, loss, ln, l1)
+        assert sorted(gn) == sorted(g1)
+        for name in g1:
+            close(g1[name], gn[name], f"{loss} gradient {name} of {views} views")
+    # Every rank got the same result.
+    assert all(np.array_equal(x, gn["density"]) for x in COMM.allgather(gn["density"]))
+
+
+def test_ray_list(ctx):
+    s, v = scene_of(1), volume()
+    rays = []
+    for k in range(7):
+        rays.append([0.2 * k - 0.6, 0.1, 2.0, 0.05 * k, -0.02, -1.0, 0.0, 10.0])
+    s = dict(s, rays=rays)
+    del s["cameras"]
+    one = ctx.render(s, v)
+    close(one, ivr.mpi.render(ctx, s, v), "render of a ray list")
+    target = 0.7 * one + 0.1
+    l1, g1 = ctx.gradient(s, v, target, wrt=("density", "rays"))
+    ln, gn = ivr.mpi.gradient(ctx, s, v, target, wrt=("density", "rays"))
+    assert abs(ln - l1) <= 1e-12 * abs(l1)
+    close(g1["density"], gn["density"], "ray-list density gradient")
+    close(g1["rays"], gn["rays"], "ray-list ray gradient")
+
+
+def test_bad_input_is_refused_clearly(ctx):
+    s, v = scene_of(3), volume()
+    with pytest.raises(ivr.Error, match="target has 2 rows"):
+        ivr.mpi.gradient(ctx, s, v, np.zeros((2, 5, 6, 4), np.float32))
+    with pytest.raises(ivr.Error, match="cameras"):
+        ivr.mpi.render(ctx, {"model": "absorption"}, v)
+    with pytest.raises(ivr.Error, match="as an array"):
+        ivr.mpi.render(ctx, dict(s, rays={"file": "rays.npy"}), v)

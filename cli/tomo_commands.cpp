@@ -126,8 +126,20 @@ void check_tomo_args(TomoArgs& a) {
     throw input_error("--clamp-intensity must be in [0, 1), got " + text(a.clamp));
 }
 
+// Under mpirun: this rank's contiguous share (first, count) of the scene's views (a ray list: its
+// rays) — count 0 where there are more ranks than views; the whole scene in one process.
+std::pair<std::size_t, std::size_t> rank_share(const Scene& scene) {
+  const std::size_t items = share_items(scene);
+  if (world().size == 1) return {0, items};
+  const auto shares = view_shares(items, std::size_t(world().size));
+  return std::size_t(world().rank) < shares.size() ? shares[std::size_t(world().rank)]
+                                                    : std::pair<std::size_t, std::size_t>{0, 0};
+}
+
 }  // namespace
 
+// Under mpirun each rank projects its share of the views (a ray list: rays) and rank 0 gathers
+// the lines in view order and writes them (docs/scaling.md).
 Runner add_project_command(CLI::App& app) {
   auto args = std::make_shared<CommonArgs>();
   CLI::App* cmd = app.add_subcommand(
@@ -137,33 +149,44 @@ Runner add_project_command(CLI::App& app) {
     const Precision precision = checked_common(*args);
     const Scene scene = load_scene(args->scene);
     Device device(args->device);
-    const Projector projector(device, scene, precision);
-    const std::vector<double> lines =
-        projector.project({scene.volume.data.begin(), scene.volume.data.end()});
-    const std::size_t views = std::size_t(projector.views()), h = std::size_t(projector.height()),
-                      w = std::size_t(projector.width());
+    const auto [first, count] = rank_share(scene);
+    std::vector<double> lines;
+    std::unique_ptr<Projector> projector;  // none on a rank without views
+    if (count) {
+      projector = std::make_unique<Projector>(
+          device, world().size > 1 ? scene_share(scene, first, count) : scene, precision);
+      lines = projector->project({scene.volume.data.begin(), scene.volume.data.end()});
+    }
+    if (world().size > 1) {
+      lines = gather(lines);
+      if (world().rank != 0) return 0;  // rank 0 writes
+    }
+    const ImageExtent e = image_extent(scene);
     write_outputs({{args->output, ray_file_shapes(scene)[0], lines, precision == Precision::f64}});
-    const double seconds = projector.last_kernel_seconds();
+    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has views)
     if (args->json) {
-      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector.bricks()},
+      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector->bricks()},
                                   {"precision", args->precision},
-                                  {"views", views},
-                                  {"height", h},
-                                  {"width", w},
-                                  {"rays", projector.ray_count()},
+                                  {"views", e.views},
+                                  {"height", e.height},
+                                  {"width", e.width},
+                                  {"rays", e.pixels()},
+                                  {"ranks", world().size},
                                   {"kernel_seconds", seconds},
                                   {"output", args->output}}
                        .dump()
                 << "\n";
     } else {
-      std::cout << "projected " << views << " view(s) of " << w << "x" << h << " ("
-                << projector.ray_count() << " rays) on " << device.info().name << ": "
+      std::cout << "projected " << e.views << " view(s) of " << e.width << "x" << e.height
+                << " (" << e.pixels() << " rays) on " << device.info().name << ": "
                 << seconds * 1e3 << " ms -> " << args->output << "\n";
     }
     return 0;
   };
 }
 
+// Under mpirun each rank back-projects its share of the views' lines and the parts are summed
+// (MPI_Allreduce); rank 0 writes.
 Runner add_backproject_command(CLI::App& app) {
   struct Args {
     CommonArgs common;
@@ -183,18 +206,32 @@ Runner add_backproject_command(CLI::App& app) {
     const Scene scene = load_scene(c.scene);
     const std::vector<double> lines = load_rays(args->images, "--images", scene, true);
     Device device(c.device);
-    const Projector projector(device, scene, precision);
-    const std::vector<double> volume = projector.backproject(lines);
+    const auto [first, count] = rank_share(scene);
+    std::vector<double> volume(scene.volume.voxel_count(), 0.0);
+    std::unique_ptr<Projector> projector;  // none on a rank without views
+    if (count) {
+      const std::size_t per_item = lines.size() / share_items(scene);
+      projector = std::make_unique<Projector>(
+          device, world().size > 1 ? scene_share(scene, first, count) : scene, precision);
+      volume = projector->backproject(std::vector<double>(
+          lines.begin() + first * per_item, lines.begin() + (first + count) * per_item));
+    }
+    if (world().size > 1) {  // N^T p = Σ over the ranks' views of their parts
+      sum_all(volume);
+      if (world().rank != 0) return 0;  // rank 0 writes
+    }
     write_outputs({{c.output, volume_shape(scene), volume, precision == Precision::f64}});
-    const double seconds = projector.last_kernel_seconds();
+    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has views)
+    const std::size_t rays = image_extent(scene).pixels();
     if (c.json) {
-      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector.bricks()}, {"precision", c.precision},
-                                  {"shape", volume_shape(scene)}, {"rays", projector.ray_count()},
+      std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector->bricks()},
+                                  {"precision", c.precision},     {"shape", volume_shape(scene)},
+                                  {"rays", rays},                 {"ranks", world().size},
                                   {"kernel_seconds", seconds},    {"output", c.output}}
                        .dump()
                 << "\n";
     } else {
-      std::cout << "back-projected " << projector.ray_count() << " rays onto " << scene.volume.nx
+      std::cout << "back-projected " << rays << " rays onto " << scene.volume.nx
                 << "x" << scene.volume.ny << "x" << scene.volume.nz << " voxels on "
                 << device.info().name << ": " << seconds * 1e3 << " ms -> " << c.output << "\n";
     }

@@ -31,11 +31,12 @@
 #define IVR_BRICK_ADJOINT_REALS 8
 
 #if IVR_RAYS == 1
-// ADJOINT_BEGIN for one pixel: its loss terms and dL/dpixel from the composited state, and its
-// march restarted as far as the forward march went (its `end`).
+// ADJOINT_BEGIN for one pixel: dL/dpixel from the composited state, its loss and dL/dbackground
+// terms into `terms` (as adjoint.cl's pixel_terms: loss, then the background's r, g, b — absorption:
+// its intensity — terms), and its march restarted as far as the forward march went (its `end`).
 inline void brick_adjoint_begin(__global real* s, __global uint* su, __global real* a,
                                 __global const real* tgt, real norm, real4 background,
-                                __global real* pixel_loss) {
+                                __global real* terms) {
   Radiance r = brick_load(s, su);
   march_finish(&r);
   real loss = (real)0;
@@ -48,13 +49,15 @@ inline void brick_adjoint_begin(__global real* s, __global uint* su, __global re
   a[2] = loss_term(total_b, tgt[2], norm, &loss);
   a[3] = loss_term((real)1 - t, tgt[3], norm, &loss);
   a[4] = total_r, a[5] = total_g, a[6] = total_b, a[7] = t;
+  terms[1] = a[0] * t, terms[2] = a[1] * t, terms[3] = a[2] * t;
 #else
   const real intensity = background.x * t;
   a[0] = loss_term(intensity, tgt[0], norm, &loss);
   a[1] = a[2] = a[3] = a[5] = a[6] = a[7] = (real)0;
   a[4] = intensity;
+  terms[1] = a[0] * t, terms[2] = terms[3] = (real)0;
 #endif
-  *pixel_loss = loss;
+  terms[0] = loss;
   const uint end = su[BU_END];
   for (int k = 0; k <= BS_KTAU; ++k) s[k] = (real)0;
   s[BS_T] = (real)1;
@@ -189,7 +192,7 @@ __kernel void bricked_adjoint(
     const real4 background, const real step, const real min_transmittance, const int phase,
     const real4 brick_lo, const real4 brick_hi, const int4 origin, __global real* restrict state,
     __global uint* restrict state_u, __global real* restrict adj,
-    __global const real* restrict target, const real norm, __global real* restrict pixel_loss,
+    __global const real* restrict target, const real norm, __global real* restrict pixel_terms,
     __global real* grad, const int4 rect, const int first_view, const int packets,
     __global real* grad_tf, __local real* tf_acc, const int tf_acc_size) {
   (void)cameras, (void)box_min, (void)box_max, (void)step, (void)min_transmittance;
@@ -203,7 +206,7 @@ __kernel void bricked_adjoint(
   (void)grad_tf, (void)tf_acc_size;
 #endif
 #if IVR_PRIVATE_SUMS
-  (void)phase, (void)target, (void)norm, (void)pixel_loss, (void)background;
+  (void)phase, (void)target, (void)norm, (void)pixel_terms, (void)background;
   const ScatterSink sink = {grad + private_copy_offset(get_group_id(0), dims.x * dims.y * dims.z)};
   const int per_view = rect.z * rect.w;
   const int take = private_take_size(packets);
@@ -228,10 +231,10 @@ __kernel void bricked_adjoint(
       const size_t pixel = ((size_t)view * height + y0) * width + x0;
       brick_adjoint_begin(state + pixel * IVR_BRICK_REALS, state_u + pixel * IVR_BRICK_UINTS,
                           adj + pixel * IVR_BRICK_ADJOINT_REALS, target + pixel * IVR_CHANNELS,
-                          norm, background, pixel_loss + pixel);
+                          norm, background, pixel_terms + pixel * 4);
     } else
 #else
-    (void)phase, (void)target, (void)norm, (void)pixel_loss, (void)background;
+    (void)phase, (void)target, (void)norm, (void)pixel_terms, (void)background;
 #endif
     {
       const ScatterSink sink = {grad};

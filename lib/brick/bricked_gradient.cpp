@@ -1,4 +1,4 @@
-// bricked_gradient.cpp — the out-of-core gradient: density and transfer function.
+// bricked_gradient.cpp — the out-of-core gradient: density, transfer function, background.
 #include "brick/bricked_gradient.hpp"
 
 #include <cstdlib>
@@ -49,13 +49,15 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
                           DomainStats* domain_stats) {
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
-  bool density = false, tf = false;
+  bool density = false, tf = false, background = false;
   for (const std::string& g : groups) {
     if (g == "density" && !density) density = true;
     else if (g == "tf" && !tf) tf = true;
+    else if (g == "background" && !background) background = true;
     else
-      throw Error(Status::unsupported,
-                  where + ": --wrt " + g + " is not differentiated out of core yet (density, tf)");
+      throw Error(Status::unsupported, where + ": --wrt " + g +
+                                           " is not differentiated out of core yet (density, tf, "
+                                           "background)");
   }
   if (scene.integrator.scheme != Scheme::midpoint)
     throw Error(Status::unsupported, where + ": only the midpoint scheme so far, not " +
@@ -97,8 +99,9 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   }
   const cl::Buffer adj = dev.buffer(CL_MEM_READ_WRITE, rays * kAdjointReals * s.real_size, nullptr,
                                     "the per-ray pixel adjoints");
-  const cl::Buffer pixel_loss =
-      dev.buffer(CL_MEM_READ_WRITE, rays * s.real_size, nullptr, "the per-pixel loss");
+  // Per pixel: its loss and dL/dbackground terms (kernels/bricked_adjoint.cl).
+  const cl::Buffer pixel_terms = dev.buffer(CL_MEM_READ_WRITE, rays * 4 * s.real_size, nullptr,
+                                            "the per-pixel loss and background terms");
   const std::size_t slot_bytes = l.largest_voxels() * s.real_size;
   const cl::Buffer grad = dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size,
                                     nullptr, "a brick's density gradient");
@@ -118,7 +121,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       kernel->setArg(a0 + 4 + 2, adj);
       kernel->setArg(a0 + 4 + 3, buffer_of(s.target));
       set_real(*kernel, a0 + 4 + 4, s.f64, 1.0 / double(rays * scene.channels()));
-      kernel->setArg(a0 + 4 + 5, pixel_loss);
+      kernel->setArg(a0 + 4 + 5, pixel_terms);
       kernel->setArg(a0 + 4 + 6, kernel == marching && priv.on ? copies : grad);
       kernel->setArg(a0 + 4 + 7, cl_int4{{0, 0, 0, 0}});
       kernel->setArg(a0 + 4 + 8, cl_int(0));
@@ -182,9 +185,13 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   else
     march.sweep(*marching, kAdjointMarch, hooks, "bricked_packet", march.tile());
 
-  const std::vector<double> losses = download_reals(dev, s.f64, pixel_loss, rays);
+  // The loss and the background gradient: the per-pixel terms' column sums (in float64).
+  const std::vector<double> terms = download_reals(dev, s.f64, pixel_terms, rays * 4);
+  double sums[4] = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < rays; ++i)
+    for (int c = 0; c < 4; ++c) sums[c] += terms[i * 4 + c];
   Gradient d;
-  for (double v : losses) d.loss += v;
+  d.loss = sums[0];
   d.step = s.integrator().step;
   d.plan.mode = Mode::adjoint;
   d.plan.model = "out of core";
@@ -195,8 +202,12 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       d.groups.push_back({"density",
                           {planes, std::size_t(scene.volume.ny), std::size_t(scene.volume.nx)},
                           std::move(gradient)});
-    else
+    else if (g == "tf")
       d.groups.push_back({"tf", tf_shape, std::move(tf_values)});
+    else if (scene.channels() == 4)
+      d.groups.push_back({"background", {3}, {sums[1], sums[2], sums[3]}});
+    else
+      d.groups.push_back({"background", {1}, {sums[1]}});
     d.parameters += d.groups.back().values.size();
   }
   const OperationStats st = march.session().last_stats();

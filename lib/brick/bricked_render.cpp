@@ -9,6 +9,7 @@
 
 #include "brick/domain.hpp"
 #include "ivr/error.hpp"
+#include "ivr/tf_parameters.hpp"
 #include "render/render.hpp"
 #include "runtime/real_args.hpp"
 #include "session/session.hpp"
@@ -174,8 +175,11 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   const std::uint64_t geometry = geometry_bytes(scene, real_size);
   plan.budget = brick_budget(device);
   // The gradient adds the volume's gradient (in core), or per ray its pixel adjoints (8 reals), the
-  // target and the loss, and one brick's gradient (out of core: one slot more).
-  const std::uint64_t target = gradient ? rays * (scene.channels() + 1) * real_size : 0;
+  // target and its loss and background terms (4 reals), the TF's gradient, and one brick's
+  // gradient (out of core: one slot more).
+  const std::vector<std::size_t> tf_shape = tf_gradient_shape(scene.tf);
+  const std::uint64_t target =
+      gradient ? (rays * (scene.channels() + 4) + tf_shape[0] * tf_shape[1]) * real_size : 0;
   plan.in_core_bytes = (gradient ? 2 : 1) * voxels * real_size + image + geometry + target;
   if (forced_edge <= 0) forced_edge = volume_brick_from_env();
   if (forced_edge <= 0 && (plan.budget == 0 || plan.in_core_bytes <= plan.budget)) return plan;

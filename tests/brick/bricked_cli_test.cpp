@@ -49,8 +49,8 @@ TEST(BrickedCli, JsonReportsBricksAndTheImageIsTheInCoreOne) {
     for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
     EXPECT_LE(worst, 1e-5f) << other;
   }
-  // The density and TF gradients under the cap run in bricks; the background's (in core only)
-  // fails clearly, and writes nothing.
+  // The density and TF gradients under the cap run in bricks; the camera's (in core only) fails
+  // clearly, and writes nothing.
   r = run_cli("gradient '" + scene + "' --target '" + dir + "/a.npy' --wrt density --scheme midpoint -o '" +
                   dir + "/g' --json",
               "IVR_DEVICE_MEMORY_LIMIT=600K");
@@ -64,11 +64,11 @@ TEST(BrickedCli, JsonReportsBricksAndTheImageIsTheInCoreOne) {
   EXPECT_GT(nlohmann::json::parse(r.out)["bricks"].get<int>(), 1) << r.out;
   EXPECT_TRUE(std::filesystem::exists(dir + "/t_tf.npy"));
   r = run_cli("gradient '" + scene + "' --target '" + dir +
-                  "/a.npy' --wrt background --scheme midpoint -o '" + dir + "/h'",
+                  "/a.npy' --wrt camera --scheme midpoint -o '" + dir + "/h'",
               "IVR_DEVICE_MEMORY_LIMIT=300K");
   EXPECT_NE(r.status, 0);
   EXPECT_TRUE(has(r.err, "out-of-core gradient")) << r.err;
-  EXPECT_FALSE(std::filesystem::exists(dir + "/h_background.npy"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/h_camera.npy"));
   r = run_cli("render '" + scene + "' -o '" + dir + "/d.npy' --volume-brick 0");
   EXPECT_NE(r.status, 0);
   r = run_cli("render '" + scene + "' -o '" + dir + "/e.npy'", "IVR_DEVICE_MEMORY_LIMIT=much");

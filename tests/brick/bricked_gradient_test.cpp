@@ -114,8 +114,8 @@ TEST(BrickedGradient, EveryMarchFormEqualsTheInCoreAdjoint) {
     }
 }
 
-// The TF gradient out of core (alone, and beside the density's in either order) equals the
-// in-core adjoint's, through every form of the march.
+// The TF and background gradients out of core (alone, and beside the density's in any order)
+// equal the in-core adjoint's, through every form of the march.
 TEST(BrickedGradient, TfGradientEqualsTheInCoreAdjoint) {
   for (Model model : {Model::emission_absorption, Model::absorption})
     for (Precision p : {Precision::f64, Precision::f32}) {
@@ -126,11 +126,11 @@ TEST(BrickedGradient, TfGradientEqualsTheInCoreAdjoint) {
       GradientOptions o;
       o.precision = p;
       o.mode = Mode::adjoint;
-      const Gradient in_core = gradient(device(), s, target, {"density", "tf"}, o);
+      const Gradient in_core = gradient(device(), s, target, {"density", "tf", "background"}, o);
       for (const char* packet : {"1", "0"})
         for (const std::vector<std::string>& groups :
              {std::vector<std::string>{"tf"}, std::vector<std::string>{"tf", "density"},
-              std::vector<std::string>{"density", "tf"}}) {
+              std::vector<std::string>{"background", "density", "tf"}}) {
           ScopedEnv brick("IVR_VOLUME_BRICK", "3");
           ScopedEnv packets("IVR_PACKET", packet);
           const Gradient g = gradient(device(), s, target, groups, o);
@@ -140,7 +140,8 @@ TEST(BrickedGradient, TfGradientEqualsTheInCoreAdjoint) {
             const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") +
                                      name(p) + (*packet == '1' ? " packets " : " one ray ") +
                                      groups[k] + " of " + std::to_string(groups.size());
-            const GroupGradient& want = in_core.groups[groups[k] == "density" ? 0 : 1];
+            const GroupGradient& want =
+                in_core.groups[groups[k] == "density" ? 0 : groups[k] == "tf" ? 1 : 2];
             EXPECT_EQ(g.groups[k].name, groups[k]) << what;
             EXPECT_EQ(g.groups[k].shape, want.shape) << what;
             const std::vector<double>& a = want.values;
@@ -163,7 +164,7 @@ TEST(BrickedGradient, WhatIsNotCoveredYetIsRefused) {
   Scene s = gradient_scene(Model::emission_absorption);
   const Image target = render(device(), s);
   ScopedEnv brick("IVR_VOLUME_BRICK", "4");
-  for (const char* what : {"background", "density,camera", "tf_points"}) {
+  for (const char* what : {"camera", "density,camera", "tf_points"}) {
     try {
       gradient(device(), s, target, parse_groups(what));
       ADD_FAILURE() << what;

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# mpi_cli_test.sh — `mpirun -np 2` and `-np 4` of `ivr render`, `ivr gradient` and `ivr tomo`
-# (data-parallel over views, docs/scaling.md) give one process's results: the render bit for bit,
-# the float64 gradients (density, TF, cameras) within 1e-12 of the largest entry, CGLS's iterate
-# within 1e-12; over slabs (--split slabs: each rank one slab, the rays' states exchanged) the
-# render and the density and TF gradients within 1e-12; `ivr reconstruct` (views of each batch shared out)
-# follows one process's losses within 1e-10 and its densities to float32 output rounding; an error
-# in the ranks is one non-zero status with nothing written. CTest label `mpi`.
+# mpi_cli_test.sh — `mpirun -np 2` and `-np 4` of `ivr render`, `gradient`, `project`,
+# `backproject` and `tomo` (data-parallel over views, docs/scaling.md) give one process's results:
+# the render bit for bit, the float64 gradients (density, TF, cameras), the lines and the
+# back-projection within 1e-12 of the largest entry, CGLS's iterate within 1e-12; over slabs
+# (--split slabs: each rank one slab, the rays' states exchanged) the render and the density and
+# TF gradients within 1e-12; `ivr reconstruct` (views of each batch shared out) follows one
+# process's losses within 1e-10 and its densities to float32 output rounding; an error in the
+# ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
 ivr=$1 mpiexec=$2 python=$3
@@ -28,6 +29,7 @@ JSON
 "$python" -c "import numpy as np; np.save('target.npy', (0.8 * np.load('one.npy') + 0.05).astype(np.float32))"
 "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o g1 --precision f64
 "$ivr" project scene.json -o p.npy --precision f64 >/dev/null
+"$ivr" backproject scene.json --images p.npy -o bp1.npy --precision f64 >/dev/null
 "$ivr" tomo scene.json --projections p.npy --iterations 5 -o x1.npy --precision f64 2>/dev/null
 rec=(--targets one.npy --init constant:0.3 --iterations 12 --batch 4 --levels 2 --precision f64)
 "$ivr" reconstruct scene.json "${rec[@]}" -o rec1 2>/dev/null >/dev/null
@@ -37,6 +39,9 @@ for np in 2 4; do
   echo "$out" | grep -q "\"ranks\":$np" || { echo "render -np $np: no \"ranks\":$np in $out"; exit 1; }
   run "$np" "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o "g$np" \
     --precision f64 >/dev/null
+  out=$(run "$np" "$ivr" project scene.json -o "p$np.npy" --precision f64 --json)
+  echo "$out" | grep -q "\"ranks\":$np" || { echo "project -np $np: no \"ranks\":$np in $out"; exit 1; }
+  run "$np" "$ivr" backproject scene.json --images p.npy -o "bp$np.npy" --precision f64 >/dev/null
   out=$(run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 -o "x$np.npy" \
     --precision f64 --json 2>/dev/null)
   echo "$out" | grep -q "\"ranks\":$np" || { echo "tomo -np $np: no \"ranks\":$np in $out"; exit 1; }
@@ -76,6 +81,12 @@ for n in (2, 4):
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert a.shape == b.shape and err <= 1e-6, f"reconstruct -np {n} densities: {err}"
     print(f"-np {n} reconstruct: losses {lerr:.2e}, densities (float32 files) {err:.2e}")
+    for one_name, many_name, what in (("p.npy", f"p{n}.npy", "project"),
+                                      ("bp1.npy", f"bp{n}.npy", "backproject")):
+        a, b = np.load(one_name), np.load(many_name)
+        err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+        assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-12, f"{what} -np {n}: {err}"
+        print(f"-np {n} {what}: {err:.2e}")
     a, b = np.load("x1.npy"), np.load(f"x{n}.npy")
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert a.shape == b.shape and err <= 1e-12, f"tomo -np {n}: {err}"

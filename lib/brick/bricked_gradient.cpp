@@ -212,7 +212,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   }
   const OperationStats st = march.session().last_stats();
   d.kernel_seconds = st.kernel_seconds;
-  d.device_bytes = plan.bricked_bytes;
+  d.device_bytes = plan.bricked_bytes + (priv.on ? priv.bytes(s.real_size) : 0);
   d.bricks = plan.bricks();
   d.atomics = atomic_add_name(atomic_add_for(dev.info, s.f64));
   return d;

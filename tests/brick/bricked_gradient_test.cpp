@@ -160,6 +160,43 @@ TEST(BrickedGradient, TfGradientEqualsTheInCoreAdjoint) {
     }
 }
 
+// Under a device-memory cap that the plan's bricks just fit, the private sums' copies of a brick's
+// gradient do not: the automatic choice falls back to atomic adds (same gradient), and forcing
+// them (IVR_PRIVATE_SUMS=1) is one clear error.
+TEST(BrickedGradient, PrivateSumsKeepToTheMemoryCap) {
+  if (device().info().type != "cpu") GTEST_SKIP() << "private sums serve CPU packet kernels";
+  const Scene s = gradient_scene(Model::emission_absorption);
+  Image target = render(device(), s);
+  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+  GradientOptions o;
+  o.mode = Mode::adjoint;
+  ScopedEnv brick("IVR_VOLUME_BRICK", "4");
+  Gradient free;  // with atomic adds: the plan's bytes alone
+  {
+    ScopedEnv atomics("IVR_PRIVATE_SUMS", "0");
+    free = gradient(device(), s, target, {"density"}, o);
+  }
+  ASSERT_GT(free.bricks, 1);
+  EXPECT_GT(gradient(device(), s, target, {"density"}, o).device_bytes, free.device_bytes)
+      << "the private sums' copies are counted";
+  ScopedEnv cap("IVR_DEVICE_MEMORY_LIMIT", std::to_string(free.device_bytes + 64));
+  const Gradient capped = gradient(device(), s, target, {"density"}, o);
+  EXPECT_LE(capped.device_bytes, free.device_bytes + 64);
+  double scale = 1e-30;
+  for (double v : free.groups[0].values) scale = std::max(scale, std::abs(v));
+  for (std::size_t i = 0; i < free.groups[0].values.size(); ++i)
+    EXPECT_NEAR(capped.groups[0].values[i], free.groups[0].values[i], 1e-5 * scale) << i;
+  ScopedEnv forced("IVR_PRIVATE_SUMS", "1");
+  try {
+    gradient(device(), s, target, {"density"}, o);
+    ADD_FAILURE() << "forced private sums beyond the cap ran";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.status(), Status::invalid_argument) << e.what();
+    EXPECT_TRUE(has(e.what(), "IVR_PRIVATE_SUMS=1")) << e.what();
+    EXPECT_TRUE(has(e.what(), "budget")) << e.what();
+  }
+}
+
 TEST(BrickedGradient, WhatIsNotCoveredYetIsRefused) {
   Scene s = gradient_scene(Model::emission_absorption);
   const Image target = render(device(), s);

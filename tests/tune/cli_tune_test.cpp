@@ -62,7 +62,8 @@ TEST_F(CliTune, QuickRecordsAWinnerAmongTheCandidatesPerKernel) {
     EXPECT_FALSE(k.contains("failed")) << k.dump();
     if (k.contains("skipped")) {  // the packet kernels on GPUs, the one-ray kernels nowhere
       EXPECT_TRUE(has(k["skipped"].get<std::string>(), "not launched on this device")) << k.dump();
-      EXPECT_TRUE(name == "render_packet" || name == "adjoint_packet" || name == "jacobian_packet")
+      EXPECT_TRUE(name == "render_packet" || name == "adjoint_packet" ||
+                  name == "jacobian_packet" || name == "bricked_packet")
           << name;
       continue;
     }
@@ -83,12 +84,13 @@ TEST_F(CliTune, QuickRecordsAWinnerAmongTheCandidatesPerKernel) {
     EXPECT_FALSE(k["check"].get<std::string>().empty());
     EXPECT_TRUE(k["current"].contains("source"));
   }
-  for (const char* k : {"render", "adjoint", "jacobian", "project", "backproject"})
+  for (const char* k : {"render", "adjoint", "jacobian", "project", "backproject", "bricked"})
     EXPECT_EQ(measured.count(k), 1u) << k;
   if (device().info().type == "cpu") {
     EXPECT_EQ(measured.count("render_packet"), 1u);
     EXPECT_EQ(measured.count("adjoint_packet"), 1u);
     EXPECT_EQ(measured.count("jacobian_packet"), 1u);
+    EXPECT_EQ(measured.count("bricked_packet"), 1u);
   }
   // The rows in the record are the ones --emit-entries prints: one per measured kernel.
   int rows = 0;

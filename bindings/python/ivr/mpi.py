@@ -1,8 +1,8 @@
 """ivr.mpi — ivr under MPI from Python (mpi4py): data-parallel over views, as `mpirun -np N ivr
-render|gradient` (docs/scaling.md). Each rank renders or differentiates its contiguous share of the
+render|gradient|project|backproject` (docs/scaling.md). Each rank renders or differentiates its contiguous share of the
 views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
 loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
-summed over the ranks, the per-view groups (camera, rays) gathered in view order. Every rank gets
+summed over the ranks, as are the back-projections of the shares' lines, the per-view groups (camera, rays) gathered in view order. Every rank gets
 the whole result, which equals one process's to rounding.
 
     from mpi4py import MPI
@@ -91,6 +91,39 @@ def render(ctx, scene, volume=None, comm=None, **options):
     mine = _mine(comm, _items(scene))
     image = ctx.render(scene_share(scene, *mine), volume, **options) if mine else None
     return np.concatenate([p for p in comm.allgather(image) if p is not None], axis=0)
+
+
+def project(ctx, scene, volume=None, comm=None, **options):
+    """ctx.project of the whole scene, each rank projecting its share of the views: every rank gets
+    the line integrals of every view (views, H, W, 1) (a ray list: (rays, 1))."""
+    comm = _comm(comm)
+    scene = _scene_dict(scene)
+    mine = _mine(comm, _items(scene))
+    lines = ctx.project(scene_share(scene, *mine), volume, **options) if mine else None
+    return np.concatenate([p for p in comm.allgather(lines) if p is not None], axis=0)
+
+
+def backproject(ctx, scene, lines, comm=None, **options):
+    """ctx.backproject of the whole scene's `lines` (first axis: views, or a ray list's rays), each
+    rank back-projecting its share: every rank gets N^T p (Z, Y, X), the parts summed in float64
+    and rounded to float32 once, as ctx.backproject returns it."""
+    comm = _comm(comm)
+    scene = _scene_dict(scene)
+    n = _items(scene)
+    lines = np.asarray(lines)
+    if lines.shape[0] != n:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.backproject: lines has {lines.shape[0]} rows on its first axis but "
+                    f"the scene has {n} views or rays")
+    mine = _mine(comm, n)
+    first, count = mine if mine else (0, 1)  # (a rank without a share adds zeros)
+    part = lines[first:first + count] if mine else np.zeros_like(lines[:1])
+    volume = np.ascontiguousarray(
+        ctx.backproject(scene_share(scene, first, count), part, **options), dtype=np.float64)
+    from mpi4py import MPI
+    summed = np.empty_like(volume)
+    comm.Allreduce(volume, summed, op=MPI.SUM)
+    return summed.astype(np.float32)
 
 
 def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None, **options):

@@ -1,6 +1,7 @@
-"""ivr.mpi under `mpirun -np N python3 -m pytest test_mpi.py` (CTest label mpi): every rank's render
-and gradient, each rank doing its share of the views, equal one process's (float64: the images
-and gradients within 1e-12 of the largest entry); more ranks than views; a ray list; bad input.
+"""ivr.mpi under `mpirun -np N python3 -m pytest test_mpi.py` (CTest label mpi): every rank's render,
+gradient, projection and back-projection, each rank doing its share of the views, equal one
+process's (float64: the images and gradients within 1e-12 of the largest entry; the lines bit for
+bit, the float32 back-projection within 1e-6); more ranks than views; a ray list; bad input.
 Each rank also computes the one-process result itself, as the reference."""
 import copy
 import json
@@ -76,6 +77,20 @@ def test_render_and_gradient_equal_one_process(ctx, views):
     assert all(np.array_equal(x, gn["density"]) for x in COMM.allgather(gn["density"]))
 
 
+@pytest.mark.parametrize("views", [1, 4])
+def test_project_and_backproject_equal_one_process(ctx, views):
+    s, v = dict(scene_of(views), model="absorption"), volume()
+    one = ctx.project(s, v)
+    many = ivr.mpi.project(ctx, s, v)
+    assert many.shape == one.shape and np.array_equal(many, one), "the lines differ"
+    bp_one = ctx.backproject(s, one, grid=v.shape)
+    bp_many = ivr.mpi.backproject(ctx, s, one, grid=v.shape)
+    assert bp_many.shape == bp_one.shape
+    # float32 outputs: the parts' sum rounds differently from the one process's.
+    err = np.max(np.abs(bp_many - bp_one)) / np.max(np.abs(bp_one))
+    assert err <= 1e-6, f"backproject of {views} views on {COMM.Get_size()} ranks: {err}"
+
+
 def test_ray_list(ctx):
     s, v = scene_of(1), volume()
     rays = []
@@ -99,5 +114,7 @@ def test_bad_input_is_refused_clearly(ctx):
         ivr.mpi.gradient(ctx, s, v, np.zeros((2, 5, 6, 4), np.float32))
     with pytest.raises(ivr.Error, match="cameras"):
         ivr.mpi.render(ctx, {"model": "absorption"}, v)
+    with pytest.raises(ivr.Error, match="lines has 2 rows"):
+        ivr.mpi.backproject(ctx, s, np.zeros((2, 5, 6, 1), np.float32))
     with pytest.raises(ivr.Error, match="as an array"):
         ivr.mpi.render(ctx, dict(s, rays={"file": "rays.npy"}), v)

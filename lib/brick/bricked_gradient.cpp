@@ -1,6 +1,7 @@
 // bricked_gradient.cpp — the out-of-core gradient: density, transfer function, background.
 #include "brick/bricked_gradient.hpp"
 
+#include <array>
 #include <cstdlib>
 #include <string>
 
@@ -103,8 +104,13 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   const cl::Buffer pixel_terms = dev.buffer(CL_MEM_READ_WRITE, rays * 4 * s.real_size, nullptr,
                                             "the per-pixel loss and background terms");
   const std::size_t slot_bytes = l.largest_voxels() * s.real_size;
-  const cl::Buffer grad = dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size,
-                                    nullptr, "a brick's density gradient");
+  // Two slots for a brick's gradient: the host adds one brick's into the volume's while the
+  // device marches the next (the plan counts both).
+  const std::array<cl::Buffer, 2> grads = {
+      dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size, nullptr,
+                 "a brick's density gradient"),
+      dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size, nullptr,
+                 "a brick's density gradient")};
   const std::size_t tf_bytes = std::max<std::size_t>(tf_size, 1) * s.real_size;
   const cl::Buffer grad_tf =
       dev.buffer(CL_MEM_READ_WRITE, tf_bytes, nullptr, "the transfer-function gradient");
@@ -122,7 +128,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       kernel->setArg(a0 + 4 + 3, buffer_of(s.target));
       set_real(*kernel, a0 + 4 + 4, s.f64, 1.0 / double(rays * scene.channels()));
       kernel->setArg(a0 + 4 + 5, pixel_terms);
-      kernel->setArg(a0 + 4 + 6, kernel == marching && priv.on ? copies : grad);
+      kernel->setArg(a0 + 4 + 6, kernel == marching && priv.on ? copies : grads[0]);
       kernel->setArg(a0 + 4 + 7, cl_int4{{0, 0, 0, 0}});
       kernel->setArg(a0 + 4 + 8, cl_int(0));
       kernel->setArg(a0 + 4 + 9, cl_int(0));
@@ -131,23 +137,37 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       kernel->setArg(a0 + 4 + 12, cl_int(tf ? tf_size : 0));
     });
   }
-  const int a_rect = march.arguments(*marching) + 4 + 7;
+  const int a_grad = march.arguments(*marching) + 4 + 6, a_rect = a_grad + 1;
   march.launch_all(k, kAdjointBegin);
 
   const std::size_t planes = std::size_t(l.z_last - l.z_first + 1);  // all, or a worker's slab
   std::vector<double> gradient(density ? planes * l.dims[1] * l.dims[0] : 0, 0.0);
-  std::vector<unsigned char> host;
+  // Each slot's last brick read back (asynchronously) and not yet added.
+  struct Pending {
+    int brick = -1;
+    cl::Event read;
+    std::vector<unsigned char> host;
+  };
+  std::array<Pending, 2> pending;
+  auto add_pending = [&](Pending& p) {
+    if (p.brick < 0) return;
+    p.read.wait();
+    add_brick(p.host, l, p.brick, s.f64, gradient.data());
+    p.brick = -1;
+  };
+  int turn = 0;  // the slot of the brick being marched
   BrickHooks hooks;
-  if (!density) {
-    // (the TF gradient alone: nothing per brick)
-  } else if (!priv.on) {
+  if (density)
     hooks.before = [&](int b, std::vector<cl::Event>& wait) {
+      add_pending(pending[turn]);  // the slot's last brick, before the slot is written again
+      if (priv.on) return;         // (the sum of the copies overwrites the slot)
+      marching->setArg(a_grad, grads[turn]);
       cl::Event zeroed;
-      dev.queue.enqueueFillBuffer(grad, cl_uchar(0), 0, l.voxels(b) * s.real_size, nullptr,
-                                  &zeroed);
+      dev.queue.enqueueFillBuffer(grads[turn], cl_uchar(0), 0, l.voxels(b) * s.real_size,
+                                  nullptr, &zeroed);
       wait.push_back(zeroed);
     };
-  } else {
+  if (density && priv.on) {
     // One work-group of one item per compute unit, each taking its turns of the rectangle's tiles.
     hooks.launch = [&](const TileRect& r, const std::vector<cl::Event>& wait) {
       marching->setArg(a_rect, cl_int4{{r.x, r.y, r.across, r.down}});
@@ -168,7 +188,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       sum->setArg(0, cl_int(voxels));
       sum->setArg(1, cl_int(priv.groups));
       sum->setArg(2, copies);
-      sum->setArg(3, grad);
+      sum->setArg(3, grads[turn]);
       cl::Event summed;
       dev.queue.enqueueNDRangeKernel(
           *sum, cl::NullRange, cl::NDRange((voxels + IVR_PRIVATE_ALIGN - 1) / IVR_PRIVATE_ALIGN),
@@ -176,14 +196,20 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       march.op.events.push_back(summed);
       done = {summed};
     }
-    host.resize(l.voxels(b) * s.real_size);
-    dev.queue.enqueueReadBuffer(grad, CL_TRUE, 0, host.size(), host.data(), &done);
-    add_brick(host, l, b, s.f64, gradient.data());
+    Pending& p = pending[turn];
+    p.host.resize(l.voxels(b) * s.real_size);
+    dev.queue.enqueueReadBuffer(grads[turn], CL_FALSE, 0, p.host.size(), p.host.data(), &done,
+                                &p.read);
+    dev.queue.flush();
+    p.brick = b;
+    turn ^= 1;
+    add_pending(pending[turn]);  // the brick before, while the device marches this one
   };
   if (marching == &k)
     march.sweep(k, kAdjointMarch, hooks, "bricked");
   else
     march.sweep(*marching, kAdjointMarch, hooks, "bricked_packet", march.tile());
+  for (Pending& p : pending) add_pending(p);
 
   // The loss and the background gradient: the per-pixel terms' column sums (in float64).
   const std::vector<double> terms = download_reals(dev, s.f64, pixel_terms, rays * 4);

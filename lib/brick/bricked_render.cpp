@@ -175,8 +175,8 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   const std::uint64_t geometry = geometry_bytes(scene, real_size);
   plan.budget = brick_budget(device);
   // The gradient adds the volume's gradient (in core), or per ray its pixel adjoints (8 reals), the
-  // target and its loss and background terms (4 reals), the TF's gradient, and one brick's
-  // gradient (out of core: one slot more).
+  // target and its loss and background terms (4 reals), the TF's gradient, and two slots of a
+  // brick's gradient (out of core: lib/brick/bricked_gradient.cpp).
   const std::vector<std::size_t> tf_shape = tf_gradient_shape(scene.tf);
   const std::uint64_t target =
       gradient ? (rays * (scene.channels() + 4) + tf_shape[0] * tf_shape[1]) * real_size : 0;
@@ -186,7 +186,7 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   const std::uint64_t fixed =
       image + geometry + target +
       rays * ((kStateReals + (gradient ? 8 : 0)) * real_size + kStateUints * 4) + 64;
-  const int extra_slots = gradient ? 1 : 0;  // the brick's gradient
+  const int extra_slots = gradient ? 2 : 0;  // two slots of a brick's gradient
   const int longest = std::max({scene.volume.nx, scene.volume.ny, scene.volume.nz});
   auto fits = [&](int edge, int slots) {
     const BrickLayout l = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);

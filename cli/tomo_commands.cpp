@@ -304,7 +304,7 @@ Runner add_tomo_command(CLI::App& app) {
                     std::to_string(world().size) + " ranks for " + std::to_string(items) +
                         (scene.has_ray_list() ? " rays" : " views") + ": at most one rank each");
       const std::size_t per_item = lines.size() / items;
-      const auto [first, count] = view_shares(items, std::size_t(world().size))[world().rank];
+      const auto [first, count] = rank_share(scene);
       const std::vector<double> mine(lines.begin() + first * per_item,
                                      lines.begin() + (first + count) * per_item);
       r = tomo_shared(device, scene_share(scene, first, count), mine, args->options, sum_all,

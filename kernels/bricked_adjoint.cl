@@ -77,53 +77,35 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
     const real4 brick_lo, const real4 brick_hi, const int4 origin, __global real* restrict state,
     __global uint* restrict state_u, __global const real* restrict adj, const ScatterSink sink,
     __local real* tf_acc) {
-  // Each lane's ray from its state (bricked_state.cl's brick_enter); lanes that do not enter
-  // march nothing (end = 0) and write nothing.
-  real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], tb1[IVR_RAYS];
-  real u0x[IVR_RAYS], u0y[IVR_RAYS], u0z[IVR_RAYS], dux[IVR_RAYS], duy[IVR_RAYS], duz[IVR_RAYS];
+  // Each lane's ray from its state (bricked_state.cl); lanes that do not enter march nothing
+  // (end = 0).
+  LaneWindows w;
+  if (!brick_enter_lanes(state, state_u, x0, y0, view, width, height, brick_lo, brick_hi, origin,
+                         &w))
+    return;
   real T[IVR_RAYS], pr[IVR_RAYS], pg[IVR_RAYS], pb[IVR_RAYS], kr[IVR_RAYS], kg[IVR_RAYS],
       kb[IVR_RAYS];
   real a0[IVR_RAYS], a1[IVR_RAYS], a2[IVR_RAYS], a3[IVR_RAYS], a4[IVR_RAYS], a5[IVR_RAYS],
       a6[IVR_RAYS], a7[IVR_RAYS];
-  int n[IVR_RAYS], next[IVR_RAYS], end[IVR_RAYS], entered[IVR_RAYS];
-  int any = 0;
+  int next[IVR_RAYS], end[IVR_RAYS];
   for (int l = 0; l < IVR_RAYS; ++l) {
-    const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
-    RayMarch m;
-    real b1 = (real)0;
-    entered[l] = 0;
-    if (x < width && y < height) {
-      const size_t pixel = ((size_t)view * height + y) * width + x;
-      __global const real* s = state + pixel * IVR_BRICK_REALS;
-      __global const uint* su = state_u + pixel * IVR_BRICK_UINTS;
-      if (brick_enter(s, su, brick_lo, brick_hi, origin, &m, &b1)) {
-        __global const real* a = adj + pixel * IVR_BRICK_ADJOINT_REALS;
-        entered[l] = 1;
-        t0[l] = m.t0, t1[l] = m.t1, dt[l] = m.dt, tb1[l] = b1, n[l] = (int)m.n;
-        u0x[l] = m.u0x, u0y[l] = m.u0y, u0z[l] = m.u0z, dux[l] = m.dux, duy[l] = m.duy,
-        duz[l] = m.duz;
-        T[l] = s[BS_T], pr[l] = s[BS_CR], pg[l] = s[BS_CG], pb[l] = s[BS_CB];
-        kr[l] = s[BS_KR], kg[l] = s[BS_KG], kb[l] = s[BS_KB];
-        a0[l] = a[0], a1[l] = a[1], a2[l] = a[2], a3[l] = a[3];
-        a4[l] = a[4], a5[l] = a[5], a6[l] = a[6], a7[l] = a[7];
-        next[l] = (int)su[BU_NEXT], end[l] = (int)su[BU_SAMPLES];
-        any = 1;
-        continue;
-      }
+    if (w.entered[l]) {
+      __global const real* s = state + w.pixel[l] * IVR_BRICK_REALS;
+      __global const uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
+      __global const real* a = adj + w.pixel[l] * IVR_BRICK_ADJOINT_REALS;
+      T[l] = s[BS_T], pr[l] = s[BS_CR], pg[l] = s[BS_CG], pb[l] = s[BS_CB];
+      kr[l] = s[BS_KR], kg[l] = s[BS_KG], kb[l] = s[BS_KB];
+      a0[l] = a[0], a1[l] = a[1], a2[l] = a[2], a3[l] = a[3];
+      a4[l] = a[4], a5[l] = a[5], a6[l] = a[6], a7[l] = a[7];
+      next[l] = (int)su[BU_NEXT], end[l] = (int)su[BU_SAMPLES];
+    } else {
+      T[l] = (real)1;
+      pr[l] = pg[l] = pb[l] = kr[l] = kg[l] = kb[l] = (real)0;
+      a0[l] = a1[l] = a2[l] = a3[l] = a4[l] = a5[l] = a6[l] = a7[l] = (real)0;
+      next[l] = end[l] = 0;
     }
-    t0[l] = t1[l] = dt[l] = tb1[l] = u0x[l] = u0y[l] = u0z[l] = dux[l] = duy[l] = duz[l] = (real)0;
-    T[l] = (real)1;
-    pr[l] = pg[l] = pb[l] = kr[l] = kg[l] = kb[l] = (real)0;
-    a0[l] = a1[l] = a2[l] = a3[l] = a4[l] = a5[l] = a6[l] = a7[l] = (real)0;
-    n[l] = next[l] = end[l] = 0;
   }
-  if (!any) return;
-
-  March m;
-  m.t0 = IVR_LOAD_RAYS(t0), m.t1 = IVR_LOAD_RAYS(t1), m.dt = IVR_LOAD_RAYS(dt);
-  m.n = IVR_LOAD_RAYS(n);
-  m.u0x = IVR_LOAD_RAYS(u0x), m.u0y = IVR_LOAD_RAYS(u0y), m.u0z = IVR_LOAD_RAYS(u0z);
-  m.dux = IVR_LOAD_RAYS(dux), m.duy = IVR_LOAD_RAYS(duy), m.duz = IVR_LOAD_RAYS(duz);
+  const March m = lanes_march(&w);
   AdjointRay ar;
 #if IVR_EMISSION
   ar.gr = IVR_LOAD_RAYS(a0), ar.gg = IVR_LOAD_RAYS(a1), ar.gb = IVR_LOAD_RAYS(a2);
@@ -150,7 +132,7 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
   camera_sums_init(&cs, (real)0);
   adjoint_march_midpoint_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar,
                                 (__global const uchar*)0, (int4)0, sink, &tf_cache, tf_acc, &cs,
-                                IVR_LOAD_RAYS(tb1), &at);
+                                IVR_LOAD_RAYS(w.tb1), &at);
 #if IVR_GRAD_TF
   tf_cache_flush(&tf_cache, tf_acc);
 #endif
@@ -164,17 +146,15 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
   IVR_STORE_RAYS(at.kb, kb);
   IVR_STORE_RAYS(at.i, next);
   for (int l = 0; l < IVR_RAYS; ++l) {
-    if (!entered[l]) continue;
-    const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
-    const size_t pixel = ((size_t)view * height + y) * width + x;
-    __global real* s = state + pixel * IVR_BRICK_REALS;
-    __global uint* su = state_u + pixel * IVR_BRICK_UINTS;
+    if (!w.entered[l]) continue;
+    __global real* s = state + w.pixel[l] * IVR_BRICK_REALS;
+    __global uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
     s[BS_T] = T[l];
     s[BS_CR] = pr[l], s[BS_CG] = pg[l], s[BS_CB] = pb[l];
     s[BS_KR] = kr[l], s[BS_KG] = kg[l], s[BS_KB] = kb[l];
     su[BU_NEXT] = (uint)next[l];
-    s[BS_TNEXT] = tb1[l];
-    if (next[l] >= end[l] || tb1[l] >= t1[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+    s[BS_TNEXT] = w.tb1[l];
+    if (next[l] >= end[l] || w.tb1[l] >= w.t1[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
   }
 }
 

@@ -6,6 +6,7 @@
 #include "config.cl"
 #include "march.cl"
 #include "primal.cl"
+#include "rays.cl"
 
 // The per-ray state: reals, then uints.
 #define IVR_BRICK_REALS 24
@@ -57,6 +58,58 @@ inline bool brick_enter(__global const real* s, __global const uint* su, real4 b
   if (!(*tb1 > tb0) || tb0 != s[BS_TNEXT]) return false;
   m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
   return true;
+}
+
+// The tile with corner (x0, y0) of `view` (one pixel, or a packet's: kernels/rays.cl), lane by
+// lane: each lane's pixel, whether its ray enters this brick where its march stands (brick_enter)
+// and, where it does, its global march and its window's end. A lane that does not (or lies past
+// the image's edge) holds zeros: n = 0, it marches nothing and writes nothing.
+typedef struct {
+  real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], tb1[IVR_RAYS];
+  real u0x[IVR_RAYS], u0y[IVR_RAYS], u0z[IVR_RAYS], dux[IVR_RAYS], duy[IVR_RAYS], duz[IVR_RAYS];
+  int n[IVR_RAYS], entered[IVR_RAYS];
+  size_t pixel[IVR_RAYS];
+} LaneWindows;
+
+// Fills *w; true where some lane enters.
+inline bool brick_enter_lanes(__global const real* state, __global const uint* state_u, int x0,
+                              int y0, int view, int width, int height, real4 brick_lo,
+                              real4 brick_hi, int4 origin, LaneWindows* w) {
+  bool any = false;
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
+    RayMarch m;
+    real b1 = (real)0;
+    w->entered[l] = 0;
+    w->pixel[l] = 0;
+    if (x < width && y < height) {
+      const size_t pixel = ((size_t)view * height + y) * width + x;
+      w->pixel[l] = pixel;
+      if (brick_enter(state + pixel * IVR_BRICK_REALS, state_u + pixel * IVR_BRICK_UINTS,
+                      brick_lo, brick_hi, origin, &m, &b1)) {
+        w->entered[l] = 1;
+        w->t0[l] = m.t0, w->t1[l] = m.t1, w->dt[l] = m.dt, w->tb1[l] = b1, w->n[l] = (int)m.n;
+        w->u0x[l] = m.u0x, w->u0y[l] = m.u0y, w->u0z[l] = m.u0z;
+        w->dux[l] = m.dux, w->duy[l] = m.duy, w->duz[l] = m.duz;
+        any = true;
+        continue;
+      }
+    }
+    w->t0[l] = w->t1[l] = w->dt[l] = w->tb1[l] = (real)0;
+    w->u0x[l] = w->u0y[l] = w->u0z[l] = w->dux[l] = w->duy[l] = w->duz[l] = (real)0;
+    w->n[l] = 0;
+  }
+  return any;
+}
+
+// The lanes' global marches as one March (a packet's: vectors).
+inline March lanes_march(const LaneWindows* w) {
+  March m;
+  m.t0 = IVR_LOAD_RAYS(w->t0), m.t1 = IVR_LOAD_RAYS(w->t1), m.dt = IVR_LOAD_RAYS(w->dt);
+  m.n = IVR_LOAD_RAYS(w->n);
+  m.u0x = IVR_LOAD_RAYS(w->u0x), m.u0y = IVR_LOAD_RAYS(w->u0y), m.u0z = IVR_LOAD_RAYS(w->u0z);
+  m.dux = IVR_LOAD_RAYS(w->dux), m.duy = IVR_LOAD_RAYS(w->duy), m.duz = IVR_LOAD_RAYS(w->duz);
+  return m;
 }
 
 // One ray's Radiance sums from its state, and back (the one-ray kernels').

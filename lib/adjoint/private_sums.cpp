@@ -36,15 +36,17 @@ PrivateSums private_sums_for(const DeviceInfo& info, const PrivateSumsQuery& q) 
   p.groups = std::max(info.compute_units, 1);
   p.copy_values = q.density ? private_copy_values(q.voxels) : 0;
   const std::uint64_t bytes = p.bytes(q.real_size);
-  const bool fits = bytes <= info.global_memory / 4 && (bytes <= info.max_allocation || !bytes);
+  const bool fits = bytes <= info.global_memory / 4 && (bytes <= info.max_allocation || !bytes) &&
+                    bytes <= q.room;
   if (forced == "1") {
     if (!fits)
-      throw Error(Status::invalid_argument, "IVR_PRIVATE_SUMS=1: " + std::to_string(p.groups) +
-                                                " copies of the density "
-                                                "gradient (" +
-                                                std::to_string(bytes) + " bytes) do not fit in " +
-                                                info.name +
-                                                "'s memory (a quarter of it, one allocation)");
+      throw Error(Status::invalid_argument,
+                  "IVR_PRIVATE_SUMS=1: " + std::to_string(p.groups) + " copies of the density "
+                  "gradient (" + std::to_string(bytes) + " bytes) do not fit in " + info.name +
+                  "'s memory (a quarter of it, one allocation)" +
+                  (q.room == UINT64_MAX ? std::string()
+                                        : " and the device-memory budget's " +
+                                              std::to_string(q.room) + " bytes left"));
     p.on = true;
     return p;
   }

@@ -34,10 +34,13 @@ struct PrivateSumsQuery {
   std::size_t real_size = 4;  // bytes of a real
   std::uint64_t pixels = 0;   // rays of the operation
   int longest_edge = 0;       // the volume's longest edge in voxels
+  // Device memory the copies may take beside what the operation has planned (out of core: what
+  // the plan's budget leaves); the device's own limits apply either way.
+  std::uint64_t room = UINT64_MAX;
 };
 
 // On for the packet adjoint's float sums on CPU devices, one group a compute unit, where the
-// copies fit (a quarter of the device's global memory, one allocation) and cost less than the
+// copies fit (a quarter of the device's global memory, one allocation, `room`) and cost less than the
 // atomics they replace: the copies' sum touches groups × voxels values, the atomics are about one
 // per cell a ray crosses (pixels × longest edge), and a streamed value costs a small fraction of
 // a compare-and-swap (kCopyValuesPerAdd in private_sums.cpp, with its measurements).

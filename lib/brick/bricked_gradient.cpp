@@ -2,7 +2,6 @@
 #include "brick/bricked_gradient.hpp"
 
 #include <array>
-#include <cstdlib>
 #include <string>
 
 #include "adjoint/private_sums.hpp"
@@ -18,7 +17,7 @@ namespace {
 constexpr int kAdjointBegin = 3, kAdjointMarch = 4;  // kernels/bricked_adjoint.cl
 constexpr int kAdjointReals = 8;
 // Private sums (lib/adjoint/private_sums.hpp) for the packet march over one brick at a time:
-// their copies hold a brick's gradient each, beside what the plan counted.
+// their copies hold a brick's gradient each, in what the plan's budget leaves.
 PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan, bool packet,
                                  std::size_t real_size, std::size_t rays) {
   if (tuning_probe()) return {};
@@ -30,16 +29,8 @@ PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan,
   q.real_size = real_size;
   q.pixels = rays;
   q.longest_edge = plan.layout.edge + 1;
-  PrivateSums p = private_sums_for(dev.info, q);
-  if (p.on && plan.budget && plan.bricked_bytes + p.bytes(real_size) > plan.budget) {
-    const char* forced = std::getenv("IVR_PRIVATE_SUMS");
-    if (forced && std::string(forced) == "1")
-      throw Error(Status::invalid_argument,
-                  "IVR_PRIVATE_SUMS=1: " + std::to_string(p.groups) +
-                      " copies of a brick's gradient do not fit the device-memory budget");
-    p.on = false;
-  }
-  return p;
+  if (plan.budget) q.room = plan.budget > plan.bricked_bytes ? plan.budget - plan.bricked_bytes : 0;
+  return private_sums_for(dev.info, q);
 }
 
 }  // namespace
@@ -52,9 +43,12 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
   bool density = false, tf = false, background = false;
   for (const std::string& g : groups) {
-    if (g == "density" && !density) density = true;
-    else if (g == "tf" && !tf) tf = true;
-    else if (g == "background" && !background) background = true;
+    if (g == "density" && !density)
+      density = true;
+    else if (g == "tf" && !tf)
+      tf = true;
+    else if (g == "background" && !background)
+      background = true;
     else
       throw Error(Status::unsupported, where + ": --wrt " + g +
                                            " is not differentiated out of core yet (density, tf, "
@@ -121,8 +115,9 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
                         "the brick gradient's private copies");
     dev.queue.enqueueFillBuffer(copies, cl_uchar(0), 0, priv.bytes(s.real_size));
   }
+  int a0 = 0;  // the adjoint's arguments' first index, in both kernels
   for (cl::Kernel* kernel : {&k, marching}) {
-    const int a0 = march.arguments(*kernel);
+    a0 = march.arguments(*kernel);
     cl_call("setting the bricked adjoint's arguments", [&] {
       kernel->setArg(a0 + 4 + 2, adj);
       kernel->setArg(a0 + 4 + 3, buffer_of(s.target));
@@ -137,7 +132,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       kernel->setArg(a0 + 4 + 12, cl_int(tf ? tf_size : 0));
     });
   }
-  const int a_grad = march.arguments(*marching) + 4 + 6, a_rect = a_grad + 1;
+  const int a_grad = a0 + 4 + 6, a_rect = a_grad + 1;
   march.launch_all(k, kAdjointBegin);
 
   const std::size_t planes = std::size_t(l.z_last - l.z_first + 1);  // all, or a worker's slab
@@ -155,56 +150,55 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     add_brick(p.host, l, p.brick, s.f64, gradient.data());
     p.brick = -1;
   };
-  int turn = 0;  // the slot of the brick being marched
-  BrickHooks hooks;
-  if (density)
+  int turn = 0;      // the slot of the brick being marched
+  BrickHooks hooks;  // (the TF gradient alone has nothing to do per brick)
+  cl::Kernel* sum = priv.on ? &s.kernels.get(packet.with_entry("sum_private_copies")) : nullptr;
+  if (density) {
     hooks.before = [&](int b, std::vector<cl::Event>& wait) {
       add_pending(pending[turn]);  // the slot's last brick, before the slot is written again
       if (priv.on) return;         // (the sum of the copies overwrites the slot)
       marching->setArg(a_grad, grads[turn]);
       cl::Event zeroed;
-      dev.queue.enqueueFillBuffer(grads[turn], cl_uchar(0), 0, l.voxels(b) * s.real_size,
-                                  nullptr, &zeroed);
+      dev.queue.enqueueFillBuffer(grads[turn], cl_uchar(0), 0, l.voxels(b) * s.real_size, nullptr,
+                                  &zeroed);
       wait.push_back(zeroed);
     };
-  if (density && priv.on) {
-    // One work-group of one item per compute unit, each taking its turns of the rectangle's tiles.
-    hooks.launch = [&](const TileRect& r, const std::vector<cl::Event>& wait) {
-      marching->setArg(a_rect, cl_int4{{r.x, r.y, r.across, r.down}});
-      marching->setArg(a_rect + 1, cl_int(r.first_view));
-      marching->setArg(a_rect + 2, cl_int(r.across * r.down * r.views));
-      cl::Event ev;
-      dev.queue.enqueueNDRangeKernel(*marching, cl::NullRange, cl::NDRange(priv.groups),
-                                     cl::NDRange(1), &wait, &ev);
-      return ev;
+    if (priv.on)  // one work-group of one item per compute unit, taking turns of the tiles
+      hooks.launch = [&](const TileRect& r, const std::vector<cl::Event>& wait) {
+        marching->setArg(a_rect, cl_int4{{r.x, r.y, r.across, r.down}});
+        marching->setArg(a_rect + 1, cl_int(r.first_view));
+        marching->setArg(a_rect + 2, cl_int(r.across * r.down * r.views));
+        cl::Event ev;
+        dev.queue.enqueueNDRangeKernel(*marching, cl::NullRange, cl::NDRange(priv.groups),
+                                       cl::NDRange(1), &wait, &ev);
+        return ev;
+      };
+    hooks.after = [&](int b, const std::vector<cl::Event>& marched) {
+      if (marched.empty()) return;
+      std::vector<cl::Event> done = marched;
+      if (sum) {  // the copies into the brick's gradient (which leaves them 0)
+        const std::size_t voxels = l.voxels(b);
+        sum->setArg(0, cl_int(voxels));
+        sum->setArg(1, cl_int(priv.groups));
+        sum->setArg(2, copies);
+        sum->setArg(3, grads[turn]);
+        cl::Event summed;
+        dev.queue.enqueueNDRangeKernel(
+            *sum, cl::NullRange, cl::NDRange((voxels + IVR_PRIVATE_ALIGN - 1) / IVR_PRIVATE_ALIGN),
+            cl::NullRange, &marched, &summed);
+        march.op.events.push_back(summed);
+        done = {summed};
+      }
+      Pending& p = pending[turn];
+      p.host.resize(l.voxels(b) * s.real_size);
+      dev.queue.enqueueReadBuffer(grads[turn], CL_FALSE, 0, p.host.size(), p.host.data(), &done,
+                                  &p.read);
+      dev.queue.flush();
+      p.brick = b;
+      turn ^= 1;
+      add_pending(pending[turn]);  // the brick before, while the device marches this one
     };
   }
-  cl::Kernel* sum = priv.on ? &s.kernels.get(packet.with_entry("sum_private_copies")) : nullptr;
-  hooks.after = [&](int b, const std::vector<cl::Event>& marched) {
-    if (marched.empty() || !density) return;
-    std::vector<cl::Event> done = marched;
-    if (sum) {  // the copies into the brick's gradient (which leaves them 0)
-      const std::size_t voxels = l.voxels(b);
-      sum->setArg(0, cl_int(voxels));
-      sum->setArg(1, cl_int(priv.groups));
-      sum->setArg(2, copies);
-      sum->setArg(3, grads[turn]);
-      cl::Event summed;
-      dev.queue.enqueueNDRangeKernel(
-          *sum, cl::NullRange, cl::NDRange((voxels + IVR_PRIVATE_ALIGN - 1) / IVR_PRIVATE_ALIGN),
-          cl::NullRange, &marched, &summed);
-      march.op.events.push_back(summed);
-      done = {summed};
-    }
-    Pending& p = pending[turn];
-    p.host.resize(l.voxels(b) * s.real_size);
-    dev.queue.enqueueReadBuffer(grads[turn], CL_FALSE, 0, p.host.size(), p.host.data(), &done,
-                                &p.read);
-    dev.queue.flush();
-    p.brick = b;
-    turn ^= 1;
-    add_pending(pending[turn]);  // the brick before, while the device marches this one
-  };
   if (marching == &k)
     march.sweep(k, kAdjointMarch, hooks, "bricked");
   else

@@ -1,5 +1,5 @@
-// brick_support.hpp — the out-of-core tests' scene and image comparison (bricked_render_test,
-// domain_test).
+// brick_support.hpp — the out-of-core tests' scene and comparisons (bricked_render_test,
+// bricked_gradient_test, domain_test).
 #pragma once
 #include <gtest/gtest.h>
 
@@ -54,6 +54,19 @@ inline double largest(const std::vector<double>& v) {
   return m;
 }
 
+// Every value of `got` within tol × the largest |value| of `want`; none NaN/Inf.
+inline void expect_close_values(const std::vector<double>& want, const std::vector<double>& got,
+                                double tol, const std::string& what) {
+  ASSERT_EQ(want.size(), got.size()) << what;
+  const double scale = std::max(largest(want), 1e-30);
+  int bad = 0;
+  for (std::size_t i = 0; i < want.size() && bad < 5; ++i)
+    if (!std::isfinite(got[i]) || std::abs(want[i] - got[i]) > tol * scale) {
+      ADD_FAILURE() << what << ": element " << i << " want " << want[i] << ", got " << got[i];
+      ++bad;
+    }
+}
+
 // Every pixel within tol × the largest |value| of the in-core image; none NaN/Inf.
 inline void expect_same(const Image& in_core, const Image& bricked, double tol,
                         const std::string& what) {
@@ -63,14 +76,7 @@ inline void expect_same(const Image& in_core, const Image& bricked, double tol,
   const std::vector<double> b =
       bricked.pixels_f64.empty() ? std::vector<double>(bricked.pixels.begin(), bricked.pixels.end())
                                  : bricked.pixels_f64;
-  ASSERT_EQ(a.size(), b.size()) << what;
-  const double scale = std::max(largest(a), 1e-30);
-  int bad = 0;
-  for (std::size_t i = 0; i < a.size() && bad < 5; ++i)
-    if (!std::isfinite(b[i]) || std::abs(a[i] - b[i]) > tol * scale) {
-      ADD_FAILURE() << what << ": element " << i << " in core " << a[i] << ", bricked " << b[i];
-      ++bad;
-    }
+  expect_close_values(a, b, tol, what);
 }
 
 }  // namespace ivr::test

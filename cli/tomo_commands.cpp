@@ -88,7 +88,7 @@ std::vector<std::size_t> volume_shape(const Scene& s) {
 
 struct TomoArgs {
   CommonArgs common;
-  std::string projections, intensities, solver = "cgls";
+  std::string projections, intensities, solver = "cgls", split = "views";
   TomoOptions options;
   double clamp = 0;
   CLI::Option* clamp_option = nullptr;
@@ -259,6 +259,11 @@ Runner add_tomo_command(CLI::App& app) {
                       "Raise intensities to at least c * I_in before the log (0 <= c < 1; default "
                       "0: an intensity <= 0 is an error)");
   cmd->add_option("--solver", args->solver, "cgls (default), sirt or lsqr");
+  cmd->add_option("--split", args->split,
+                  "Under mpirun: views (default: each rank its share of the views and the whole "
+                  "volume) or slabs (each rank one slab of z planes of the iterate, the lines "
+                  "summed over the ranks; CGLS; docs/scaling.md)")
+      ->check(CLI::IsMember({"views", "slabs"}));
   cmd->add_option("--iterations", o.iterations, "Most iterations")->capture_default_str();
   cmd->add_flag("--nonneg", o.nonneg, "Keep every voxel >= 0");
   cmd->add_option("--tv", o.tv, "Weight of the smoothed total variation (>= 0)");
@@ -296,7 +301,19 @@ Runner add_tomo_command(CLI::App& app) {
       return interrupt.signal() == 0;
     };
     TomoResult r;
-    if (world().size > 1) {
+    if (args->split == "slabs") {
+      // Each rank its slab of the iterate (docs/scaling.md); rank 0 joins the slabs.
+      r = tomo_domain(device, scene, lines, domain_part(), args->options, progress);
+      const std::vector<std::vector<double>> slabs =
+          gather_parts(std::vector<double>(r.volume.begin(), r.volume.end()));
+      const std::vector<std::vector<double>> slabs_f64 = gather_parts(r.volume_f64);
+      if (world().rank != 0) return 0;  // rank 0 writes
+      const int nx = scene.volume.nx, ny = scene.volume.ny, nz = scene.volume.nz;
+      if (args->options.precision == Precision::f64)
+        r.volume_f64 = domain_assemble(nx, ny, nz, slabs_f64);
+      const std::vector<double> joined = domain_assemble(nx, ny, nz, slabs);
+      r.volume.assign(joined.begin(), joined.end());
+    } else if (world().size > 1) {
       // mpirun: each rank its share of the views and their projections (docs/scaling.md).
       const std::size_t items = share_items(scene);
       if (items < std::size_t(world().size))
@@ -328,6 +345,7 @@ Runner add_tomo_command(CLI::App& app) {
                                   {"precision", c.precision},
                                   {"device", device.info().name}, {"bricks", r.bricks},
                                   {"ranks", world().size},
+                                  {"split", args->split},
                                   {"iterations", r.history.size()},
                                   {"max_iterations", total},
                                   {"stop_reason", r.stop_reason},

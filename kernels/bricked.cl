@@ -24,16 +24,6 @@
 #define IVR_BRICK_MARCH 1
 #define IVR_BRICK_FINISH 2
 
-// Whether the march has stopped early (the unsplit march's test, on the carried sums).
-inline bool brick_stopped(const Radiance* r, real min_transmittance) {
-#if IVR_EARLY_TERMINATION
-  return march_stopped(r, march_threshold(min_transmittance)) != 0;
-#else
-  (void)r, (void)min_transmittance;
-  return false;
-#endif
-}
-
 // Marches the ray's window [tb0, tb1] in this brick (m: the global march with u0 moved to the
 // brick's voxels); true where the ray stopped early.
 inline bool brick_march(__global const real* volume, int4 dims, const RayMarch* m, real tb1,

@@ -133,6 +133,16 @@ inline void brick_store(const Radiance* r, __global real* s, __global uint* su) 
   su[BU_SAMPLES] = (uint)r->samples;
   su[BU_END] = (uint)r->end;
 }
+
+// Whether the march has stopped early (the unsplit march's test, on the carried sums).
+inline bool brick_stopped(const Radiance* r, real min_transmittance) {
+#if IVR_EARLY_TERMINATION
+  return march_stopped(r, march_threshold(min_transmittance)) != 0;
+#else
+  (void)r, (void)min_transmittance;
+  return false;
+#endif
+}
 #endif
 
 #endif

@@ -139,19 +139,28 @@ __attribute__((always_inline)) inline vreal trilinear_at(__global const real* vo
 }
 
 // d density / d u of the trilinear interpolant in a cell with corner values v[k] (bit 0: +x,
-// bit 1: +y, bit 2: +z) at fractions (fx, fy, fz); 0 along an axis where u lies outside
-// [0, n - 1], where trilinear_at() clamps it (one-sided on the boundary of a cell).
-inline void trilinear_gradient(const real* v, real fx, real fy, real fz, real ux, real uy, real uz,
-                               int4 dims, real* gx, real* gy, real* gz) {
-  *gx = ux > (real)0 && ux < (real)(dims.x - 1)
+// bit 1: +y, bit 2: +z) at fractions (fx, fy, fz); 0 along an axis where u lies outside (lo, hi),
+// the volume's first and last voxel centres in the coordinates u is given in, where trilinear_at()
+// clamps it (one-sided on the boundary of a cell). trilinear_gradient: the whole volume's
+// [0, n − 1].
+inline void trilinear_gradient_within(const real* v, real fx, real fy, real fz, real ux, real uy,
+                                      real uz, real4 lo, real4 hi, real* gx, real* gy, real* gz) {
+  *gx = ux > lo.x && ux < hi.x
             ? lerp(lerp(v[1] - v[0], v[3] - v[2], fy), lerp(v[5] - v[4], v[7] - v[6], fy), fz)
             : (real)0;
-  *gy = uy > (real)0 && uy < (real)(dims.y - 1)
+  *gy = uy > lo.y && uy < hi.y
             ? lerp(lerp(v[2] - v[0], v[3] - v[1], fx), lerp(v[6] - v[4], v[7] - v[5], fx), fz)
             : (real)0;
-  *gz = uz > (real)0 && uz < (real)(dims.z - 1)
+  *gz = uz > lo.z && uz < hi.z
             ? lerp(lerp(v[4] - v[0], v[5] - v[1], fx), lerp(v[6] - v[2], v[7] - v[3], fx), fy)
             : (real)0;
+}
+
+inline void trilinear_gradient(const real* v, real fx, real fy, real fz, real ux, real uy, real uz,
+                               int4 dims, real* gx, real* gy, real* gz) {
+  trilinear_gradient_within(v, fx, fy, fz, ux, uy, uz, (real4)(real)0,
+                            (real4)((real)(dims.x - 1), (real)(dims.y - 1), (real)(dims.z - 1), 0),
+                            gx, gy, gz);
 }
 
 #if IVR_RAYS == 1

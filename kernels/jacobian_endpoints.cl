@@ -33,7 +33,8 @@ inline void tangent_sample(TangentSample* a, __global const real* volume, int4 d
   vreal fx, fy, fz, gx, gy, gz;
   const vint ix = cell_axis(a->s.ux, dims.x, &fx), iy = cell_axis(a->s.uy, dims.y, &fy),
              iz = cell_axis(a->s.uz, dims.z, &fz);
-  sample_gradient(volume, dims, ix, iy, iz, fx, fy, fz, a->s.ux, a->s.uy, a->s.uz, &gx, &gy, &gz);
+  sample_gradient(tr, volume, dims, ix, iy, iz, fx, fy, fz, a->s.ux, a->s.uy, a->s.uz, &gx, &gy,
+                  &gz);
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
   vreal dsigma_dd, der_dd, deg_dd, deb_dd;
   TfPoint point;

@@ -10,21 +10,26 @@
 #include "jacobian_tf.cl"
 
 // One ray, or every ray of a packet (kernels/rays.cl) written once as primal.cl's marches are:
-// `take` holds the rays that sample in this round (the constant true for one ray).
-inline void tangent_march_midpoint(__global const real* volume, int4 dims, const March* m, Ray ray,
-                                   real4 inv_voxel, __global const real* tf, int tf_count,
-                                   real4 tf_scalars, real min_transmittance,
-                                   __global const uchar* occupied, int4 bricks, TangentRay* tr,
-                                   Radiance* r) {
+// `take` holds the rays that sample in this round (the constant true for one ray). The samples
+// from *at on that lie before `window_end` (in core: ∞), with the radiance and the tangents
+// carried in *r and *tr; *at is left where the march stopped. Out of core
+// (kernels/bricked_tangent.cl) each brick goes on from where the one before left the ray.
+__attribute__((always_inline)) inline void tangent_march_midpoint_window(
+    __global const real* volume, int4 dims, const March* m, Ray ray, real4 inv_voxel,
+    __global const real* tf, int tf_count, real4 tf_scalars, real min_transmittance,
+    __global const uchar* occupied, int4 bricks, TangentRay* tr, Radiance* r, vreal window_end,
+    vint* at) {
   const vreal dt = m->dt;
   const real threshold = march_threshold(min_transmittance);
   vint segment = (vint)0;
   const vint n = (vint)m->n;
-  vint i = (vint)0;
-  vint live = (vint)0 < n;
+  vint i = *at;
+  vint live = i < n;
   while (vany(live)) {
-    const vreal mid = vto_real(i) + (real)0.5;
     const vreal t = sample_t(m, i);
+    live = live && vmask_of(t < window_end);
+    if (!vany(live)) break;
+    const vreal mid = vto_real(i) + (real)0.5;
     const vreal ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
 #if IVR_EMPTY_SPACE
     // Only where nothing differentiated can come from (lib/empty_space/empty_space.hpp,
@@ -53,7 +58,7 @@ inline void tangent_march_midpoint(__global const real* volume, int4 dims, const
     vreal fx, fy, fz, gx, gy, gz;
     const vint ix = cell_axis(ux, dims.x, &fx), iy = cell_axis(uy, dims.y, &fy),
                iz = cell_axis(uz, dims.z, &fz);
-    sample_gradient(volume, dims, ix, iy, iz, fx, fy, fz, ux, uy, uz, &gx, &gy, &gz);
+    sample_gradient(tr, volume, dims, ix, iy, iz, fx, fy, fz, ux, uy, uz, &gx, &gy, &gz);
     IVR_FOR_LANES(p) {
       const real ddt = IVR_DDT(tr, p, m);  // d dt
       const vreal dd = density_tangent(tr, p, ray, t, tr->dt0[p] + mid * ddt, gx, gy, gz, ix, iy,
@@ -96,6 +101,19 @@ inline void tangent_march_midpoint(__global const real* volume, int4 dims, const
     live = live && !march_stopped(r, threshold);
 #endif
   }
+  *at = i;
+}
+
+// The whole ray's march (in core), finished.
+inline void tangent_march_midpoint(__global const real* volume, int4 dims, const March* m, Ray ray,
+                                   real4 inv_voxel, __global const real* tf, int tf_count,
+                                   real4 tf_scalars, real min_transmittance,
+                                   __global const uchar* occupied, int4 bricks, TangentRay* tr,
+                                   Radiance* r) {
+  vint i = (vint)0;
+  tangent_march_midpoint_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars,
+                                min_transmittance, occupied, bricks, tr, r, (vreal)(real)INFINITY,
+                                &i);
   tangent_finish(tr, r);
 }
 

@@ -40,6 +40,10 @@ typedef struct {
   real dt0[IVR_LANES], dt1[IVR_LANES];  // d t0, d t1: the box's entry and exit move with the ray
   // The march's results: d transmittance, d emitted colour (per ray of a packet).
   vreal dT[IVR_LANES], dcr[IVR_LANES], dcg[IVR_LANES], dcb[IVR_LANES];
+  // The volume's first and last voxel centres in the coordinates of the voxels marched (in core
+  // 0 and dims − 1; in a brick moved by its origin, ±∞ at its inner faces): where the density's
+  // gradient is clamped (sample_gradient).
+  real4 grid_lo, grid_hi;
 } TangentRay;
 
 // d segment length of lane p (camera lanes move the ray's ends; 0 for every other lane).
@@ -64,7 +68,10 @@ inline real plane_t_tangent(const TangentRay* tr, int p, Ray ray, int axis, real
 // box face, bounds the march. `cam` is the view's camera or the list.
 inline void tangent_ray_begin(TangentRay* tr, __global const int4* lanes, __global const real* cam,
                               __global const real* camera_params, int view, int x, int y, int width,
-                              int height, Ray ray, const March* m, real4 box_min, real4 box_max) {
+                              int height, Ray ray, const March* m, real4 box_min, real4 box_max,
+                              int4 dims) {
+  tr->grid_lo = (real4)(real)0;
+  tr->grid_hi = (real4)((real)(dims.x - 1), (real)(dims.y - 1), (real)(dims.z - 1), (real)0);
   IVR_FOR_LANES(p) {
     tr->lane[p] = lanes[p];
     tr->dox[p] = tr->doy[p] = tr->doz[p] = tr->ddx[p] = tr->ddy[p] = tr->ddz[p] = (real)0;
@@ -151,18 +158,18 @@ inline vreal density_tangent(const TangentRay* tr, int p, Ray ray, vreal t, vrea
 
 // The gradient d density / d u at a sample (camera lanes), from the cell's corners; 0 along an
 // axis where the position is clamped to the edge centres.
-inline void sample_gradient(__global const real* volume, int4 dims, vint ix, vint iy, vint iz,
-                            vreal fx, vreal fy, vreal fz, vreal ux, vreal uy, vreal uz, vreal* gx,
-                            vreal* gy, vreal* gz) {
+inline void sample_gradient(const TangentRay* tr, __global const real* volume, int4 dims, vint ix,
+                            vint iy, vint iz, vreal fx, vreal fy, vreal fz, vreal ux, vreal uy,
+                            vreal uz, vreal* gx, vreal* gy, vreal* gz) {
 #if IVR_TANGENT_CAMERA
   const int ox = ix + 1 < dims.x ? 1 : 0, oy = iy + 1 < dims.y ? dims.x : 0,
             oz = iz + 1 < dims.z ? dims.x * dims.y : 0;
   __global const real* q = volume + ((iz * dims.y + iy) * dims.x + ix);
   const real v[8] = {q[0],  q[ox],      q[oy],      q[oy + ox],
                      q[oz], q[oz + ox], q[oz + oy], q[oz + oy + ox]};
-  trilinear_gradient(v, fx, fy, fz, ux, uy, uz, dims, gx, gy, gz);
+  trilinear_gradient_within(v, fx, fy, fz, ux, uy, uz, tr->grid_lo, tr->grid_hi, gx, gy, gz);
 #else
-  (void)volume, (void)dims, (void)ix, (void)iy, (void)iz, (void)fx, (void)fy, (void)fz;
+  (void)tr, (void)volume, (void)dims, (void)ix, (void)iy, (void)iz, (void)fx, (void)fy, (void)fz;
   (void)ux, (void)uy, (void)uz;
   *gx = *gy = *gz = (vreal)(real)0;
 #endif

@@ -12,6 +12,7 @@
 #include "ivr/gradient.hpp"
 #include "ivr/render.hpp"
 #include "ivr/scene.hpp"
+#include "ivr/tomo.hpp"
 
 namespace ivr {
 
@@ -69,9 +70,23 @@ IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image
                                  DomainStats* domain = nullptr,
                                  const std::vector<std::string>& groups = {"density"});
 
+// CGLS (with nonneg or Tikhonov) over slabs: the projections `lines` (every worker passes all of
+// them) of `scene`'s rays, this worker holding and solving for planes domain_slab(nz, rank, ranks)
+// of the volume (scene.volume.data is not read). Each iteration sums the workers' parts of N x over
+// the lines and joins the planes neighbours share; every worker's iterate equals one process's to
+// rounding on its planes (the shared ones on both workers alike). Returns this worker's planes
+// (planes × ny × nx) in volume (and volume_f64 in float64); domain_assemble() joins them.
+IVR_API TomoResult tomo_domain(Device& device, const Scene& scene, const std::vector<double>& lines,
+                               const DomainPart& part, const TomoOptions& options = {},
+                               const TomoProgress& progress = {});
+
 // The volume's values (nz × ny × nx) from every worker's slab values, in rank order: the shared
 // planes summed.
 IVR_API std::vector<double> domain_join(int nx, int ny, int nz,
                                         const std::vector<std::vector<double>>& slabs);
+// The volume (nz × ny × nx) from every worker's slab of one volume (tomo_domain's iterates), in rank
+// order: a shared plane taken once, from the lower worker.
+IVR_API std::vector<double> domain_assemble(int nx, int ny, int nz,
+                                            const std::vector<std::vector<double>>& slabs);
 
 }  // namespace ivr

@@ -33,6 +33,8 @@ struct BrickLayout {
   std::array<int, 3> extent(int b) const;
   std::size_t voxels(int b) const;
   std::size_t largest_voxels() const;  // of any brick
+  // The host values the bricks are cut from: planes z_first … z_last of the volume.
+  std::size_t held() const { return std::size_t(dims[0]) * dims[1] * (z_last - z_first + 1); }
   // Its planes in global voxel-centre coordinates: [lo, hi) per axis, ±infinity at the box faces.
   std::array<double, 3> lo(int b) const;
   std::array<double, 3> hi(int b) const;

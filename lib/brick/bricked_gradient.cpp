@@ -1,13 +1,19 @@
-// bricked_gradient.cpp — the out-of-core gradient: density, transfer function, background.
+// bricked_gradient.cpp — the out-of-core gradient: density, transfer function and background by the
+// adjoint, the other groups by forward lanes (lib/brick/bricked_tangent.cpp).
 #include "brick/bricked_gradient.hpp"
 
+#include <algorithm>
 #include <array>
+#include <set>
 #include <string>
 
 #include "adjoint/private_sums.hpp"
+#include "brick/bricked_tangent.hpp"
 #include "brick/domain.hpp"
 #include "ivr/error.hpp"
+#include "ivr/jacobian.hpp"
 #include "ivr/tf_parameters.hpp"
+#include "jacobian/jacobian.hpp"
 #include "runtime/launch.hpp"
 #include "runtime/real_args.hpp"
 
@@ -35,29 +41,17 @@ PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan,
 
 }  // namespace
 
-Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
-                          const std::vector<std::string>& groups, const GradientOptions& o,
-                          const BrickPlan& plan, const DomainPart* domain,
-                          DomainStats* domain_stats) {
-  const std::string where = "out-of-core gradient (the volume is split into " +
-                            std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
+// The adjoint's groups (density, tf, background: each once) out of core.
+static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image& target,
+                                const std::vector<std::string>& groups, const GradientOptions& o,
+                                const BrickPlan& plan, const DomainPart* domain,
+                                DomainStats* domain_stats) {
   bool density = false, tf = false, background = false;
   for (const std::string& g : groups) {
-    if (g == "density" && !density)
-      density = true;
-    else if (g == "tf" && !tf)
-      tf = true;
-    else if (g == "background" && !background)
-      background = true;
-    else
-      throw Error(Status::unsupported, where + ": --wrt " + g +
-                                           " is not differentiated out of core yet (density, tf, "
-                                           "background)");
+    density = density || g == "density";
+    tf = tf || g == "tf";
+    background = background || g == "background";
   }
-  if (scene.integrator.scheme != Scheme::midpoint)
-    throw Error(Status::unsupported, where + ": only the midpoint scheme so far, not " +
-                                         scheme_name(scene.integrator.scheme));
-  if (o.mode == Mode::forward) throw Error(Status::unsupported, where + ": adjoint mode only");
   RenderOptions ro;
   ro.precision = o.precision;
   ro.step = o.step;
@@ -235,6 +229,103 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   d.device_bytes = plan.bricked_bytes + (priv.on ? priv.bytes(s.real_size) : 0);
   d.bricks = plan.bricks();
   d.atomics = atomic_add_name(atomic_add_for(dev.info, s.f64));
+  return d;
+}
+
+// Which way each group goes out of core: the adjoint's (density, tf, background, unless forward
+// mode is asked for), the forward lanes' (camera, tf_points, scales, voxels, rays; tf and
+// background in forward mode) or neither (step: the render is flat in it).
+Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
+                          const std::vector<std::string>& groups, const GradientOptions& o,
+                          const BrickPlan& plan, const DomainPart* domain,
+                          DomainStats* domain_stats) {
+  const std::string where = "out-of-core gradient (the volume is split into " +
+                            std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
+  if (scene.integrator.scheme != Scheme::midpoint)
+    throw Error(Status::unsupported, where + ": only the midpoint scheme so far, not " +
+                                         scheme_name(scene.integrator.scheme));
+  std::vector<std::string> adjoint_groups, forward_groups;
+  std::set<std::string> seen;
+  for (const std::string& g : groups) {
+    if (!seen.insert(g.rfind("voxels:", 0) == 0 ? "voxels" : g).second)
+      throw Error(Status::invalid_argument, where + ": group " + g + " asked for twice");
+    const bool adjoint = g == "density" || g == "tf" || g == "background";
+    if (g == "density" && o.mode == Mode::forward)
+      throw Error(Status::unsupported,
+                  where +
+                      ": density in forward mode (a tangent lane per voxel) is not run out of "
+                      "core; the adjoint computes it (mode automatic or adjoint)");
+    if (!adjoint && o.mode == Mode::adjoint && g != "step")
+      throw Error(Status::invalid_argument,
+                  "mode adjoint cannot compute group '" + g + "' out of core (forward lanes)");
+    if (adjoint && o.mode != Mode::forward)
+      adjoint_groups.push_back(g);
+    else if (g != "step")
+      forward_groups.push_back(g);
+  }
+  if (domain && !forward_groups.empty())
+    throw Error(Status::unsupported, where + ": over slabs, --wrt takes density and tf (not " +
+                                         forward_groups.front() + ")");
+
+  Gradient d;
+  if (!adjoint_groups.empty())
+    d = adjoint_bricked(device, scene, target, adjoint_groups, o, plan, domain, domain_stats);
+  BrickedTangent t;
+  std::vector<cl_int4> lanes;
+  std::vector<std::size_t> counts;
+  for (const std::string& g : forward_groups) {
+    const std::vector<cl_int4> l = lanes_of(scene, parameters_of(scene, g));
+    lanes.insert(lanes.end(), l.begin(), l.end());
+    counts.push_back(l.size());
+  }
+  if (!forward_groups.empty() || adjoint_groups.empty()) {
+    t = tangent_bricked(device, scene, target, lanes, o, plan);
+    if (adjoint_groups.empty()) {
+      d.loss = t.loss;
+      d.step = o.step > 0 ? o.step : scene.integrator.step;
+      d.bricks = plan.bricks();
+    }
+    d.kernel_seconds += t.kernel_seconds;
+    d.device_bytes = std::max(d.device_bytes, t.device_bytes);
+  }
+  d.plan.mode = adjoint_groups.empty() ? Mode::forward : Mode::adjoint;
+  d.plan.model = forward_groups.empty()   ? "out of core"
+                 : adjoint_groups.empty() ? "out of core (forward lanes)"
+                                          : "out of core (adjoint, and forward lanes for " +
+                                                forward_groups.front() + ")";
+  d.plan.passes = forward_groups.empty() ? 0 : t.passes;
+  d.plan.lanes = forward_groups.empty() ? 0 : t.lanes;
+
+  // Every group in the order asked for.
+  std::vector<GroupGradient> adjoint_parts = std::move(d.groups);
+  d.groups.clear();
+  d.parameters = 0;
+  std::size_t at = 0, next_forward = 0, next_adjoint = 0;
+  for (const std::string& g : groups) {
+    GroupGradient out;
+    out.name = g.rfind("voxels:", 0) == 0 ? "voxels" : g;
+    if (g == "step") {
+      out.shape = {1};
+      out.values = {0.0};  // the render depends on the step only through the sample count
+    } else if (next_adjoint < adjoint_groups.size() && adjoint_groups[next_adjoint] == g) {
+      out = std::move(adjoint_parts[next_adjoint++]);
+    } else {
+      const std::size_t n = counts[next_forward++];
+      out.values.assign(t.gradient.begin() + std::ptrdiff_t(at),
+                        t.gradient.begin() + std::ptrdiff_t(at + n));
+      at += n;
+      if (g == "tf")
+        out.shape = tf_gradient_shape(scene.tf);
+      else if (g == "camera")
+        out.shape = {scene.cameras.size(), 7};
+      else if (g == "rays")
+        out.shape = {scene.rays.count(), std::size_t(RayList::kColumns)};
+      else
+        out.shape = {n};
+    }
+    d.parameters += out.values.size();
+    d.groups.push_back(std::move(out));
+  }
   return d;
 }
 

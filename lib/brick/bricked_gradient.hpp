@@ -1,6 +1,6 @@
-// bricked_gradient.hpp — internal: the density gradient of a volume that does not fit the device,
-// brick by brick (kernels/bricked.cl bricked_adjoint): the forward sweeps of the out-of-core
-// render, then the adjoint sweeps from each ray's composited prefix and pixel adjoint.
+// bricked_gradient.hpp — internal: the gradient of a volume that does not fit the device, brick by
+// brick (kernels/bricked_adjoint.cl): the forward sweeps of the out-of-core render, then the
+// adjoint sweeps from each ray's composited prefix and pixel adjoint; forward lanes beside them.
 #pragma once
 #include <string>
 #include <vector>
@@ -10,8 +10,10 @@
 
 namespace ivr {
 
-// Runs gradient() out of core; throws Error(unsupported) for what it does not cover yet (groups
-// other than density, schemes other than midpoint). `domain`: this worker's slab alone (as
+// Runs gradient() out of core: density, TF and background by the adjoint's sweeps (unless forward
+// mode is asked for), the other groups (camera, tf_points, scales, voxels, rays) by forward lanes
+// (lib/brick/bricked_tangent.cpp); throws Error(unsupported) for what it does not cover yet
+// (schemes other than midpoint, density in forward mode, forward groups over slabs). `domain`: this worker's slab alone (as
 // render_bricked); the gradient of its planes.
 Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
                           const std::vector<std::string>& groups, const GradientOptions& options,

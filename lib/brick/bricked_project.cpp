@@ -107,7 +107,7 @@ void backproject_bricked(Projector::Impl& p, const BrickLayout& l, const std::ve
   cl::Buffer out[kSlots];
   for (auto& o : out)
     o = p.dev.buffer(CL_MEM_READ_WRITE, slot_bytes, nullptr, "a brick's back-projection");
-  std::fill(volume, volume + p.voxels, T(0));
+  std::fill(volume, volume + l.held(), T(0));
   std::vector<unsigned char> host[kSlots];
   cl::Event read[kSlots];
   double seconds = 0;

@@ -21,7 +21,7 @@ BrickLayout plan_projector(Device& device, const Scene& scene, Precision precisi
 // float32 iterates where the precision is float32: half the host memory).
 template <typename T>
 std::vector<double> project_bricked(Projector::Impl& p, const BrickLayout& layout, const T* volume);
-// out = Nᵀ lines (out: the grid's voxels, overwritten).
+// out = Nᵀ lines (out: the layout's voxels — the grid's, or a slab's planes — overwritten).
 template <typename T>
 void backproject_bricked(Projector::Impl& p, const BrickLayout& layout,
                          const std::vector<double>& lines, T* out);

@@ -233,7 +233,7 @@ BrickedMarch::BrickedMarch(Device& device, const Scene& scene, const RenderOptio
       e_(image_extent(scene)),
       stream_(s.dev, plan.slots, plan.layout.largest_voxels() * s.real_size) {
   const BrickLayout& l = plan.layout;
-  const std::size_t held = std::size_t(l.dims[0]) * l.dims[1] * (l.z_last - l.z_first + 1);
+  const std::size_t held = l.held();
   if (scene.volume.data.size() != held)
     throw Error(Status::invalid_argument,
                 "volume: holds " + std::to_string(scene.volume.data.size()) + " values but " +

@@ -12,9 +12,7 @@
 
 namespace ivr {
 
-namespace {
-
-void check_part(const DomainPart& part) {
+void check_domain_part(const DomainPart& part) {
   if (part.ranks < 1 || part.rank < 0 || part.rank >= part.ranks)
     throw Error(Status::invalid_argument, "domain: worker " + std::to_string(part.rank) + " of " +
                                               std::to_string(part.ranks) + " workers");
@@ -22,6 +20,8 @@ void check_part(const DomainPart& part) {
     throw Error(Status::invalid_argument,
                 "domain: " + std::to_string(part.ranks) + " workers need an all_gather");
 }
+
+namespace {
 
 // The exchange itself (attach_exchange): host copies of the states as the last exchange left them.
 class StateExchange {
@@ -154,7 +154,7 @@ BrickPlan plan_domain(Device& device, const Scene& scene, Precision precision, i
 }
 
 void attach_exchange(BrickedMarch& march, const DomainPart& part, DomainStats* stats) {
-  check_part(part);
+  check_domain_part(part);
   march.workers = part.ranks;
   if (part.ranks == 1) return;  // nothing to exchange
   auto exchange = std::make_shared<StateExchange>(march, part, stats);
@@ -164,7 +164,7 @@ void attach_exchange(BrickedMarch& march, const DomainPart& part, DomainStats* s
 
 Image render_domain(Device& device, const Scene& scene, const DomainPart& part,
                     const RenderOptions& options, RenderStats* stats, DomainStats* domain) {
-  check_part(part);
+  check_domain_part(part);
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
   const BrickPlan plan =
       plan_domain(device, scene, options.precision, options.volume_brick, false, slab);
@@ -174,28 +174,45 @@ Image render_domain(Device& device, const Scene& scene, const DomainPart& part,
 Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
                          const DomainPart& part, const GradientOptions& options,
                          DomainStats* domain, const std::vector<std::string>& groups) {
-  check_part(part);
+  check_domain_part(part);
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
   const BrickPlan plan = plan_domain(device, scene, options.precision, 0, true, slab);
   return gradient_bricked(device, scene, target, groups, options, plan, &part, domain);
 }
 
-std::vector<double> domain_join(int nx, int ny, int nz,
-                                const std::vector<std::vector<double>>& slabs) {
+namespace {
+// The volume from every worker's slab values: the planes neighbours share summed (a gradient's
+// parts) or taken from the lower worker (the same values on both).
+std::vector<double> join_slabs(int nx, int ny, int nz,
+                               const std::vector<std::vector<double>>& slabs, bool sum,
+                               const char* what) {
   const std::size_t plane = std::size_t(nx) * ny;
   std::vector<double> out(plane * nz, 0.0);
   for (int r = 0; r < int(slabs.size()); ++r) {
     const Slab s = domain_slab(nz, r, int(slabs.size()));
     if (slabs[r].size() != plane * s.planes())
-      throw Error(Status::invalid_argument, "domain_join: worker " + std::to_string(r) +
+      throw Error(Status::invalid_argument, std::string(what) + ": worker " + std::to_string(r) +
                                                 "'s slab has " + std::to_string(slabs[r].size()) +
                                                 " values, planes " + std::to_string(s.first) +
                                                 ".." + std::to_string(s.last) + " need " +
                                                 std::to_string(plane * s.planes()));
     double* at = out.data() + plane * s.first;
-    for (std::size_t i = 0; i < slabs[r].size(); ++i) at[i] += slabs[r][i];
+    const std::size_t from = !sum && r > 0 ? plane : 0;
+    for (std::size_t i = from; i < slabs[r].size(); ++i)
+      at[i] = sum ? at[i] + slabs[r][i] : slabs[r][i];
   }
   return out;
+}
+}  // namespace
+
+std::vector<double> domain_join(int nx, int ny, int nz,
+                                const std::vector<std::vector<double>>& slabs) {
+  return join_slabs(nx, ny, nz, slabs, true, "domain_join");
+}
+
+std::vector<double> domain_assemble(int nx, int ny, int nz,
+                                    const std::vector<std::vector<double>>& slabs) {
+  return join_slabs(nx, ny, nz, slabs, false, "domain_assemble");
 }
 
 }  // namespace ivr

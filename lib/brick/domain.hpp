@@ -7,6 +7,10 @@
 
 namespace ivr {
 
+// Error(invalid_argument) where `part` is not one worker of ranks ≥ 1, or several lack an
+// all_gather.
+void check_domain_part(const DomainPart& part);
+
 // The plan of worker part.rank's slab: its planes in bricks (forced_edge, else as its device's
 // memory needs, else one brick of the whole slab).
 BrickPlan plan_domain(Device& device, const Scene& scene, Precision precision, int forced_edge,

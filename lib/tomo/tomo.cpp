@@ -3,12 +3,14 @@
 #include "ivr/tomo.hpp"
 
 #include <chrono>
+#include <functional>
 #include <cmath>
 #include <string>
 #include <type_traits>
 
 #include "ivr/error.hpp"
 #include "brick/bricked_project.hpp"
+#include "tomo/host_cgls.hpp"
 #include "tomo/linalg.hpp"
 #include "tomo/project.hpp"
 #include "scene/scene.hpp"
@@ -34,9 +36,7 @@ Solver parse_solver(const std::string& name, const std::string& where) {
               where + ": unknown solver '" + name + "' (known: cgls, sirt, lsqr)");
 }
 
-namespace {
-
-void check_options(const TomoOptions& o) {
+void check_tomo_options(const TomoOptions& o) {
   auto fail = [](const std::string& what) { throw Error(Status::invalid_argument, what); };
   if (o.iterations < 1) fail("iterations must be >= 1, got " + std::to_string(o.iterations));
   if (!(o.tolerance >= 0) || !std::isfinite(o.tolerance))
@@ -51,6 +51,8 @@ void check_options(const TomoOptions& o) {
   if (!(o.relaxation > 0 && o.relaxation < 2))
     fail("relaxation must be in (0, 2), got " + number_text(o.relaxation));
 }
+
+namespace {
 
 // The first non-finite value of `v`, named with `where(i)` (its view and pixel, or its voxel).
 template <class Where>
@@ -138,40 +140,6 @@ class StackedSystem {
   const TomoOptions& o_;
   std::size_t reg_size_ = 0;
   cl::Buffer sw_;
-};
-
-// The iteration loop's bookkeeping: history, the stopping rules, the progress callback.
-class Monitor {
- public:
-  Monitor(const TomoOptions& o, const TomoProgress& progress, double p_norm, TomoResult& result)
-      : o_(o),
-        progress_(progress),
-        p_norm_(p_norm),
-        result_(result),
-        start_(std::chrono::steady_clock::now()) {}
-  // Records iteration k's residual norm; false when the loop must stop (reason set).
-  bool next(int k, double residual_norm) {
-    TomoIteration it;
-    it.iteration = k;
-    it.residual = p_norm_ > 0 ? residual_norm / p_norm_ : 0.0;
-    it.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    result_.history.push_back(it);
-    if (progress_ && !progress_(it)) return stop("interrupted");
-    if (o_.tolerance > 0 && it.residual <= o_.tolerance) return stop("tolerance");
-    if (k >= o_.iterations) return stop("iterations");
-    return true;
-  }
-  bool stop(const char* reason) {
-    result_.stop_reason = reason;
-    return false;
-  }
-
- private:
-  const TomoOptions& o_;
-  const TomoProgress& progress_;
-  double p_norm_;
-  TomoResult& result_;
-  std::chrono::steady_clock::time_point start_;
 };
 
 // CGLS (Björck): CG on AᵀA x = Aᵀb without forming AᵀA; ‖b − A x‖ decreases monotonically.
@@ -305,93 +273,44 @@ void lsqr(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buff
 
 }  // namespace
 
-// CGLS on host vectors, with the projector streaming bricks (the volume does not fit the device)
-// or over one worker's share of the views (docs/scaling.md): the same iteration as cgls() on the
-// stacked system [N; √λ I] of Tikhonov, with non-negativity restarting from the projected iterate;
-// the iterates equal the in-core solver's up to rounding.
-// T: the volume vectors' type — float where the precision is float32 and the projector is in
-// bricks (the device's iterates are float32 then too; three float32 volumes are 12 GiB at 1024³
-// where double would take 24), double otherwise. Dot products sum in double.
-// `sum` (where given; T = double): the workers' sum over the views they share out (data-parallel
-// over views, docs/scaling.md), every worker getting it: their Nᵀ r and their dot products over
-// lines.
+// CGLS on host vectors (tomo/host_cgls.hpp) with `N`: the projector streaming bricks (the volume
+// does not fit the device; float iterates come with bricks only) or in core over one worker's share
+// of the views (docs/scaling.md); `sum` (where given; T = double) adds a vector over the workers,
+// every worker getting the sum: their Nᵀ r and their dot products over lines.
 template <typename T>
-void cgls_host(const Projector& N, const std::vector<double>& p, std::vector<T>& x,
-               const TomoOptions& o, Monitor& m,
-               const std::function<void(std::vector<double>&)>& sum = {}) {
-  static_assert(std::is_same_v<T, double> || std::is_same_v<T, float>);
+void cgls_projector(const Projector& N, const std::vector<double>& p, std::vector<T>& x,
+                    const TomoOptions& o, Monitor& m,
+                    const std::function<void(std::vector<double>&)>& sum = {}) {
   Projector::Impl& P = N.impl();
-  const double lambda = o.tikhonov;
-  auto dot = [](const auto& a, const auto& b) {
-    double total = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) total += double(a[i]) * double(b[i]);
-    return total;
-  };
-  // Over lines: this worker's share, summed over the workers.
-  auto dot_lines = [&](const std::vector<double>& a, const std::vector<double>& b) {
-    std::vector<double> d{dot(a, b)};
-    if (sum) sum(d);
-    return d[0];
-  };
-  // A bricked projector works on the host arrays themselves (float iterates come with one only:
-  // tomo()); the in-core one on double vectors.
-  auto project = [&](const std::vector<T>& v) {
+  HostCgls<T> A;
+  A.project = [&](const std::vector<T>& v) {
     if constexpr (std::is_same_v<T, double>)
       if (!P.bricks.edge) return N.project(v);
     return project_bricked(P, P.bricks, v.data());
   };
-  // r = p − N x (data part; the Tikhonov part −√λ x is kept implicitly through x);
-  // s = Nᵀ r − λ x.
-  auto residual = [&] {
-    std::vector<double> r = project(x);
-    for (std::size_t i = 0; i < r.size(); ++i) r[i] = p[i] - r[i];
-    return r;
-  };
-  auto gradient = [&](const std::vector<double>& r, std::vector<T>& s) {
-    if (P.bricks.edge) {  // written into s: no second volume alive
-      s.resize(x.size());
-      backproject_bricked(P, P.bricks, r, s.data());
+  A.backproject = [&](const std::vector<double>& y, std::vector<T>& out) {
+    if (P.bricks.edge) {  // written into out: no second volume alive
+      out.resize(P.voxels);
+      backproject_bricked(P, P.bricks, y, out.data());
     } else if constexpr (std::is_same_v<T, double>) {
-      s = N.backproject(r);
+      out = N.backproject(y);
     }
     if constexpr (std::is_same_v<T, double>)
-      if (sum) sum(s);
-    if (lambda > 0)
-      for (std::size_t i = 0; i < s.size(); ++i) s[i] = T(s[i] - lambda * x[i]);
+      if (sum) sum(out);
   };
-  std::vector<double> r = residual();
-  std::vector<T> s;
-  gradient(r, s);
-  std::vector<T> d = s;
-  double gamma = dot(s, s);
-  for (int k = 1;; ++k) {
-    if (gamma > 0) {
-      const std::vector<double> q = project(d);
-      const double delta = dot_lines(q, q) + lambda * dot(d, d);
-      if (!(delta > 0)) return (void)m.stop("converged");
-      const double alpha = gamma / delta;
-      bool restart = false;
-      for (std::size_t i = 0; i < x.size(); ++i) x[i] = T(x[i] + alpha * d[i]);
-      for (std::size_t i = 0; i < r.size(); ++i) r[i] -= alpha * q[i];
-      if (o.nonneg)
-        for (T& v : x)
-          if (v < 0) v = 0, restart = true;
-      if (restart) r = residual();
-      gradient(r, s);
-      const double gamma_next = dot(s, s);
-      for (std::size_t i = 0; i < d.size(); ++i)
-        d[i] = restart ? s[i] : T(s[i] + gamma_next / gamma * d[i]);
-      gamma = gamma_next;
-    }
-    if (!m.next(k, std::sqrt(dot_lines(r, r)))) return;
-    if (!(gamma > 0)) return (void)m.stop("converged");
-  }
+  A.dot_lines = [&](const std::vector<double>& a, const std::vector<double>& b) {
+    std::vector<double> d{host_dot(a, b)};
+    if (sum) sum(d);
+    return d[0];
+  };
+  A.dot_volume = [](const std::vector<T>& a, const std::vector<T>& b) { return host_dot(a, b); };
+  cgls_host(A, p, x, o, m);
 }
 
 TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& lines,
                 const TomoOptions& options, const TomoProgress& progress,
                 const std::vector<double>* x0) {
-  check_options(options);
+  check_tomo_options(options);
   const auto t0 = std::chrono::steady_clock::now();
   Projector projector(device, scene, options.precision);
   Projector::Impl& P = projector.impl();
@@ -436,11 +355,11 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
     if (options.precision == Precision::f32) {
       result.volume = x0 ? std::vector<float>(x0->begin(), x0->end())
                          : std::vector<float>(P.voxels, 0.0f);
-      cgls_host(projector, lines, result.volume, options, monitor);
+      cgls_projector(projector, lines, result.volume, options, monitor);
       return result;
     }
     std::vector<double> x = x0 ? *x0 : std::vector<double>(P.voxels, 0.0);
-    cgls_host(projector, lines, x, options, monitor);
+    cgls_projector(projector, lines, x, options, monitor);
     result.volume.assign(x.begin(), x.end());
     result.volume_f64 = std::move(x);
     return result;
@@ -475,7 +394,7 @@ TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<dou
                        const TomoOptions& options,
                        const std::function<void(std::vector<double>&)>& sum,
                        const TomoProgress& progress) {
-  check_options(options);
+  check_tomo_options(options);
   if (options.solver != Solver::cgls || options.tv > 0)
     throw Error(Status::unsupported,
                 std::string("data-parallel reconstruction: solver ") + solver_name(options.solver) +
@@ -496,7 +415,7 @@ TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<dou
   result.setup_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   Monitor monitor(options, progress, std::sqrt(norm[0]), result);
-  cgls_host(projector, lines, x, options, monitor, sum);
+  cgls_projector(projector, lines, x, options, monitor, sum);
   result.volume.assign(x.begin(), x.end());
   if (options.precision == Precision::f64) result.volume_f64 = std::move(x);
   return result;

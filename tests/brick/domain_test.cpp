@@ -6,77 +6,14 @@
 
 #include <gtest/gtest.h>
 
-#include <condition_variable>
-#include <memory>
-#include <mutex>
-#include <thread>
-
 #include "brick_support.hpp"
+#include "domain_support.hpp"
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
 namespace {
-
-// Every worker's bytes to every worker, in rank order (what MPI_Allgatherv does for mpirun).
-class Rendezvous {
- public:
-  explicit Rendezvous(int ranks) : ranks_(ranks), parts_(ranks) {}
-  std::vector<std::vector<unsigned char>> all_gather(int rank,
-                                                     const std::vector<unsigned char>& mine) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    const long round = round_;
-    parts_[rank] = mine;
-    if (++arrived_ == ranks_) {
-      result_ = parts_;
-      arrived_ = 0;
-      ++round_;
-      ready_.notify_all();
-    } else {
-      ready_.wait(lock, [&] { return round_ != round; });
-    }
-    ++calls_;
-    return result_;
-  }
-  long calls() const { return calls_; }
-
- private:
-  std::mutex mutex_;
-  std::condition_variable ready_;
-  int ranks_, arrived_ = 0;
-  long round_ = 0, calls_ = 0;
-  std::vector<std::vector<unsigned char>> parts_, result_;
-};
-
-// Runs f(w, part, device) on `ranks` threads; what each returns, by worker.
-// Each worker has a context of its own on the test device.
-template <typename T, typename F>
-std::vector<T> on_workers(int ranks, F f) {
-  std::vector<std::unique_ptr<Device>> devices;
-  for (int w = 0; w < ranks; ++w)
-    devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
-  Rendezvous meeting(ranks);
-  std::vector<T> out(ranks);
-  std::vector<std::string> errors(ranks);
-  std::vector<std::thread> threads;
-  for (int w = 0; w < ranks; ++w)
-    threads.emplace_back([&, w] {
-      DomainPart part;
-      part.rank = w, part.ranks = ranks;
-      part.all_gather = [&, w](const std::vector<unsigned char>& mine) {
-        return meeting.all_gather(w, mine);
-      };
-      try {
-        out[w] = f(w, part, *devices[w]);
-      } catch (const std::exception& e) {
-        errors[w] = e.what();
-      }
-    });
-  for (std::thread& t : threads) t.join();
-  for (int w = 0; w < ranks; ++w) EXPECT_EQ(errors[w], "") << "worker " << w;
-  return out;
-}
 
 TEST(Domain, SlabsCutTheCellsEvenlyAndShareOnePlane) {
   for (int ranks : {1, 2, 3, 5, 12}) {
@@ -212,6 +149,12 @@ TEST(Domain, BadInputIsRefusedClearly) {
   trapezoid.integrator.scheme = Scheme::trapezoid;
   expect_error([&] { gradient_domain(device(), trapezoid, render(device(), s), part); },
                Status::unsupported, "midpoint");
+  expect_error(
+      [&] {
+        gradient_domain(device(), domain_share(s, 0, 2), render(device(), s), part, {}, nullptr,
+                        {"density", "camera"});
+      },
+      Status::unsupported, "over slabs");
   expect_error(
       [&] {
         domain_join(11, 9, 13, {std::vector<double>(11 * 9 * 7), {1.0}});

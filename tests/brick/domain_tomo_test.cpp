@@ -1,0 +1,156 @@
+// domain_tomo_test.cpp — CGLS over slabs (tomo_domain, lib/brick/domain_tomo.cpp): workers on
+// threads, each solving for its slab of the volume, give one process's iterates (assembled with
+// domain_assemble), with non-negativity restarts and Tikhonov, in both precisions; the shared
+// planes agree bit for bit between neighbours; bad input is refused.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iomanip>
+#include <random>
+#include <sstream>
+
+#include "domain_support.hpp"
+#include "ivr/domain.hpp"
+#include "ivr/error.hpp"
+#include "ivr/tomo.hpp"
+#include "test_support.hpp"
+
+namespace ivr::test {
+namespace {
+
+Scene tomo_scene() {
+  Scene s;
+  s.volume.nx = 10, s.volume.ny = 7, s.volume.nz = 12;
+  set_default_box(s);
+  s.model = Model::absorption;
+  Camera c;
+  c.eye = {0.4, 0.9, 1.8}, c.fov_y = 45, c.width = 9, c.height = 8;
+  Camera inside = c;
+  inside.eye = {0.05, -0.05, 0.1}, inside.target = {1, 0.2, -0.3};
+  Camera below = c;
+  below.eye = {-0.3, 0.2, -1.9};
+  // Down z (every ray crosses every slab) and along x (each ray in one slab, some on its planes).
+  s.cameras = {c, inside, below, ortho({0, 0, 2}, {0, 1, 0}, 9, 8, s.box_max.y - s.box_min.y),
+               ortho({-2, 0.0, 0}, {0, 1, 0}, 9, 8, 0.9)};
+  return s;
+}
+
+struct Solved {
+  std::vector<double> volume;  // this worker's planes
+  std::vector<double> residuals;
+  int bricks = 0;
+};
+
+Solved solved(const TomoResult& r) {
+  Solved out;
+  out.volume =
+      r.volume_f64.empty() ? std::vector<double>(r.volume.begin(), r.volume.end()) : r.volume_f64;
+  for (const TomoIteration& it : r.history) out.residuals.push_back(it.residual);
+  out.bricks = r.bricks;
+  return out;
+}
+
+TEST(DomainTomo, CglsEqualsOneProcess) {
+  const Scene s = tomo_scene();
+  std::vector<Precision> precisions{Precision::f32};
+  if (device().info().fp64) precisions.push_back(Precision::f64);
+  for (const Precision p : precisions) {
+    const Projector N(device(), s, p);
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<double> truth(N.voxel_count());
+    for (double& v : truth) v = u(rng);
+    std::vector<double> lines = N.project(truth);
+    for (std::size_t i = 0; i < lines.size(); ++i) lines[i] *= 1.0 + 0.05 * std::sin(double(i));
+    for (bool nonneg : {false, true}) {
+      TomoOptions o;
+      o.precision = p;
+      o.iterations = 6;
+      o.nonneg = nonneg;
+      o.tikhonov = nonneg ? 0.0 : 1e-3;
+      const TomoResult one = tomo(device(), s, lines, o);
+      const std::vector<double> want = solved(one).volume;
+      const TomoResult host = [&] {  // in bricks: the host CGLS
+        ScopedEnv brick("IVR_VOLUME_BRICK", "6");
+        return tomo(device(), s, lines, o);
+      }();
+      ASSERT_GT(host.bricks, 1);
+
+      const std::vector<double> want_host = solved(host).volume;
+      double scale = 0;
+      for (double v : want) scale = std::max(scale, std::abs(v));
+      ASSERT_GT(scale, 0.0);
+      for (int ranks : {1, 2, 5}) {
+        const std::string what = std::string(p == Precision::f64 ? "f64" : "f32") +
+                                 (nonneg ? " nonneg " : " tikhonov ") + std::to_string(ranks) +
+                                 " workers";
+        const std::vector<Solved> parts =
+            on_workers<Solved>(ranks, [&](int, const DomainPart& part, Device& d) {
+              return solved(tomo_domain(d, s, lines, part, o));
+            });
+        std::vector<std::vector<double>> slabs;
+        for (int w = 0; w < ranks; ++w) {
+          const Slab slab = domain_slab(s.volume.nz, w, ranks);
+          ASSERT_EQ(parts[w].volume.size(), std::size_t(s.volume.nx * s.volume.ny) * slab.planes())
+              << what;
+          EXPECT_EQ(parts[w].residuals, parts[0].residuals) << what << " worker " << w;
+          slabs.push_back(parts[w].volume);
+        }
+        // Neighbours hold the plane they share alike.
+        const std::size_t plane = std::size_t(s.volume.nx) * s.volume.ny;
+        for (int w = 0; w + 1 < ranks; ++w)
+          for (std::size_t i = 0; i < plane; ++i)
+            ASSERT_EQ(slabs[w][slabs[w].size() - plane + i], slabs[w + 1][i]) << what;
+        const std::vector<double> got =
+            domain_assemble(s.volume.nx, s.volume.ny, s.volume.nz, slabs);
+        ASSERT_EQ(got.size(), want.size());
+        // Against one process's host CGLS over bricks and its in-core device solver (the same
+        // iteration, its sums in other orders; float32 iterates round differently).
+        for (const bool device_solver : {false, true}) {
+          const std::vector<double>& ref = device_solver ? want : want_host;
+          const double tol = p == Precision::f64 ? 1e-10 : 1e-3;
+          double worst = 0;
+          for (std::size_t i = 0; i < got.size(); ++i)
+            worst = std::max(worst, std::abs(got[i] - ref[i]));
+          EXPECT_LE(worst, tol * scale) << what << (device_solver ? " device" : " host");
+          std::ostringstream measured;
+          measured << std::scientific << std::setprecision(2) << worst / scale;
+          RecordProperty(what + (device_solver ? " device" : " host"), measured.str());
+        }
+        ASSERT_EQ(parts[0].residuals.size(), one.history.size()) << what;
+        for (std::size_t k = 0; k < one.history.size(); ++k)
+          EXPECT_NEAR(parts[0].residuals[k], host.history[k].residual,
+                      (p == Precision::f64 ? 1e-10 : 1e-4) * host.history[k].residual + 1e-12)
+              << what << " iteration " << k + 1;
+      }
+    }
+  }
+}
+
+TEST(DomainTomo, BadInputIsRefused) {
+  const Scene s = tomo_scene();
+  const std::vector<double> lines(Projector(device(), s).ray_count(), 0.1);
+  DomainPart part;
+  part.ranks = 2;  // no all_gather
+  EXPECT_THROW(tomo_domain(device(), s, lines, part), Error);
+  part.ranks = 1;
+  TomoOptions o;
+  o.solver = Solver::sirt;
+  try {
+    tomo_domain(device(), s, lines, part, o);
+    ADD_FAILURE() << "sirt over slabs ran";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.status(), Status::unsupported);
+    EXPECT_TRUE(has(e.what(), "use cgls")) << e.what();
+  }
+  try {
+    tomo_domain(device(), s, std::vector<double>(lines.size() - 1, 0.1), part);
+    ADD_FAILURE() << "short projections ran";
+  } catch (const Error& e) {
+    EXPECT_TRUE(has(e.what(), "projections")) << e.what();
+  }
+  EXPECT_THROW(domain_assemble(10, 7, 12, {std::vector<double>(10 * 7 * 12 - 1)}), Error);
+}
+
+}  // namespace
+}  // namespace ivr::test

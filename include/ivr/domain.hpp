@@ -35,6 +35,13 @@ IVR_API Scene domain_share(const Scene& scene, int rank, int ranks);
 using AllGather =
     std::function<std::vector<std::vector<unsigned char>>(const std::vector<unsigned char>& mine)>;
 
+// An AllGather built from a sum over the workers alone (`sum` replaces a vector by its elementwise
+// sum over the workers, every worker getting it: an MPI_Allreduce with MPI_SUM, as bindings have
+// it): the sizes, then the bytes (4 a double, as integers, so the sums are exact) each in its
+// worker's place among zeros. Costs the workers' total bytes twice over per call.
+IVR_API AllGather all_gather_by_sum(int rank, int ranks,
+                                    std::function<void(std::vector<double>&)> sum);
+
 // This worker's part of a domain-parallel operation.
 struct DomainPart {
   int rank = 0, ranks = 1;

@@ -270,6 +270,37 @@ IVR_API ivr_status ivr_tomo(ivr_context* context, const ivr_scene* scene,
                             ivr_tomo_iteration* history, size_t history_capacity,
                             ivr_tomo_summary* summary);
 
+/* A sum over the workers of a split operation (docs/scaling.md), called by every worker together:
+ * `values` (`count` doubles) replaced by their elementwise sum over the workers, the same on every
+ * worker — an MPI_Allreduce with MPI_SUM from the caller's MPI. Return non-zero on success. */
+typedef int (*ivr_sum_fn)(double* values, size_t count, void* user);
+
+/* How a split operation shares the work among its workers. */
+typedef enum ivr_split {
+  IVR_SPLIT_VIEWS = 0, /* each worker its share of the views (or rays) and the whole volume */
+  IVR_SPLIT_SLABS = 1, /* each worker one slab of z planes of the volume and every view */
+  IVR_SPLIT_MAX_ENUM = 0x7fffffff
+} ivr_split;
+
+/* ivr_tomo as worker `rank` of `ranks` (CGLS, with nonneg or tikhonov), every worker calling it
+ * together with the same options; `sum` (with `sum_user`) adds over the workers.
+ * IVR_SPLIT_VIEWS: `scene` holds this worker's share of the views (or rays) and `lines` (`count`
+ * floats) their projections; `volume` receives the whole grid (nz * ny * nx), the same on every
+ * worker. IVR_SPLIT_SLABS: `scene` and `lines` are the whole scene's, on every worker; `volume`
+ * receives this worker's planes [first, last] of the grid (planes * ny * nx floats; the slab of
+ * ivr_domain_slab), the planes neighbours share alike on both. progress, history and summary as
+ * ivr_tomo's. Equal to one process's ivr_tomo to rounding. */
+IVR_API ivr_status ivr_tomo_split(ivr_context* context, const ivr_scene* scene,
+                                  const ivr_tomo_options* options, ivr_split split, int rank,
+                                  int ranks, ivr_sum_fn sum, void* sum_user, const float* lines,
+                                  size_t count, float* volume, size_t capacity,
+                                  ivr_tomo_progress progress, void* user,
+                                  ivr_tomo_iteration* history, size_t history_capacity,
+                                  ivr_tomo_summary* summary);
+/* Worker `rank` of `ranks`' planes [*first, *last] of a volume of nz planes: its nz - 1 cells in
+ * near-equal runs, neighbours sharing one plane (IVR_ERROR_INVALID_ARGUMENT where ranks > nz - 1). */
+IVR_API ivr_status ivr_domain_slab(int nz, int rank, int ranks, int* first, int* last);
+
 /* Line integrals from intensities, p = -log(I / I_in) / a (I_in: the scene's background, a: its
  * identity TF's extinction_scale; other TFs are refused): `count` floats = the ray count into
  * `lines` (`capacity` floats). I <= 0 is an error unless clamp in (0, 1): then I is raised to

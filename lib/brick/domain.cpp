@@ -113,6 +113,38 @@ class StateExchange {
 
 }  // namespace
 
+AllGather all_gather_by_sum(int rank, int ranks, std::function<void(std::vector<double>&)> sum) {
+  if (ranks < 1 || rank < 0 || rank >= ranks || !sum)
+    throw Error(Status::invalid_argument, "all_gather_by_sum: worker " + std::to_string(rank) +
+                                              " of " + std::to_string(ranks) +
+                                              (sum ? "" : " without a sum"));
+  return [rank, ranks, sum](const std::vector<unsigned char>& mine) {
+    std::vector<double> sizes(std::size_t(ranks), 0.0);
+    sizes[std::size_t(rank)] = double(mine.size());
+    sum(sizes);
+    std::size_t words = 0;  // 4 bytes a word, the longest part's
+    for (double n : sizes) words = std::max(words, (std::size_t(n) + 3) / 4);
+    std::vector<double> all(words * std::size_t(ranks), 0.0);
+    for (std::size_t i = 0; i < mine.size(); ++i)
+      all[std::size_t(rank) * words + i / 4] += double(std::uint32_t(mine[i]) << (8 * (i % 4)));
+    sum(all);
+    std::vector<std::vector<unsigned char>> out;
+    out.resize(std::size_t(ranks));
+    for (int w = 0; w < ranks; ++w) {
+      const std::size_t n = std::size_t(sizes[std::size_t(w)]);
+      if (double(n) != sizes[std::size_t(w)] || n > words * 4)
+        throw Error(Status::invalid_argument, "all_gather_by_sum: the sum gave worker " +
+                                                  std::to_string(w) + " a size of " +
+                                                  std::to_string(sizes[std::size_t(w)]));
+      out[std::size_t(w)].resize(n);
+      for (std::size_t i = 0; i < n; ++i)
+        out[std::size_t(w)][i] =
+            (unsigned char)(std::uint32_t(all[std::size_t(w) * words + i / 4]) >> (8 * (i % 4)));
+    }
+    return out;
+  };
+}
+
 Slab domain_slab(int nz, int rank, int ranks) {
   const int cells = nz - 1;
   if (ranks < 1 || rank < 0 || rank >= ranks)

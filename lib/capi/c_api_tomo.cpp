@@ -2,9 +2,11 @@
 // the solvers with a progress callback, intensities → line integrals, and the phantoms.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include "capi/c_api_handles.hpp"
 #include "capi/options.hpp"
+#include "ivr/domain.hpp"
 
 using namespace ivr::capi;
 
@@ -61,6 +63,49 @@ const ivr_scene* checked_scene(ivr_context* c, const ivr_scene* s) {
   return s;
 }
 
+// What every tomography call checks and hands back: the scene, the lines, the options, the
+// history's room, the progress callback; finish() copies the result out.
+struct TomoCall {
+  ivr::TomoOptions options;
+  std::vector<double> lines;
+  ivr::TomoProgress callback;
+
+  TomoCall(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* o, const float* p,
+           size_t count, const float* volume, ivr_tomo_progress progress, void* user,
+           const ivr_tomo_iteration* history, size_t history_capacity) {
+    checked_scene(c, s);
+    not_null(p, "lines");
+    not_null(volume, "volume");
+    options = core_options(o);  // ranges: checked by the solver
+    check_count(count, ray_count(s->scene), "lines", "the scene", "rays");
+    // Checked before the solve: a long run must not end in a buffer error.
+    if (history && options.iterations > 0 && history_capacity < size_t(options.iterations))
+      throw CError{IVR_ERROR_BUFFER_TOO_SMALL,
+                   "history holds " + std::to_string(history_capacity) + " entries; options " +
+                       "ask for up to " + std::to_string(options.iterations) + " iterations"};
+    lines = finite_values(p, count, "lines");
+    if (progress)
+      callback = [progress, user](const ivr::TomoIteration& it) {
+        const ivr_tomo_iteration entry{it.iteration, it.residual, it.seconds};
+        return progress(&entry, user) != 0;
+      };
+  }
+
+  void finish(const ivr::TomoResult& r, float* volume, ivr_tomo_iteration* history,
+              size_t history_capacity, ivr_tomo_summary* summary) const {
+    std::copy(r.volume.begin(), r.volume.end(), volume);
+    if (history)
+      for (size_t i = 0; i < r.history.size() && i < history_capacity; ++i)
+        history[i] = {r.history[i].iteration, r.history[i].residual, r.history[i].seconds};
+    if (summary) {
+      summary->iterations = int(r.history.size());
+      summary->stop_reason = static_reason(r.stop_reason);
+      summary->residual = r.history.empty() ? 0.0 : r.history.back().residual;
+      summary->seconds = r.history.empty() ? 0.0 : r.history.back().seconds;
+      summary->setup_seconds = r.setup_seconds;
+    }
+  }
+};
 
 }  // namespace
 
@@ -110,37 +155,57 @@ ivr_status ivr_tomo(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* 
                     ivr_tomo_progress progress, void* user, ivr_tomo_iteration* history,
                     size_t history_capacity, ivr_tomo_summary* summary) {
   return guarded(c, "ivr_tomo", [&] {
-    checked_scene(c, s);
-    not_null(lines, "lines");
-    not_null(volume, "volume");
-    const ivr::TomoOptions o = core_options(options);  // ranges: checked by ivr::tomo
+    const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
+                        history_capacity);
+    check_capacity(capacity, s->scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
+    call.finish(ivr::tomo(c->device, s->scene, call.lines, call.options, call.callback), volume,
+                history, history_capacity, summary);
+  });
+}
+
+ivr_status ivr_tomo_split(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* options,
+                          ivr_split split, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
+                          const float* lines, size_t count, float* volume, size_t capacity,
+                          ivr_tomo_progress progress, void* user, ivr_tomo_iteration* history,
+                          size_t history_capacity, ivr_tomo_summary* summary) {
+  return guarded(c, "ivr_tomo_split", [&] {
+    if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+    if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                   "split " + std::to_string(int(split)) + " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS)"};
+    if (ranks < 1 || rank < 0 || rank >= ranks)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                   "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
+    const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
+                        history_capacity);
     const ivr::Scene& scene = s->scene;
-    check_count(count, ray_count(scene), "lines", "the scene", "rays");
-    check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
-    // Checked before the solve: a long run must not end in a buffer error.
-    if (history && o.iterations > 0 && history_capacity < size_t(o.iterations))
-      throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "history holds " + std::to_string(history_capacity) +
-                                                   " entries; options " + "ask for up to " +
-                                                   std::to_string(o.iterations) + " iterations"};
-    const std::vector<double> p = finite_values(lines, count, "lines");
-    ivr::TomoProgress callback;
-    if (progress)
-      callback = [&](const ivr::TomoIteration& it) {
-        const ivr_tomo_iteration entry{it.iteration, it.residual, it.seconds};
-        return progress(&entry, user) != 0;
-      };
-    const ivr::TomoResult r = ivr::tomo(c->device, scene, p, o, callback);
-    std::copy(r.volume.begin(), r.volume.end(), volume);
-    if (history)
-      for (size_t i = 0; i < r.history.size() && i < history_capacity; ++i)
-        history[i] = {r.history[i].iteration, r.history[i].residual, r.history[i].seconds};
-    if (summary) {
-      summary->iterations = int(r.history.size());
-      summary->stop_reason = static_reason(r.stop_reason);
-      summary->residual = r.history.empty() ? 0.0 : r.history.back().residual;
-      summary->seconds = r.history.empty() ? 0.0 : r.history.back().seconds;
-      summary->setup_seconds = r.setup_seconds;
+    const std::function<void(std::vector<double>&)> add = [&](std::vector<double>& v) {
+      if (!sum(v.data(), v.size(), sum_user))
+        throw CError{IVR_ERROR_INVALID_ARGUMENT, "the workers' sum (ivr_sum_fn) failed"};
+    };
+    if (split == IVR_SPLIT_VIEWS) {
+      check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
+      call.finish(ivr::tomo_shared(c->device, scene, call.lines, call.options, add, call.callback),
+                  volume, history, history_capacity, summary);
+      return;
     }
+    const ivr::Slab slab = ivr::domain_slab(scene.volume.nz, rank, ranks);
+    check_capacity(capacity, std::size_t(scene.volume.nx) * scene.volume.ny * slab.planes(),
+                   "volume", "this worker's slab", "voxels");
+    ivr::DomainPart part;
+    part.rank = rank, part.ranks = ranks;
+    part.all_gather = ivr::all_gather_by_sum(rank, ranks, add);
+    call.finish(ivr::tomo_domain(c->device, scene, call.lines, part, call.options, call.callback),
+                volume, history, history_capacity, summary);
+  });
+}
+
+ivr_status ivr_domain_slab(int nz, int rank, int ranks, int* first, int* last) {
+  return guarded(nullptr, "ivr_domain_slab", [&] {
+    not_null(first, "first");
+    not_null(last, "last");
+    const ivr::Slab slab = ivr::domain_slab(nz, rank, ranks);
+    *first = slab.first, *last = slab.last;
   });
 }
 

@@ -440,7 +440,7 @@ class Context(_Owned):
 
     def tomo(self, scene, lines, solver=None, iterations=None, nonneg=None, tv=None, tikhonov=None,
              tolerance=None, tv_epsilon=None, tv_reweight=None, relaxation=None, progress=None,
-             grid=None, base_dir=None, info=None):
+             grid=None, base_dir=None, info=None, _split=None):
         """(volume, history): the scene's grid (or `grid`) reconstructed from line integrals
         `lines` (views, H, W[, 1]) by least squares (cgls, sirt or lsqr), optionally with x >= 0,
         Tikhonov or smoothed-TV regularisation; volume float32 (Z, Y, X), history a list of
@@ -474,10 +474,33 @@ class Context(_Owned):
             out = self._volume_out(s)
             history = (_capi.TomoIteration * max(o.iterations, 1))()
             summary = _capi.TomoSummary()
-            status = self._lib.ivr_tomo(self._live(), s, ctypes.byref(o),
-                                        p.ctypes.data_as(_FLOAT_P), p.size,
-                                        out.ctypes.data_as(_FLOAT_P), out.size, callback, None,
-                                        history, len(history), ctypes.byref(summary))
+            if _split is None:
+                status = self._lib.ivr_tomo(self._live(), s, ctypes.byref(o),
+                                            p.ctypes.data_as(_FLOAT_P), p.size,
+                                            out.ctypes.data_as(_FLOAT_P), out.size, callback, None,
+                                            history, len(history), ctypes.byref(summary))
+            else:  # (split, rank, ranks, add): ivr.mpi.tomo's workers, add(a) summing in place
+                split, rank, ranks, add = _split
+
+                def summed(values, count, _user):
+                    try:
+                        add(np.ctypeslib.as_array(values, shape=(count,)))
+                        return 1
+                    except BaseException as error:  # noqa: BLE001 — re-raised below
+                        failure.append(error)
+                        return 0
+
+                sum_fn = _capi.SUM_FN(summed)
+                if split == 1:  # this worker's planes of the grid
+                    first, last = ctypes.c_int(), ctypes.c_int()
+                    _check(self._lib.ivr_domain_slab(out.shape[0], rank, ranks,
+                                                     ctypes.byref(first), ctypes.byref(last)))
+                    out = np.empty((last.value - first.value + 1,) + out.shape[1:],
+                                   dtype=np.float32)
+                status = self._lib.ivr_tomo_split(
+                    self._live(), s, ctypes.byref(o), split, rank, ranks, sum_fn, None,
+                    p.ctypes.data_as(_FLOAT_P), p.size, out.ctypes.data_as(_FLOAT_P), out.size,
+                    callback, None, history, len(history), ctypes.byref(summary))
             if failure:
                 raise failure[0]
             _check(status)  # before the release below replaces the thread's last error

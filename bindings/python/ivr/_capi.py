@@ -52,6 +52,9 @@ class TomoSummary(ctypes.Structure):
 
 
 TOMO_PROGRESS = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(TomoIteration), ctypes.c_void_p)
+# ivr_sum_fn: a sum over the workers of a split operation, in place.
+SUM_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(ctypes.c_double), ctypes.c_size_t,
+                          ctypes.c_void_p)
 
 
 class ReconstructOptions(ctypes.Structure):
@@ -218,6 +221,13 @@ def _declare(lib):
                          ctypes.c_size_t, TOMO_PROGRESS, ctypes.c_void_p,
                          ctypes.POINTER(TomoIteration), ctypes.c_size_t,
                          ctypes.POINTER(TomoSummary)]),
+        "ivr_tomo_split": (S, [HANDLE, HANDLE, ctypes.POINTER(TomoOptions), ctypes.c_int,
+                               ctypes.c_int, ctypes.c_int, SUM_FN, ctypes.c_void_p, fp,
+                               ctypes.c_size_t, fp, ctypes.c_size_t, TOMO_PROGRESS,
+                               ctypes.c_void_p, ctypes.POINTER(TomoIteration), ctypes.c_size_t,
+                               ctypes.POINTER(TomoSummary)]),
+        "ivr_domain_slab": (S, [ctypes.c_int, ctypes.c_int, ctypes.c_int,
+                                ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int)]),
         "ivr_lines_from_intensities": (S, [HANDLE, fp, ctypes.c_size_t, ctypes.c_double, fp,
                                            ctypes.c_size_t]),
         "ivr_phantom": (S, [ctypes.c_char_p, ctypes.c_int, ctypes.c_uint64, ctypes.c_int, fp,

@@ -1,5 +1,6 @@
 """ivr.mpi — ivr under MPI from Python (mpi4py): data-parallel over views, as `mpirun -np N ivr
-render|gradient|project|backproject` (docs/scaling.md). Each rank renders or differentiates its contiguous share of the
+render|gradient|project|backproject|tomo` (docs/scaling.md), and CGLS over slabs (`tomo(…,
+split="slabs")`, as `ivr tomo --split slabs`). Each rank renders or differentiates its contiguous share of the
 views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
 loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
 summed over the ranks, as are the back-projections of the shares' lines, the per-view groups (camera, rays) gathered in view order. Every rank gets
@@ -159,3 +160,42 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
             comm.Allreduce(a, summed, op=MPI.SUM)
             out[name] = summed
     return total, out
+
+
+def tomo(ctx, scene, lines, comm=None, split="views", **options):
+    """(volume, history): ctx.tomo (CGLS, with nonneg or tikhonov) of the whole scene's `lines`
+    (first axis: views, or a ray list's rays) by every rank together; every rank gets the whole
+    volume (Z, Y, X) float32, one process's to rounding. split="views": each rank its share of the
+    views and their lines, the volume whole on every rank (N^T r and the dot products over lines
+    summed, MPI_Allreduce); split="slabs": each rank one slab of z planes of the iterate and every
+    line (N x summed over the ranks, the shared planes joined), the slabs gathered at the end.
+    `options` are ctx.tomo's (iterations, nonneg, tikhonov, tolerance, progress, grid, info)."""
+    comm = _comm(comm)
+    scene = _scene_dict(scene)
+    if split not in ("views", "slabs"):
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.tomo: split {split!r} (views or slabs)")
+    from mpi4py import MPI
+
+    def add(a):  # (a views the library's doubles: its buffer format is named explicitly)
+        total = np.empty(a.shape, dtype=np.float64)
+        comm.Allreduce([a, MPI.DOUBLE], [total, MPI.DOUBLE], op=MPI.SUM)
+        a[:] = total
+
+    rank, ranks = comm.Get_rank(), comm.Get_size()
+    n = _items(scene)
+    lines = np.asarray(lines, dtype=np.float32)
+    if lines.shape[0] != n:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.tomo: lines has {lines.shape[0]} rows on its first axis but the "
+                    f"scene has {n} views or rays")
+    if split == "slabs":
+        volume, history = ctx.tomo(scene, lines, _split=(1, rank, ranks, add), **options)
+        parts = comm.allgather(volume)  # a shared plane once, from the lower rank
+        return np.concatenate([parts[0]] + [p[1:] for p in parts[1:]], axis=0), history
+    if n < ranks:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.tomo: {ranks} ranks for {n} views or rays: at most one rank each")
+    first, count = _mine(comm, n)
+    return ctx.tomo(scene_share(scene, first, count), lines[first:first + count],
+                    _split=(0, rank, ranks, add), **options)

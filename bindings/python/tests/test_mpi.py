@@ -1,7 +1,8 @@
 """ivr.mpi under `mpirun -np N python3 -m pytest test_mpi.py` (CTest label mpi): every rank's render,
 gradient, projection and back-projection, each rank doing its share of the views, equal one
 process's (float64: the images and gradients within 1e-12 of the largest entry; the lines bit for
-bit, the float32 back-projection within 1e-6); more ranks than views; a ray list; bad input.
+bit, the float32 back-projection within 1e-6); CGLS over views and over slabs (the float32 volume
+within 1e-6, the residuals within 1e-10); more ranks than views; a ray list; bad input.
 Each rank also computes the one-process result itself, as the reference."""
 import copy
 import json
@@ -91,6 +92,25 @@ def test_project_and_backproject_equal_one_process(ctx, views):
     assert err <= 1e-6, f"backproject of {views} views on {COMM.Get_size()} ranks: {err}"
 
 
+@pytest.mark.parametrize("split", ["views", "slabs"])
+@pytest.mark.parametrize("nonneg", [False, True])
+def test_tomo_equals_one_process(ctx, split, nonneg):
+    s, v = dict(scene_of(5), model="absorption"), volume()
+    lines = ctx.project(s, v)
+    lines = lines * (1.0 + 0.05 * np.sin(np.arange(lines.size))).reshape(lines.shape)
+    options = dict(iterations=5, nonneg=nonneg, tikhonov=0.0 if nonneg else 1e-3, grid=v.shape)
+    one, h1 = ctx.tomo(s, lines, **options)
+    many, h = ivr.mpi.tomo(ctx, s, lines, split=split, **options)
+    assert many.shape == one.shape == v.shape and many.dtype == np.float32
+    # float32 outputs of float64 iterates: within their rounding.
+    err = np.max(np.abs(many.astype(np.float64) - one)) / np.max(np.abs(one))
+    assert err <= 1e-6, f"tomo over {split} on {COMM.Get_size()} ranks: {err}"
+    assert len(h) == len(h1)
+    for a, b in zip(h, h1):
+        assert abs(a["residual"] - b["residual"]) <= 1e-10 * b["residual"] + 1e-15, (a, b)
+    assert all(np.array_equal(x, many) for x in COMM.allgather(many)), "ranks differ"
+
+
 def test_ray_list(ctx):
     s, v = scene_of(1), volume()
     rays = []
@@ -118,3 +138,10 @@ def test_bad_input_is_refused_clearly(ctx):
         ivr.mpi.backproject(ctx, s, np.zeros((2, 5, 6, 1), np.float32))
     with pytest.raises(ivr.Error, match="as an array"):
         ivr.mpi.render(ctx, dict(s, rays={"file": "rays.npy"}), v)
+    with pytest.raises(ivr.Error, match="lines has 2 rows"):
+        ivr.mpi.tomo(ctx, s, np.zeros((2, 5, 6, 1), np.float32))
+    with pytest.raises(ivr.Error, match="split 'rows'"):
+        ivr.mpi.tomo(ctx, s, np.zeros((3, 5, 6, 1), np.float32), split="rows")
+    if COMM.Get_size() > 1:  # more ranks than views
+        with pytest.raises(ivr.Error, match="at most one rank each"):
+            ivr.mpi.tomo(ctx, scene_of(1), np.zeros((1, 5, 6, 1), np.float32))

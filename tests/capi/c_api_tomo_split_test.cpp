@@ -1,0 +1,213 @@
+// c_api_tomo_split_test.cpp — ivr_tomo_split (CGLS shared out by workers through a sum callback,
+// as bindings under MPI call it): two workers on threads, each with its own context, over views
+// and over slabs, give one process's ivr_tomo; one worker alone too; bad arguments are refused
+// with a status and a message.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "ivr/ivr.h"
+#include "test_support.hpp"
+
+namespace ivr::test {
+namespace {
+
+std::string scene_json(const std::vector<int>& views) {
+  const char* const cameras[] = {
+      R"({"eye": [2, 0.1, 0.05], "target": [0, 0, 0], "up": [0, 0, 1], "width": 9, "height": 7,
+          "projection": "orthographic", "ortho_height": 1.3})",
+      R"({"eye": [0.2, 2, -0.3], "target": [0, 0, 0], "up": [0, 0, 1], "width": 9, "height": 7,
+          "projection": "orthographic", "ortho_height": 1.3})",
+      R"({"eye": [0.3, -0.4, 2], "target": [0, 0, 0], "up": [0, 1, 0], "width": 9, "height": 7,
+          "fov_y": 45})"};
+  std::string list;
+  for (int v : views) list += (list.empty() ? "" : ", ") + std::string(cameras[v]);
+  return R"({"volume": {"synthetic": "shepp_logan", "dims": [8, 10, 12]}, "model": "absorption",
+             "tf": {"type": "identity", "extinction_scale": 2, "color_scale": 1},
+             "cameras": [)" +
+         list + "]}";
+}
+constexpr std::size_t kPlane = 8 * 10, kVoxels = kPlane * 12, kViewRays = 9 * 7;
+
+// The workers' sum: every worker's values added in rank order, handed to every worker.
+class Summit {
+ public:
+  explicit Summit(int workers) : parts_(std::size_t(workers)) {}
+  void sum(int rank, double* values, std::size_t count) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const long round = round_;
+    parts_[std::size_t(rank)].assign(values, values + count);
+    if (++arrived_ == int(parts_.size())) {
+      total_.assign(count, 0.0);
+      for (const std::vector<double>& p : parts_)
+        for (std::size_t i = 0; i < count; ++i) total_[i] += p[i];
+      arrived_ = 0;
+      ++round_;
+      ready_.notify_all();
+    } else {
+      ready_.wait(lock, [&] { return round_ != round; });
+    }
+    std::copy(total_.begin(), total_.end(), values);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  int arrived_ = 0;
+  long round_ = 0;
+  std::vector<std::vector<double>> parts_;
+  std::vector<double> total_;
+};
+
+struct Worker {
+  Summit* summit;
+  int rank;
+};
+
+int summed(double* values, size_t count, void* user) {
+  const Worker* w = static_cast<const Worker*>(user);
+  w->summit->sum(w->rank, values, count);
+  return 1;
+}
+
+int failing_sum(double*, size_t, void*) {
+  return 0;
+}
+
+ivr_tomo_options options() {
+  ivr_tomo_options o;
+  EXPECT_EQ(ivr_tomo_options_init(&o), IVR_OK);
+  o.precision = IVR_PRECISION_F64;
+  o.iterations = 5;
+  o.tikhonov = 1e-3;
+  return o;
+}
+
+// The projections of the scene's own volume (all three views), and one process's reconstruction.
+struct Reference {
+  std::vector<float> lines, volume;
+};
+
+Reference reference() {
+  Reference r;
+  ivr_context* ctx = nullptr;
+  ivr_scene* scene = nullptr;
+  EXPECT_EQ(ivr_context_create(nullptr, &ctx), IVR_OK) << ivr_last_error();
+  EXPECT_EQ(ivr_scene_from_json(ctx, scene_json({0, 1, 2}).c_str(), nullptr, &scene), IVR_OK);
+  r.lines.resize(3 * kViewRays);
+  EXPECT_EQ(ivr_project(ctx, scene, IVR_PRECISION_F64, nullptr, 0, r.lines.data(), r.lines.size()),
+            IVR_OK);
+  for (std::size_t i = 0; i < r.lines.size(); ++i) r.lines[i] *= 1.0f + 0.05f * std::sin(float(i));
+  r.volume.resize(kVoxels);
+  const ivr_tomo_options o = options();
+  EXPECT_EQ(ivr_tomo(ctx, scene, &o, r.lines.data(), r.lines.size(), r.volume.data(),
+                     r.volume.size(), nullptr, nullptr, nullptr, 0, nullptr),
+            IVR_OK)
+      << ivr_last_error();
+  ivr_scene_release(scene);
+  ivr_context_release(ctx);
+  return r;
+}
+
+// Worker `rank` of `ranks`: its scene and lines, its result into `out`.
+void run_worker(ivr_split split, int rank, int ranks, Summit* summit, const Reference& ref,
+                std::vector<float>& out, std::string& error) {
+  ivr_context* ctx = nullptr;
+  ivr_scene* scene = nullptr;
+  if (ivr_context_create(nullptr, &ctx) != IVR_OK) return void(error = ivr_last_error());
+  // Over views: worker 0 views 0 and 1, worker 1 view 2 (one worker: all three).
+  const std::vector<int> views = split == IVR_SPLIT_SLABS || ranks == 1
+                                     ? std::vector<int>{0, 1, 2}
+                                     : (rank == 0 ? std::vector<int>{0, 1} : std::vector<int>{2});
+  std::vector<float> lines(ref.lines.begin() + std::ptrdiff_t(views.front() * kViewRays),
+                           ref.lines.begin() + std::ptrdiff_t((views.back() + 1) * kViewRays));
+  Worker w{summit, rank};
+  const ivr_tomo_options o = options();
+  if (ivr_scene_from_json(ctx, scene_json(views).c_str(), nullptr, &scene) != IVR_OK ||
+      ivr_tomo_split(ctx, scene, &o, split, rank, ranks, summed, &w, lines.data(), lines.size(),
+                     out.data(), out.size(), nullptr, nullptr, nullptr, 0, nullptr) != IVR_OK)
+    error = ivr_last_error();
+  ivr_scene_release(scene);
+  ivr_context_release(ctx);
+}
+
+TEST(CApiTomoSplit, WorkersOverViewsAndSlabsGiveOneProcess) {
+  if (!device().info().fp64) GTEST_SKIP() << "float64 needed for the comparison";
+  const Reference ref = reference();
+  double scale = 0;
+  for (float v : ref.volume) scale = std::max(scale, std::abs(double(v)));
+  ASSERT_GT(scale, 0.0);
+  for (ivr_split split : {IVR_SPLIT_VIEWS, IVR_SPLIT_SLABS})
+    for (int ranks : {1, 2}) {
+      const std::string what = std::string(split == IVR_SPLIT_VIEWS ? "views" : "slabs") + ", " +
+                               std::to_string(ranks) + " worker(s)";
+      Summit summit(ranks);
+      std::vector<std::vector<float>> out(static_cast<std::size_t>(ranks));
+      std::vector<std::string> errors(static_cast<std::size_t>(ranks));
+      std::vector<std::thread> threads;
+      for (int r = 0; r < ranks; ++r) {
+        int first = 0, last = 11;
+        if (split == IVR_SPLIT_SLABS)
+          ASSERT_EQ(ivr_domain_slab(12, r, ranks, &first, &last), IVR_OK);
+        out[std::size_t(r)].assign(kPlane * std::size_t(last - first + 1), -1.0f);
+      }
+      for (int r = 0; r < ranks; ++r)
+        threads.emplace_back(run_worker, split, r, ranks, &summit, std::cref(ref),
+                             std::ref(out[std::size_t(r)]), std::ref(errors[std::size_t(r)]));
+      for (std::thread& t : threads) t.join();
+      for (int r = 0; r < ranks; ++r) ASSERT_EQ(errors[std::size_t(r)], "") << what;
+      // The whole volume: every worker's over views; the slabs joined (a shared plane once).
+      std::vector<float> got = out[0];
+      if (split == IVR_SPLIT_SLABS)
+        for (int r = 1; r < ranks; ++r)
+          got.insert(got.end(), out[std::size_t(r)].begin() + std::ptrdiff_t(kPlane),
+                     out[std::size_t(r)].end());
+      else
+        for (int r = 1; r < ranks; ++r) EXPECT_EQ(out[std::size_t(r)], out[0]) << what;
+      ASSERT_EQ(got.size(), kVoxels) << what;
+      double worst = 0;
+      for (std::size_t i = 0; i < kVoxels; ++i)
+        worst = std::max(worst, std::abs(double(got[i]) - ref.volume[i]));
+      EXPECT_LE(worst, 1e-6 * scale) << what;  // float32 outputs of float64 iterates
+    }
+}
+
+TEST(CApiTomoSplit, BadArgumentsAreRefused) {
+  ivr_context* ctx = nullptr;
+  ivr_scene* scene = nullptr;
+  ASSERT_EQ(ivr_context_create(nullptr, &ctx), IVR_OK) << ivr_last_error();
+  ASSERT_EQ(ivr_scene_from_json(ctx, scene_json({0, 1, 2}).c_str(), nullptr, &scene), IVR_OK);
+  std::vector<float> lines(3 * kViewRays, 0.1f), volume(kVoxels);
+  ivr_tomo_options o = options();
+  o.precision = IVR_PRECISION_F32;
+  auto call = [&](ivr_split split, int rank, int ranks, ivr_sum_fn sum, std::size_t capacity) {
+    Summit summit(1);
+    Worker w{&summit, 0};
+    return ivr_tomo_split(ctx, scene, &o, split, rank, ranks, sum, &w, lines.data(), lines.size(),
+                          volume.data(), capacity, nullptr, nullptr, nullptr, 0, nullptr);
+  };
+  EXPECT_EQ(call(IVR_SPLIT_VIEWS, 0, 1, nullptr, kVoxels), IVR_ERROR_NULL_POINTER);
+  EXPECT_TRUE(has(ivr_last_error(), "sum")) << ivr_last_error();
+  EXPECT_EQ(call(ivr_split(7), 0, 1, summed, kVoxels), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "split 7")) << ivr_last_error();
+  EXPECT_EQ(call(IVR_SPLIT_SLABS, 2, 2, summed, kVoxels), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "worker 2 of 2")) << ivr_last_error();
+  EXPECT_EQ(call(IVR_SPLIT_VIEWS, 0, 1, summed, kVoxels - 1), IVR_ERROR_BUFFER_TOO_SMALL);
+  EXPECT_EQ(call(IVR_SPLIT_VIEWS, 0, 1, failing_sum, kVoxels), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "sum")) << ivr_last_error();
+  o.solver = IVR_SOLVER_SIRT;
+  EXPECT_EQ(call(IVR_SPLIT_SLABS, 0, 1, summed, kVoxels), IVR_ERROR_UNSUPPORTED);
+  int first = 0, last = 0;
+  EXPECT_EQ(ivr_domain_slab(4, 0, 4, &first, &last), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(ivr_domain_slab(12, 1, 2, nullptr, &last), IVR_ERROR_NULL_POINTER);
+  ivr_scene_release(scene);
+  ivr_context_release(ctx);
+}
+
+}  // namespace
+}  // namespace ivr::test

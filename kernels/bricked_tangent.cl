@@ -7,6 +7,10 @@
 // kernels/jacobian.cl does in core), summed per work-group. One ray per work-item: a ray's lanes
 // (TF, background, camera, voxel, a listed ray's columns) are per-ray state here, and the voxel
 // lanes are moved into the brick's voxels.
+// The loss gradient, not the Jacobian (jacobian_pixel.cl's default is the Jacobian).
+#ifndef IVR_JACOBIAN
+#define IVR_JACOBIAN 0
+#endif
 #include "bricked_state.cl"
 #include "config.cl"
 #include "geometry.cl"

@@ -1,11 +1,12 @@
-// out_of_core.cpp — the out-of-core suite (docs/scaling.md): the render and the density gradient of
-// a volume streamed through the device in bricks against the same operation in core, end to end,
-// in alternating rounds (issue 24's target: bricked ≥ 0.7× the in-core throughput where the volume
-// fits); and, with --cases v1024, a 1024³ volume under a 1 GiB device-memory cap beside the
-// in-core 512³ scaled by volume.
+// out_of_core.cpp — the out-of-core suite (docs/scaling.md): the render, the density gradient and
+// forward mode of a volume streamed through the device in bricks against the same operation in
+// core, end to end, in alternating rounds (issue 24's target: bricked ≥ 0.7× the in-core
+// throughput where the volume fits); and, with --cases v1024, a 1024³ volume under a 1 GiB
+// device-memory cap beside the in-core 512³ scaled by volume.
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <optional>
 
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
@@ -43,8 +44,9 @@ Scene large_scene(int n, int image) {
   return s;
 }
 
-// In core against bricks of `edge` cells: the render, then the density gradient; the ratio is the
-// median over alternating rounds of in-core / bricked wall time.
+// In core against bricks of `edge` cells: the render, the density gradient (adjoint) and forward
+// mode (the TF's and the cameras' lanes); the ratio is the median over alternating rounds of
+// in-core / bricked wall time.
 void compare(Context& ctx, const std::string& base, const Scene& scene, int edge) {
   const nlohmann::json params = {{"volume", scene.volume.nx}, {"image", scene.cameras[0].width},
                                  {"brick_edge", edge}};
@@ -56,31 +58,42 @@ void compare(Context& ctx, const std::string& base, const Scene& scene, int edge
       check_max(difference(b.pixels, widen(a.pixels)), "the in-core render", 1e-6, 1e-5);
   Image target = a;
   for (float& v : target.pixels) v = 0.9f * v + 0.02f;
-  GradientOptions go;
-  go.mode = Mode::adjoint;
-  const Gradient ga = gradient(ctx.device, scene, target, {"density"}, go);
-  Gradient gb;
-  {
-    ScopedEnv force("IVR_VOLUME_BRICK", std::to_string(edge));
-    gb = gradient(ctx.device, scene, target, {"density"}, go);
-  }
-  const Check grad_check = check_max(difference(gb.groups[0].values, ga.groups[0].values),
-                                     "the in-core adjoint", 0, 1e-5);
-  for (const char* op : {"render", "gradient"}) {
-    const bool is_render = std::string(op) == "render";
+  // The gradients: each group's values one after another.
+  struct GradientOp {
+    const char* name;
+    std::vector<std::string> groups;
+    Mode mode;
+  };
+  auto run_gradient = [&](const GradientOp& g, bool in_bricks) {
+    GradientOptions go;
+    go.mode = g.mode;
+    std::optional<ScopedEnv> force;
+    if (in_bricks) force.emplace("IVR_VOLUME_BRICK", std::to_string(edge));
+    std::vector<double> all;
+    for (const GroupGradient& group : gradient(ctx.device, scene, target, g.groups, go).groups)
+      all.insert(all.end(), group.values.begin(), group.values.end());
+    return all;
+  };
+  const std::vector<GradientOp> gradients = {{"gradient", {"density"}, Mode::adjoint},
+                                             {"forward", {"tf", "camera"}, Mode::forward}};
+  std::vector<Check> checks = {image_check};
+  for (const GradientOp& g : gradients)
+    checks.push_back(check_max(difference(run_gradient(g, true), run_gradient(g, false)),
+                               std::string("the in-core ") + (g.mode == Mode::forward
+                                                                  ? "forward mode"
+                                                                  : "adjoint"),
+                               0, 1e-5));
+  for (std::size_t op = 0; op < 1 + gradients.size(); ++op) {
+    const bool is_render = op == 0;
     auto run_in_core = [&] {
       if (is_render) (void)render(ctx.device, scene, in_core);
-      else (void)gradient(ctx.device, scene, target, {"density"}, go);
+      else (void)run_gradient(gradients[op - 1], false);
     };
     auto run_bricked = [&] {
-      if (is_render) {
-        (void)render(ctx.device, scene, bricked);
-      } else {
-        ScopedEnv force("IVR_VOLUME_BRICK", std::to_string(edge));
-        (void)gradient(ctx.device, scene, target, {"density"}, go);
-      }
+      if (is_render) (void)render(ctx.device, scene, bricked);
+      else (void)run_gradient(gradients[op - 1], true);
     };
-    const Check& check = is_render ? image_check : grad_check;
+    const Check& check = checks[op];
     std::vector<double> ratios;
     Measurement mi, mb;
     for (int round = 0; round < 3 && check.passed; ++round) {
@@ -90,7 +103,7 @@ void compare(Context& ctx, const std::string& base, const Scene& scene, int edge
     }
     std::sort(ratios.begin(), ratios.end());
     const double ratio = ratios.empty() ? 0 : ratios[ratios.size() / 2];
-    const std::string name = base + "_" + op;
+    const std::string name = base + "_" + (is_render ? "render" : gradients[op - 1].name);
     Record ri{ctx.device_key, "out_of_core", name, "ivr-in-core", params};
     add_timing(ri, mi);
     record_checked(ctx, std::move(ri), Check{true, "reference of the bricked record", "", 0, 0});

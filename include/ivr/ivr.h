@@ -175,6 +175,26 @@ IVR_API ivr_status ivr_render(ivr_context* context, const ivr_scene* scene, ivr_
 IVR_API ivr_status ivr_gradient(ivr_context* context, const ivr_scene* scene, const float* target,
                                 size_t count, const char* wrt, ivr_mode mode, ivr_loss loss,
                                 ivr_precision precision, double step, ivr_result** result);
+/* ivr_render and ivr_gradient as worker `rank` of `ranks` over slabs (docs/scaling.md), every
+ * worker calling it together: each marches only planes ivr_domain_slab(nz, rank, ranks) of the
+ * scene's volume on its device (the scene holds the whole volume; the slab is cut from it), the
+ * rays' march states passed between the workers through `sum` (ivr_sum_fn). The image is the
+ * whole render on every worker. The gradient (groups density and tf, midpoint) holds this
+ * worker's parts: "density" its planes (planes, ny, nx) — add the workers' where neighbours share
+ * a plane — and "tf" the part from its samples (sum it over the workers); the loss is the whole
+ * loss on every worker.
+ * ivr_sum_fn: a sum over the workers of a split operation, called by every worker together:
+ * `values` (`count` doubles) replaced by their elementwise sum over the workers, the same on every
+ * worker — an MPI_Allreduce with MPI_SUM from the caller's MPI. Return non-zero on success. */
+typedef int (*ivr_sum_fn)(double* values, size_t count, void* user);
+IVR_API ivr_status ivr_render_slabs(ivr_context* context, const ivr_scene* scene,
+                                    ivr_precision precision, double step, int rank, int ranks,
+                                    ivr_sum_fn sum, void* sum_user, float* image, size_t capacity);
+IVR_API ivr_status ivr_gradient_slabs(ivr_context* context, const ivr_scene* scene,
+                                      const float* target, size_t count, const char* wrt,
+                                      ivr_loss loss, ivr_precision precision, double step, int rank,
+                                      int ranks, ivr_sum_fn sum, void* sum_user,
+                                      ivr_result** result);
 /* The loss (mean over every element: IVR_LOSS_MSE of the squared, IVR_LOSS_L1 of the absolute
  * differences) of `image` against `target`, both `count` floats. */
 IVR_API ivr_status ivr_image_loss(const float* image, const float* target, size_t count,
@@ -270,10 +290,6 @@ IVR_API ivr_status ivr_tomo(ivr_context* context, const ivr_scene* scene,
                             ivr_tomo_iteration* history, size_t history_capacity,
                             ivr_tomo_summary* summary);
 
-/* A sum over the workers of a split operation (docs/scaling.md), called by every worker together:
- * `values` (`count` doubles) replaced by their elementwise sum over the workers, the same on every
- * worker — an MPI_Allreduce with MPI_SUM from the caller's MPI. Return non-zero on success. */
-typedef int (*ivr_sum_fn)(double* values, size_t count, void* user);
 
 /* How a split operation shares the work among its workers. */
 typedef enum ivr_split {

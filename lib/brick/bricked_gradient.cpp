@@ -250,6 +250,9 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     if (!seen.insert(g.rfind("voxels:", 0) == 0 ? "voxels" : g).second)
       throw Error(Status::invalid_argument, where + ": group " + g + " asked for twice");
     const bool adjoint = g == "density" || g == "tf" || g == "background";
+    if (domain && (!adjoint || o.mode == Mode::forward) && g != "step")
+      throw Error(Status::unsupported, where + ": over slabs, --wrt takes density and tf (not " +
+                                           g + (adjoint ? " in forward mode" : "") + ")");
     if (g == "density" && o.mode == Mode::forward)
       throw Error(Status::unsupported,
                   where +
@@ -263,9 +266,6 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     else if (g != "step")
       forward_groups.push_back(g);
   }
-  if (domain && !forward_groups.empty())
-    throw Error(Status::unsupported, where + ": over slabs, --wrt takes density and tf (not " +
-                                         forward_groups.front() + ")");
 
   Gradient d;
   if (!adjoint_groups.empty())

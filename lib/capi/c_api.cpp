@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "capi/c_api_handles.hpp"
+#include "ivr/domain.hpp"
 #include "ivr/tolerance.hpp"
 
 using namespace ivr::capi;
@@ -229,6 +230,84 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
     r->loss = d.loss;
     r->seconds = d.kernel_seconds;
     r->mode = d.plan.mode == ivr::Mode::forward ? IVR_MODE_FORWARD : IVR_MODE_ADJOINT;
+    for (const ivr::GroupGradient& g : d.groups)
+      r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
+    *out = r;
+  });
+}
+
+namespace {
+// Worker `rank` of `ranks` over slabs, its collectives through the caller's sum.
+ivr::DomainPart slab_part(int rank, int ranks, ivr_sum_fn sum, void* user) {
+  if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+  if (ranks < 1 || rank < 0 || rank >= ranks)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
+  ivr::DomainPart part;
+  part.rank = rank, part.ranks = ranks;
+  part.all_gather = ivr::all_gather_by_sum(rank, ranks, [sum, user](std::vector<double>& v) {
+    if (!sum(v.data(), v.size(), user))
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "the workers' sum (ivr_sum_fn) failed"};
+  });
+  return part;
+}
+}  // namespace
+
+ivr_status ivr_render_slabs(ivr_context* c, const ivr_scene* s, ivr_precision precision,
+                            double step, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
+                            float* image, size_t capacity) {
+  return guarded(c, "ivr_render_slabs", [&] {
+    checked(c, Kind::context, "context");
+    with_volume(checked(s, Kind::scene, "scene"));
+    same_context(s->context, c, "scene");
+    not_null(image, "image");
+    const ivr::DomainPart part = slab_part(rank, ranks, sum, sum_user);
+    const ivr::ImageExtent e = ivr::image_extent(s->scene);
+    const size_t want = e.pixels() * size_t(s->scene.channels());
+    if (capacity < want)
+      throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "image holds " + std::to_string(capacity) +
+                                                   " floats; the render has " +
+                                                   std::to_string(want)};
+    const ivr::Image out =
+        ivr::render_domain(c->device, ivr::domain_share(s->scene, rank, ranks), part,
+                           ivr::RenderOptions{precision_of(precision), step});
+    std::memcpy(image, out.pixels.data(), out.pixels.size() * sizeof(float));
+  });
+}
+
+ivr_status ivr_gradient_slabs(ivr_context* c, const ivr_scene* s, const float* target,
+                              size_t count, const char* wrt, ivr_loss loss,
+                              ivr_precision precision, double step, int rank, int ranks,
+                              ivr_sum_fn sum, void* sum_user, ivr_result** out) {
+  return guarded(c, "ivr_gradient_slabs", [&] {
+    checked(c, Kind::context, "context");
+    with_volume(checked(s, Kind::scene, "scene"));
+    same_context(s->context, c, "scene");
+    not_null(target, "target");
+    not_null(wrt, "wrt");
+    not_null(out, "result");
+    *out = nullptr;
+    const ivr::DomainPart part = slab_part(rank, ranks, sum, sum_user);
+    const ivr::ImageExtent cam = ivr::image_extent(s->scene);
+    ivr::Image t{cam.views, cam.height, cam.width, s->scene.channels(), {}};
+    const size_t want = size_t(t.views) * t.height * t.width * t.channels;
+    if (count != want)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "target has " + std::to_string(count) +
+                                                   " floats; the scene renders " +
+                                                   std::to_string(want)};
+    t.pixels.assign(target, target + count);
+    ivr::GradientOptions o;
+    o.mode = ivr::Mode::adjoint;
+    o.loss = loss_of(loss);
+    o.precision = precision_of(precision);
+    o.step = step;
+    const ivr::Gradient d =
+        ivr::gradient_domain(c->device, ivr::domain_share(s->scene, rank, ranks), t, part, o,
+                             nullptr, ivr::parse_groups(wrt));
+    ivr_result* r = new_result(c);
+    r->loss = d.loss;
+    r->seconds = d.kernel_seconds;
+    r->mode = IVR_MODE_ADJOINT;
     for (const ivr::GroupGradient& g : d.groups)
       r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
     *out = r;

@@ -1,7 +1,8 @@
-// c_api_tomo_split_test.cpp — ivr_tomo_split (CGLS shared out by workers through a sum callback,
-// as bindings under MPI call it): two workers on threads, each with its own context, over views
-// and over slabs, give one process's ivr_tomo; one worker alone too; bad arguments are refused
-// with a status and a message.
+// c_api_tomo_split_test.cpp — the C API's split operations (workers sharing the work through a sum
+// callback, as bindings under MPI call them): ivr_tomo_split by two workers on threads, each with
+// its own context, over views and over slabs, gives one process's ivr_tomo, one worker alone too;
+// ivr_render_slabs by one worker gives ivr_render; bad arguments are refused with a status and a
+// message.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -202,6 +203,37 @@ TEST(CApiTomoSplit, BadArgumentsAreRefused) {
   EXPECT_TRUE(has(ivr_last_error(), "sum")) << ivr_last_error();
   o.solver = IVR_SOLVER_SIRT;
   EXPECT_EQ(call(IVR_SPLIT_SLABS, 0, 1, summed, kVoxels), IVR_ERROR_UNSUPPORTED);
+  // The render and gradient over slabs (their results: bindings/python/tests/test_mpi.py).
+  std::vector<float> image(3 * kViewRays);
+  EXPECT_EQ(ivr_render_slabs(ctx, scene, IVR_PRECISION_F32, 0, 0, 1, nullptr, nullptr, image.data(),
+                             image.size()),
+            IVR_ERROR_NULL_POINTER);
+  Summit one(1);
+  Worker w{&one, 0};
+  EXPECT_EQ(ivr_render_slabs(ctx, scene, IVR_PRECISION_F32, 0, 2, 2, summed, &w, image.data(),
+                             image.size()),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "worker 2 of 2")) << ivr_last_error();
+  EXPECT_EQ(ivr_render_slabs(ctx, scene, IVR_PRECISION_F32, 0, 0, 1, summed, &w, image.data(),
+                             image.size() - 1),
+            IVR_ERROR_BUFFER_TOO_SMALL);
+  ASSERT_EQ(ivr_render_slabs(ctx, scene, IVR_PRECISION_F32, 0, 0, 1, summed, &w, image.data(),
+                             image.size()),
+            IVR_OK)
+      << ivr_last_error();
+  std::vector<float> in_core(image.size());
+  ASSERT_EQ(ivr_render(ctx, scene, IVR_PRECISION_F32, 0, in_core.data(), in_core.size()), IVR_OK);
+  for (std::size_t i = 0; i < image.size(); ++i)
+    EXPECT_NEAR(image[i], in_core[i], 1e-5f * std::max(1.0f, std::abs(in_core[i])));
+  ivr_result* result = nullptr;
+  EXPECT_EQ(ivr_gradient_slabs(ctx, scene, image.data(), image.size(), "camera", IVR_LOSS_MSE,
+                               IVR_PRECISION_F32, 0, 0, 1, summed, &w, &result),
+            IVR_ERROR_UNSUPPORTED);
+  EXPECT_TRUE(has(ivr_last_error(), "not camera")) << ivr_last_error();
+  EXPECT_EQ(result, nullptr);
+  EXPECT_EQ(ivr_gradient_slabs(ctx, scene, image.data(), image.size() - 1, "density", IVR_LOSS_MSE,
+                               IVR_PRECISION_F32, 0, 0, 1, summed, &w, &result),
+            IVR_ERROR_INVALID_ARGUMENT);
   int first = 0, last = 0;
   EXPECT_EQ(ivr_domain_slab(4, 0, 4, &first, &last), IVR_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(ivr_domain_slab(12, 1, 2, nullptr, &last), IVR_ERROR_NULL_POINTER);

@@ -218,6 +218,19 @@ def _choice(table, value, what):
     return table[value]
 
 
+def _sum_fn(add, failure):
+    """An ivr_sum_fn calling add(a) on the library's doubles (summing them over the workers in
+    place); an exception is kept in `failure` and the call reports failure."""
+    def summed(values, count, _user):
+        try:
+            add(np.ctypeslib.as_array(values, shape=(count,)))
+            return 1
+        except BaseException as error:  # noqa: BLE001 — re-raised once the library returns
+            failure.append(error)
+            return 0
+    return _capi.SUM_FN(summed)
+
+
 def _optional_choice(table, value, what):
     """_choice, or None (the library's default) for None."""
     return None if value is None else _choice(table, value, what)
@@ -323,21 +336,31 @@ class Context(_Owned):
         finally:
             self._lib.ivr_scene_release(s)
 
-    def render(self, scene, volume=None, step=0.0, base_dir=None):
+    def render(self, scene, volume=None, step=0.0, base_dir=None, _split=None):
         """The image of every view: float32 (views, H, W, C)."""
         s = self._scene(scene, volume, base_dir)
+        failure = []
         try:
             shape = self._image_shape(s)
             out = np.empty(shape, dtype=np.float32)
-            _check(self._lib.ivr_render(self._live(), s, _PRECISIONS[self.precision], step,
-                                        out.ctypes.data_as(ctypes.POINTER(ctypes.c_float)),
-                                        out.size))
+            image = out.ctypes.data_as(ctypes.POINTER(ctypes.c_float))
+            if _split is None:
+                _check(self._lib.ivr_render(self._live(), s, _PRECISIONS[self.precision], step,
+                                            image, out.size))
+            else:  # (rank, ranks, add): ivr.mpi's workers over slabs
+                rank, ranks, add = _split
+                status = self._lib.ivr_render_slabs(self._live(), s, _PRECISIONS[self.precision],
+                                                    step, rank, ranks, _sum_fn(add, failure),
+                                                    None, image, out.size)
+                if failure:
+                    raise failure[0]
+                _check(status)
             return out
         finally:
             self._lib.ivr_scene_release(s)
 
     def gradient(self, scene, volume, target, wrt=("density",), mode="auto", loss="mse", step=0.0,
-             base_dir=None, info=None):
+             base_dir=None, info=None, _split=None):
         """(loss, {group: array}) of the loss of the render against `target` (its shape).
         `wrt` names groups as `ivr gradient --wrt` (density, tf, tf_points, scales, background,
         camera, step, "voxels:3,17,40-45", rays: a ray list's (R, 8) origins, directions and
@@ -354,10 +377,21 @@ class Context(_Owned):
                 raise Error("IVR_ERROR_INVALID_ARGUMENT",
                             f"target has shape {t.shape} but the scene renders {shape}")
             r = _capi.HANDLE()
-            _check(self._lib.ivr_gradient(
-                self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
-                groups.encode(), _choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
-                _PRECISIONS[self.precision], step, ctypes.byref(r)))
+            if _split is None:
+                _check(self._lib.ivr_gradient(
+                    self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
+                    groups.encode(), _choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
+                    _PRECISIONS[self.precision], step, ctypes.byref(r)))
+            else:  # (rank, ranks, add): ivr.mpi's workers over slabs (adjoint mode)
+                rank, ranks, add = _split
+                failure = []
+                status = self._lib.ivr_gradient_slabs(
+                    self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
+                    groups.encode(), _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision],
+                    step, rank, ranks, _sum_fn(add, failure), None, ctypes.byref(r))
+                if failure:
+                    raise failure[0]
+                _check(status)
         finally:
             self._lib.ivr_scene_release(s)
         try:
@@ -481,16 +515,7 @@ class Context(_Owned):
                                             history, len(history), ctypes.byref(summary))
             else:  # (split, rank, ranks, add): ivr.mpi.tomo's workers, add(a) summing in place
                 split, rank, ranks, add = _split
-
-                def summed(values, count, _user):
-                    try:
-                        add(np.ctypeslib.as_array(values, shape=(count,)))
-                        return 1
-                    except BaseException as error:  # noqa: BLE001 — re-raised below
-                        failure.append(error)
-                        return 0
-
-                sum_fn = _capi.SUM_FN(summed)
+                sum_fn = _sum_fn(add, failure)
                 if split == 1:  # this worker's planes of the grid
                     first, last = ctypes.c_int(), ctypes.c_int()
                     _check(self._lib.ivr_domain_slab(out.shape[0], rank, ranks,

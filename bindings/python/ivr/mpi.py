@@ -1,6 +1,6 @@
 """ivr.mpi — ivr under MPI from Python (mpi4py): data-parallel over views, as `mpirun -np N ivr
-render|gradient|project|backproject|tomo` (docs/scaling.md), and CGLS over slabs (`tomo(…,
-split="slabs")`, as `ivr tomo --split slabs`). Each rank renders or differentiates its contiguous share of the
+render|gradient|project|backproject|tomo` (docs/scaling.md), and domain-parallel over slabs of
+z planes (`render`, `gradient` and `tomo` with split="slabs", as `--split slabs`). Each rank renders or differentiates its contiguous share of the
 views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
 loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
 summed over the ranks, as are the back-projections of the shares' lines, the per-view groups (camera, rays) gathered in view order. Every rank gets
@@ -84,11 +84,33 @@ def _mine(comm, n):
     return shares[rank] if rank < len(shares) else None
 
 
-def render(ctx, scene, volume=None, comm=None, **options):
+def _summer(comm):
+    """add(a): `a` (float64) replaced by its sum over the ranks (MPI_Allreduce)."""
+    from mpi4py import MPI
+
+    def add(a):  # (a may view the library's doubles: its buffer format is named explicitly)
+        total = np.empty(a.shape, dtype=np.float64)
+        comm.Allreduce([a, MPI.DOUBLE], [total, MPI.DOUBLE], op=MPI.SUM)
+        a[:] = total
+    return add
+
+
+def _check_split(split, where):
+    if split not in ("views", "slabs"):
+        raise Error("IVR_ERROR_INVALID_ARGUMENT", f"ivr.mpi.{where}: split {split!r} (views or slabs)")
+
+
+def render(ctx, scene, volume=None, comm=None, split="views", **options):
     """ctx.render of the whole scene, each rank rendering its share: every rank gets the images of
-    every view (views, H, W, C) (a ray list: (rays, C)). `options` are ctx.render's."""
+    every view (views, H, W, C) (a ray list: (rays, C)). split="slabs": each rank marches one slab
+    of z planes of the volume on its device, the rays' march states passed between the ranks (the
+    whole volume is given on every rank; the device holds its slab). `options` are ctx.render's."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
+    _check_split(split, "render")
+    if split == "slabs":
+        return ctx.render(scene, volume, _split=(comm.Get_rank(), comm.Get_size(), _summer(comm)),
+                          **options)
     mine = _mine(comm, _items(scene))
     image = ctx.render(scene_share(scene, *mine), volume, **options) if mine else None
     return np.concatenate([p for p in comm.allgather(image) if p is not None], axis=0)
@@ -127,12 +149,37 @@ def backproject(ctx, scene, lines, comm=None, **options):
     return summed.astype(np.float32)
 
 
-def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None, **options):
+def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None, split="views",
+             **options):
     """ctx.gradient of the whole scene, each rank differentiating its share of the views (the
     target's first axis: views, or a ray list's rays): every rank gets (loss, {group: array}), one
-    process's result to rounding. `options` are ctx.gradient's (mode, step, base_dir)."""
+    process's result to rounding. split="slabs" (wrt density and/or tf; midpoint, adjoint): each
+    rank differentiates over one slab of z planes, the slabs' density parts joined (shared planes
+    added) and the TF parts summed. `options` are ctx.gradient's (mode, step, base_dir)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
+    _check_split(split, "gradient")
+    if split == "slabs":
+        value, arrays = ctx.gradient(scene, volume, target, wrt=wrt, loss=loss,
+                                     _split=(comm.Get_rank(), comm.Get_size(), _summer(comm)),
+                                     **options)
+        out = {}
+        for name, a in arrays.items():
+            a = np.ascontiguousarray(a, dtype=np.float64)
+            if name == "density":  # the slabs in rank order, each shared plane the two parts' sum
+                parts = comm.allgather(a)
+                whole = parts[0]
+                for p in parts[1:]:
+                    whole = np.concatenate([whole[:-1], whole[-1:] + p[:1], p[1:]], axis=0)
+                out[name] = whole
+            elif name == "tf":
+                summed = np.empty_like(a)
+                from mpi4py import MPI
+                comm.Allreduce(a, summed, op=MPI.SUM)
+                out[name] = summed
+            else:
+                out[name] = a
+        return value, out
     n = _items(scene)
     target = np.asarray(target, dtype=np.float32)
     if n > 1 and target.shape[0] != n:
@@ -172,16 +219,8 @@ def tomo(ctx, scene, lines, comm=None, split="views", **options):
     `options` are ctx.tomo's (iterations, nonneg, tikhonov, tolerance, progress, grid, info)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
-    if split not in ("views", "slabs"):
-        raise Error("IVR_ERROR_INVALID_ARGUMENT",
-                    f"ivr.mpi.tomo: split {split!r} (views or slabs)")
-    from mpi4py import MPI
-
-    def add(a):  # (a views the library's doubles: its buffer format is named explicitly)
-        total = np.empty(a.shape, dtype=np.float64)
-        comm.Allreduce([a, MPI.DOUBLE], [total, MPI.DOUBLE], op=MPI.SUM)
-        a[:] = total
-
+    _check_split(split, "tomo")
+    add = _summer(comm)
     rank, ranks = comm.Get_rank(), comm.Get_size()
     n = _items(scene)
     lines = np.asarray(lines, dtype=np.float32)

@@ -435,6 +435,18 @@ IVR_API ivr_status ivr_reconstruction_create(ivr_context* context, const ivr_sce
                                              const float* targets, size_t count,
                                              const ivr_reconstruct_options* options,
                                              ivr_reconstruction** reconstruction);
+/* ivr_reconstruction_create for worker `worker` of `workers` sharing out each batch's views
+ * (docs/scaling.md; every worker passes the whole scene and targets and the same options): every
+ * step's loss and gradients are summed over the workers through `sum` (ivr_sum_fn: an
+ * MPI_Allreduce from the caller; kept and called by every step, so it and `sum_user` must outlive
+ * the handle), so that every worker takes the same step and holds the same iterate. Cameras only;
+ * every batch needs at least `workers` views. */
+IVR_API ivr_status ivr_reconstruction_create_shared(ivr_context* context, const ivr_scene* scene,
+                                                    const float* targets, size_t count,
+                                                    const ivr_reconstruct_options* options,
+                                                    int worker, int workers, ivr_sum_fn sum,
+                                                    void* sum_user,
+                                                    ivr_reconstruction** reconstruction);
 IVR_API ivr_status ivr_reconstruction_retain(ivr_reconstruction* reconstruction);
 IVR_API ivr_status ivr_reconstruction_release(ivr_reconstruction* reconstruction);
 /* One iteration; `iteration` (may be NULL) receives its record. IVR_ERROR_INVALID_ARGUMENT once

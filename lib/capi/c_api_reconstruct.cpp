@@ -60,6 +60,31 @@ ivr_camera camera_of(const ivr::Camera& c) {
   return out;
 }
 
+// The reconstruction of `s` from `targets` with options `o` (its workers set).
+ivr_reconstruction* create_reconstruction(ivr_context* c, const ivr_scene* s, const float* targets,
+                                          size_t count, const ivr::ReconstructOptions& o) {
+  checked(c, Kind::context, "context");
+  with_volume(checked(s, Kind::scene, "scene"));
+  same_context(s->context, c, "scene");
+  not_null(targets, "targets");
+  const ivr::Scene& scene = s->scene;
+  const ivr::ImageExtent cam = ivr::image_extent(scene);
+  ivr::Image t{cam.views, cam.height, cam.width, scene.channels(), {}};
+  const size_t want = size_t(t.views) * size_t(t.height) * size_t(t.width) * size_t(t.channels);
+  if (count != want)
+    bad("targets has " + std::to_string(count) + " floats; the scene renders " +
+        std::to_string(want) + " (" + std::to_string(t.views) + " views of " +
+        std::to_string(t.height) + " x " + std::to_string(t.width) + " x " +
+        std::to_string(t.channels) + ")");
+  t.pixels.assign(targets, targets + count);
+  auto r = std::make_unique<ivr_reconstruction>();
+  r->reconstruction = std::make_unique<ivr::Reconstruction>(c->device, scene, t, o);
+  r->explicit_box = s->explicit_box;
+  r->grid.nx = scene.volume.nx;
+  r->grid.ny = scene.volume.ny;
+  r->grid.nz = scene.volume.nz;
+  return publish(std::move(r), c, Kind::reconstruction);
+}
 }  // namespace
 
 extern "C" {
@@ -73,31 +98,29 @@ ivr_status ivr_reconstruction_create(ivr_context* c, const ivr_scene* s, const f
                                      size_t count, const ivr_reconstruct_options* options,
                                      ivr_reconstruction** out) {
   return guarded(c, "ivr_reconstruction_create", [&] {
-    checked(c, Kind::context, "context");
-    with_volume(checked(s, Kind::scene, "scene"));
-    same_context(s->context, c, "scene");
-    not_null(targets, "targets");
     not_null(out, "reconstruction");
     *out = nullptr;
     // Ranges: checked by ivr::validate_reconstruct, which names them.
-    const ivr::ReconstructOptions o = core_options(options);
-    const ivr::Scene& scene = s->scene;
-    const ivr::ImageExtent cam = ivr::image_extent(scene);
-    ivr::Image t{cam.views, cam.height, cam.width, scene.channels(), {}};
-    const size_t want = size_t(t.views) * size_t(t.height) * size_t(t.width) * size_t(t.channels);
-    if (count != want)
-      bad("targets has " + std::to_string(count) + " floats; the scene renders " +
-          std::to_string(want) + " (" + std::to_string(t.views) + " views of " +
-          std::to_string(t.height) + " x " + std::to_string(t.width) + " x " +
-          std::to_string(t.channels) + ")");
-    t.pixels.assign(targets, targets + count);
-    auto r = std::make_unique<ivr_reconstruction>();
-    r->reconstruction = std::make_unique<ivr::Reconstruction>(c->device, scene, t, o);
-    r->explicit_box = s->explicit_box;
-    r->grid.nx = scene.volume.nx;
-    r->grid.ny = scene.volume.ny;
-    r->grid.nz = scene.volume.nz;
-    *out = publish(std::move(r), c, Kind::reconstruction);
+    *out = create_reconstruction(c, s, targets, count, core_options(options));
+  });
+}
+
+ivr_status ivr_reconstruction_create_shared(ivr_context* c, const ivr_scene* s,
+                                            const float* targets, size_t count,
+                                            const ivr_reconstruct_options* options, int worker,
+                                            int workers, ivr_sum_fn sum, void* sum_user,
+                                            ivr_reconstruction** out) {
+  return guarded(c, "ivr_reconstruction_create_shared", [&] {
+    not_null(out, "reconstruction");
+    *out = nullptr;
+    if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+    ivr::ReconstructOptions o = core_options(options);
+    o.worker = worker, o.workers = workers;  // (their range: checked by the core, named)
+    o.sum = [sum, sum_user](std::vector<double>& v) {
+      if (!sum(v.data(), v.size(), sum_user))
+        throw CError{IVR_ERROR_INVALID_ARGUMENT, "the workers' sum (ivr_sum_fn) failed"};
+    };
+    *out = create_reconstruction(c, s, targets, count, o);
   });
 }
 

@@ -234,6 +234,27 @@ TEST(CApiTomoSplit, BadArgumentsAreRefused) {
   EXPECT_EQ(ivr_gradient_slabs(ctx, scene, image.data(), image.size() - 1, "density", IVR_LOSS_MSE,
                                IVR_PRECISION_F32, 0, 0, 1, summed, &w, &result),
             IVR_ERROR_INVALID_ARGUMENT);
+  // A reconstruction whose workers share each batch's views (their results:
+  // bindings/python/tests/test_mpi.py test_reconstruct_follows_one_process).
+  ivr_reconstruct_options ro;
+  ASSERT_EQ(ivr_reconstruct_options_init(&ro), IVR_OK);
+  ro.iterations = 2;
+  ivr_reconstruction* rec = nullptr;
+  EXPECT_EQ(ivr_reconstruction_create_shared(ctx, scene, image.data(), image.size(), &ro, 0, 1,
+                                             nullptr, nullptr, &rec),
+            IVR_ERROR_NULL_POINTER);
+  EXPECT_EQ(ivr_reconstruction_create_shared(ctx, scene, image.data(), image.size(), &ro, 2, 2,
+                                             summed, &w, &rec),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "worker 2 of 2")) << ivr_last_error();
+  EXPECT_EQ(rec, nullptr);
+  ASSERT_EQ(ivr_reconstruction_create_shared(ctx, scene, image.data(), image.size(), &ro, 0, 1,
+                                             summed, &w, &rec),
+            IVR_OK)
+      << ivr_last_error();
+  ivr_reconstruct_iteration it;
+  EXPECT_EQ(ivr_reconstruction_step(rec, &it), IVR_OK) << ivr_last_error();
+  EXPECT_EQ(ivr_reconstruction_release(rec), IVR_OK);
   int first = 0, last = 0;
   EXPECT_EQ(ivr_domain_slab(4, 0, 4, &first, &last), IVR_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(ivr_domain_slab(12, 1, 2, nullptr, &last), IVR_ERROR_NULL_POINTER);

@@ -559,7 +559,7 @@ class Context(_Owned):
                     tf_smoothness=None, batch=None, levels=None, init=None, init_value=None,
                     seed=None, step=None, progress=None, checkpoint=None, resume=False,
                     checkpoint_every=0, step_every=None, step_gamma=None, min_lr=None,
-                    tv_epsilon=None, mode=None, base_dir=None):
+                    tv_epsilon=None, mode=None, base_dir=None, _workers=None):
         """Recovers the densities (wrt "density"), the TF's parameters ("tf") or both from
         `targets`, the images (views, H, W, C) of the scene's cameras. The scene's volume (or
         `volume`, (Z, Y, X)) gives the grid and, with init="scene", the start ("zeros",
@@ -582,7 +582,7 @@ class Context(_Owned):
             self, scene, targets, volume, wrt, iterations, lr, optimizer, schedule, loss, tv,
             smoothness, tf_smoothness, batch, levels, init, init_value, seed, step, progress,
             checkpoint, resume, checkpoint_every, step_every, step_gamma, min_lr, tv_epsilon,
-            mode, base_dir)
+            mode, base_dir, _workers)
 
     def viewpoint(self, scene, volume=None, view=None, iterations=None, lr=None, optimizer=None,
                   step=None, progress=None, base_dir=None):

@@ -5,8 +5,8 @@ import os
 
 import numpy as np
 
-from . import (Error, _capi, _check, _choice, _optional_choice, _FLOAT_P, _LOSSES, _MODES,
-               _PRECISIONS)
+from . import (Error, _capi, _check, _choice, _optional_choice, _sum_fn, _FLOAT_P, _LOSSES,
+               _MODES, _PRECISIONS)
 
 _OPTIMIZERS = {"auto": 0, "adam": 1, "sgd": 2, "lbfgs": 3}
 _OPTIMIZER_NAMES = {v: k for k, v in _OPTIMIZERS.items()}
@@ -48,7 +48,7 @@ def _targets(ctx, scene_handle, targets):
 def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, schedule, loss, tv,
                 smoothness, tf_smoothness, batch, levels, init, init_value, seed, step, progress,
                 checkpoint, resume, checkpoint_every, step_every, step_gamma, min_lr, tv_epsilon,
-                mode, base_dir):
+                mode, base_dir, workers=None):
     density, tf = _groups(wrt)
     lib = ctx._lib
     o = _capi.filled(
@@ -70,8 +70,16 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
     try:
         t = _targets(ctx, s, targets)
         r = _capi.HANDLE()
-        _check(lib.ivr_reconstruction_create(ctx._live(), s, t.ctypes.data_as(_FLOAT_P), t.size,
-                                             ctypes.byref(o), ctypes.byref(r)))
+        failure = []
+        if workers is None:
+            _check(lib.ivr_reconstruction_create(ctx._live(), s, t.ctypes.data_as(_FLOAT_P),
+                                                 t.size, ctypes.byref(o), ctypes.byref(r)))
+        else:  # (worker, workers, add): ivr.mpi.reconstruct; the sum lives as long as `r`
+            worker, count, add = workers
+            sum_fn = _sum_fn(add, failure)
+            _check(lib.ivr_reconstruction_create_shared(
+                ctx._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, ctypes.byref(o), worker,
+                count, sum_fn, None, ctypes.byref(r)))
     finally:
         lib.ivr_scene_release(s)
     try:
@@ -85,7 +93,10 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
             _check(lib.ivr_reconstruction_done(r, ctypes.byref(done)))
             if done.value:
                 break
-            _check(lib.ivr_reconstruction_step(r, ctypes.byref(it)))
+            status = lib.ivr_reconstruction_step(r, ctypes.byref(it))
+            if failure:  # the workers' sum raised
+                raise failure[0]
+            _check(status)
             if prefix and checkpoint_every > 0 and it.iteration % checkpoint_every == 0:
                 _check(lib.ivr_reconstruction_save_checkpoint(r, prefix))
             if progress is not None and progress(_entry(it)) is False:

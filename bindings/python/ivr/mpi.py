@@ -1,6 +1,7 @@
 """ivr.mpi — ivr under MPI from Python (mpi4py): data-parallel over views, as `mpirun -np N ivr
 render|gradient|project|backproject|tomo` (docs/scaling.md), and domain-parallel over slabs of
-z planes (`render`, `gradient` and `tomo` with split="slabs", as `--split slabs`). Each rank renders or differentiates its contiguous share of the
+z planes (`render`, `gradient` and `tomo` with split="slabs", as `--split slabs`); and
+`reconstruct`, each batch's views shared out (as `mpirun -np N ivr reconstruct`). Each rank renders or differentiates its contiguous share of the
 views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
 loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
 summed over the ranks, as are the back-projections of the shares' lines, the per-view groups (camera, rays) gathered in view order. Every rank gets
@@ -238,3 +239,24 @@ def tomo(ctx, scene, lines, comm=None, split="views", **options):
     first, count = _mine(comm, n)
     return ctx.tomo(scene_share(scene, first, count), lines[first:first + count],
                     _split=(0, rank, ranks, add), **options)
+
+
+def reconstruct(ctx, scene, targets, comm=None, progress=None, **options):
+    """ctx.reconstruct with the ranks sharing out each batch's views (as `mpirun -np N ivr
+    reconstruct`): every rank passes the whole scene and targets and the same options, draws the
+    same batch, differentiates its share of its views, and the loss and gradients are summed over
+    the ranks before every step, so every rank holds the same iterate (one process's to the
+    rounding of the sums). progress(entry) is called on every rank; returning False on any rank
+    stops every rank after the same iteration. Cameras only; every batch needs at least one view
+    per rank. Returns ctx.reconstruct's dict on every rank (checkpoint: give each rank its own
+    prefix, or one on rank 0 only)."""
+    comm = _comm(comm)
+    scene = _scene_dict(scene)
+    from mpi4py import MPI
+
+    def agreed(entry):  # (collective: every rank calls it after every iteration)
+        go = progress is None or progress(entry) is not False
+        return comm.allreduce(0 if go else 1, op=MPI.SUM) == 0
+
+    return ctx.reconstruct(scene, targets, progress=agreed,
+                           _workers=(comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)

@@ -3,7 +3,8 @@ gradient, projection and back-projection, each rank doing its share of the views
 process's (float64: the images and gradients within 1e-12 of the largest entry; the lines bit for
 bit, the float32 back-projection within 1e-6); the render and the density and TF gradients over
 slabs (within 1e-12); CGLS over views and over slabs (the float32 volume within 1e-6, the
-residuals within 1e-10); more ranks than views; a ray list; bad input.
+residuals within 1e-10); a reconstruction sharing each batch's views (losses within 1e-10, a stop
+on one rank stopping all); more ranks than views; a ray list; bad input.
 Each rank also computes the one-process result itself, as the reference."""
 import copy
 import json
@@ -126,6 +127,28 @@ def test_tomo_equals_one_process(ctx, split, nonneg):
     for a, b in zip(h, h1):
         assert abs(a["residual"] - b["residual"]) <= 1e-10 * b["residual"] + 1e-15, (a, b)
     assert all(np.array_equal(x, many) for x in COMM.allgather(many)), "ranks differ"
+
+
+def test_reconstruct_follows_one_process(ctx):
+    s, v = scene_of(6), volume()
+    targets = ctx.render(s, v)
+    options = dict(volume=np.zeros_like(v), wrt=("density", "tf"), iterations=8, batch=3,
+                   levels=1, init="constant", init_value=0.3, seed=5)
+    one = ctx.reconstruct(s, targets, **options)
+    seen = []
+    many = ivr.mpi.reconstruct(ctx, s, targets, progress=seen.append, **options)
+    assert len(seen) == len(one["history"]) == len(many["history"]) == 8
+    for a, b in zip(many["history"], one["history"]):
+        assert a["views"] == b["views"] and abs(a["loss"] - b["loss"]) <= 1e-10 * b["loss"], (a, b)
+    err = np.max(np.abs(many["volume"].astype(np.float64) - one["volume"])) / \
+        np.max(np.abs(one["volume"]))
+    assert err <= 1e-6, f"reconstruct on {COMM.Get_size()} ranks: {err}"
+    assert all(np.array_equal(x, many["volume"]) for x in COMM.allgather(many["volume"]))
+    # A stop asked for on one rank stops every rank after the same iteration.
+    stop_at = 3 if COMM.Get_rank() == COMM.Get_size() - 1 else 100
+    stopped = ivr.mpi.reconstruct(ctx, s, targets,
+                                  progress=lambda e: e["iteration"] < stop_at, **options)
+    assert stopped["stopped"] and len(stopped["history"]) == 3
 
 
 def test_ray_list(ctx):

@@ -246,7 +246,32 @@ struct Progress {
     }
   }
 };
+// Carries a C++ sum over the workers through ivr_sum_fn; an exception it throws fails the call
+// and is rethrown once the library has returned.
+struct Sum {
+  const std::function<void(double*, size_t)>* function;
+  std::exception_ptr error;
+  static int call(double* values, size_t count, void* user) {
+    auto* self = static_cast<Sum*>(user);
+    try {
+      (*self->function)(values, count);
+      return 1;
+    } catch (...) {
+      self->error = std::current_exception();
+      return 0;
+    }
+  }
+};
 }  // namespace detail
+
+// This process's part of a split operation (docs/scaling.md): worker `rank` of `ranks`, sharing
+// the views or the slabs of the volume; `sum` replaces `count` doubles by their sum over the
+// workers (an MPI_Allreduce), every worker calling it together.
+struct Workers {
+  ivr_split split = IVR_SPLIT_VIEWS;
+  int rank = 0, ranks = 1;
+  std::function<void(double* values, size_t count)> sum;
+};
 
 // A device with its queue and kernel cache. One context serves one thread at a time; separate
 // contexts work concurrently on separate threads.
@@ -358,21 +383,39 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                                   lines.size(), volume.values.data(), volume.size()));
     return volume;
   }
-  // Reconstructs the scene's grid from line integrals (views * H * W values).
+  // Reconstructs the scene's grid from line integrals (views * H * W values). With `workers`
+  // (ivr_tomo_split): this worker's share of the views and their lines (the whole grid out), or
+  // over slabs the whole scene's lines and this worker's planes (planes, ny, nx) out.
   TomoResult tomo(const Scene& scene, const std::vector<float>& lines,
-                  const TomoOptions& options = {}, const TomoProgress& progress = {}) {
+                  const TomoOptions& options = {}, const TomoProgress& progress = {},
+                  const Workers* workers = nullptr) {
     const ivr_tomo_options& o = options;
     TomoResult r;
     r.volume.shape = scene.volume_shape();
+    if (workers && workers->split == IVR_SPLIT_SLABS) {
+      int first = 0, last = 0;
+      detail::check(ivr_domain_slab(int(r.volume.shape[0]), workers->rank, workers->ranks, &first,
+                                    &last));
+      r.volume.shape[0] = last - first + 1;
+    }
     r.volume.values.resize(detail::product(r.volume.shape));
     r.history.resize(size_t(options.iterations > 0 ? options.iterations : 0));
     detail::Progress state{&progress, nullptr};
     ivr_tomo_summary summary{};
+    ivr_tomo_iteration* history = r.history.empty() ? nullptr : r.history.data();
+    ivr_tomo_progress call = progress ? &detail::Progress::call : nullptr;
+    detail::Sum sum{workers ? &workers->sum : nullptr, nullptr};
     const ivr_status status =
-        ivr_tomo(get(), scene.get(), &o, lines.data(), lines.size(), r.volume.values.data(),
-                 r.volume.size(), progress ? &detail::Progress::call : nullptr, &state,
-                 r.history.empty() ? nullptr : r.history.data(), r.history.size(), &summary);
+        workers ? ivr_tomo_split(get(), scene.get(), &o, workers->split, workers->rank,
+                                 workers->ranks, workers->sum ? &detail::Sum::call : nullptr, &sum,
+                                 lines.data(), lines.size(), r.volume.values.data(),
+                                 r.volume.size(), call, &state, history, r.history.size(),
+                                 &summary)
+                : ivr_tomo(get(), scene.get(), &o, lines.data(), lines.size(),
+                           r.volume.values.data(), r.volume.size(), call, &state, history,
+                           r.history.size(), &summary);
     if (state.error) std::rethrow_exception(state.error);
+    if (sum.error) std::rethrow_exception(sum.error);
     detail::check(status);
     r.history.resize(size_t(summary.iterations));
     r.stop_reason = summary.stop_reason;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "ivr/ivr.h"
+#include "ivr/ivr.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -176,6 +177,32 @@ TEST(CApiTomoSplit, WorkersOverViewsAndSlabsGiveOneProcess) {
         worst = std::max(worst, std::abs(double(got[i]) - ref.volume[i]));
       EXPECT_LE(worst, 1e-6 * scale) << what;  // float32 outputs of float64 iterates
     }
+}
+
+// The C++ wrapper (ivr.hpp, ivr::api): one worker over slabs is ivr_tomo; a sum that throws is
+// rethrown.
+TEST(CApiTomoSplit, CppWrapper) {
+  if (!device().info().fp64) GTEST_SKIP() << "float64 needed for the comparison";
+  const Reference ref = reference();
+  api::Context ctx;
+  const api::Scene scene = ctx.scene_from_json(scene_json({0, 1, 2}));
+  api::TomoOptions o;
+  static_cast<ivr_tomo_options&>(o) = options();
+  int sums = 0;
+  api::Workers workers;
+  workers.sum = [&](double*, size_t) { ++sums; };  // one worker: the sum is the values
+  for (ivr_split split : {IVR_SPLIT_SLABS, IVR_SPLIT_VIEWS}) {
+    workers.split = split;
+    const api::TomoResult r = ctx.tomo(scene, ref.lines, o, {}, &workers);
+    EXPECT_EQ(r.volume.shape, (std::vector<int64_t>{12, 10, 8}));
+    ASSERT_EQ(r.volume.values.size(), ref.volume.size());
+    for (std::size_t i = 0; i < ref.volume.size(); ++i)
+      ASSERT_NEAR(r.volume.values[i], ref.volume[i],
+                  1e-5f * std::max(1.0f, std::abs(ref.volume[i])));
+  }
+  EXPECT_GT(sums, 0);  // (over views every CGLS step sums)
+  workers.sum = [](double*, size_t) { throw std::runtime_error("no network"); };
+  EXPECT_THROW(ctx.tomo(scene, ref.lines, o, {}, &workers), std::runtime_error);
 }
 
 TEST(CApiTomoSplit, BadArgumentsAreRefused) {

@@ -358,6 +358,33 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                   const GradientOptions& options = {}) {
     return gradient(scene, target.data(), target.size(), options);
   }
+  // Over slabs (ivr_render_slabs, ivr_gradient_slabs; `slabs.split` is not read): worker
+  // slabs.rank of slabs.ranks marches only its slab of the scene's volume, every worker calling
+  // together; the image is the whole render, the gradient (density, tf) this worker's parts.
+  Array<float> render(const Scene& scene, const Options& options, const Workers& slabs) {
+    Array<float> image{scene.image_shape(), {}};
+    image.values.resize(detail::product(image.shape));
+    detail::Sum sum{&slabs.sum, nullptr};
+    const ivr_status status = ivr_render_slabs(
+        get(), scene.get(), ivr_precision(options.precision), options.step, slabs.rank,
+        slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum, image.values.data(),
+        image.size());
+    if (sum.error) std::rethrow_exception(sum.error);
+    detail::check(status);
+    return image;
+  }
+  Result gradient(const Scene& scene, const std::vector<float>& target,
+                  const GradientOptions& options, const Workers& slabs) {
+    ivr_result* r = nullptr;
+    detail::Sum sum{&slabs.sum, nullptr};
+    const ivr_status status = ivr_gradient_slabs(
+        get(), scene.get(), target.data(), target.size(), options.wrt.c_str(),
+        ivr_loss(options.loss), ivr_precision(options.precision), options.step, slabs.rank,
+        slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum, &r);
+    if (sum.error) std::rethrow_exception(sum.error);
+    detail::check(status);
+    return Result(r);
+  }
   // The Jacobian (views, H, W, C, P) of the render with respect to `wrt`, in result "jacobian".
   Result jacobian(const Scene& scene, const std::string& wrt, const Options& options = {}) {
     ivr_result* r = nullptr;

@@ -203,6 +203,25 @@ TEST(CApiTomoSplit, CppWrapper) {
   EXPECT_GT(sums, 0);  // (over views every CGLS step sums)
   workers.sum = [](double*, size_t) { throw std::runtime_error("no network"); };
   EXPECT_THROW(ctx.tomo(scene, ref.lines, o, {}, &workers), std::runtime_error);
+
+  // The render and gradient over slabs: one worker is the plain render and gradient.
+  workers.sum = [](double*, size_t) {};
+  const api::Array<float> image = ctx.render(scene, {}, workers);
+  EXPECT_EQ(image.values, ctx.render(scene).values);
+  std::vector<float> target = image.values;
+  for (float& v : target) v = 0.9f * v + 0.01f;
+  api::GradientOptions go;
+  go.wrt = "density";
+  go.mode = api::Mode::adjoint;
+  const api::Result mine = ctx.gradient(scene, target, go, workers);
+  const api::Result whole = ctx.gradient(scene, target, go);
+  EXPECT_NEAR(mine.loss(), whole.loss(), 1e-6 * whole.loss());
+  const std::vector<double> a = mine.array("density").values, b = whole.array("density").values;
+  ASSERT_EQ(a.size(), b.size());
+  double scale = 0;
+  for (double v : b) scale = std::max(scale, std::abs(v));
+  ASSERT_GT(scale, 0.0);
+  for (std::size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(a[i], b[i], 1e-5 * scale) << i;
 }
 
 TEST(CApiTomoSplit, BadArgumentsAreRefused) {

@@ -37,22 +37,20 @@ struct GradientArgs {
 // over the ranks (MPI_Allreduce); per-view groups (camera, rays) are gathered in order. Rank 0
 // gets the result; else the gradient itself.
 // With --split slabs each rank differentiates over its slab: rank 0 joins the density's slabs, the
-// TF gradient's parts are summed over the ranks.
+// TF gradient's parts are summed over the ranks; the background's and the forward lanes' (camera,
+// …) are whole on every rank.
 Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
                         const Image& target, const std::vector<std::string>& groups,
                         const GradientOptions& options) {
-  for (const std::string& g : groups)
-    if (g != "density" && g != "tf")
-      throw Error(Status::unsupported,
-                  "--split slabs: only --wrt density and tf so far, not " + g + " (docs/scaling.md)");
   const World& w = world();
   Gradient mine = gradient_domain(one_device_per_rank(devices), domain_share(scene, w.rank, w.size),
                                   target, domain_part(), options, nullptr, groups);
   for (GroupGradient& g : mine.groups) {  // every rank takes part in each collective
-    if (g.name == "tf") {
+    if (g.name == "tf") {  // each rank's part: its slab's samples
       sum_all(g.values);
       continue;
     }
+    if (g.name != "density") continue;  // whole on every rank (background, forward lanes)
     const std::vector<std::vector<double>> slabs = gather_parts(g.values);
     if (w.rank != 0) continue;
     g.values = domain_join(scene.volume.nx, scene.volume.ny, scene.volume.nz, slabs);

@@ -250,9 +250,9 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     if (!seen.insert(g.rfind("voxels:", 0) == 0 ? "voxels" : g).second)
       throw Error(Status::invalid_argument, where + ": group " + g + " asked for twice");
     const bool adjoint = g == "density" || g == "tf" || g == "background";
-    if (domain && (!adjoint || o.mode == Mode::forward) && g != "step")
-      throw Error(Status::unsupported, where + ": over slabs, --wrt takes density and tf (not " +
-                                           g + (adjoint ? " in forward mode" : "") + ")");
+    if (domain && adjoint && o.mode == Mode::forward)  // (their parts are per slab)
+      throw Error(Status::unsupported, where + ": over slabs, " + g +
+                                           " is differentiated by the adjoint, not forward mode");
     if (g == "density" && o.mode == Mode::forward)
       throw Error(Status::unsupported,
                   where +
@@ -279,7 +279,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     counts.push_back(l.size());
   }
   if (!forward_groups.empty() || adjoint_groups.empty()) {
-    t = tangent_bricked(device, scene, target, lanes, o, plan);
+    t = tangent_bricked(device, scene, target, lanes, o, plan, domain, domain_stats);
     if (adjoint_groups.empty()) {
       d.loss = t.loss;
       d.step = o.step > 0 ? o.step : scene.integrator.step;

@@ -95,6 +95,9 @@ class BrickedMarch {
   // bricks (before the pending rays are counted), and how many workers march the volume.
   std::function<void()> before_sweeps, after_sweep;
   int workers = 1;
+  // Per-ray buffers that move with the state between workers (forward mode's tangents), read
+  // when a sweep() begins.
+  std::vector<cl::Buffer> carried;
   BrickStream& stream() { return stream_; }
   cl::Kernel& render_kernel() { return *render_; }
   // On CPUs (midpoint), the rays a packet kernel marches in lanes, and their tile; 0 elsewhere.

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <string>
 
+#include "brick/domain.hpp"
 #include "ivr/error.hpp"
 #include "ivr_constants.h"
 #include "runtime/device_memory.hpp"
@@ -33,7 +34,8 @@ struct Pass {
 
 BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& target,
                                const std::vector<cl_int4>& requested, const GradientOptions& o,
-                               const BrickPlan& plan) {
+                               const BrickPlan& plan, const DomainPart* domain,
+                               DomainStats* domain_stats) {
   const ImageExtent e = image_extent(scene);
   const std::size_t rays = e.pixels();
   const std::size_t real_size = o.precision == Precision::f64 ? 8 : 4;
@@ -94,6 +96,7 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
   ro.precision = o.precision;
   ro.step = o.step;
   BrickedMarch march(device, scene, ro, p, "gradient");
+  if (domain) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
   Device::Impl& dev = s.dev;
   march.session().set_target(target);
@@ -154,6 +157,7 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
     // The march restarted (BEGIN), the tangents zero, the sweeps, then each pixel's terms.
     march.launch_all(march.render_kernel(), kBegin);
     dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
+    march.carried = {tangents};  // (over slabs: they move with the rays' states)
     march.sweep(k, kTangentMarch, {}, "bricked");
     cl_call("running the bricked tangent's finish on " + dev.info.name, [&] {
       march.set_brick(k, 0, 0);

@@ -21,8 +21,12 @@ struct BrickedTangent {
 // voxel, step and ray-list lanes) out of core, as `plan` splits the volume; equal to the in-core
 // forward mode to rounding. Throws Error(out_of_memory) where not even one lane's per-ray
 // tangents fit beside the plan.
+// `domain` (lib/brick/domain.cpp): this worker marches its slab's bricks alone, the rays' states
+// and tangents passed between the workers, so that every worker ends with every ray's tangents
+// and returns the whole loss and gradient.
 BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& target,
                                const std::vector<cl_int4>& lanes, const GradientOptions& options,
-                               const BrickPlan& plan);
+                               const BrickPlan& plan, const DomainPart* domain = nullptr,
+                               DomainStats* domain_stats = nullptr);
 
 }  // namespace ivr

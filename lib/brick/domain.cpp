@@ -24,35 +24,52 @@ void check_domain_part(const DomainPart& part) {
 namespace {
 
 // The exchange itself (attach_exchange): host copies of the states as the last exchange left them.
+// A ray's entry holds its march state and, beside it, its part of every buffer the march carries
+// per ray (BrickedMarch::carried: forward mode's tangents).
 class StateExchange {
  public:
   StateExchange(BrickedMarch& march, const DomainPart& part, DomainStats* stats)
-      : march_(march), part_(part), stats_(stats), rays_(march.rays()) {
-    reals_bytes_ = march.state().getInfo<CL_MEM_SIZE>() / rays_;
-    uints_bytes_ = march.state_u().getInfo<CL_MEM_SIZE>() / rays_;
-    entry_ = 4 + reals_bytes_ + uints_bytes_;
+      : march_(march), part_(part), stats_(stats), rays_(march.rays()) {}
+
+  // Before a march's sweeps: what it carries now, and the states to tell moved rays by.
+  void keep() {
+    buffers_ = {march_.state(), march_.state_u()};
+    buffers_.insert(buffers_.end(), march_.carried.begin(), march_.carried.end());
+    sizes_.clear();
+    entry_ = 4;
+    for (const cl::Buffer& b : buffers_) {
+      const std::size_t bytes = b.getInfo<CL_MEM_SIZE>();
+      if (bytes % rays_)
+        throw Error(Status::opencl, "domain exchange: a per-ray buffer of " +
+                                        std::to_string(bytes) + " bytes for " +
+                                        std::to_string(rays_) + " rays");
+      sizes_.push_back(bytes / rays_);
+      entry_ += sizes_.back();
+    }
+    kept_ = read();
+    kept_.resize(2);  // a ray moved where its state changed
   }
 
-  void keep() { read(kept_reals_, kept_uints_); }
-
   void exchange() {
-    std::vector<unsigned char> reals, uints;
-    read(reals, uints);
-    // The rays this worker moved, as (ray, reals, uints) entries.
+    std::vector<std::vector<unsigned char>> now = read();
+    // The rays this worker moved, as (ray, state, carried …) entries.
     std::vector<unsigned char> mine;
     std::vector<int> mover(rays_, -1);
     for (std::size_t i = 0; i < rays_; ++i) {
-      const std::size_t r = i * reals_bytes_, u = i * uints_bytes_;
-      if (!std::memcmp(&reals[r], &kept_reals_[r], reals_bytes_) &&
-          !std::memcmp(&uints[u], &kept_uints_[u], uints_bytes_))
-        continue;
+      bool moved = false;
+      for (std::size_t k = 0; k < 2; ++k)
+        moved = moved || std::memcmp(&now[k][i * sizes_[k]], &kept_[k][i * sizes_[k]], sizes_[k]);
+      if (!moved) continue;
       mover[i] = part_.rank;
       const std::uint32_t ray = std::uint32_t(i);
-      const std::size_t at = mine.size();
+      std::size_t at = mine.size();
       mine.resize(at + entry_);
       std::memcpy(&mine[at], &ray, 4);
-      std::memcpy(&mine[at + 4], &reals[r], reals_bytes_);
-      std::memcpy(&mine[at + 4 + reals_bytes_], &uints[u], uints_bytes_);
+      at += 4;
+      for (std::size_t k = 0; k < buffers_.size(); ++k) {
+        std::memcpy(&mine[at], &now[k][i * sizes_[k]], sizes_[k]);
+        at += sizes_[k];
+      }
     }
     const std::vector<std::vector<unsigned char>> all = part_.all_gather(mine);
     if (int(all.size()) != part_.ranks)
@@ -78,37 +95,46 @@ class StateExchange {
                                              " in one sweep (do the workers share one scene?)"
                                        : " (no such ray)"));
         mover[ray] = w;
-        std::memcpy(&reals[ray * reals_bytes_], &from[at + 4], reals_bytes_);
-        std::memcpy(&uints[ray * uints_bytes_], &from[at + 4 + reals_bytes_], uints_bytes_);
+        std::size_t from_at = at + 4;
+        for (std::size_t k = 0; k < buffers_.size(); ++k) {
+          std::memcpy(&now[k][ray * sizes_[k]], &from[from_at], sizes_[k]);
+          from_at += sizes_[k];
+        }
         others = true;
       }
       if (stats_) stats_->received_bytes += from.size();
     }
-    if (others) write(reals, uints);
-    kept_reals_.swap(reals);
-    kept_uints_.swap(uints);
+    if (others) write(now);
+    now.resize(2);
+    kept_.swap(now);
     if (stats_) ++stats_->exchanges, stats_->sent_bytes += mine.size();
   }
 
  private:
-  void read(std::vector<unsigned char>& reals, std::vector<unsigned char>& uints) {
-    reals.resize(rays_ * reals_bytes_);
-    uints.resize(rays_ * uints_bytes_);
+  std::vector<std::vector<unsigned char>> read() {
+    std::vector<std::vector<unsigned char>> out(buffers_.size());
     cl::CommandQueue& q = march_.s.dev.queue;
-    q.enqueueReadBuffer(march_.state(), CL_FALSE, 0, reals.size(), reals.data());
-    q.enqueueReadBuffer(march_.state_u(), CL_TRUE, 0, uints.size(), uints.data());
+    for (std::size_t k = 0; k < buffers_.size(); ++k) {
+      out[k].resize(rays_ * sizes_[k]);
+      q.enqueueReadBuffer(buffers_[k], CL_FALSE, 0, out[k].size(), out[k].data());
+    }
+    q.finish();
+    return out;
   }
-  void write(const std::vector<unsigned char>& reals, const std::vector<unsigned char>& uints) {
+  void write(const std::vector<std::vector<unsigned char>>& values) {
     cl::CommandQueue& q = march_.s.dev.queue;
-    q.enqueueWriteBuffer(march_.state(), CL_FALSE, 0, reals.size(), reals.data());
-    q.enqueueWriteBuffer(march_.state_u(), CL_TRUE, 0, uints.size(), uints.data());
+    for (std::size_t k = 0; k < buffers_.size(); ++k)
+      q.enqueueWriteBuffer(buffers_[k], CL_FALSE, 0, values[k].size(), values[k].data());
+    q.finish();
   }
 
   BrickedMarch& march_;
   DomainPart part_;
   DomainStats* stats_;
-  std::size_t rays_, reals_bytes_ = 0, uints_bytes_ = 0, entry_ = 0;
-  std::vector<unsigned char> kept_reals_, kept_uints_;
+  std::size_t rays_, entry_ = 0;
+  std::vector<cl::Buffer> buffers_;
+  std::vector<std::size_t> sizes_;
+  std::vector<std::vector<unsigned char>> kept_;  // the states (reals, uints) after the last round
 };
 
 }  // namespace

@@ -296,8 +296,7 @@ ivr_status ivr_gradient_slabs(ivr_context* c, const ivr_scene* s, const float* t
                                                    " floats; the scene renders " +
                                                    std::to_string(want)};
     t.pixels.assign(target, target + count);
-    ivr::GradientOptions o;
-    o.mode = ivr::Mode::adjoint;
+    ivr::GradientOptions o;  // (automatic: density, tf, background by the adjoint, others forward)
     o.loss = loss_of(loss);
     o.precision = precision_of(precision);
     o.step = step;
@@ -307,7 +306,7 @@ ivr_status ivr_gradient_slabs(ivr_context* c, const ivr_scene* s, const float* t
     ivr_result* r = new_result(c);
     r->loss = d.loss;
     r->seconds = d.kernel_seconds;
-    r->mode = IVR_MODE_ADJOINT;
+    r->mode = d.plan.mode == ivr::Mode::forward ? IVR_MODE_FORWARD : IVR_MODE_ADJOINT;
     for (const ivr::GroupGradient& g : d.groups)
       r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
     *out = r;

@@ -154,9 +154,10 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
              **options):
     """ctx.gradient of the whole scene, each rank differentiating its share of the views (the
     target's first axis: views, or a ray list's rays): every rank gets (loss, {group: array}), one
-    process's result to rounding. split="slabs" (wrt density and/or tf; midpoint, adjoint): each
-    rank differentiates over one slab of z planes, the slabs' density parts joined (shared planes
-    added) and the TF parts summed. `options` are ctx.gradient's (mode, step, base_dir)."""
+    process's result to rounding. split="slabs" (midpoint): each rank differentiates over one
+    slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
+    summed; background and the forward lanes' groups (camera, …) come whole on every rank.
+    `options` are ctx.gradient's (mode, step, base_dir; over slabs: step, base_dir)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
     _check_split(split, "gradient")

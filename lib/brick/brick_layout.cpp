@@ -89,6 +89,10 @@ std::array<double, 3> BrickLayout::hi(int b) const {
 
 std::uint64_t brick_budget(Device& device) {
   const std::uint64_t budget = device_memory_budget(device.info());
+  // A buffer is counted out when the driver frees it, which may wait for the commands that use
+  // it: with the queue drained, what an earlier call released no longer counts against this plan
+  // (under load, a just-finished render's volume could otherwise make a plan go in core).
+  if (budget) device.impl().queue.finish();
   const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(device.impl().live->bytes, 0));
   return budget ? (budget > in_use ? budget - in_use : 1) : 0;
 }

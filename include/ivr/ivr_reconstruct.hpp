@@ -1,6 +1,8 @@
 // ivr/ivr_reconstruct.hpp — the C++ API's inverse rendering (part of ivr/ivr.hpp, which includes
 // it): a reconstruction handle, viewpoint selection, image entropy and PSNR, over the C API.
 #pragma once
+#include <memory>
+
 #include "ivr/ivr.hpp"
 
 namespace ivr::api {
@@ -53,10 +55,23 @@ class Reconstruction : public detail::Handle<ivr_reconstruction, ivr_reconstruct
     detail::check(ivr_reconstruction_create(context.get(), scene.get(), targets.data(),
                                             targets.size(), &options, &handle_));
   }
+  // Worker workers.rank of workers.ranks sharing out each batch's views
+  // (ivr_reconstruction_create_shared; workers.split is not read): every step sums the loss and
+  // gradients over the workers through workers.sum, which this object (and its copies) keeps; what
+  // the sum throws is rethrown by the step that called it.
+  Reconstruction(const Context& context, const Scene& scene, const std::vector<float>& targets,
+                 const ReconstructOptions& options, const Workers& workers)
+      : sum_(std::make_shared<OwnedSum>(workers.sum)) {
+    detail::check(ivr_reconstruction_create_shared(
+        context.get(), scene.get(), targets.data(), targets.size(), &options, workers.rank,
+        workers.ranks, workers.sum ? &detail::Sum::call : nullptr, &sum_->state, &handle_));
+  }
   // One iteration (throws once done()).
   ivr_reconstruct_iteration step() {
     ivr_reconstruct_iteration it{};
-    detail::check(ivr_reconstruction_step(get(), &it));
+    const ivr_status status = ivr_reconstruction_step(get(), &it);
+    rethrow_sum_error();
+    detail::check(status);
     return it;
   }
   // Until done or until `progress` returns false.
@@ -66,6 +81,7 @@ class Reconstruction : public detail::Handle<ivr_reconstruction, ivr_reconstruct
     const ivr_status status = ivr_reconstruction_run(
         get(), progress ? &detail::Callback<ivr_reconstruct_iteration>::call : nullptr, &state, &s);
     if (state.error) std::rethrow_exception(state.error);
+    rethrow_sum_error();
     detail::check(status);
     return {s.iterations, s.steps, s.stop_reason, s.loss, s.seconds};
   }
@@ -121,6 +137,21 @@ class Reconstruction : public detail::Handle<ivr_reconstruction, ivr_reconstruct
   void resume(const std::string& prefix) {
     detail::check(ivr_reconstruction_resume(get(), prefix.c_str()));
   }
+
+ private:
+  // The workers' sum, where they share the views: kept as long as the handle's C++ owners.
+  struct OwnedSum {
+    explicit OwnedSum(std::function<void(double*, size_t)> f) : function(std::move(f)) {}
+    std::function<void(double*, size_t)> function;
+    detail::Sum state{&function, nullptr};
+  };
+  void rethrow_sum_error() {
+    if (!sum_ || !sum_->state.error) return;
+    const std::exception_ptr e = sum_->state.error;
+    sum_->state.error = nullptr;
+    std::rethrow_exception(e);
+  }
+  std::shared_ptr<OwnedSum> sum_;
 };
 
 // What select_viewpoint searches: ivr_viewpoint_options (documented in ivr.h) filled with the

@@ -224,6 +224,52 @@ TEST(CApiTomoSplit, CppWrapper) {
   for (std::size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(a[i], b[i], 1e-5 * scale) << i;
 }
 
+// The C++ wrapper's shared reconstruction: two workers on threads, their sums met in a
+// rendezvous, step alike and hold the same volume; what a sum throws comes out of the step.
+TEST(CApiTomoSplit, CppSharedReconstruction) {
+  Summit summit(2);
+  std::vector<std::vector<float>> volumes(2);
+  std::vector<int> sums(2, 0);
+  std::vector<std::string> errors(2);
+  auto worker = [&](int rank) {
+    try {
+      api::Context ctx;
+      const api::Scene scene = ctx.scene_from_json(scene_json({0, 1, 2}));
+      const std::vector<float> targets = ctx.render(scene).values;
+      api::ReconstructOptions o;
+      o.iterations = 3;
+      api::Workers w;
+      w.rank = rank, w.ranks = 2;
+      w.sum = [&, rank](double* values, size_t count) {
+        ++sums[std::size_t(rank)];
+        summit.sum(rank, values, count);
+      };
+      api::Reconstruction r(ctx, scene, targets, o, w);
+      while (!r.done()) r.step();
+      volumes[std::size_t(rank)] = r.volume().values;
+      // A sum that throws: the step rethrows it (each worker's throws without waiting).
+      w.sum = [](double*, size_t) { throw std::runtime_error("no network"); };
+      api::Reconstruction failing(ctx, scene, targets, o, w);
+      try {
+        failing.step();
+        errors[std::size_t(rank)] = "the sum's exception was not rethrown";
+      } catch (const std::runtime_error&) {
+      }
+    } catch (const std::exception& e) {
+      errors[std::size_t(rank)] = e.what();
+    }
+  };
+  std::thread a(worker, 0), b(worker, 1);
+  a.join();
+  b.join();
+  EXPECT_EQ(errors[0], "");
+  EXPECT_EQ(errors[1], "");
+  EXPECT_GT(sums[0], 0);
+  EXPECT_EQ(sums[0], sums[1]);
+  EXPECT_FALSE(volumes[0].empty());
+  EXPECT_EQ(volumes[0], volumes[1]);
+}
+
 TEST(CApiTomoSplit, BadArgumentsAreRefused) {
   ivr_context* ctx = nullptr;
   ivr_scene* scene = nullptr;
@@ -272,8 +318,8 @@ TEST(CApiTomoSplit, BadArgumentsAreRefused) {
   for (std::size_t i = 0; i < image.size(); ++i)
     EXPECT_NEAR(image[i], in_core[i], 1e-5f * std::max(1.0f, std::abs(in_core[i])));
   ivr_result* result = nullptr;
-  EXPECT_EQ(ivr_gradient_slabs(ctx, scene, image.data(), image.size(), "nothing",
-                               IVR_LOSS_MSE, IVR_PRECISION_F32, 0, 0, 1, summed, &w, &result),
+  EXPECT_EQ(ivr_gradient_slabs(ctx, scene, image.data(), image.size(), "nothing", IVR_LOSS_MSE,
+                               IVR_PRECISION_F32, 0, 0, 1, summed, &w, &result),
             IVR_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(result, nullptr);
   EXPECT_EQ(ivr_gradient_slabs(ctx, scene, image.data(), image.size() - 1, "density", IVR_LOSS_MSE,

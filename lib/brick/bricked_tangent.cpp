@@ -7,6 +7,7 @@
 #include "brick/domain.hpp"
 #include "ivr/error.hpp"
 #include "ivr_constants.h"
+#include "jacobian/jacobian.hpp"
 #include "runtime/device_memory.hpp"
 #include "runtime/launch.hpp"
 #include "runtime/real_args.hpp"
@@ -17,12 +18,6 @@ namespace {
 constexpr int kBegin = 0;                             // kernels/bricked.cl
 constexpr int kTangentMarch = 5, kTangentFinish = 6;  // kernels/bricked_tangent.cl
 constexpr int kColumns = RayList::kColumns;
-
-int lanes_for(std::size_t count) {
-  int lanes = 1;
-  while (std::size_t(lanes) < count) lanes *= 2;
-  return lanes;
-}
 
 // One pass: the lanes it carries (`rays`: every listed ray's own columns, IVR_RAY_GRADIENT).
 struct Pass {

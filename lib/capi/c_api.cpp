@@ -198,6 +198,32 @@ ivr_status ivr_render(ivr_context* c, const ivr_scene* s, ivr_precision precisio
   });
 }
 
+namespace {
+// The caller's target (count floats) in the scene's image shape.
+ivr::Image target_image(const ivr::Scene& scene, const float* target, size_t count) {
+  const ivr::ImageExtent cam = ivr::image_extent(scene);
+  ivr::Image t{cam.views, cam.height, cam.width, scene.channels(), {}};
+  const size_t want = size_t(t.views) * t.height * t.width * t.channels;
+  if (count != want)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT, "target has " + std::to_string(count) +
+                                                 " floats; the scene renders " +
+                                                 std::to_string(want)};
+  t.pixels.assign(target, target + count);
+  return t;
+}
+
+// A gradient as a result handle: its loss, seconds, mode and one array per group.
+ivr_result* gradient_result(ivr_context* c, const ivr::Gradient& d) {
+  ivr_result* r = new_result(c);
+  r->loss = d.loss;
+  r->seconds = d.kernel_seconds;
+  r->mode = d.plan.mode == ivr::Mode::forward ? IVR_MODE_FORWARD : IVR_MODE_ADJOINT;
+  for (const ivr::GroupGradient& g : d.groups)
+    r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
+  return r;
+}
+}  // namespace
+
 ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target, size_t count,
                         const char* wrt, ivr_mode mode, ivr_loss loss, ivr_precision precision,
                         double step, ivr_result** out) {
@@ -211,14 +237,7 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
     *out = nullptr;
     const ivr::Mode m = mode_of(mode);
     const ivr::Loss l = loss_of(loss);
-    const ivr::ImageExtent cam = ivr::image_extent(s->scene);
-    ivr::Image t{cam.views, cam.height, cam.width, s->scene.channels(), {}};
-    const size_t want = size_t(t.views) * t.height * t.width * t.channels;
-    if (count != want)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "target has " + std::to_string(count) +
-                                                   " floats; the scene renders " +
-                                                   std::to_string(want)};
-    t.pixels.assign(target, target + count);
+    const ivr::Image t = target_image(s->scene, target, count);
     ivr::GradientOptions o;
     o.mode = m;
     o.loss = l;
@@ -226,13 +245,7 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
     o.step = step;
     const ivr::Gradient d =
         ivr::gradient(c->device, s->scene, t, ivr::parse_groups(wrt), o);
-    ivr_result* r = new_result(c);
-    r->loss = d.loss;
-    r->seconds = d.kernel_seconds;
-    r->mode = d.plan.mode == ivr::Mode::forward ? IVR_MODE_FORWARD : IVR_MODE_ADJOINT;
-    for (const ivr::GroupGradient& g : d.groups)
-      r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
-    *out = r;
+    *out = gradient_result(c, d);
   });
 }
 
@@ -288,14 +301,7 @@ ivr_status ivr_gradient_slabs(ivr_context* c, const ivr_scene* s, const float* t
     not_null(out, "result");
     *out = nullptr;
     const ivr::DomainPart part = slab_part(rank, ranks, sum, sum_user);
-    const ivr::ImageExtent cam = ivr::image_extent(s->scene);
-    ivr::Image t{cam.views, cam.height, cam.width, s->scene.channels(), {}};
-    const size_t want = size_t(t.views) * t.height * t.width * t.channels;
-    if (count != want)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "target has " + std::to_string(count) +
-                                                   " floats; the scene renders " +
-                                                   std::to_string(want)};
-    t.pixels.assign(target, target + count);
+    const ivr::Image t = target_image(s->scene, target, count);
     ivr::GradientOptions o;  // (automatic: density, tf, background by the adjoint, others forward)
     o.loss = loss_of(loss);
     o.precision = precision_of(precision);
@@ -303,13 +309,7 @@ ivr_status ivr_gradient_slabs(ivr_context* c, const ivr_scene* s, const float* t
     const ivr::Gradient d =
         ivr::gradient_domain(c->device, ivr::domain_share(s->scene, rank, ranks), t, part, o,
                              nullptr, ivr::parse_groups(wrt));
-    ivr_result* r = new_result(c);
-    r->loss = d.loss;
-    r->seconds = d.kernel_seconds;
-    r->mode = d.plan.mode == ivr::Mode::forward ? IVR_MODE_FORWARD : IVR_MODE_ADJOINT;
-    for (const ivr::GroupGradient& g : d.groups)
-      r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
-    *out = r;
+    *out = gradient_result(c, d);
   });
 }
 

@@ -123,13 +123,13 @@ std::vector<std::int64_t> voxel_list(const std::string& list, const Volume& volu
   return out;
 }
 
+}  // namespace
+
 int lanes_for(std::size_t count) {
   int lanes = 1;
   while (std::size_t(lanes) < count) lanes *= 2;
   return lanes;
 }
-
-}  // namespace
 
 std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& parameters) {
   std::vector<cl_int4> lanes;

@@ -17,5 +17,7 @@ JacobianResult enqueue_jacobian(Session::Impl& s, const std::vector<cl_int4>& la
                                 const DeviceArray* target, bool jacobian, Loss loss,
                                 OperationRecord& op);
 std::vector<cl_int4> lanes_of(const Scene& scene, const std::vector<Parameter>& parameters);
+// IVR_LANES for `count` parameters in one pass: the power of two at or above it.
+int lanes_for(std::size_t count);
 
 }  // namespace ivr

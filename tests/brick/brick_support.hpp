@@ -48,6 +48,23 @@ inline Scene bricked_scene(Model model, Scheme scheme) {
   return s;
 }
 
+// `count` ray-list rows (origin, direction, t_start, t_end) from `seed`: rays from inside and
+// outside the volume, ends inside the box and infinite ones.
+inline std::vector<double> random_ray_rows(int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> rows;
+  for (int r = 0; r < count; ++r) {
+    const double o[3] = {u(rng) * (r % 2 ? 0.3 : 1.5), u(rng) * 0.3, u(rng) * (r % 2 ? 0.3 : 1.5)};
+    double d[3] = {-o[0] + 0.2 * u(rng), -o[1] + 0.2 * u(rng), -o[2] + 0.2 * u(rng)};
+    if (r % 2) d[0] = u(rng), d[1] = u(rng), d[2] = u(rng);
+    const double t0 = r % 3 == 0 ? -INFINITY : 0.1 * std::abs(u(rng));
+    const double t1 = r % 4 == 0 ? INFINITY : 0.5 + std::abs(u(rng));
+    rows.insert(rows.end(), {o[0], o[1], o[2], d[0], d[1], d[2], t0, t1});
+  }
+  return rows;
+}
+
 inline double largest(const std::vector<double>& v) {
   double m = 0;
   for (double x : v) m = std::max(m, std::abs(x));

@@ -68,17 +68,7 @@ INSTANTIATE_TEST_SUITE_P(
 // A ray list: rays from inside and outside, ends inside the box, infinite ends.
 TEST(BrickedRenderRays, RayListEqualsInCore) {
   Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<double> rows;
-  for (int r = 0; r < 64; ++r) {
-    const double o[3] = {u(rng) * (r % 2 ? 0.3 : 1.5), u(rng) * 0.3, u(rng) * (r % 2 ? 0.3 : 1.5)};
-    double d[3] = {-o[0] + 0.2 * u(rng), -o[1] + 0.2 * u(rng), -o[2] + 0.2 * u(rng)};
-    if (r % 2) d[0] = u(rng), d[1] = u(rng), d[2] = u(rng);
-    const double t0 = r % 3 == 0 ? -INFINITY : 0.1 * std::abs(u(rng));
-    const double t1 = r % 4 == 0 ? INFINITY : 0.5 + std::abs(u(rng));
-    rows.insert(rows.end(), {o[0], o[1], o[2], d[0], d[1], d[2], t0, t1});
-  }
+  const std::vector<double> rows = random_ray_rows(64, 3);
   s.rays = make_ray_list(rows.data(), 64, 8);
   s.cameras.clear();
   const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;

@@ -482,60 +482,10 @@ class Context(_Owned):
         every iteration with that entry; returning False stops (the last iterate is returned).
         `info`, a dict, receives stop_reason, setup_seconds and seconds. Options left at None take
         the library's defaults (ivr_tomo_options_init: cgls, 50 iterations, no regulariser)."""
-        o = _capi.filled(
-            _capi.TomoOptions, self._lib.ivr_tomo_options_init, _check,
-            solver=_optional_choice(_SOLVERS, solver, "solver"),
-            precision=_PRECISIONS[self.precision], iterations=iterations,
-            nonneg=None if nonneg is None else bool(nonneg), tv_reweight=tv_reweight,
-            tolerance=tolerance, tikhonov=tikhonov, tv=tv, tv_epsilon=tv_epsilon,
-            relaxation=relaxation)
-        failure = []
-
-        def call(entry, _user):
-            e = entry.contents
-            try:
-                go = progress({"iteration": e.iteration, "residual": e.residual,
-                               "seconds": e.seconds})
-                return 0 if go is False else 1
-            except BaseException as error:  # noqa: BLE001 — re-raised once ivr_tomo returns
-                failure.append(error)
-                return 0
-
-        callback = _capi.TOMO_PROGRESS(call) if progress else ctypes.cast(None, _capi.TOMO_PROGRESS)
-        s = self._grid_scene(scene, grid, base_dir)
-        try:
-            p = self._rays(s, lines, "lines")
-            out = self._volume_out(s)
-            history = (_capi.TomoIteration * max(o.iterations, 1))()
-            summary = _capi.TomoSummary()
-            if _split is None:
-                status = self._lib.ivr_tomo(self._live(), s, ctypes.byref(o),
-                                            p.ctypes.data_as(_FLOAT_P), p.size,
-                                            out.ctypes.data_as(_FLOAT_P), out.size, callback, None,
-                                            history, len(history), ctypes.byref(summary))
-            else:  # (split, rank, ranks, add): ivr.mpi.tomo's workers, add(a) summing in place
-                split, rank, ranks, add = _split
-                sum_fn = _sum_fn(add, failure)
-                if split == 1:  # this worker's planes of the grid
-                    first, last = ctypes.c_int(), ctypes.c_int()
-                    _check(self._lib.ivr_domain_slab(out.shape[0], rank, ranks,
-                                                     ctypes.byref(first), ctypes.byref(last)))
-                    out = np.empty((last.value - first.value + 1,) + out.shape[1:],
-                                   dtype=np.float32)
-                status = self._lib.ivr_tomo_split(
-                    self._live(), s, ctypes.byref(o), split, rank, ranks, sum_fn, None,
-                    p.ctypes.data_as(_FLOAT_P), p.size, out.ctypes.data_as(_FLOAT_P), out.size,
-                    callback, None, history, len(history), ctypes.byref(summary))
-            if failure:
-                raise failure[0]
-            _check(status)  # before the release below replaces the thread's last error
-        finally:
-            self._lib.ivr_scene_release(s)
-        if info is not None:
-            info.update(stop_reason=summary.stop_reason.decode(), seconds=summary.seconds,
-                        setup_seconds=summary.setup_seconds)
-        return out, [{"iteration": h.iteration, "residual": h.residual, "seconds": h.seconds}
-                     for h in history[:summary.iterations]]
+        from . import _tomo
+        return _tomo.tomo(self, scene, lines, solver, iterations, nonneg, tv, tikhonov, tolerance,
+                          tv_epsilon, tv_reweight, relaxation, progress, grid, base_dir, info,
+                          _split)
 
     def lines_from_intensities(self, scene, intensities, clamp=0.0, base_dir=None):
         """Line integrals p = -log(I / I_in) / a from intensities (views, H, W[, 1]), with I_in

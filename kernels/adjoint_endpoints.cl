@@ -107,26 +107,34 @@ inline void finish_sample(AdjointSample* a, vint done, CellCache* cell, __global
 #endif
 }
 
-inline void adjoint_march_endpoints(__global const real* volume, int4 dims, const March* m, Ray ray,
-                                    real4 inv_voxel, __global const real* tf, int tf_count,
-                                    real4 tf_scalars, const AdjointRay* ar,
-                                    __global const uchar* occupied, int4 bricks,
-                                    const ScatterSink grad_volume, TfGradCache* tf_cache,
-                                    __local real* tf_acc, CameraSums* cs) {
-  vreal transmittance = (vreal)(real)1;
+// The segments from at->i on that belong to the window ending at `window_end` (segment_in_window;
+// in core: ∞) and lie before the primal march's end, from the prefix in *at; *at is left where the
+// march stopped. Each sample collects dL/d its density from the segments of the window it ends and
+// begins and is scattered once, at the window's end where it is still open: out of core
+// (kernels/bricked_adjoint.cl) a sample on the window's border is scattered twice, a part by each
+// brick, into the voxels around it that both bricks hold (the halo, lib/brick/brick_layout.hpp).
+__attribute__((always_inline)) inline void adjoint_march_endpoints_window(
+    __global const real* volume, int4 dims, const March* m, Ray ray, real4 inv_voxel,
+    __global const real* tf, int tf_count, real4 tf_scalars, const AdjointRay* ar,
+    __global const uchar* occupied, int4 bricks, const ScatterSink grad_volume,
+    TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs, vreal window_end,
+    AdjointPrefix* at) {
+  vreal transmittance = at->transmittance;
   // The emission prefix, summed exactly as the primal march summed C.
-  vreal pr = (vreal)(real)0, pg = pr, pb = pr, kr = pr, kg = pr, kb = pr;
+  vreal pr = at->pr, pg = at->pg, pb = at->pb, kr = at->kr, kg = at->kg, kb = at->kb;
   vint seg_value = (vint)0, seg_scatter = (vint)0;
   CellCache cell;
   cell_init(&cell);
   real along = 0, indexed = 0, direct = 0;  // camera (one ray): fixed_step_ends()
   const vreal dt = m->dt;
   const vint end = ar->end;
-  vint i = (vint)0;
-  AdjointSample a = adjoint_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &seg_value);
-  vint open = vtrue;  // a still waits for its scatter
+  vint i = at->i;
   vint live = i < end;
+  AdjointSample a = adjoint_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &seg_value);
+  vint open = live;  // a still waits for its scatter
   while (vany(live)) {
+    live = live && segment_in_window(m, i, window_end);
+    if (!vany(live)) break;
 #if IVR_EMPTY_SPACE
     {
       const vint k = endpoint_skip(i, end, a.s.ux, a.s.uy, a.s.uz, m, dims, occupied, bricks, live);
@@ -206,6 +214,21 @@ inline void adjoint_march_endpoints(__global const real* volume, int4 dims, cons
 #else
   (void)direct;
 #endif
+  at->transmittance = transmittance;
+  at->pr = pr, at->pg = pg, at->pb = pb, at->kr = kr, at->kg = kg, at->kb = kb;
+  at->i = i;
+}
+
+// The whole ray's adjoint march (in core).
+__attribute__((always_inline)) inline void adjoint_march_endpoints(
+    __global const real* volume, int4 dims, const March* m, Ray ray, real4 inv_voxel,
+    __global const real* tf, int tf_count, real4 tf_scalars, const AdjointRay* ar,
+    __global const uchar* occupied, int4 bricks, const ScatterSink grad_volume,
+    TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs) {
+  AdjointPrefix at = adjoint_prefix_begin();
+  adjoint_march_endpoints_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars, ar,
+                                 occupied, bricks, grad_volume, tf_cache, tf_acc, cs,
+                                 (vreal)(real)INFINITY, &at);
 }
 
 #endif

@@ -12,26 +12,33 @@
 #include "exact.cl"
 
 // One ray, or every ray of a packet (kernels/rays.cl; no camera gradient), written once as
-// primal.cl's marches are.
-inline void adjoint_march_exact(__global const real* volume, int4 dims, const March* m, Ray ray,
-                                real4 inv_voxel, __global const real* tf, int tf_count,
-                                real4 tf_scalars, const AdjointRay* ar,
-                                __global const uchar* occupied, int4 bricks,
-                                const ScatterSink grad_volume, TfGradCache* tf_cache,
-                                __local real* tf_acc, CameraSums* cs) {
+// primal.cl's marches are: the pieces of [window_start, window_end] (in core the ray's [t0, t1])
+// from the at->i-th piece on (the primal march's count, ar->end, stops it where it stopped), dL/dτ
+// being one number for the whole ray; at->i is left counting the pieces taken. Out of core
+// (kernels/bricked_adjoint.cl) a window is the ray's part in a brick: every piece lies between
+// voxel-centre planes, so in one brick.
+inline void adjoint_march_exact_window(__global const real* volume, int4 dims, const March* m,
+                                       Ray ray, real4 inv_voxel, __global const real* tf,
+                                       int tf_count, real4 tf_scalars, const AdjointRay* ar,
+                                       __global const uchar* occupied, int4 bricks,
+                                       const ScatterSink grad_volume, TfGradCache* tf_cache,
+                                       __local real* tf_acc, CameraSums* cs, vreal window_start,
+                                       vreal window_end, AdjointPrefix* at) {
   const vreal gtau = -ar->intensity * ar->gi;  // dL/dτ, the same for every piece
   CellCache cell;
   cell_init(&cell);
+  March w = *m;
+  w.t1 = window_end;
   Pieces p;
-  pieces_begin(&p, m, dims, m->t0);
-  vreal ta = m->t0, tb = m->t0;
+  pieces_begin(&p, &w, dims, window_start);
+  vreal ta = window_start, tb = window_start;
 #if IVR_GRAD_CAMERA
   real t_last = m->t0;
   int last_axis = -1;
 #endif
-  vint count = (vint)0;
+  vint count = at->i;
   vint live = count < ar->end, go;
-  while (vany(go = pieces_next_where(&p, m, dims, live, &ta, &tb))) {
+  while (vany(go = pieces_next_where(&p, &w, dims, live, &ta, &tb))) {
     count += vcount(go);
     live = live && (count < ar->end);
 #if IVR_GRAD_CAMERA
@@ -41,12 +48,12 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
     vint take = go && vmask_of(tb > ta);
 #if IVR_EMPTY_SPACE
     if (vany(take))
-      take = take && !pieces_skip_empty_where(&p, m, dims, take, ta, tb, occupied, bricks);
+      take = take && !pieces_skip_empty_where(&p, &w, dims, take, ta, tb, occupied, bricks);
 #else
     (void)occupied, (void)bricks;
 #endif
     if (!vany(take)) continue;
-    const PieceCell pc = piece_cell(m, dims, ta, tb);
+    const PieceCell pc = piece_cell(&w, dims, ta, tb);
     cell_enter(&cell, pc.ix, pc.iy, pc.iz, volume, dims, grad_volume, take);
     vreal v[8];
     for (int k = 0; k < 8; ++k) v[k] = IVR_CORNER_LANES(cell.v[k]);
@@ -106,6 +113,20 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
 #else
   (void)ray, (void)inv_voxel, (void)cs;
 #endif
+  at->i = count;
+}
+
+// The whole ray's adjoint march (in core).
+inline void adjoint_march_exact(__global const real* volume, int4 dims, const March* m, Ray ray,
+                                real4 inv_voxel, __global const real* tf, int tf_count,
+                                real4 tf_scalars, const AdjointRay* ar,
+                                __global const uchar* occupied, int4 bricks,
+                                const ScatterSink grad_volume, TfGradCache* tf_cache,
+                                __local real* tf_acc, CameraSums* cs) {
+  AdjointPrefix at = adjoint_prefix_begin();
+  adjoint_march_exact_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars, ar,
+                             occupied, bricks, grad_volume, tf_cache, tf_acc, cs, m->t0, m->t1,
+                             &at);
 }
 
 #endif

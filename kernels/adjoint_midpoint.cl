@@ -8,23 +8,6 @@
 #include "empty_space.cl"
 #include "rays.cl"
 
-// Where a ray's adjoint march stands: the prefix (transmittance and emission, summed exactly as the
-// primal march summed C) before sample i. In core a march starts at sample 0 with nothing in
-// front; out of core (kernels/bricked_adjoint.cl) each brick goes on from where the one before
-// left it.
-typedef struct {
-  vreal transmittance, pr, pg, pb, kr, kg, kb;
-  vint i;
-} AdjointPrefix;
-
-inline AdjointPrefix adjoint_prefix_begin(void) {
-  AdjointPrefix p;
-  p.transmittance = (vreal)(real)1;
-  p.pr = p.pg = p.pb = p.kr = p.kg = p.kb = (vreal)(real)0;
-  p.i = (vint)0;
-  return p;
-}
-
 // One ray, or every ray of a packet (kernels/rays.cl) written once as primal.cl's marches are:
 // `take` holds the rays that sample in this round (the constant true for one ray), and each lane
 // does its own ray's arithmetic. The samples from `at` on that lie before `window_end` (in core:

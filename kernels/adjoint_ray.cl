@@ -28,6 +28,24 @@ typedef struct {
   vint end;                         // Radiance.end of the primal march
 } AdjointRay;
 
+// Where a ray's adjoint march stands: the prefix (transmittance and emission, summed exactly as the
+// primal march summed C) before sample i (midpoint) or segment i (trapezoid, preintegrated); exact: i counts the pieces
+// taken. In core a march starts at sample 0 with nothing in
+// front; out of core (kernels/bricked_adjoint.cl) each brick goes on from where the one before
+// left it.
+typedef struct {
+  vreal transmittance, pr, pg, pb, kr, kg, kb;
+  vint i;
+} AdjointPrefix;
+
+inline AdjointPrefix adjoint_prefix_begin(void) {
+  AdjointPrefix p;
+  p.transmittance = (vreal)(real)1;
+  p.pr = p.pg = p.pb = p.kr = p.kg = p.kb = (vreal)(real)0;
+  p.i = (vint)0;
+  return p;
+}
+
 // The camera gradient's sums over the ray (kernels/adjoint.cl turns them into dL / d camera):
 // dL / d sample position and t · dL / d position, and dL / d of the ray's two end parameters
 // through everything else that depends on them (segment layout, end points).

@@ -1,13 +1,17 @@
-// bricked_adjoint.cl — the out-of-core density gradient, brick by brick (midpoint; lib/brick/
+// bricked_adjoint.cl — the out-of-core density gradient, brick by brick (every scheme; lib/brick/
 // bricked_gradient.cpp). After the forward sweeps (kernels/bricked.cl), ADJOINT_BEGIN turns each
 // ray's composited state into its loss terms and dL/dpixel (as adjoint.cl's pixel_adjoint) and
 // restarts its march; ADJOINT_MARCH then walks the bricks front to back again with the in-core
-// adjoint's own march (adjoint_midpoint.cl, its window and prefix carried in the state), so each
-// sample's remaining radiance is C minus the prefix summed as in core (docs/design.md), and the
-// ray's cell cache adds dL/d density once per voxel it touches into the brick's voxels (`grad`,
-// zeroed per visit; the host adds it into the volume's gradient). A work-item is one pixel, or on
+// adjoint's own march (adjoint_midpoint.cl, adjoint_endpoints.cl, adjoint_exact.cl: its window and
+// prefix carried in the state), so each sample's remaining radiance is C minus the prefix summed as
+// in core (docs/design.md), and the ray's cell cache adds dL/d density once per voxel it touches
+// into the brick's voxels (`grad`, zeroed per visit; the host adds it into the volume's gradient).
+// The endpoint schemes' bricks hold a halo that reaches a window's first segment's near sample
+// (lib/brick/brick_layout.hpp, brick_halo), whose part of the gradient this brick scatters there. A work-item is one pixel, or on
 // CPUs a tile of IVR_RAYS neighbouring pixels in vector lanes (kernels/rays.cl), each lane its own
 // ray's arithmetic.
+#include "adjoint_endpoints.cl"
+#include "adjoint_exact.cl"
 #include "adjoint_midpoint.cl"
 #include "adjoint_ray.cl"
 #include "adjoint_tf.cl"
@@ -19,10 +23,6 @@
 #include "private_sums.cl"
 #include "rays.cl"
 #include "scatter_cache.cl"
-
-#if IVR_SCHEME != IVR_SCHEME_MIDPOINT
-#error "bricked_adjoint.cl differentiates the midpoint scheme"
-#endif
 
 #define IVR_BRICK_ADJOINT_BEGIN 3
 #define IVR_BRICK_ADJOINT_MARCH 4
@@ -130,9 +130,19 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
   tf_cache_init(&tf_cache);
   CameraSums cs;
   camera_sums_init(&cs, (real)0);
+#if IVR_SCHEME == IVR_SCHEME_MIDPOINT
   adjoint_march_midpoint_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar,
                                 (__global const uchar*)0, (int4)0, sink, &tf_cache, tf_acc, &cs,
                                 IVR_LOAD_RAYS(w.tb1), &at);
+#elif IVR_ENDPOINT_SAMPLES
+  adjoint_march_endpoints_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar,
+                                 (__global const uchar*)0, (int4)0, sink, &tf_cache, tf_acc, &cs,
+                                 IVR_LOAD_RAYS(w.tb1), &at);
+#else
+  adjoint_march_exact_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar,
+                             (__global const uchar*)0, (int4)0, sink, &tf_cache, tf_acc, &cs,
+                             IVR_LOAD_RAYS(w.tb0), IVR_LOAD_RAYS(w.tb1), &at);
+#endif
 #if IVR_GRAD_TF
   tf_cache_flush(&tf_cache, tf_acc);
 #endif

@@ -62,10 +62,10 @@ inline bool brick_enter(__global const real* s, __global const uint* su, real4 b
 
 // The tile with corner (x0, y0) of `view` (one pixel, or a packet's: kernels/rays.cl), lane by
 // lane: each lane's pixel, whether its ray enters this brick where its march stands (brick_enter)
-// and, where it does, its global march and its window's end. A lane that does not (or lies past
+// and, where it does, its global march and its window's start and end. A lane that does not (or lies past
 // the image's edge) holds zeros: n = 0, it marches nothing and writes nothing.
 typedef struct {
-  real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], tb1[IVR_RAYS];
+  real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], tb0[IVR_RAYS], tb1[IVR_RAYS];
   real u0x[IVR_RAYS], u0y[IVR_RAYS], u0z[IVR_RAYS], dux[IVR_RAYS], duy[IVR_RAYS], duz[IVR_RAYS];
   int n[IVR_RAYS], entered[IVR_RAYS];
   size_t pixel[IVR_RAYS];
@@ -89,13 +89,14 @@ inline bool brick_enter_lanes(__global const real* state, __global const uint* s
                       brick_lo, brick_hi, origin, &m, &b1)) {
         w->entered[l] = 1;
         w->t0[l] = m.t0, w->t1[l] = m.t1, w->dt[l] = m.dt, w->tb1[l] = b1, w->n[l] = (int)m.n;
+        w->tb0[l] = state[pixel * IVR_BRICK_REALS + BS_TNEXT];  // (where the window starts)
         w->u0x[l] = m.u0x, w->u0y[l] = m.u0y, w->u0z[l] = m.u0z;
         w->dux[l] = m.dux, w->duy[l] = m.duy, w->duz[l] = m.duz;
         any = true;
         continue;
       }
     }
-    w->t0[l] = w->t1[l] = w->dt[l] = w->tb1[l] = (real)0;
+    w->t0[l] = w->t1[l] = w->dt[l] = w->tb0[l] = w->tb1[l] = (real)0;
     w->u0x[l] = w->u0y[l] = w->u0z[l] = w->dux[l] = w->duy[l] = w->duz[l] = (real)0;
     w->n[l] = 0;
   }

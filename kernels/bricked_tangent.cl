@@ -1,8 +1,9 @@
-// bricked_tangent.cl — forward mode out of core (midpoint; lib/brick/bricked_tangent.cpp): the
+// bricked_tangent.cl — forward mode out of core (midpoint, trapezoid, preintegrated;
+// lib/brick/bricked_tangent.cpp): the
 // out-of-core render's sweeps (kernels/bricked.cl) with IVR_LANES tangent lanes carried beside
 // each ray's march state. TANGENT_MARCH walks a ray's window in this brick with the in-core
-// tangent march itself (jacobian_midpoint.cl, from the carried radiance, tangents and sample
-// index), so the composited tangents are the unsplit march's; TANGENT_FINISH turns each ray's
+// tangent march itself (jacobian_midpoint.cl, jacobian_endpoints.cl: from the carried radiance,
+// tangents and sample or segment index; a window's first end sample from the brick's halo), so the composited tangents are the unsplit march's; TANGENT_FINISH turns each ray's
 // final state into its pixel, its loss terms and the loss's derivatives (jacobian_pixel.cl, as
 // kernels/jacobian.cl does in core), summed per work-group. One ray per work-item: a ray's lanes
 // (TF, background, camera, voxel, a listed ray's columns) are per-ray state here, and the voxel
@@ -14,13 +15,14 @@
 #include "bricked_state.cl"
 #include "config.cl"
 #include "geometry.cl"
+#include "jacobian_endpoints.cl"
 #include "jacobian_midpoint.cl"
 #include "jacobian_pixel.cl"
 #include "jacobian_ray.cl"
 #include "march.cl"
 
-#if IVR_SCHEME != IVR_SCHEME_MIDPOINT
-#error "bricked_tangent.cl differentiates the midpoint scheme"
+#if IVR_SCHEME == IVR_SCHEME_EXACT
+#error "bricked_tangent.cl: forward mode out of core is not built for the exact scheme"
 #endif
 #if IVR_RAYS != 1
 #error "bricked_tangent.cl marches one ray per work-item"
@@ -108,9 +110,15 @@ __kernel void bricked_tangent(
     tangent_sums_load(g, &tr);
     Radiance r = brick_load(s, su);
     int i = (int)su[BU_NEXT];
+#if IVR_SCHEME == IVR_SCHEME_MIDPOINT
     tangent_march_midpoint_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars,
                                   min_transmittance, (__global const uchar*)0, (int4)0, &tr, &r,
                                   tb1, &i);
+#else
+    tangent_march_endpoints_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars,
+                                   min_transmittance, (__global const uchar*)0, (int4)0, &tr, &r,
+                                   tb1, &i);
+#endif
     r.end = i;
     tangent_sums_store(&tr, g);
     brick_store(&r, s, su);

@@ -237,20 +237,26 @@ inline void tangent_segment(const TangentSample* a, const TangentSample* b, cons
 }
 #endif
 
-inline void tangent_march_endpoints(__global const real* volume, int4 dims, const March* m, Ray ray,
-                                    real4 inv_voxel, __global const real* tf, int tf_count,
-                                    real4 tf_scalars, real min_transmittance,
-                                    __global const uchar* occupied, int4 bricks, TangentRay* tr,
-                                    Radiance* r) {
+// The segments from *at on that belong to the window ending at `window_end` (segment_in_window;
+// in core: ∞), with the radiance and the tangents carried in *r and *tr; *at is left where the
+// march stopped. A window's first sample is taken afresh (out of core, kernels/bricked_tangent.cl:
+// from the brick's halo, lib/brick/brick_layout.hpp), counted once, where the ray starts.
+__attribute__((always_inline)) inline void tangent_march_endpoints_window(
+    __global const real* volume, int4 dims, const March* m, Ray ray, real4 inv_voxel,
+    __global const real* tf, int tf_count, real4 tf_scalars, real min_transmittance,
+    __global const uchar* occupied, int4 bricks, TangentRay* tr, Radiance* r, vreal window_end,
+    vint* at) {
   vint cursor = (vint)0;
   const real threshold = march_threshold(min_transmittance);
   const vint n = (vint)m->n;
-  vint i = (vint)0;
-  vint live = (vint)0 < n;
+  vint i = *at;
+  vint live = i < n;
   TangentSample a, b;
   tangent_sample(&a, volume, dims, m, i, ray, inv_voxel, tf, tf_count, tf_scalars, &cursor, tr);
-  r->samples += vcount(live);
+  r->samples += vcount(live && i == 0);
   while (vany(live)) {
+    live = live && segment_in_window(m, i, window_end);
+    if (!vany(live)) break;
 #if IVR_EMPTY_SPACE
     {
       const vint again = endpoint_skip_step(&i, n, &live, a.s.ux, a.s.uy, a.s.uz, m, dims,
@@ -278,6 +284,19 @@ inline void tangent_march_endpoints(__global const real* volume, int4 dims, cons
     live = live && !march_stopped(r, threshold);
 #endif
   }
+  *at = i;
+}
+
+// The whole ray's march (in core), finished.
+inline void tangent_march_endpoints(__global const real* volume, int4 dims, const March* m, Ray ray,
+                                    real4 inv_voxel, __global const real* tf, int tf_count,
+                                    real4 tf_scalars, real min_transmittance,
+                                    __global const uchar* occupied, int4 bricks, TangentRay* tr,
+                                    Radiance* r) {
+  vint i = (vint)0;
+  tangent_march_endpoints_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars,
+                                 min_transmittance, occupied, bricks, tr, r,
+                                 (vreal)(real)INFINITY, &i);
   tangent_finish(tr, r);
 }
 #endif

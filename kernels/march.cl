@@ -93,4 +93,13 @@ inline vreal sample_t(const March* m, vint i) {
 #endif
 }
 
+// Whether segment i (samples i, i + 1) belongs to the window that ends at `window_end`: its far
+// end lies in it, or, the ray's last segment, the window reaches the ray's end (whatever
+// t0 + n·dt rounds to). In core the window is [t0, ∞): every segment. Out of core
+// (kernels/bricked.cl) the windows of one ray partition its segments. (Endpoint schemes only.)
+inline vint segment_in_window(const March* m, vint i, vreal window_end) {
+  const vint last = i + 1 >= (vint)m->n;
+  return vseli(vmask_of(sample_t(m, i + 1) <= window_end), vmask_of(window_end >= m->t1), last);
+}
+
 #endif

@@ -19,7 +19,9 @@ namespace {
 int bricks_along(int n, int edge) { return std::max(1, (n - 1 + edge - 1) / edge); }
 }  // namespace
 
-BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first, int z_last) {
+BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first, int z_last, int halo) {
+  if (halo < 0)
+    throw Error(Status::invalid_argument, "brick halo: " + std::to_string(halo) + " voxels");
   if (edge < 1)
     throw Error(Status::invalid_argument,
                 "brick edge: " + std::to_string(edge) + " cells, must be at least 1");
@@ -32,6 +34,7 @@ BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first, int z_la
   l.edge = edge;
   l.dims = {nx, ny, nz};
   l.z_first = z_first, l.z_last = z_last;
+  l.halo = halo;
   l.count[0] = bricks_along(nx, edge);
   l.count[1] = bricks_along(ny, edge);
   l.count[2] = bricks_along(z_last - z_first + 1, edge);
@@ -42,16 +45,22 @@ std::array<int, 3> BrickLayout::index(int b) const {
   return {b % count[0], (b / count[0]) % count[1], b / (count[0] * count[1])};
 }
 
-std::array<int, 3> BrickLayout::origin(int b) const {
+std::array<int, 3> BrickLayout::corner(int b) const {
   const std::array<int, 3> i = index(b);
   return {i[0] * edge, i[1] * edge, z_first + i[2] * edge};
 }
 
+std::array<int, 3> BrickLayout::origin(int b) const {
+  const std::array<int, 3> c = corner(b), first{0, 0, z_first};
+  return {std::max(c[0] - halo, first[0]), std::max(c[1] - halo, first[1]),
+          std::max(c[2] - halo, first[2])};
+}
+
 std::array<int, 3> BrickLayout::extent(int b) const {
-  const std::array<int, 3> o = origin(b);
+  const std::array<int, 3> c = corner(b), o = origin(b);
   const std::array<int, 3> last{dims[0] - 1, dims[1] - 1, z_last};
   std::array<int, 3> e{};
-  for (int a = 0; a < 3; ++a) e[a] = std::min(o[a] + edge, last[a]) - o[a] + 1;
+  for (int a = 0; a < 3; ++a) e[a] = std::min(c[a] + edge + halo, last[a]) - o[a] + 1;
   return e;
 }
 
@@ -63,14 +72,26 @@ std::size_t BrickLayout::voxels(int b) const {
 std::size_t BrickLayout::largest_voxels() const {
   const std::array<int, 3> cells{dims[0] - 1, dims[1] - 1, z_last - z_first};
   std::size_t n = 1;
-  for (int a = 0; a < 3; ++a) n *= std::size_t(std::min(edge, cells[a]) + 1);
+  for (int a = 0; a < 3; ++a) n *= std::size_t(std::min(edge + 2 * halo, cells[a]) + 1);
   return n;
+}
+
+int brick_halo(const Scene& scene, double step) {
+  if (scene.integrator.scheme != Scheme::trapezoid &&
+      scene.integrator.scheme != Scheme::preintegrated)
+    return 0;
+  const glm::dvec3 h = scene.voxel_size();
+  const double finest = std::min({h.x, h.y, h.z});
+  // (+1: the near sample's cell starts at floor(u), and the float32 sample count may round a
+  // segment a hair past the step.)
+  const double reach = std::ceil(step / finest);
+  return std::isfinite(reach) && reach < 1e6 ? int(reach) + 1 : 1 << 20;
 }
 
 // A brick's planes are those it starts and ends at; at the outer bricks, ±∞ where the bricks
 // reach the box face (a slab's inner face stays a plane: the next process's bricks start there).
 std::array<double, 3> BrickLayout::lo(int b) const {
-  const std::array<int, 3> o = origin(b);
+  const std::array<int, 3> o = corner(b);
   std::array<double, 3> p{};
   for (int a = 0; a < 3; ++a)
     p[a] = o[a] == 0 ? -std::numeric_limits<double>::infinity() : double(o[a]);
@@ -78,10 +99,11 @@ std::array<double, 3> BrickLayout::lo(int b) const {
 }
 
 std::array<double, 3> BrickLayout::hi(int b) const {
-  const std::array<int, 3> o = origin(b), e = extent(b);
+  const std::array<int, 3> c = corner(b);
+  const std::array<int, 3> last{dims[0] - 1, dims[1] - 1, z_last};
   std::array<double, 3> p{};
   for (int a = 0; a < 3; ++a) {
-    const int end = o[a] + e[a] - 1;
+    const int end = std::min(c[a] + edge, last[a]);
     p[a] = end == dims[a] - 1 ? std::numeric_limits<double>::infinity() : double(end);
   }
   return p;

@@ -17,6 +17,11 @@ namespace ivr {
 // min((k+1)·edge, N − 1), so neighbours share one plane of voxels (the halo) and every trilinear
 // lookup inside a brick reads its own voxels. The outer bricks reach the box faces.
 //
+// A halo of `halo` more voxels on every side (clamped at the volume's and the slab's ends) lets
+// the endpoint schemes' gradients read and scatter into a segment's near sample, which lies up to
+// one step before the window's start (brick_halo): origin() and extent() are then the held
+// voxels', lo() and hi() still the planes at k·edge.
+//
 // Along z the bricks may cover only planes [z_first, z_last] of the volume (a domain-parallel
 // process's slab, lib/brick/domain.cpp): cut from z_first, reaching ±∞ only where the slab reaches
 // the box face, and the host values they are cut from (extract_brick, add_brick) start at plane
@@ -26,9 +31,11 @@ struct BrickLayout {
   std::array<int, 3> dims{};   // the volume's voxels per axis (x, y, z)
   std::array<int, 3> count{};  // bricks per axis
   int z_first = 0, z_last = 0;  // the planes the bricks cover (all: 0, dims[2] − 1)
+  int halo = 0;                 // voxels held beyond the shared plane on each side
   int total() const { return count[0] * count[1] * count[2]; }
   // Brick b's index per axis (x fastest), first voxel and voxels per axis.
   std::array<int, 3> index(int b) const;
+  std::array<int, 3> corner(int b) const;  // its first plane (origin() less the halo)
   std::array<int, 3> origin(int b) const;
   std::array<int, 3> extent(int b) const;
   std::size_t voxels(int b) const;
@@ -41,8 +48,15 @@ struct BrickLayout {
 };
 
 // Bricks of `edge` cells (≥ 1) over the volume's dims; along z over planes [z_first, z_last]
-// (z_last < 0: to the last plane).
-BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first = 0, int z_last = -1);
+// (z_last < 0: to the last plane), each holding `halo` voxels more on every side.
+BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first = 0, int z_last = -1,
+                         int halo = 0);
+
+// The halo the trapezoid and preintegrated gradients need out of core: a segment's near sample lies
+// less than one step (in voxels along any axis: step × the largest inverse voxel size) before the
+// window its far end lies in, and its trilinear cell starts up to one voxel lower; 0 for midpoint
+// and exact (each sample or piece lies in its window's brick).
+int brick_halo(const Scene& scene, double step);
 
 // What the device-memory budget (device_memory_budget) leaves beside the device's buffers alive
 // now: what an out-of-core plan may take (0: no budget known).

@@ -58,6 +58,11 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   BrickedMarch march(device, scene, ro, plan, "gradient");
   if (domain) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
+  if (brick_halo(scene, s.integrator().step) > plan.layout.halo)  // (a step chosen to a tolerance)
+    throw Error(Status::unsupported,
+                "out-of-core gradient: the step " + std::to_string(s.integrator().step) +
+                    " (chosen to the scene's tolerance) reaches past the bricks' halo of " +
+                    std::to_string(plan.layout.halo) + " voxels; give a step");
   march.session().set_target(target);
   march.render();
 
@@ -241,9 +246,17 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
                           DomainStats* domain_stats) {
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
-  if (scene.integrator.scheme != Scheme::midpoint)
-    throw Error(Status::unsupported, where + ": only the midpoint scheme so far, not " +
-                                         scheme_name(scene.integrator.scheme));
+  // A segment's near sample lies in the brick before its far end's: the bricks need a halo
+  // (brick_halo), which a slab's neighbours do not hold.
+  const int halo = brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step);
+  if (halo && domain)
+    throw Error(Status::unsupported, where + ": over slabs, only the midpoint and exact schemes, "
+                                             "not " + scheme_name(scene.integrator.scheme));
+  if (halo > plan.layout.halo)
+    throw Error(Status::unsupported,
+                where + ": the " + scheme_name(scene.integrator.scheme) + " scheme's bricks need a halo of " +
+                    std::to_string(halo) + " voxels, the plan holds " +
+                    std::to_string(plan.layout.halo));
   std::vector<std::string> adjoint_groups, forward_groups;
   std::set<std::string> seen;
   for (const std::string& g : groups) {
@@ -267,8 +280,15 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       forward_groups.push_back(g);
   }
 
+  const bool exact = scene.integrator.scheme == Scheme::exact;
+  if (exact && !forward_groups.empty())
+    throw Error(Status::unsupported,
+                where + ": " + forward_groups.front() +
+                    " by forward lanes is not built for the exact scheme out of core (density, tf "
+                    "and background are: the adjoint)");
   Gradient d;
-  if (!adjoint_groups.empty())
+  // (The loss alone: by the adjoint's pass under the exact scheme, else by the forward march.)
+  if (!adjoint_groups.empty() || (exact && forward_groups.empty()))
     d = adjoint_bricked(device, scene, target, adjoint_groups, o, plan, domain, domain_stats);
   BrickedTangent t;
   std::vector<cl_int4> lanes;
@@ -278,7 +298,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     lanes.insert(lanes.end(), l.begin(), l.end());
     counts.push_back(l.size());
   }
-  if (!forward_groups.empty() || adjoint_groups.empty()) {
+  if (!forward_groups.empty() || (adjoint_groups.empty() && !exact)) {
     t = tangent_bricked(device, scene, target, lanes, o, plan, domain, domain_stats);
     if (adjoint_groups.empty()) {
       d.loss = t.loss;
@@ -288,9 +308,10 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     d.kernel_seconds += t.kernel_seconds;
     d.device_bytes = std::max(d.device_bytes, t.device_bytes);
   }
-  d.plan.mode = adjoint_groups.empty() ? Mode::forward : Mode::adjoint;
-  d.plan.model = forward_groups.empty()   ? "out of core"
-                 : adjoint_groups.empty() ? "out of core (forward lanes)"
+  const bool forward_only = adjoint_groups.empty() && !exact;  // (else the adjoint's pass ran)
+  d.plan.mode = forward_only ? Mode::forward : Mode::adjoint;
+  d.plan.model = forward_groups.empty() && !forward_only ? "out of core"
+                 : adjoint_groups.empty()                ? "out of core (forward lanes)"
                                           : "out of core (adjoint, and forward lanes for " +
                                                 forward_groups.front() + ")";
   d.plan.passes = forward_groups.empty() ? 0 : t.passes;

@@ -165,7 +165,7 @@ int volume_brick_from_env() {
 }
 
 BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge,
-                      bool gradient) {
+                      bool gradient, int halo) {
   BrickPlan plan;
   const DeviceInfo& info = device.info();
   const std::size_t real_size = precision == Precision::f64 ? 8 : 4;
@@ -189,7 +189,8 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
   const int extra_slots = gradient ? 2 : 0;  // two slots of a brick's gradient
   const int longest = std::max({scene.volume.nx, scene.volume.ny, scene.volume.nz});
   auto fits = [&](int edge, int slots) {
-    const BrickLayout l = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);
+    const BrickLayout l =
+        brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge, 0, -1, halo);
     const std::uint64_t slot = l.largest_voxels() * real_size;
     return slot <= info.max_allocation &&
            fixed + std::uint64_t(slots + extra_slots) * slot <= plan.budget;
@@ -199,7 +200,7 @@ BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, i
     edge = 1;
     while (edge * 2 < longest && fits(edge * 2, 2)) edge *= 2;
   }
-  plan.layout = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge);
+  plan.layout = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, edge, 0, -1, halo);
   const std::uint64_t slot = plan.layout.largest_voxels() * real_size;
   const int wanted = std::min(plan.layout.total(), 2);
   // Where not even the image and the per-ray state fit, bricks cannot help: the in-core render

@@ -32,9 +32,10 @@ struct BrickPlan {
 // fit. Throws Error(out_of_memory) where not even bricks of one cell fit.
 // The budget is what the cap leaves beside the device's buffers already alive.
 // `gradient`: the plan of the density gradient (the volume's gradient in core; out of core a
-// brick's gradient, the pixel adjoints and the target beside the render's buffers).
+// brick's gradient, the pixel adjoints and the target beside the render's buffers); `halo`: the
+// bricks hold that many voxels more on every side (brick_halo: the endpoint schemes' gradients).
 BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge,
-                      bool gradient = false);
+                      bool gradient = false, int halo = 0);
 
 struct DomainPart;
 struct DomainStats;

@@ -180,8 +180,61 @@ TEST(BrickedForward, WhatIsNotCoveredIsRefused) {
   expect_error({"density", "camera"}, Mode::adjoint, Status::invalid_argument,
                "mode adjoint cannot compute group 'camera'");
   expect_error({"tf", "tf"}, Mode::automatic, Status::invalid_argument, "asked for twice");
-  s.integrator.scheme = Scheme::trapezoid;
-  expect_error({"camera"}, Mode::automatic, Status::unsupported, "only the midpoint scheme");
+  s.integrator.scheme = Scheme::exact;
+  s.model = Model::absorption;
+  expect_error({"density", "camera"}, Mode::automatic, Status::unsupported,
+               "camera by forward lanes is not built for the exact scheme");
+  expect_error({"tf"}, Mode::forward, Status::unsupported, "not built for the exact scheme");
+}
+
+// The trapezoid and preintegrated schemes in forward mode out of core, under both models: each
+// segment's near sample (and its tangents) taken again from the brick's halo, so the TF,
+// background and camera lanes equal the in-core forward mode's, with a step longer than a voxel
+// too; and the camera beside the adjoint's groups.
+TEST(BrickedForward, EndpointSchemesEqualTheInCoreForwardMode) {
+  struct Case {
+    Scheme scheme;
+    Model model;
+    Precision precision;
+    double step;
+    const char* edge;
+  };
+  const Precision f64 = device().info().fp64 ? Precision::f64 : Precision::f32;
+  for (const Case& c : {Case{Scheme::trapezoid, Model::emission_absorption, f64, 0.37, "3"},
+                        Case{Scheme::trapezoid, Model::absorption, Precision::f32, 1.6, "2"},
+                        Case{Scheme::preintegrated, Model::emission_absorption, f64, 1.6, "4"},
+                        Case{Scheme::preintegrated, Model::absorption, f64, 0.37, "3"}}) {
+    Scene s = bricked_scene(c.model, c.scheme);
+    s.integrator.step = c.step;
+    s.cameras = {s.cameras[0], s.cameras[2], s.cameras[4]};  // outside, inside, on the planes
+    const Image target = target_of(s);
+    GradientOptions o;
+    o.precision = c.precision;
+    o.mode = Mode::forward;
+    const std::vector<std::string> groups = {"tf", "background", "camera"};
+    const Gradient in_core = gradient(device(), s, target, groups, o);
+    ScopedEnv brick("IVR_VOLUME_BRICK", c.edge);
+    const Gradient g = gradient(device(), s, target, groups, o);
+    const std::string what = std::string(scheme_name(c.scheme)) +
+                             (c.model == Model::absorption ? " absorption " : " emission ") +
+                             name(c.precision) + " step " + std::to_string(c.step);
+    EXPECT_GT(g.bricks, 1) << what;
+    EXPECT_EQ(g.plan.mode, Mode::forward) << what;
+    expect_same_gradient(in_core, g, tolerance(c.precision), what);
+  }
+  // Automatic: density and TF by the adjoint, the camera by forward lanes.
+  Scene s = bricked_scene(Model::emission_absorption, Scheme::preintegrated);
+  s.cameras = {s.cameras[1], s.cameras[5]};
+  const Image target = target_of(s);
+  GradientOptions o;
+  o.precision = f64;
+  o.mode = Mode::adjoint;
+  const std::vector<std::string> groups = {"camera", "density", "tf"};
+  const Gradient in_core = gradient(device(), s, target, groups, o);
+  ScopedEnv brick("IVR_VOLUME_BRICK", "4");
+  o.mode = Mode::automatic;
+  expect_same_gradient(in_core, gradient(device(), s, target, groups, o),
+                       f64 == Precision::f64 ? 1e-10 : 1e-4, "preintegrated automatic");
 }
 
 }  // namespace

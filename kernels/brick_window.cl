@@ -27,4 +27,15 @@ inline void brick_window(real u0x, real u0y, real u0z, real dux, real duy, real 
   brick_slab(u0z, duz, lo.z, hi.z, ta, tb);
 }
 
+// The axis (0, 1, 2) of the brick plane that ends the window at `tb` (brick_window's end: the same
+// expressions, so the same bits), -1 where none does (the ray's own end, or a ±∞ box face).
+inline int brick_window_end_axis(real u0x, real u0y, real u0z, real dux, real duy, real duz,
+                                 real4 lo, real4 hi, real tb) {
+  const real u0[3] = {u0x, u0y, u0z}, du[3] = {dux, duy, duz};
+  const real l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
+  for (int a = 0; a < 3; ++a)
+    if (du[a] != (real)0 && fmax((l[a] - u0[a]) / du[a], (h[a] - u0[a]) / du[a]) == tb) return a;
+  return -1;
+}
+
 #endif

@@ -1,9 +1,9 @@
-// bricked_tangent.cl — forward mode out of core (midpoint, trapezoid, preintegrated;
-// lib/brick/bricked_tangent.cpp): the
+// bricked_tangent.cl — forward mode out of core (every scheme; lib/brick/bricked_tangent.cpp): the
 // out-of-core render's sweeps (kernels/bricked.cl) with IVR_LANES tangent lanes carried beside
 // each ray's march state. TANGENT_MARCH walks a ray's window in this brick with the in-core
-// tangent march itself (jacobian_midpoint.cl, jacobian_endpoints.cl: from the carried radiance,
-// tangents and sample or segment index; a window's first end sample from the brick's halo), so the composited tangents are the unsplit march's; TANGENT_FINISH turns each ray's
+// tangent march itself (jacobian_midpoint.cl, jacobian_endpoints.cl, jacobian_exact.cl: from the
+// carried radiance, tangents and sample or segment index; a window's first end sample from the
+// brick's halo; exact: the window's pieces, and the ray's ends in its first and last window), so the composited tangents are the unsplit march's; TANGENT_FINISH turns each ray's
 // final state into its pixel, its loss terms and the loss's derivatives (jacobian_pixel.cl, as
 // kernels/jacobian.cl does in core), summed per work-group. One ray per work-item: a ray's lanes
 // (TF, background, camera, voxel, a listed ray's columns) are per-ray state here, and the voxel
@@ -16,14 +16,12 @@
 #include "config.cl"
 #include "geometry.cl"
 #include "jacobian_endpoints.cl"
+#include "jacobian_exact.cl"
 #include "jacobian_midpoint.cl"
 #include "jacobian_pixel.cl"
 #include "jacobian_ray.cl"
 #include "march.cl"
 
-#if IVR_SCHEME == IVR_SCHEME_EXACT
-#error "bricked_tangent.cl: forward mode out of core is not built for the exact scheme"
-#endif
 #if IVR_RAYS != 1
 #error "bricked_tangent.cl marches one ray per work-item"
 #endif
@@ -114,10 +112,16 @@ __kernel void bricked_tangent(
     tangent_march_midpoint_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars,
                                   min_transmittance, (__global const uchar*)0, (int4)0, &tr, &r,
                                   tb1, &i);
-#else
+#elif IVR_ENDPOINT_SAMPLES
     tangent_march_endpoints_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars,
                                    min_transmittance, (__global const uchar*)0, (int4)0, &tr, &r,
                                    tb1, &i);
+#else
+    tangent_march_exact_window(
+        volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, min_transmittance,
+        (__global const uchar*)0, (int4)0, &tr, &r, s[BS_TNEXT], tb1,
+        brick_window_end_axis(s[BS_U0 + 0], s[BS_U0 + 1], s[BS_U0 + 2], s[BS_U0 + 3],
+                              s[BS_U0 + 4], s[BS_U0 + 5], brick_lo, brick_hi, tb1));
 #endif
     r.end = i;
     tangent_sums_store(&tr, g);

@@ -123,16 +123,38 @@ typedef struct {
 
 // (The cell index is in range for any u, NaN included: the gathers of a packet's idle rays read
 // inside the volume.)
-inline void piece_axis(vreal ua, vreal ub, int n, vint* i, vreal* f, vreal* g, vint* clamped) {
+// `open_lo`, `open_hi`: the grid's first or last centre plane on this axis is not the volume's
+// border (out of core: a brick's inner face), so a piece on it is not clamped.
+inline void piece_axis_within(vreal ua, vreal ub, int n, bool open_lo, bool open_hi, vint* i,
+                              vreal* f, vreal* g, vint* clamped) {
   const vreal mid = (real)0.5 * (ua + ub);
-  const vint below = !vmask_of(mid > (real)0) || n == 1;  // the border half-voxel below the first
-  const vint above = !below && vmask_of(mid >= (real)(n - 1));  // ... above the last centre
+  // The border half-voxel below the first centre, and above the last.
+  const vint below = (open_lo ? (vint)0 : !vmask_of(mid > (real)0)) || n == 1;
+  const vint above = !below && (open_hi ? (vint)0 : vmask_of(mid >= (real)(n - 1)));
   const vint inner = !below && !above;
   const vint k = min(vto_int(fmin(fmax(mid, (real)0), (real)(n - 1))), n - 2);
   *i = vseli(vseli(k, (vint)(n - 1), above), (vint)0, below);
   *f = vsel((vreal)(real)0, ua - vto_real(*i), inner);
   *g = vsel((vreal)(real)0, ub - ua, inner);
   *clamped = !inner;
+}
+
+inline void piece_axis(vreal ua, vreal ub, int n, vint* i, vreal* f, vreal* g, vint* clamped) {
+  piece_axis_within(ua, ub, n, false, false, i, f, g, clamped);
+}
+
+// The piece's cell, clamped at the grid's faces except where `lo`, `hi` are ∓∞ on an axis (the
+// out-of-core tangents' grid_lo, grid_hi: a brick's inner faces).
+inline PieceCell piece_cell_within(const March* m, int4 dims, vreal ta, vreal tb, real4 lo,
+                                   real4 hi) {
+  PieceCell c;
+  piece_axis_within(m->u0x + ta * m->dux, m->u0x + tb * m->dux, dims.x, isinf(lo.x) != 0,
+                    isinf(hi.x) != 0, &c.ix, &c.fx, &c.gx, &c.cx);
+  piece_axis_within(m->u0y + ta * m->duy, m->u0y + tb * m->duy, dims.y, isinf(lo.y) != 0,
+                    isinf(hi.y) != 0, &c.iy, &c.fy, &c.gy, &c.cy);
+  piece_axis_within(m->u0z + ta * m->duz, m->u0z + tb * m->duz, dims.z, isinf(lo.z) != 0,
+                    isinf(hi.z) != 0, &c.iz, &c.fz, &c.gz, &c.cz);
+  return c;
 }
 
 inline PieceCell piece_cell(const March* m, int4 dims, vreal ta, vreal tb) {

@@ -67,7 +67,10 @@ struct ReconstructOptions {
   // `worker` of `workers`. Every worker draws the same batch, differentiates its contiguous share
   // of the batch's views, and `sum` adds the loss and the gradients over the workers in place
   // (every worker getting the sum: an MPI_Allreduce), so that every worker takes the same step and
-  // holds the same iterate — the one process's up to the rounding of the sums. Cameras only (not a
+  // holds the same iterate: with `deterministic` fixed-point density gradients (on every worker's
+  // device) the one process's bit for bit when the TF is fixed (each share scaled as the batch's
+  // one march, the integer sums added exactly), else up to the rounding of the sums. `sum` must
+  // add doubles holding integers below 2^53 exactly (an MPI_Allreduce does). Cameras only (not a
   // ray list); every batch needs at least `workers` views; checkpoints are every worker's.
   int worker = 0, workers = 1;
   std::function<void(std::vector<double>&)> sum;

@@ -23,10 +23,6 @@ namespace {
 
 constexpr std::size_t kFixedHeader = IVR_FIXED_HEADER;  // the longs before the voxels
 
-bool has_int64_atomics(Device::Impl& dev) {
-  return dev.device.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_khr_int64_base_atomics") !=
-         std::string::npos;
-}
 
 // The largest |element| of `n` reals on the device (one reduction pass; waits).
 double largest_magnitude(Session::Impl& s, const cl::Buffer& values, std::uint64_t n) {
@@ -41,7 +37,8 @@ double largest_magnitude(Session::Impl& s, const cl::Buffer& values, std::uint64
 // operation's inputs alone — the densities' exact range (measured again after an optimiser step,
 // which only knows its bounds) and the target's largest element (cached with the session's target,
 // measured for any other) — so the scale, and with it every bit of the result, is too.
-double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss) {
+double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss,
+                       const FixedShare* share) {
   if (!s.volume_range_exact) {
     double lo = 0, hi = 0;
     std::vector<cl::Event> events;
@@ -52,10 +49,12 @@ double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss) {
   }
   const bool session_target = target.impl() == s.target.impl() && s.target_abs_max >= 0;
   const double target_max =
-      session_target ? s.target_abs_max : largest_magnitude(s, buffer_of(target), target.size());
+      share ? share->target_max
+      : session_target ? s.target_abs_max
+                       : largest_magnitude(s, buffer_of(target), target.size());
   const double bound =
       ray_gradient_bound(s.scene, tf_extremes(s.scene.tf, s.volume_min, s.volume_max), target_max,
-                         loss, s.pixels() * std::size_t(s.scene.channels()));
+                         loss, share ? share->elements : s.pixels() * std::size_t(s.scene.channels()));
   return std::ldexp(bound, fixed_bound_shift());
 }
 
@@ -106,6 +105,11 @@ KernelConfig adjoint_config(const RenderVariant& v, const AdjointRequest& r, std
 
 }  // namespace
 
+bool has_int64_atomics(Device::Impl& dev) {
+  return dev.device.getInfo<CL_DEVICE_EXTENSIONS>().find("cl_khr_int64_base_atomics") !=
+         std::string::npos;
+}
+
 AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const AdjointRequest& r,
                               OperationRecord& op) {
   Device::Impl& dev = s.dev;
@@ -135,7 +139,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
   RenderVariant variant = s.variant_of(integrator);
   // The fixed-point scale's bound, before the march (it may measure the densities' range again,
   // which the skipping plan below then shares).
-  const double fixed_bound = fixed ? fixed_ray_bound(s, target, r.loss) : 0;
+  const double fixed_bound = fixed ? fixed_ray_bound(s, target, r.loss, r.share) : 0;
   // Empty-space skipping where the gradient stays exact (lib/empty_space/empty_space.hpp).
   const cl::Buffer& occupied =
       s.plan_skipping(gradient_may_skip(scene.tf, r.tf, r.density || r.camera), variant, op.stats);
@@ -210,7 +214,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     }
     int a = s.set_scene_args(k, integrator);
     k.setArg(a++, buffer_of(target));
-    set_real(k, a++, s.f64, 1.0 / double(pixels * channels));
+    set_real(k, a++, s.f64, 1.0 / double(r.share ? r.share->elements : pixels * channels));
     k.setArg(a++, buffer_of(out.image));
     k.setArg(a++, terms);
     k.setArg(a++, grad_volume);
@@ -242,7 +246,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
     k.setArg(a++, cl_int(tile.across(cam0.width) * tile.down(cam0.height) * views));
     // Fixed point: no ray's scaled Σ |contribution| above 2^62 / rays, so no voxel's sum leaves
     // the long range.
-    const int cap_exponent = fixed_cap_exponent(pixels);
+    const int cap_exponent = fixed_cap_exponent(r.share ? r.share->rays : pixels);
     std::size_t clean = 0;  // the private copies' leading bytes that are 0 after this call
     auto run_pass = [&](int exponent) {
       if (fixed) {
@@ -307,6 +311,7 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
         dev.queue.enqueueReadBuffer(grad_volume, CL_TRUE, 0, sizeof header, header);
         std::memcpy(&largest, &header[3], sizeof largest);
         std::memcpy(&largest_ray, &header[4], sizeof largest_ray);
+        if (r.share && r.share->agree) r.share->agree(header[2], largest, largest_ray);
         if (!std::isfinite(largest) || !std::isfinite(largest_ray))
           throw Error(Status::opencl,
                       "the fixed-point density gradient met a contribution that is not finite");
@@ -323,6 +328,13 @@ AdjointResult enqueue_adjoint(Session::Impl& s, const DeviceArray& target, const
       op.stats.fixed_bound = fixed_bound;
       op.stats.fixed_largest = largest;
       op.stats.fixed_largest_ray = largest_ray;
+      if (r.share && r.share->add) {  // the batch's integer sums, then the one conversion
+        std::vector<std::int64_t> sums(voxels);
+        const std::size_t at = kFixedHeader * sizeof(cl_long), bytes = voxels * sizeof(cl_long);
+        dev.queue.enqueueReadBuffer(grad_volume, CL_TRUE, at, bytes, sums.data());
+        r.share->add(sums);
+        dev.queue.enqueueWriteBuffer(grad_volume, CL_TRUE, at, bytes, sums.data());
+      }
       cl::Kernel& convert = s.kernels.get(config.with_entry("fixed_to_real"));
       convert.setArg(0, cl_int(voxels));
       convert.setArg(1, grad_volume);

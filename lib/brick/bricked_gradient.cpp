@@ -280,15 +280,8 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       forward_groups.push_back(g);
   }
 
-  const bool exact = scene.integrator.scheme == Scheme::exact;
-  if (exact && !forward_groups.empty())
-    throw Error(Status::unsupported,
-                where + ": " + forward_groups.front() +
-                    " by forward lanes is not built for the exact scheme out of core (density, tf "
-                    "and background are: the adjoint)");
   Gradient d;
-  // (The loss alone: by the adjoint's pass under the exact scheme, else by the forward march.)
-  if (!adjoint_groups.empty() || (exact && forward_groups.empty()))
+  if (!adjoint_groups.empty())
     d = adjoint_bricked(device, scene, target, adjoint_groups, o, plan, domain, domain_stats);
   BrickedTangent t;
   std::vector<cl_int4> lanes;
@@ -298,7 +291,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     lanes.insert(lanes.end(), l.begin(), l.end());
     counts.push_back(l.size());
   }
-  if (!forward_groups.empty() || (adjoint_groups.empty() && !exact)) {
+  if (!forward_groups.empty() || adjoint_groups.empty()) {
     t = tangent_bricked(device, scene, target, lanes, o, plan, domain, domain_stats);
     if (adjoint_groups.empty()) {
       d.loss = t.loss;
@@ -308,10 +301,9 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     d.kernel_seconds += t.kernel_seconds;
     d.device_bytes = std::max(d.device_bytes, t.device_bytes);
   }
-  const bool forward_only = adjoint_groups.empty() && !exact;  // (else the adjoint's pass ran)
-  d.plan.mode = forward_only ? Mode::forward : Mode::adjoint;
-  d.plan.model = forward_groups.empty() && !forward_only ? "out of core"
-                 : adjoint_groups.empty()                ? "out of core (forward lanes)"
+  d.plan.mode = adjoint_groups.empty() ? Mode::forward : Mode::adjoint;
+  d.plan.model = forward_groups.empty()   ? "out of core"
+                 : adjoint_groups.empty() ? "out of core (forward lanes)"
                                           : "out of core (adjoint, and forward lanes for " +
                                                 forward_groups.front() + ")";
   d.plan.passes = forward_groups.empty() ? 0 : t.passes;

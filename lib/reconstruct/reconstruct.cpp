@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <functional>
 #include <numeric>
 
 #include "ivr/gradient.hpp"
@@ -283,6 +285,51 @@ void Reconstruction::Impl::apply_tf() {
   if (session) session->set_tf(scene.tf);
 }
 
+// The batch this worker shares (its views `views` of the batch's), as the adjoint needs it
+// (FixedShare): the batch's size and largest target, and the two collectives built from o.sum.
+FixedShare Reconstruction::Impl::batch_share(const std::vector<int>& batch) const {
+  FixedShare f;
+  const std::size_t per_view = targets.pixels.size() / scene.cameras.size();
+  const ImageExtent e = image_extent(scene);
+  f.elements = batch.size() * per_view;
+  f.rays = batch.size() * std::size_t(e.width) * std::size_t(e.height);
+  for (int v : batch)
+    for (std::size_t i = 0; i < per_view; ++i)
+      f.target_max =
+          std::max(f.target_max, double(std::abs(targets.pixels[std::size_t(v) * per_view + i])));
+  const int workers = o.workers, worker = o.worker;
+  const std::function<void(std::vector<double>&)> sum = o.sum;
+  // Maxima from the sum: each worker's values in its own slots, the others' 0 (exact).
+  f.agree = [sum, workers, worker](std::int64_t& over_cap, float& largest, float& largest_ray) {
+    std::vector<double> v(1 + 2 * std::size_t(workers), 0.0);
+    v[0] = double(over_cap);  // (a count of rays: exact)
+    v[1 + 2 * std::size_t(worker)] = largest;
+    v[2 + 2 * std::size_t(worker)] = largest_ray;
+    sum(v);
+    over_cap = std::int64_t(v[0]);
+    for (int w = 0; w < workers; ++w) {
+      largest = std::max(largest, float(v[1 + 2 * std::size_t(w)]));
+      largest_ray = std::max(largest_ray, float(v[2 + 2 * std::size_t(w)]));
+    }
+  };
+  // Exact integer sums through a sum of doubles: each value as its low 32 bits (< 2^32) and the
+  // rest (|·| < 2^31), whose sums over fewer than 2^21 workers stay below 2^53.
+  f.add = [sum](std::vector<std::int64_t>& values) {
+    std::vector<double> v(2 * values.size());
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      v[2 * i] = double(std::uint64_t(values[i]) & 0xffffffffu);
+      v[2 * i + 1] = double(values[i] >> 32);  // (arithmetic: values[i] = high·2^32 + low)
+    }
+    sum(v);
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      const auto high = static_cast<__int128>(static_cast<std::int64_t>(v[2 * i + 1]));
+      const auto low = static_cast<__int128>(static_cast<std::int64_t>(v[2 * i]));
+      values[i] = static_cast<std::int64_t>(high * (__int128(1) << 32) + low);
+    }
+  };
+  return f;
+}
+
 const IterationRecord& Reconstruction::Impl::step() {
   if (k >= o.iterations)
     fail("the reconstruction is done (" + std::to_string(o.iterations) + " iterations)");
@@ -297,6 +344,10 @@ const IterationRecord& Reconstruction::Impl::step() {
   std::vector<int> views = batch_views(o.seed, k, image_extent(scene).views, o.batch);
   // Data-parallel: this worker's share of the batch, and its weight in the batch's mean loss.
   const std::size_t batch_size = views.size();
+  // The densities' gradient of a share is its part of the batch's (FixedShare: the batch's mean,
+  // and in fixed point the batch's sums bit for bit).
+  FixedShare share;
+  if (o.workers > 1) share = batch_share(views);
   double weight = 1;
   if (o.workers > 1) {
     const auto [first, count] = view_shares(batch_size, std::size_t(o.workers))[std::size_t(o.worker)];
@@ -334,14 +385,29 @@ const IterationRecord& Reconstruction::Impl::step() {
     request.tf = o.tf;
     request.loss = o.loss;
     request.deterministic = o.deterministic;
+    if (o.workers > 1) {
+      // Fixed point only where every worker's device sums in it (the collectives must match).
+      if (fixed_everywhere < 0) {
+        std::vector<double> v{o.deterministic && has_int64_atomics(dev) ? 1.0 : 0.0};
+        o.sum(v);
+        fixed_everywhere = v[0] == double(o.workers) ? 1 : 0;
+      }
+      request.deterministic = fixed_everywhere == 1;
+      request.share = &share;
+    }
     OperationRecord& op = s.begin("gradient");
     AdjointResult gr = enqueue_adjoint(s, batch_targets(views), request, op);
     r.loss = gr.loss.to_doubles()[0];
     std::vector<double> tf_grad = o.tf ? gr.tf.to_doubles() : std::vector<double>{};
-    if (o.workers > 1) {  // the batch's gradient from the workers' shares
-      std::vector<double> density = gr.density.to_doubles();
-      sum_workers(r.loss, {&density, &tf_grad});
-      gr.density.upload(density.data(), density.size());
+    if (o.workers > 1) {  // the batch's gradient from the workers' parts of it (unweighted)
+      weight = 1;
+      if (op.stats.deterministic) {  // (the densities' fixed-point sums are added already)
+        sum_workers(r.loss, {&tf_grad});
+      } else {
+        std::vector<double> density = gr.density.to_doubles();
+        sum_workers(r.loss, {&density, &tf_grad});
+        gr.density.upload(density.data(), density.size());
+      }
     }
     const std::uint64_t real_size = f64 ? 8 : 4, voxels = level_scene.volume.voxel_count();
     r.device_bytes = op.stats.device_bytes +

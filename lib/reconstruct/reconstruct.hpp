@@ -4,6 +4,7 @@
 #include <memory>
 #include <vector>
 
+#include "adjoint/adjoint.hpp"
 #include "ivr/reconstruct.hpp"
 #include "ivr/session.hpp"
 #include "reconstruct/lbfgs.hpp"
@@ -26,6 +27,7 @@ struct Reconstruction::Impl {
   std::vector<int> level_end;          // completed iterations at the end of each level
   int level = -1;                      // the level on the device (-1: none yet)
   int k = 0;                           // completed iterations
+  int fixed_everywhere = -1;  // workers: every device sums in fixed point (1) or not (0); -1 unasked
   std::vector<IterationRecord> history;
 
   // Density (o.density): the level's grid, resident in a session (densities, cameras, TF); the
@@ -53,6 +55,8 @@ struct Reconstruction::Impl {
   const IterationRecord& step();
   // The targets of `views` on the device: all of them, or a batch gathered from them.
   DeviceArray batch_targets(const std::vector<int>& views);
+  // A worker's view of the batch `batch` (o.workers > 1): lib/adjoint/adjoint.hpp.
+  FixedShare batch_share(const std::vector<int>& batch) const;
 };
 
 }  // namespace ivr

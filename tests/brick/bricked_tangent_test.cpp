@@ -180,18 +180,14 @@ TEST(BrickedForward, WhatIsNotCoveredIsRefused) {
   expect_error({"density", "camera"}, Mode::adjoint, Status::invalid_argument,
                "mode adjoint cannot compute group 'camera'");
   expect_error({"tf", "tf"}, Mode::automatic, Status::invalid_argument, "asked for twice");
-  s.integrator.scheme = Scheme::exact;
-  s.model = Model::absorption;
-  expect_error({"density", "camera"}, Mode::automatic, Status::unsupported,
-               "camera by forward lanes is not built for the exact scheme");
-  expect_error({"tf"}, Mode::forward, Status::unsupported, "not built for the exact scheme");
 }
 
 // The trapezoid and preintegrated schemes in forward mode out of core, under both models: each
 // segment's near sample (and its tangents) taken again from the brick's halo, so the TF,
 // background and camera lanes equal the in-core forward mode's, with a step longer than a voxel
-// too; and the camera beside the adjoint's groups.
-TEST(BrickedForward, EndpointSchemesEqualTheInCoreForwardMode) {
+// too; the exact scheme (absorption), whose camera lanes' end terms fall in the ray's first and
+// last windows; and the camera beside the adjoint's groups.
+TEST(BrickedForward, EverySchemeEqualsTheInCoreForwardMode) {
   struct Case {
     Scheme scheme;
     Model model;
@@ -203,7 +199,9 @@ TEST(BrickedForward, EndpointSchemesEqualTheInCoreForwardMode) {
   for (const Case& c : {Case{Scheme::trapezoid, Model::emission_absorption, f64, 0.37, "3"},
                         Case{Scheme::trapezoid, Model::absorption, Precision::f32, 1.6, "2"},
                         Case{Scheme::preintegrated, Model::emission_absorption, f64, 1.6, "4"},
-                        Case{Scheme::preintegrated, Model::absorption, f64, 0.37, "3"}}) {
+                        Case{Scheme::preintegrated, Model::absorption, f64, 0.37, "3"},
+                        Case{Scheme::exact, Model::absorption, f64, 0.37, "1"},
+                        Case{Scheme::exact, Model::absorption, Precision::f32, 0.37, "3"}}) {
     Scene s = bricked_scene(c.model, c.scheme);
     s.integrator.step = c.step;
     s.cameras = {s.cameras[0], s.cameras[2], s.cameras[4]};  // outside, inside, on the planes

@@ -5,7 +5,8 @@
 # back-projection within 1e-12 of the largest entry, CGLS's iterate within 1e-12; over slabs
 # (--split slabs: each rank one slab, the rays' states exchanged) the render and the density and
 # TF gradients within 1e-12 and the camera's (forward lanes over slabs) within 1e-10, CGLS over slabs (each rank its slab of the iterate) within 1e-10; `ivr reconstruct` (views of each batch shared out) follows one
-# process's losses within 1e-10 and its densities to float32 output rounding; an error in the
+# process's losses within 1e-10 and ends at its densities bit for bit (fixed-point gradients: the
+# shares' integer sums added exactly); an error in the
 # ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
@@ -84,8 +85,8 @@ for n in (2, 4):
     assert la.shape == lb.shape and lerr <= 1e-10, f"reconstruct -np {n} losses: {lerr}"
     a, b = np.load("rec1_density.npy"), np.load(f"rec{n}_density.npy")
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
-    assert a.shape == b.shape and err <= 1e-6, f"reconstruct -np {n} densities: {err}"
-    print(f"-np {n} reconstruct: losses {lerr:.2e}, densities (float32 files) {err:.2e}")
+    assert a.shape == b.shape and np.array_equal(a, b), f"reconstruct -np {n} densities: {err}"
+    print(f"-np {n} reconstruct: losses {lerr:.2e}, densities identical")
     for one_name, many_name, what in (("p.npy", f"p{n}.npy", "project"),
                                       ("bp1.npy", f"bp{n}.npy", "backproject")):
         a, b = np.load(one_name), np.load(many_name)

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <random>
 
+#include "ivr/adjoint.hpp"
 #include "reconstruct/lbfgs.hpp"
 #include "reconstruct/priors.hpp"
 #include "runtime/real_args.hpp"
@@ -157,6 +158,63 @@ TEST(ReconstructPartsTest, BatchesAndJointDensityAndTf) {
   EXPECT_NE(got, tf);  // the TF moved
 }
 
+// `workers` reconstructions on threads (each its own context, options `o` with its worker index and
+// a sum through a rendezvous: every worker gets Σ of all, added in worker order), run to the end:
+// each worker's history and densities, and its error where it threw.
+struct WorkerRuns {
+  std::vector<std::vector<IterationRecord>> histories;
+  std::vector<std::vector<double>> densities;
+  std::vector<std::string> errors;
+};
+WorkerRuns run_workers(int workers, const Scene& scene, const Image& targets,
+                       const ReconstructOptions& o) {
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<std::vector<double>> parts(static_cast<std::size_t>(workers));
+  std::vector<double> total;
+  int arrived = 0;
+  long round = 0;
+  auto sum_of = [&](int w) {
+    return [&, w](std::vector<double>& v) {
+      std::unique_lock<std::mutex> lock(m);
+      const long mine = round;
+      parts[std::size_t(w)] = v;
+      if (++arrived == workers) {
+        total.assign(v.size(), 0.0);
+        for (const std::vector<double>& part : parts)
+          for (std::size_t i = 0; i < v.size(); ++i) total[i] += part[i];
+        arrived = 0, ++round;
+        cv.notify_all();
+      } else {
+        cv.wait(lock, [&] { return round != mine; });
+      }
+      v = total;
+    };
+  };
+  WorkerRuns out;
+  out.histories.resize(std::size_t(workers));
+  out.densities.resize(std::size_t(workers));
+  out.errors.resize(std::size_t(workers));
+  std::vector<std::thread> threads;
+  for (int w = 0; w < workers; ++w)
+    threads.emplace_back([&, w] {
+      try {
+        Device d(std::to_string(device().info().index));
+        ReconstructOptions ow = o;
+        ow.worker = w, ow.workers = workers, ow.sum = sum_of(w);
+        Reconstruction r(d, scene, targets, ow);
+        while (!r.done()) r.step();
+        out.histories[std::size_t(w)] = r.history();
+        const std::vector<float>& v = r.result().volume.data;
+        out.densities[std::size_t(w)].assign(v.begin(), v.end());
+      } catch (const std::exception& e) {
+        out.errors[std::size_t(w)] = e.what();
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  return out;
+}
+
 // Data-parallel over views (ReconstructOptions::workers; what mpirun -np N ivr reconstruct runs):
 // two workers on threads, each with its own context and half of every batch, summing through a
 // rendezvous, follow the one-process run — density and TF, batches of 3 views split 2 + 1.
@@ -171,45 +229,10 @@ TEST(ReconstructPartsTest, WorkersSharingTheBatchFollowOneProcess) {
   o.precision = precision;
   Reconstruction one(device(), p.scene, p.targets, o);
   while (!one.done()) one.step();
-
-  std::mutex m;
-  std::condition_variable cv;
-  std::vector<double> total;
-  int arrived = 0;
-  long round = 0;
-  auto sum = [&](std::vector<double>& v) {  // every worker gets Σ of both, in worker order
-    std::unique_lock<std::mutex> lock(m);
-    const long mine = round;
-    if (arrived == 0) total.assign(v.size(), 0.0);
-    for (std::size_t i = 0; i < v.size(); ++i) total[i] += v[i];
-    if (++arrived == 2) {
-      arrived = 0, ++round;
-      cv.notify_all();
-    } else {
-      cv.wait(lock, [&] { return round != mine; });
-    }
-    v = total;
-  };
-  std::vector<std::vector<IterationRecord>> histories(2);
-  std::vector<std::vector<double>> densities(2);
-  std::vector<std::string> errors(2);
-  std::vector<std::thread> threads;
-  for (int w = 0; w < 2; ++w)
-    threads.emplace_back([&, w] {
-      try {
-        Device d(std::to_string(device().info().index));
-        ReconstructOptions ow = o;
-        ow.worker = w, ow.workers = 2, ow.sum = sum;
-        Reconstruction r(d, p.scene, p.targets, ow);
-        while (!r.done()) r.step();
-        histories[w] = r.history();
-        const std::vector<float>& v = r.result().volume.data;
-        densities[w].assign(v.begin(), v.end());
-      } catch (const std::exception& e) {
-        errors[w] = e.what();
-      }
-    });
-  for (std::thread& t : threads) t.join();
+  const WorkerRuns runs = run_workers(2, p.scene, p.targets, o);
+  const std::vector<std::vector<IterationRecord>>& histories = runs.histories;
+  const std::vector<std::vector<double>>& densities = runs.densities;
+  const std::vector<std::string>& errors = runs.errors;
   ASSERT_EQ(errors, (std::vector<std::string>{"", ""}));
   const double tol = precision == Precision::f64 ? 1e-10 : 1e-4;
   for (int w = 0; w < 2; ++w) {
@@ -227,6 +250,45 @@ TEST(ReconstructPartsTest, WorkersSharingTheBatchFollowOneProcess) {
   for (std::size_t i = 0; i < a.size(); ++i)
     worst = std::max(worst, std::abs(a[i] - densities[0][i])), scale = std::max(scale, double(std::abs(a[i])));
   EXPECT_LE(worst, (precision == Precision::f64 ? 1e-6 : 1e-3) * scale);
+}
+
+// Deterministic (fixed-point) density gradients shared by workers are the one process's bit for
+// bit (FixedShare: the batch's normaliser, ray count and target range in every share's scale, the
+// passes agreed, the integer sums added exactly), so a density reconstruction by 2 or 3 workers
+// ends at the one process's densities exactly — batches of 5 views split 3 + 2 and 2 + 2 + 1.
+TEST(ReconstructPartsTest, DeterministicWorkersEqualOneProcessBitForBit) {
+  const Small p;
+  for (Precision precision : {Precision::f64, Precision::f32}) {
+    if (precision == Precision::f64 && !device().info().fp64) continue;
+    ReconstructOptions o;
+    o.iterations = 5;
+    o.batch = 5;
+    o.init = Init::constant;
+    o.precision = precision;
+    o.deterministic = true;
+    AdjointOptions fixed;
+    fixed.deterministic = true;
+    if (!adjoint(device(), p.scene, p.targets, fixed).deterministic)
+      GTEST_SKIP() << "fixed point needs 64-bit integer atomics";
+    Reconstruction one(device(), p.scene, p.targets, o);
+    while (!one.done()) one.step();
+    const std::vector<float>& a = one.result().volume.data;
+    const std::vector<double> want(a.begin(), a.end());
+    for (int workers : {2, 3}) {
+      const WorkerRuns runs = run_workers(workers, p.scene, p.targets, o);
+      ASSERT_EQ(runs.errors, std::vector<std::string>(std::size_t(workers)));
+      for (int w = 0; w < workers; ++w) {
+        const std::string what = std::string(test::name(precision)) + ", worker " + std::to_string(w) +
+                                 " of " + std::to_string(workers);
+        EXPECT_EQ(runs.densities[std::size_t(w)], want) << what;
+        ASSERT_EQ(runs.histories[std::size_t(w)].size(), one.history().size()) << what;
+        for (std::size_t k = 0; k < one.history().size(); ++k)
+          EXPECT_NEAR(runs.histories[std::size_t(w)][k].loss, one.history()[k].loss,
+                      1e-5 * one.history()[k].loss)
+              << what << ", iteration " << k + 1;
+      }
+    }
+  }
 }
 
 // In forward mode the loss gradient is reduced in a fixed order (no atomics): resuming from a

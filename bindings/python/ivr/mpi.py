@@ -154,7 +154,7 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
              **options):
     """ctx.gradient of the whole scene, each rank differentiating its share of the views (the
     target's first axis: views, or a ray list's rays): every rank gets (loss, {group: array}), one
-    process's result to rounding. split="slabs" (midpoint): each rank differentiates over one
+    process's result to rounding. split="slabs" (midpoint or exact): each rank differentiates over one
     slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
     summed; background and the forward lanes' groups (camera, …) come whole on every rank.
     `options` are ctx.gradient's (mode, step, base_dir; over slabs: step, base_dir)."""
@@ -246,8 +246,9 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, **options):
     """ctx.reconstruct with the ranks sharing out each batch's views (as `mpirun -np N ivr
     reconstruct`): every rank passes the whole scene and targets and the same options, draws the
     same batch, differentiates its share of its views, and the loss and gradients are summed over
-    the ranks before every step, so every rank holds the same iterate (one process's to the
-    rounding of the sums). progress(entry) is called on every rank; returning False on any rank
+    the ranks before every step, so every rank holds the same iterate (one process's bit for bit
+    for densities with the TF fixed and deterministic gradients, else to the rounding of the sums).
+    progress(entry) is called on every rank; returning False on any rank
     stops every rank after the same iteration. Cameras only; every batch needs at least one view
     per rank. Returns ctx.reconstruct's dict on every rank (checkpoint: give each rank its own
     prefix, or one on rank 0 only)."""

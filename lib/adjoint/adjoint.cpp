@@ -48,13 +48,13 @@ double fixed_ray_bound(Session::Impl& s, const DeviceArray& target, Loss loss,
     s.volume_range_exact = true;
   }
   const bool session_target = target.impl() == s.target.impl() && s.target_abs_max >= 0;
-  const double target_max =
-      share ? share->target_max
-      : session_target ? s.target_abs_max
-                       : largest_magnitude(s, buffer_of(target), target.size());
-  const double bound =
-      ray_gradient_bound(s.scene, tf_extremes(s.scene.tf, s.volume_min, s.volume_max), target_max,
-                         loss, share ? share->elements : s.pixels() * std::size_t(s.scene.channels()));
+  const double target_max = share ? share->target_max
+                            : session_target
+                                ? s.target_abs_max
+                                : largest_magnitude(s, buffer_of(target), target.size());
+  const double bound = ray_gradient_bound(
+      s.scene, tf_extremes(s.scene.tf, s.volume_min, s.volume_max), target_max, loss,
+      share ? share->elements : s.pixels() * std::size_t(s.scene.channels()));
   return std::ldexp(bound, fixed_bound_shift());
 }
 

@@ -250,13 +250,14 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   // (brick_halo), which a slab's neighbours do not hold.
   const int halo = brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step);
   if (halo && domain)
-    throw Error(Status::unsupported, where + ": over slabs, only the midpoint and exact schemes, "
-                                             "not " + scheme_name(scene.integrator.scheme));
-  if (halo > plan.layout.halo)
     throw Error(Status::unsupported,
-                where + ": the " + scheme_name(scene.integrator.scheme) + " scheme's bricks need a halo of " +
-                    std::to_string(halo) + " voxels, the plan holds " +
-                    std::to_string(plan.layout.halo));
+                where + ": over slabs, only the midpoint and exact schemes, not " +
+                    scheme_name(scene.integrator.scheme));
+  if (halo > plan.layout.halo)
+    throw Error(Status::unsupported, where + ": the " + scheme_name(scene.integrator.scheme) +
+                                         " scheme's bricks need a halo of " + std::to_string(halo) +
+                                         " voxels, the plan holds " +
+                                         std::to_string(plan.layout.halo));
   std::vector<std::string> adjoint_groups, forward_groups;
   std::set<std::string> seen;
   for (const std::string& g : groups) {

@@ -221,8 +221,9 @@ Gradient gradient(Device& device, const Scene& scene, const Image& target,
   // The groups first: a bad --wrt is reported before any device work.
   for (const std::string& g : groups) plan_group(scene, g);
   // (Out of core the endpoint schemes' bricks hold a halo of a step: brick_halo.)
-  const BrickPlan bricks = plan_render(device, scene, o.precision, 0, true,
-                                       brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step));
+  const BrickPlan bricks =
+      plan_render(device, scene, o.precision, 0, true,
+                  brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step));
   if (bricks.layout.edge) return gradient_bricked(device, scene, target, groups, o, bricks);
   Session session = one_shot_session(device, scene, {o.precision, o.step});
   session.set_target(target);

@@ -1,8 +1,9 @@
 // bricked_packet.cl — the out-of-core render's march on CPUs: kernels/bricked.cl's MARCH phase
-// (midpoint scheme) for a tile of IVR_RAYS neighbouring pixels in vector lanes, as render.cl
-// marches packets in core (PoCL runs a work-item's loop as scalar code). Each lane takes its ray's
-// window in the brick exactly as bricked_render does — the same state, entry test, samples and
-// sums, lane by lane — so the state it leaves, and the image, are the one-ray kernel's bit for bit.
+// (midpoint, trapezoid and preintegrated schemes) for a tile of IVR_RAYS neighbouring pixels in
+// vector lanes, as render.cl marches packets in core (PoCL runs a work-item's loop as scalar code).
+// Each lane takes its ray's window in the brick exactly as bricked_render does — the same state,
+// entry test, samples (the endpoint schemes' carried end sample) and sums, lane by lane — so the
+// state it leaves, and the image, are the one-ray kernel's bit for bit.
 // BEGIN and FINISH stay bricked_render's (one ray per work-item: once per render or sweep).
 #include "bricked_state.cl"
 #include "config.cl"
@@ -11,8 +12,8 @@
 #include "primal.cl"
 #include "rays.cl"
 
-#if IVR_SCHEME != IVR_SCHEME_MIDPOINT
-#error "bricked_packet.cl marches the midpoint scheme"
+#if IVR_SCHEME == IVR_SCHEME_EXACT
+#error "bricked_packet.cl marches the fixed-step schemes (exact: bricked.cl, one ray a work-item)"
 #endif
 
 // The arguments are bricked_render's (the host sets both alike); a work-item is the tile with
@@ -39,6 +40,9 @@ __kernel void bricked_render_packet(
   real T[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS], kr[IVR_RAYS], kg[IVR_RAYS],
       kb[IVR_RAYS], tau[IVR_RAYS], ktau[IVR_RAYS];
   int next[IVR_RAYS], taken[IVR_RAYS], end[IVR_RAYS];
+  // The endpoint schemes' carried end sample, and whether the lane's march has taken sample 0.
+  real ad[IVR_RAYS], asigma[IVR_RAYS], aer[IVR_RAYS], aeg[IVR_RAYS], aeb[IVR_RAYS];
+  int started[IVR_RAYS];
   for (int l = 0; l < IVR_RAYS; ++l) {
     if (w.entered[l]) {
       __global const real* s = state + w.pixel[l] * IVR_BRICK_REALS;
@@ -47,10 +51,15 @@ __kernel void bricked_render_packet(
       kr[l] = s[BS_KR], kg[l] = s[BS_KG], kb[l] = s[BS_KB], tau[l] = s[BS_TAU],
       ktau[l] = s[BS_KTAU];
       next[l] = (int)su[BU_NEXT], taken[l] = (int)su[BU_SAMPLES], end[l] = (int)su[BU_END];
+      ad[l] = s[BS_AD], asigma[l] = s[BS_ASIGMA];
+      aer[l] = s[BS_AER], aeg[l] = s[BS_AEG], aeb[l] = s[BS_AEB];
+      started[l] = (su[BU_FLAGS] & IVR_BRICK_STARTED) ? 1 : 0;
     } else {
       T[l] = (real)1;
       cr[l] = cg[l] = cb[l] = kr[l] = kg[l] = kb[l] = tau[l] = ktau[l] = (real)0;
       next[l] = taken[l] = end[l] = 0;
+      ad[l] = asigma[l] = aer[l] = aeg[l] = aeb[l] = (real)0;
+      started[l] = 1;
     }
   }
   const March m = lanes_march(&w);
@@ -64,9 +73,11 @@ __kernel void bricked_render_packet(
   vint i = IVR_LOAD_RAYS(next);
   const real threshold = march_threshold(min_transmittance);
   vint segment = (vint)0;  // the TF's search cursor (tf_sample)
+  const vint entered = IVR_LOAD_RAYS(w.entered) != (vint)0;
+#if IVR_SCHEME == IVR_SCHEME_MIDPOINT
   // bricked.cl's brick_march, lane by lane: sample i while it lies before the window's end and
   // the march has neither ended nor stopped early.
-  vint live = (IVR_LOAD_RAYS(w.entered) != (vint)0) && (i < m.n);
+  vint live = entered && (i < m.n);
   while (vany(live)) {
     const vreal t = sample_t(&m, i);
     live = live && vmask_of(t < window_end);
@@ -84,6 +95,56 @@ __kernel void bricked_render_packet(
     live = live && !march_stopped(&r, threshold);
 #endif
   }
+#else
+  // bricked.cl's brick_march for the endpoint schemes, lane by lane: the segments whose far end
+  // lies in the window (segment_in_window), from the carried end sample (sample 0 where the lane's
+  // march starts here).
+  EndSample a;
+  a.ux = a.uy = a.uz = (vreal)(real)0;
+  a.d = IVR_LOAD_RAYS(ad), a.sigma = IVR_LOAD_RAYS(asigma);
+  a.er = IVR_LOAD_RAYS(aer), a.eg = IVR_LOAD_RAYS(aeg), a.eb = IVR_LOAD_RAYS(aeb);
+  const vint fresh = entered && (IVR_LOAD_RAYS(started) == (vint)0);
+  if (vany(fresh)) {
+    const EndSample first = end_sample(volume, dims, &m, (vint)0, tf, tf_count, tf_scalars,
+                                       &segment);
+    end_sample_where(&a, &first, fresh);
+    r.samples += vcount(fresh);
+  }
+  vint live = entered && (i < m.n);
+  while (vany(live)) {
+    live = live && segment_in_window(&m, i, window_end);
+    if (!vany(live)) break;
+    const EndSample b = end_sample(volume, dims, &m, i + 1, tf, tf_count, tf_scalars, &segment);
+    r.samples += vcount(live);
+#if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
+    composite_where(&r, (real)0.5 * (a.sigma + b.sigma) * m.dt, m.dt, (real)0.5 * (a.er + b.er),
+                    (real)0.5 * (a.eg + b.eg), (real)0.5 * (a.eb + b.eb), live);
+#else
+    Attenuation at;
+    vreal er, eg, eb;
+    preintegrated_segment(&a, &b, m.dt, tf, tf_count, tf_scalars, &segment, live, &at, &er, &eg,
+                          &eb);
+#if IVR_EMISSION
+    radiance_emit_where(&r, r.transmittance, er, eg, eb, attenuation_apply(&at, r.transmittance),
+                        live);
+#else
+    accumulate_where(&r.tau, &r.ktau, at.tau, live);
+#endif
+#endif
+    end_sample_where(&a, &b, live);
+    i += vcount(live);
+    r.end = vseli(r.end, i, live);
+    live = live && (i < m.n);
+#if IVR_EARLY_TERMINATION
+    live = live && !march_stopped(&r, threshold);
+#endif
+  }
+  IVR_STORE_RAYS(a.d, ad);
+  IVR_STORE_RAYS(a.sigma, asigma);
+  IVR_STORE_RAYS(a.er, aer);
+  IVR_STORE_RAYS(a.eg, aeg);
+  IVR_STORE_RAYS(a.eb, aeb);
+#endif
 #if IVR_EARLY_TERMINATION
   int stopped[IVR_RAYS];
   IVR_STORE_RAYS(march_stopped(&r, threshold), stopped);
@@ -114,6 +175,11 @@ __kernel void bricked_render_packet(
     su[BU_END] = (uint)end[l];
     su[BU_NEXT] = (uint)next[l];
     s[BS_TNEXT] = w.tb1[l];
+#if IVR_ENDPOINT_SAMPLES
+    s[BS_AD] = ad[l], s[BS_ASIGMA] = asigma[l];
+    s[BS_AER] = aer[l], s[BS_AEG] = aeg[l], s[BS_AEB] = aeb[l];
+    su[BU_FLAGS] |= IVR_BRICK_STARTED;
+#endif
 #if IVR_EARLY_TERMINATION
     if (stopped[l] || w.tb1[l] >= w.t1[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
 #else

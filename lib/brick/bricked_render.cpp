@@ -264,7 +264,7 @@ BrickedMarch::BrickedMarch(Device& device, const Scene& scene, const RenderOptio
   op.stats.variant = config.label();
   render_ = &s.kernels.get(config, &op.stats.build_seconds);
   a0_ = arguments(*render_);
-  if (use_packet(dev) && variant.scheme == Scheme::midpoint) {
+  if (use_packet(dev) && variant.scheme != Scheme::exact) {  // (exact: pieces, one ray an item)
     const int lanes = lanes_ = packet_lanes(variant.precision);
     const KernelConfig packet =
         variant.config("bricked_packet.cl", "bricked_render_packet").set(Switch::rays, lanes);

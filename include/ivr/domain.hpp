@@ -71,8 +71,9 @@ IVR_API Image render_domain(Device& device, const Scene& scene, const DomainPart
 // they overlap to get the volume's gradient (domain_join()) — and "tf" (tf_gradient_shape), the
 // part of the samples in this slab: sum it over the workers; "background" is the whole gradient on
 // every worker (not a part), as are the forward lanes' groups (camera, scales, tf_points,
-// voxels:LIST: their tangents travel with the rays' states). Midpoint scheme (as the out-of-core
-// gradient; density, tf and background by the adjoint); `loss` is the whole loss on every worker.
+// voxels:LIST: their tangents travel with the rays' states). Midpoint and exact schemes (density,
+// tf and background by the adjoint; trapezoid and preintegrated are refused: their bricks' halo
+// would reach the neighbour's slab); `loss` is the whole loss on every worker.
 IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
                                  const DomainPart& part, const GradientOptions& options = {},
                                  DomainStats* domain = nullptr,

@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <sstream>
+#include <thread>
 
 #include "ivr/error.hpp"
 #include "runtime/runtime.hpp"
@@ -115,7 +117,20 @@ std::uint64_t brick_budget(Device& device) {
   // it: with the queue drained, what an earlier call released no longer counts against this plan
   // (under load, a just-finished render's volume could otherwise make a plan go in core).
   if (budget) device.impl().queue.finish();
-  const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(device.impl().live->bytes, 0));
+  // PoCL runs the destructor callbacks that count buffers out on its own thread, after the
+  // commands: under a cap set by IVR_DEVICE_MEMORY_LIMIT (where a few KiB decide the plan) wait
+  // until the count has stopped falling for 10 ms (at most 100 ms).
+  const auto& live = device.impl().live;
+  if (budget && device_memory_limit_from_env()) {
+    std::int64_t last = live->bytes.load();
+    for (int quiet = 0, waited = 0; quiet < 10 && waited < 100; ++waited) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      const std::int64_t now = live->bytes.load();
+      quiet = now < last ? 0 : quiet + 1;
+      last = now;
+    }
+  }
+  const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(live->bytes.load(), 0));
   return budget ? (budget > in_use ? budget - in_use : 1) : 0;
 }
 

@@ -90,6 +90,16 @@ int brick_halo(const Scene& scene, double step) {
   return std::isfinite(reach) && reach < 1e6 ? int(reach) + 1 : 1 << 20;
 }
 
+void check_brick_halo(const Scene& scene, double step, const BrickLayout& layout) {
+  const int halo = brick_halo(scene, step);
+  if (halo > layout.halo)
+    throw Error(Status::unsupported,
+                std::string("out-of-core gradient: the ") + scheme_name(scene.integrator.scheme) +
+                    " scheme's step " + std::to_string(step) + " needs bricks with a halo of " +
+                    std::to_string(halo) + " voxels, the plan's hold " +
+                    std::to_string(layout.halo) + " (a step chosen to a tolerance: give a step)");
+}
+
 // A brick's planes are those it starts and ends at; at the outer bricks, ±∞ where the bricks
 // reach the box face (a slab's inner face stays a plane: the next process's bricks start there).
 std::array<double, 3> BrickLayout::lo(int b) const {

@@ -57,6 +57,9 @@ BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first = 0, int 
 // window its far end lies in, and its trilinear cell starts up to one voxel lower; 0 for midpoint
 // and exact (each sample or piece lies in its window's brick).
 int brick_halo(const Scene& scene, double step);
+// Throws Error(unsupported) where the step a gradient's march takes (the session's: a tolerance
+// may have chosen it) needs a wider halo than `layout` holds.
+void check_brick_halo(const Scene& scene, double step, const BrickLayout& layout);
 
 // What the device-memory budget (device_memory_budget) leaves beside the device's buffers alive
 // now: what an out-of-core plan may take (0: no budget known).

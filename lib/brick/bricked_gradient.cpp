@@ -58,11 +58,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   BrickedMarch march(device, scene, ro, plan, "gradient");
   if (domain) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
-  if (brick_halo(scene, s.integrator().step) > plan.layout.halo)  // (a step chosen to a tolerance)
-    throw Error(Status::unsupported,
-                "out-of-core gradient: the step " + std::to_string(s.integrator().step) +
-                    " (chosen to the scene's tolerance) reaches past the bricks' halo of " +
-                    std::to_string(plan.layout.halo) + " voxels; give a step");
+  check_brick_halo(scene, s.integrator().step, plan.layout);
   march.session().set_target(target);
   march.render();
 
@@ -247,17 +243,11 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
   // A segment's near sample lies in the brick before its far end's: the bricks need a halo
-  // (brick_halo), which a slab's neighbours do not hold.
-  const int halo = brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step);
-  if (halo && domain)
+  // (brick_halo; each march checks its plan holds it), which a slab's neighbours do not hold.
+  if (domain && brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step))
     throw Error(Status::unsupported,
                 where + ": over slabs, only the midpoint and exact schemes, not " +
                     scheme_name(scene.integrator.scheme));
-  if (halo > plan.layout.halo)
-    throw Error(Status::unsupported, where + ": the " + scheme_name(scene.integrator.scheme) +
-                                         " scheme's bricks need a halo of " + std::to_string(halo) +
-                                         " voxels, the plan holds " +
-                                         std::to_string(plan.layout.halo));
   std::vector<std::string> adjoint_groups, forward_groups;
   std::set<std::string> seen;
   for (const std::string& g : groups) {

@@ -93,6 +93,7 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
   BrickedMarch march(device, scene, ro, p, "gradient");
   if (domain) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
+  check_brick_halo(scene, s.integrator().step, p.layout);
   Device::Impl& dev = s.dev;
   march.session().set_target(target);
   BrickedTangent out;

@@ -342,18 +342,19 @@ const IterationRecord& Reconstruction::Impl::step() {
     enter_level(l, std::vector<double>(fine.data.begin(), fine.data.end()));
   }
   std::vector<int> views = batch_views(o.seed, k, image_extent(scene).views, o.batch);
-  // Data-parallel: this worker's share of the batch, and its weight in the batch's mean loss.
+  // Data-parallel: this worker's share of the batch, and its weight in the batch's mean loss: 1
+  // for the densities' adjoint, which differentiates the share with the batch's normaliser
+  // (FixedShare: its part of the batch's mean, and in fixed point the batch's sums bit for bit);
+  // the share's size for the TF's gradient, a mean over the share (the losses are means).
   const std::size_t batch_size = views.size();
-  // The densities' gradient of a share is its part of the batch's (FixedShare: the batch's mean,
-  // and in fixed point the batch's sums bit for bit).
   FixedShare share;
-  if (o.workers > 1) share = batch_share(views);
   double weight = 1;
   if (o.workers > 1) {
+    if (o.density) share = batch_share(views);
     const auto [first, count] = view_shares(batch_size, std::size_t(o.workers))[std::size_t(o.worker)];
     views = std::vector<int>(views.begin() + std::ptrdiff_t(first),
                              views.begin() + std::ptrdiff_t(first + count));
-    weight = double(count) / double(batch_size);  // the losses are means (mse, l1)
+    if (!o.density) weight = double(count) / double(batch_size);
   }
   // Σ over the workers of weight × (the loss, then the gradients), every worker getting it.
   auto sum_workers = [&](double& loss, std::vector<std::vector<double>*> grads) {
@@ -400,7 +401,6 @@ const IterationRecord& Reconstruction::Impl::step() {
     r.loss = gr.loss.to_doubles()[0];
     std::vector<double> tf_grad = o.tf ? gr.tf.to_doubles() : std::vector<double>{};
     if (o.workers > 1) {  // the batch's gradient from the workers' parts of it (unweighted)
-      weight = 1;
       if (op.stats.deterministic) {  // (the densities' fixed-point sums are added already)
         sum_workers(r.loss, {&tf_grad});
       } else {

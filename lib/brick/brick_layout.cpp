@@ -4,12 +4,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <sstream>
-#include <thread>
 
 #include "ivr/error.hpp"
 #include "runtime/runtime.hpp"
@@ -127,19 +125,10 @@ std::uint64_t brick_budget(Device& device) {
   // it: with the queue drained, what an earlier call released no longer counts against this plan
   // (under load, a just-finished render's volume could otherwise make a plan go in core).
   if (budget) device.impl().queue.finish();
-  // PoCL runs the destructor callbacks that count buffers out on its own thread, after the
-  // commands: under a cap set by IVR_DEVICE_MEMORY_LIMIT (where a few KiB decide the plan) wait
-  // until the count has stopped falling for 10 ms (at most 100 ms).
+  // Under a cap set by IVR_DEVICE_MEMORY_LIMIT (where a few KiB decide the plan) let the
+  // driver's callbacks count out what was released first.
   const auto& live = device.impl().live;
-  if (budget && device_memory_limit_from_env()) {
-    std::int64_t last = live->bytes.load();
-    for (int quiet = 0, waited = 0; quiet < 10 && waited < 100; ++waited) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      const std::int64_t now = live->bytes.load();
-      quiet = now < last ? 0 : quiet + 1;
-      last = now;
-    }
-  }
+  if (budget && device_memory_limit_from_env()) live->settle();
   const std::uint64_t in_use = std::uint64_t(std::max<std::int64_t>(live->bytes.load(), 0));
   return budget ? (budget > in_use ? budget - in_use : 1) : 0;
 }

@@ -6,8 +6,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cstdlib>
 #include <sstream>
+#include <thread>
 
 namespace ivr {
 
@@ -300,8 +302,10 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
   }
   if (host && !(flags & CL_MEM_USE_HOST_PTR)) flags |= CL_MEM_COPY_HOST_PTR;
   const std::size_t size = std::max<std::size_t>(bytes, 1);
+  // Over the cap, first let the driver count out what was just released (Live::settle).
   if (const std::uint64_t limit = device_memory_limit_from_env();
-      limit && std::uint64_t(live->bytes.load()) + size > limit) {
+      limit && std::uint64_t(live->bytes.load()) + size > limit &&
+      (size > limit || std::uint64_t(live->settle(std::int64_t(limit - size))) + size > limit)) {
     std::ostringstream msg;
     msg << what << " needs " << size << " bytes, which would take the device memory in use to "
         << live->bytes.load() + std::int64_t(size) << " bytes, over IVR_DEVICE_MEMORY_LIMIT ("
@@ -339,6 +343,17 @@ cl::Buffer Device::Impl::buffer(cl_mem_flags flags, std::size_t bytes, const voi
     delete tracker;
   }
   return b;
+}
+
+std::int64_t Device::Impl::Live::settle(std::int64_t target, int max_ms) const {
+  std::int64_t last = bytes.load();
+  for (int quiet = 0, waited = 0; last > target && quiet < 10 && waited < max_ms; ++waited) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    const std::int64_t now = bytes.load();
+    quiet = now < last ? 0 : quiet + 1;
+    last = now;
+  }
+  return last;
 }
 
 void inject_allocation_failure(long nth) {

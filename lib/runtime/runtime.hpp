@@ -73,6 +73,11 @@ struct Device::Impl {
     std::atomic<std::int64_t> bytes{0}, buffers{0};
     std::atomic<std::int64_t> peak{0};  // the most `bytes` has been (reset_peak() to measure)
     void reset_peak() { peak = bytes.load(); }
+    // The bytes still counted once the driver's callbacks have caught up: PoCL runs them on its
+    // own thread after the commands, so a just-released buffer may still count for a few ms.
+    // Waits until `bytes` is at most `target` or has stopped falling for 10 ms, at most
+    // `max_ms`; returns `bytes` then. Call after the queue has finished.
+    std::int64_t settle(std::int64_t target = 0, int max_ms = 100) const;
   };
   std::shared_ptr<Live> live = std::make_shared<Live>();
 };

@@ -83,7 +83,7 @@ TEST_F(Faults, AllocationFailureAtEveryPointReleasesEverything) {
   o.deterministic = true;
   const AdjointGradient reference = adjoint(dev, scene, target, o);
   dev.impl().queue.finish();
-  const std::int64_t baseline = dev.impl().live->bytes;
+  const std::int64_t baseline = dev.impl().live->settle();
   int failures = 0;
   for (long n = 1; n < 200; ++n) {
     inject_allocation_failure(n);
@@ -97,7 +97,8 @@ TEST_F(Faults, AllocationFailureAtEveryPointReleasesEverything) {
     }
     inject_allocation_failure(0);
     dev.impl().queue.finish();
-    EXPECT_EQ(dev.impl().live->bytes, baseline) << "after a failure at allocation " << n;
+    // A leak never comes down to the baseline; a late driver callback does, within 2 s.
+    EXPECT_EQ(dev.impl().live->settle(baseline, 2000), baseline) << "after a failure at allocation " << n;
     if (!failed) break;
     ++failures;
   }
@@ -150,7 +151,7 @@ void many_operations(int count) {
   DeviceArray t(dev, {1, target.height, target.width, 1}, DType::f32);
   t.upload(target.pixels.data(), target.pixels.size());
   dev.impl().queue.finish();
-  const std::int64_t session_bytes = dev.impl().live->bytes;
+  const std::int64_t session_bytes = dev.impl().live->settle();
   std::int64_t rss_at_tenth = 0;
   for (int i = 0; i < count; ++i) {
     if (i % 2 == 0) {
@@ -167,7 +168,7 @@ void many_operations(int count) {
   }
   dev.impl().queue.finish();
   // The session keeps its scratch (image, gradients) between calls: bounded, not per call.
-  const std::int64_t after = dev.impl().live->bytes;
+  const std::int64_t after = dev.impl().live->settle(session_bytes, 2000);
   EXPECT_LE(after - session_bytes, std::int64_t(1) << 20) << "device bytes grew";
   const std::int64_t growth = host_bytes_in_use() - rss_at_tenth;
   EXPECT_LE(growth, std::int64_t(16) << 20)

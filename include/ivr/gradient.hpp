@@ -2,6 +2,7 @@
 // in forward or adjoint mode, chosen by the planner unless asked for: what `ivr gradient` runs.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,19 @@ struct GradientOptions {
   Precision precision = Precision::f32;
   double step = 0;  // > 0 overrides the scene's integrator step and tolerance (voxel units)
   Loss loss = Loss::mse;
+  // The density gradient summed in fixed point where the device has 64-bit integer atomics
+  // (AdjointOptions::deterministic; adjoint mode in core): the same bits on every run, and over
+  // several devices or workers the one process's bits.
+  bool deterministic = false;
+  // Data-parallel over views (docs/scaling.md): this call is worker `worker` of `workers` (> 1),
+  // every worker passing the whole scene and target and calling together; each differentiates its
+  // share of the views (view_shares; a ray list: rays) and `sum` — the workers' elementwise sum of
+  // doubles, every worker getting it (an MPI_Allreduce; every worker calls it alike) — combines
+  // them: every worker gets the whole loss and gradient, per-view rows included. With
+  // `deterministic` (and every worker in core, in adjoint mode, with 64-bit integer atomics, and a
+  // view for every worker) the density gradient is the one process's bit for bit.
+  int worker = 0, workers = 1;
+  std::function<void(std::vector<double>&)> sum;
 };
 
 struct Gradient {
@@ -42,6 +56,7 @@ struct Gradient {
   double step = 0;                 // the integrator step used (voxel units)
   int bricks = 1;                  // the volume's out-of-core bricks (1: in core)
   int devices = 1;                 // the devices the views were spread over
+  bool deterministic = false;      // the density gradient was summed in fixed point
 };
 
 // Splits a --wrt list ("tf,voxels:3,17,40-45,background") into group names; voxel lists take the
@@ -60,9 +75,11 @@ IVR_API Image target_share(const Scene& scene, const Image& target, std::size_t 
 IVR_API bool per_view_group(const std::string& group);
 
 // The same on several devices (docs/scaling.md): each device differentiates the loss of its
-// share of the views (a ray list's rays); the loss and the gradients are the shares' weighted by
-// their sizes (the mean losses; `dot`: summed), added in device order on the host; the rays'
-// own gradients are joined in ray order.
+// share of the views (a ray list's rays), as a worker of options' kind on a thread of its own;
+// the loss and the gradients are the shares' weighted by their sizes (the mean losses; `dot`:
+// summed), added in device order; the rays' own gradients are joined in ray order. With
+// `deterministic` the density gradient is one device's bit for bit. One device where
+// options.workers > 1 (a worker's devices are not split further).
 IVR_API Gradient gradient(const std::vector<Device*>& devices, const Scene& scene,
                           const Image& target, const std::vector<std::string>& groups,
                           const GradientOptions& options = {});

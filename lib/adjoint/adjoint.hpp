@@ -27,6 +27,11 @@ struct FixedShare {
   // The workers' fixed-point sums (one per voxel) added exactly, every worker getting the total.
   std::function<void(std::vector<std::int64_t>&)> add;
 };
+// Sets f.agree and f.add for worker `worker` of `workers` from `sum` (the workers' elementwise sum
+// of doubles, every worker getting it: an MPI_Allreduce). Throws Error(invalid_argument) for a
+// worker out of range or no sum.
+void set_share_collectives(FixedShare& f, int worker, int workers,
+                           const std::function<void(std::vector<double>&)>& sum);
 
 struct AdjointRequest {
   bool density = true, tf = false, background = false, camera = false;

@@ -106,7 +106,7 @@ std::vector<std::string> parse_groups(const std::string& list) {
 }
 
 SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
-                                 const GradientRequest& request) {
+                                 const GradientRequest& request, const ShareDecision& share) {
   if (request.mode != Mode::automatic && request.mode != Mode::forward &&
       request.mode != Mode::adjoint)
     throw bad_group("unknown mode " + std::to_string(int(request.mode)));
@@ -145,6 +145,8 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
     p.lanes = alone ? std::size_t(RayList::kColumns)
                     : std::max<std::size_t>(p.lanes, RayList::kColumns);
   }
+  // A data-parallel worker: the fixed-point decision, agreed with the others (a collective).
+  const FixedShare* fixed_share = share ? share(out.plan.mode) : nullptr;
   OperationRecord& op = s.begin("gradient");
   cl_call("splitting the gradient into its groups", [&] {
     if (out.plan.mode == Mode::forward) {
@@ -174,7 +176,8 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
     }
     AdjointRequest r;
     r.loss = request.loss;
-    r.deterministic = request.deterministic;
+    r.deterministic = request.deterministic || fixed_share;
+    r.share = fixed_share;
     r.density = r.tf = r.background = r.camera = false;
     for (const GroupPlan& p : plans) {
       r.density = r.density || p.name == "density" || p.name == "voxels";
@@ -215,16 +218,30 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
   return out;
 }
 
+std::vector<std::size_t> group_shape(const Scene& scene, const std::string& g) {
+  const GroupPlan p = plan_group(scene, g);
+  return std::vector<std::size_t>(p.shape.begin(), p.shape.end());
+}
+
 Gradient gradient(Device& device, const Scene& scene, const Image& target,
-                              const std::vector<std::string>& groups,
-                              const GradientOptions& o) {
+                  const std::vector<std::string>& groups, const GradientOptions& o) {
+  if (o.workers > 1 || o.worker != 0) return gradient_shared(device, scene, target, groups, o);
+  return gradient_one(device, scene, target, groups, o);
+}
+
+Gradient gradient_one(Device& device, const Scene& scene, const Image& target,
+                      const std::vector<std::string>& groups, const GradientOptions& o,
+                      const ShareDecision& share) {
   // The groups first: a bad --wrt is reported before any device work.
   for (const std::string& g : groups) plan_group(scene, g);
   // (Out of core the endpoint schemes' bricks hold a halo of a step: brick_halo.)
   const BrickPlan bricks =
       plan_render(device, scene, o.precision, 0, true,
                   brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step));
-  if (bricks.layout.edge) return gradient_bricked(device, scene, target, groups, o, bricks);
+  if (bricks.layout.edge) {
+    if (share) share(Mode::forward);  // (out of core: no fixed point; the caller weights)
+    return gradient_bricked(device, scene, target, groups, o, bricks);
+  }
   Session session = one_shot_session(device, scene, {o.precision, o.step});
   session.set_target(target);
   Session::Impl& s = session.impl();
@@ -232,7 +249,8 @@ Gradient gradient(Device& device, const Scene& scene, const Image& target,
   request.wrt = groups;
   request.mode = o.mode;
   request.loss = o.loss;
-  const SessionGradient g = session_gradient(s, s.target, request);
+  request.deterministic = o.deterministic;
+  const SessionGradient g = session_gradient(s, s.target, request, share);
   Gradient d;
   d.step = s.integrator().step;
   d.plan = g.plan;
@@ -247,6 +265,7 @@ Gradient gradient(Device& device, const Scene& scene, const Image& target,
   const OperationStats st = session.last_stats();
   d.kernel_seconds = st.kernel_seconds;
   d.device_bytes = st.device_bytes;
+  d.deterministic = st.deterministic;
   return d;
 }
 

@@ -3,31 +3,42 @@
 // thread of its own, and the results combined on the host in device order (docs/scaling.md).
 #include <algorithm>
 #include <exception>
+#include <functional>
 #include <thread>
 
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "ivr/render.hpp"
+#include "multi_device/worker_sum.hpp"
 
 namespace ivr {
 
 namespace {
 
 
-// Runs job(i) for every share on its own thread; rethrows the first share's error (in order).
+// Runs job(i) for every share on its own thread; rethrows the first share's error (in order), a
+// share's own rather than a sum's that another share's failure stopped (WorkerSum::abort, called
+// through `failed` as soon as any share fails).
 template <class Job>
-void run_shares(std::size_t count, Job&& job) {
+void run_shares(std::size_t count, Job&& job, const std::function<void()>& failed = {}) {
   std::vector<std::exception_ptr> errors(count);
+  std::vector<bool> stopped(count, false);
   std::vector<std::thread> threads;
   for (std::size_t i = 0; i < count; ++i)
     threads.emplace_back([&, i] {
       try {
         job(i);
+      } catch (const WorkerSumStopped&) {
+        errors[i] = std::current_exception();
+        stopped[i] = true;
       } catch (...) {
         errors[i] = std::current_exception();
+        if (failed) failed();
       }
     });
   for (std::thread& t : threads) t.join();
+  for (std::size_t i = 0; i < count; ++i)
+    if (errors[i] && !stopped[i]) std::rethrow_exception(errors[i]);
   for (const std::exception_ptr& e : errors)
     if (e) std::rethrow_exception(e);
 }
@@ -130,50 +141,31 @@ Image render(const std::vector<Device*>& devices, const Scene& scene, const Rend
 Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
                   const std::vector<std::string>& groups, const GradientOptions& options) {
   check_devices(devices);
-  if (devices.size() == 1) return gradient(*devices[0], scene, target, groups, options);
-  const std::size_t n = share_items(scene);
-  const std::size_t per_item = scene.has_ray_list()
-                                   ? std::size_t(scene.channels())
-                                   : std::size_t(target.height) * target.width * target.channels;
-  if (target.pixels.size() != n * per_item)
+  const std::size_t workers = std::min(devices.size(), share_items(scene));
+  if (workers <= 1) return gradient(*devices[0], scene, target, groups, options);
+  if (options.workers > 1)
     throw Error(Status::invalid_argument,
-                "target: " + std::to_string(target.pixels.size()) + " values, the scene's images " +
-                    std::to_string(n * per_item));
-  const auto parts = view_shares(n, devices.size());
-  std::vector<Gradient> g(parts.size());
-  run_shares(parts.size(), [&](std::size_t i) {
-    const auto [first, count] = parts[i];
-    const Image t = target_share(scene, target, first, count);
-    g[i] = gradient(*devices[i], scene_share(scene, first, count), t, groups, options);
-  });
-  // A mean loss over every element is the shares' means weighted by their sizes; the dot loss is
-  // a plain sum. The gradients combine alike, in device order (deterministic).
-  Gradient out = g[0];
-  auto weight = [&](std::size_t i) {
-    return options.loss == Loss::dot ? 1.0 : double(parts[i].second) / double(n);
-  };
-  out.loss = 0;
-  for (GroupGradient& group : out.groups)
-    std::fill(group.values.begin(), group.values.end(), 0.0);
-  for (std::size_t i = 0; i < g.size(); ++i) {
-    out.loss += weight(i) * g[i].loss;
-    for (std::size_t k = 0; k < out.groups.size(); ++k) {
-      if (per_view_group(out.groups[k].name)) continue;  // per view or ray: joined below
-      for (std::size_t j = 0; j < out.groups[k].values.size(); ++j)
-        out.groups[k].values[j] += weight(i) * g[i].groups[k].values[j];
-    }
+                "gradient: " + std::to_string(devices.size()) + " devices for worker " +
+                    std::to_string(options.worker) + " of " + std::to_string(options.workers) +
+                    ": give each worker one device");
+  // Each device a worker of its own (gradient_shared), summing through a rendezvous of threads.
+  WorkerSum sum{int(workers)};
+  std::vector<Gradient> g(workers);
+  run_shares(
+      workers,
+      [&](std::size_t i) {
+        GradientOptions o = options;
+        o.worker = int(i), o.workers = int(workers), o.sum = sum.of(int(i));
+        g[i] = gradient(*devices[i], scene, target, groups, o);
+      },
+      [&] { sum.abort(); });
+  Gradient out = g[0];  // (every worker holds the whole gradient)
+  for (std::size_t i = 1; i < g.size(); ++i) {
     out.kernel_seconds = std::max(out.kernel_seconds, g[i].kernel_seconds);
     out.device_bytes = std::max(out.device_bytes, g[i].device_bytes);
     out.bricks = std::max(out.bricks, g[i].bricks);
   }
-  for (std::size_t k = 0; k < out.groups.size(); ++k)
-    if (per_view_group(out.groups[k].name)) {
-      out.groups[k].values.clear();
-      for (std::size_t i = 0; i < g.size(); ++i)
-        for (double v : g[i].groups[k].values) out.groups[k].values.push_back(weight(i) * v);
-      out.groups[k].shape[0] = n;
-    }
-  out.devices = int(parts.size());
+  out.devices = int(workers);
   return out;
 }
 

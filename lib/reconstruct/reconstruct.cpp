@@ -297,36 +297,7 @@ FixedShare Reconstruction::Impl::batch_share(const std::vector<int>& batch) cons
     for (std::size_t i = 0; i < per_view; ++i)
       f.target_max =
           std::max(f.target_max, double(std::abs(targets.pixels[std::size_t(v) * per_view + i])));
-  const int workers = o.workers, worker = o.worker;
-  const std::function<void(std::vector<double>&)> sum = o.sum;
-  // Maxima from the sum: each worker's values in its own slots, the others' 0 (exact).
-  f.agree = [sum, workers, worker](std::int64_t& over_cap, float& largest, float& largest_ray) {
-    std::vector<double> v(1 + 2 * std::size_t(workers), 0.0);
-    v[0] = double(over_cap);  // (a count of rays: exact)
-    v[1 + 2 * std::size_t(worker)] = largest;
-    v[2 + 2 * std::size_t(worker)] = largest_ray;
-    sum(v);
-    over_cap = std::int64_t(v[0]);
-    for (int w = 0; w < workers; ++w) {
-      largest = std::max(largest, float(v[1 + 2 * std::size_t(w)]));
-      largest_ray = std::max(largest_ray, float(v[2 + 2 * std::size_t(w)]));
-    }
-  };
-  // Exact integer sums through a sum of doubles: each value as its low 32 bits (< 2^32) and the
-  // rest (|·| < 2^31), whose sums over fewer than 2^21 workers stay below 2^53.
-  f.add = [sum](std::vector<std::int64_t>& values) {
-    std::vector<double> v(2 * values.size());
-    for (std::size_t i = 0; i < values.size(); ++i) {
-      v[2 * i] = double(std::uint64_t(values[i]) & 0xffffffffu);
-      v[2 * i + 1] = double(values[i] >> 32);  // (arithmetic: values[i] = high·2^32 + low)
-    }
-    sum(v);
-    for (std::size_t i = 0; i < values.size(); ++i) {
-      const auto high = static_cast<__int128>(static_cast<std::int64_t>(v[2 * i + 1]));
-      const auto low = static_cast<__int128>(static_cast<std::int64_t>(v[2 * i]));
-      values[i] = static_cast<std::int64_t>(high * (__int128(1) << 32) + low);
-    }
-  };
+  set_share_collectives(f, o.worker, o.workers, o.sum);
   return f;
 }
 

@@ -27,16 +27,12 @@ namespace {
 struct GradientArgs {
   std::string scene, target, wrt, mode = "auto", loss = "mse", prefix, split = "views";
   MarchOptions march;
-  bool json = false;
+  bool json = false, deterministic = false;
 };
 
 }  // namespace
 
-// Under mpirun, each rank differentiates the loss of its share of the views (a ray list: rays);
-// the loss and the gradients are the shares' weighted by their sizes (dot: summed) and summed
-// over the ranks (MPI_Allreduce); per-view groups (camera, rays) are gathered in order. Rank 0
-// gets the result; else the gradient itself.
-// With --split slabs each rank differentiates over its slab: rank 0 joins the density's slabs, the
+// Under mpirun with --split slabs each rank differentiates over its slab: rank 0 joins the density's slabs, the
 // TF gradient's parts are summed over the ranks; the background's and the forward lanes' (camera,
 // …) are whole on every rank.
 Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
@@ -63,47 +59,20 @@ Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
 }
 
 Gradient gradient_ranks(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
-                        const std::vector<std::string>& groups, const GradientOptions& options,
+                        const std::vector<std::string>& groups, GradientOptions options,
                         const std::string& split) {
   if (split == "slabs") return gradient_slabs(devices, scene, target, groups, options);
   const World& w = world();
   if (w.size == 1) return gradient(devices, scene, target, groups, options);
-  const std::size_t n = share_items(scene);
-  const auto parts = view_shares(n, std::size_t(w.size));
-  const bool active = std::size_t(w.rank) < parts.size();
-  // Every rank needs the groups' shapes: rank 0's share always exists; the others' zeros.
-  Gradient mine;
-  if (active) {
-    const auto [first, count] = parts[w.rank];
-    mine = gradient(devices, scene_share(scene, first, count),
-                    target_share(scene, target, first, count), groups, options);
-  } else {
-    mine = gradient(devices, scene_share(scene, 0, 1), target_share(scene, target, 0, 1), groups,
-                    options);
-  }
-  const double weight = !active ? 0.0
-                        : options.loss == Loss::dot ? 1.0
-                                                    : double(parts[w.rank].second) / double(n);
-  std::vector<double> sums{weight * mine.loss};
-  for (const GroupGradient& g : mine.groups)
-    if (!per_view_group(g.name))
-      for (double v : g.values) sums.push_back(weight * v);
-  sum_all(sums);
-  Gradient out = mine;
-  out.loss = sums[0];
-  std::size_t at = 1;
-  for (GroupGradient& g : out.groups) {
-    if (per_view_group(g.name)) {
-      std::vector<double> rows;
-      if (active)
-        for (double v : g.values) rows.push_back(weight * v);
-      g.values = gather(rows);
-      g.shape[0] = n;
-    } else {
-      for (double& v : g.values) v = sums[at++];
-    }
-  }
-  return out;
+  // Each rank a worker of the data-parallel gradient (GradientOptions::workers), summing over
+  // MPI_COMM_WORLD: every rank gets the whole gradient (with --deterministic the one process's
+  // density gradient bit for bit); rank 0 writes it.
+  if (devices.size() > 1)
+    throw Error(Status::invalid_argument, "mpirun: one device per rank, not --device with " +
+                                              std::to_string(devices.size()));
+  options.worker = w.rank, options.workers = w.size;
+  options.sum = [](std::vector<double>& v) { sum_all(v); };
+  return gradient(*devices[0], scene, target, groups, options);
 }
 
 Runner add_gradient_command(CLI::App& app) {
@@ -122,6 +91,10 @@ Runner add_gradient_command(CLI::App& app) {
   cmd->add_option("--mode", args->mode, "auto (default: the planner's choice), forward or adjoint");
   cmd->add_option("--loss", args->loss, "Image loss: mse (default), l1, or dot (the sum of target * image: the "
                   "gradient is the vector-Jacobian product with the target as dL/dimage)");
+  cmd->add_flag("--deterministic", args->deterministic,
+                "Sum the density gradient in fixed point (adjoint mode, where the device has 64-bit "
+                "integer atomics): the same bits on every run, and under mpirun or with several "
+                "devices the one process's bits");
   add_march_options(cmd, args->march);
   add_split_option(cmd, args->split);
   cmd->add_option("-o,--output", args->prefix,
@@ -159,6 +132,7 @@ Runner add_gradient_command(CLI::App& app) {
     options.precision = precision;
     options.step = args->march.step;
     options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;
+    options.deterministic = args->deterministic;
     const Gradient d =
         gradient_ranks(pointers(devices), scene, target, groups, options, args->split);
     if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
@@ -198,6 +172,7 @@ Runner add_gradient_command(CLI::App& app) {
                               {"cost_model", d.plan.model}}},
                             {"outputs", paths}};
       if (!d.atomics.empty()) out["atomics"] = d.atomics;
+      out["deterministic"] = d.deterministic;
       std::cout << out.dump() << "\n";
     } else {
       std::string files;

@@ -6,7 +6,8 @@
 # (--split slabs: each rank one slab, the rays' states exchanged) the render and the density and
 # TF gradients within 1e-12 and the camera's (forward lanes over slabs) within 1e-10, CGLS over slabs (each rank its slab of the iterate) within 1e-10; `ivr reconstruct` (views of each batch shared out) follows one
 # process's losses within 1e-10 and ends at its densities bit for bit (fixed-point gradients: the
-# shares' integer sums added exactly); an error in the
+# shares' integer sums added exactly), as `ivr gradient --deterministic` gives one process's
+# density gradient bit for bit (float32); an error in the
 # ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
@@ -32,6 +33,9 @@ JSON
 "$ivr" project scene.json -o p.npy --precision f64 >/dev/null
 "$ivr" backproject scene.json --images p.npy -o bp1.npy --precision f64 >/dev/null
 "$ivr" tomo scene.json --projections p.npy --iterations 5 -o x1.npy --precision f64 2>/dev/null
+det=(--target target.npy --wrt density,tf --mode adjoint --deterministic --json)
+out=$("$ivr" gradient scene.json "${det[@]}" -o d1)
+echo "$out" | grep -q '"deterministic":true' || { echo "gradient --deterministic: $out"; exit 1; }
 rec=(--targets one.npy --init constant:0.3 --iterations 12 --batch 4 --levels 2 --precision f64)
 "$ivr" reconstruct scene.json "${rec[@]}" -o rec1 2>/dev/null >/dev/null
 run() { "$mpiexec" -np "$1" --oversubscribe "${@:2}"; }
@@ -40,6 +44,8 @@ for np in 2 4; do
   echo "$out" | grep -q "\"ranks\":$np" || { echo "render -np $np: no \"ranks\":$np in $out"; exit 1; }
   run "$np" "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o "g$np" \
     --precision f64 >/dev/null
+  out=$(run "$np" "$ivr" gradient scene.json "${det[@]}" -o "d$np")
+  echo "$out" | grep -q '"deterministic":true' || { echo "gradient --deterministic -np $np: $out"; exit 1; }
   out=$(run "$np" "$ivr" project scene.json -o "p$np.npy" --precision f64 --json)
   echo "$out" | grep -q "\"ranks\":$np" || { echo "project -np $np: no \"ranks\":$np in $out"; exit 1; }
   run "$np" "$ivr" backproject scene.json --images p.npy -o "bp$np.npy" --precision f64 >/dev/null
@@ -69,6 +75,12 @@ for n in (2, 4):
         err = np.max(np.abs(a - b)) / max(np.max(np.abs(a)), 1e-300)
         assert np.all(np.isfinite(b)) and err <= 1e-12, f"gradient {g} -np {n}: {err}"
         print(f"-np {n} {g}: {err:.2e}")
+    a, b = np.load("d1_density.npy"), np.load(f"d{n}_density.npy")
+    assert a.dtype == np.float32 and np.array_equal(a, b), f"gradient --deterministic -np {n}"
+    a, b = np.load("d1_tf.npy"), np.load(f"d{n}_tf.npy")
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert err <= 1e-5, f"gradient --deterministic -np {n} tf: {err}"
+    print(f"-np {n} gradient --deterministic: density identical, tf {err:.2e}")
     s = np.load(f"s{n}.npy")
     err = np.max(np.abs(s - one)) / np.max(np.abs(one))
     assert s.shape == one.shape and err <= 1e-12, f"render --split slabs -np {n}: {err}"

@@ -175,6 +175,19 @@ IVR_API ivr_status ivr_render(ivr_context* context, const ivr_scene* scene, ivr_
 IVR_API ivr_status ivr_gradient(ivr_context* context, const ivr_scene* scene, const float* target,
                                 size_t count, const char* wrt, ivr_mode mode, ivr_loss loss,
                                 ivr_precision precision, double step, ivr_result** result);
+/* ivr_gradient as worker `rank` of `ranks` data-parallel over views (docs/scaling.md), every
+ * worker calling it together with the whole scene and target: each differentiates its share of
+ * the views (a ray list: rays) and the workers' results are combined through `sum` (ivr_sum_fn,
+ * below), so every worker gets the whole loss and gradient. `deterministic` non-zero: the density
+ * gradient summed in fixed point (adjoint mode, where every worker's device has 64-bit integer
+ * atomics and a view): the same bits on every run and, over workers, one process's bits. With
+ * ranks 1, `sum` may be NULL (ivr_gradient with `deterministic`). */
+typedef int (*ivr_sum_fn)(double* values, size_t count, void* user);
+IVR_API ivr_status ivr_gradient_shared(ivr_context* context, const ivr_scene* scene,
+                                       const float* target, size_t count, const char* wrt,
+                                       ivr_mode mode, ivr_loss loss, ivr_precision precision,
+                                       double step, int deterministic, int rank, int ranks,
+                                       ivr_sum_fn sum, void* sum_user, ivr_result** result);
 /* ivr_render and ivr_gradient as worker `rank` of `ranks` over slabs (docs/scaling.md), every
  * worker calling it together: each marches only planes ivr_domain_slab(nz, rank, ranks) of the
  * scene's volume on its device (the scene holds the whole volume; the slab is cut from it), the
@@ -187,7 +200,6 @@ IVR_API ivr_status ivr_gradient(ivr_context* context, const ivr_scene* scene, co
  * ivr_sum_fn: a sum over the workers of a split operation, called by every worker together:
  * `values` (`count` doubles) replaced by their elementwise sum over the workers, the same on every
  * worker — an MPI_Allreduce with MPI_SUM from the caller's MPI. Return non-zero on success. */
-typedef int (*ivr_sum_fn)(double* values, size_t count, void* user);
 IVR_API ivr_status ivr_render_slabs(ivr_context* context, const ivr_scene* scene,
                                     ivr_precision precision, double step, int rank, int ranks,
                                     ivr_sum_fn sum, void* sum_user, float* image, size_t capacity);

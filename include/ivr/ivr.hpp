@@ -214,6 +214,7 @@ struct GradientOptions : Options {
   std::string wrt = "density";  // comma-separated groups, as `ivr gradient --wrt`
   Mode mode = Mode::automatic;
   Loss loss = Loss::mse;
+  bool deterministic = false;  // the density gradient in fixed point (ivr_gradient_shared)
 };
 
 // What Context::tomo solves: ivr_tomo_options (its fields are documented in ivr.h) filled with
@@ -348,10 +349,28 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
   // The loss of the render against `target` (the image shape) and its gradient by group.
   Result gradient(const Scene& scene, const float* target, size_t count,
                   const GradientOptions& options = {}) {
+    if (options.deterministic) return gradient_shared(scene, target, count, options, Workers{});
     ivr_result* r = nullptr;
     detail::check(ivr_gradient(get(), scene.get(), target, count, options.wrt.c_str(),
                                ivr_mode(options.mode), ivr_loss(options.loss),
                                ivr_precision(options.precision), options.step, &r));
+    return Result(r);
+  }
+  // Data-parallel over views (ivr_gradient_shared; `views.split` is not read): worker
+  // views.rank of views.ranks differentiates its share of the whole scene's views, every worker
+  // calling together; every worker gets the whole loss and gradient (with options.deterministic
+  // the density gradient is one process's bit for bit).
+  Result gradient_shared(const Scene& scene, const float* target, size_t count,
+                         const GradientOptions& options, const Workers& views) {
+    ivr_result* r = nullptr;
+    detail::Sum sum{&views.sum, nullptr};
+    const ivr_status status = ivr_gradient_shared(
+        get(), scene.get(), target, count, options.wrt.c_str(), ivr_mode(options.mode),
+        ivr_loss(options.loss), ivr_precision(options.precision), options.step,
+        options.deterministic ? 1 : 0, views.rank, views.ranks,
+        views.sum ? &detail::Sum::call : nullptr, &sum, &r);
+    if (sum.error) std::rethrow_exception(sum.error);
+    detail::check(status);
     return Result(r);
   }
   Result gradient(const Scene& scene, const std::vector<float>& target,

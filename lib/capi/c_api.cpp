@@ -249,6 +249,34 @@ ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target,
   });
 }
 
+ivr_status ivr_gradient_shared(ivr_context* c, const ivr_scene* s, const float* target,
+                               size_t count, const char* wrt, ivr_mode mode, ivr_loss loss,
+                               ivr_precision precision, double step, int deterministic, int rank,
+                               int ranks, ivr_sum_fn sum, void* sum_user, ivr_result** out) {
+  return guarded(c, "ivr_gradient_shared", [&] {
+    checked(c, Kind::context, "context");
+    with_volume(checked(s, Kind::scene, "scene"));
+    same_context(s->context, c, "scene");
+    not_null(target, "target");
+    not_null(wrt, "wrt");
+    not_null(out, "result");
+    *out = nullptr;
+    if (ranks < 1 || rank < 0 || rank >= ranks)
+      throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                   "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
+    if (ranks > 1 && !sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+    ivr::GradientOptions o;
+    o.mode = mode_of(mode);
+    o.loss = loss_of(loss);
+    o.precision = precision_of(precision);
+    o.step = step;
+    o.deterministic = deterministic != 0;
+    if (ranks > 1) o.worker = rank, o.workers = ranks, o.sum = sum_of(sum, sum_user);
+    const ivr::Image t = target_image(s->scene, target, count);
+    *out = gradient_result(c, ivr::gradient(c->device, s->scene, t, ivr::parse_groups(wrt), o));
+  });
+}
+
 namespace {
 // Worker `rank` of `ranks` over slabs, its collectives through the caller's sum.
 ivr::DomainPart slab_part(int rank, int ranks, ivr_sum_fn sum, void* user) {
@@ -258,10 +286,7 @@ ivr::DomainPart slab_part(int rank, int ranks, ivr_sum_fn sum, void* user) {
                  "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
   ivr::DomainPart part;
   part.rank = rank, part.ranks = ranks;
-  part.all_gather = ivr::all_gather_by_sum(rank, ranks, [sum, user](std::vector<double>& v) {
-    if (!sum(v.data(), v.size(), user))
-      throw CError{IVR_ERROR_INVALID_ARGUMENT, "the workers' sum (ivr_sum_fn) failed"};
-  });
+  part.all_gather = ivr::all_gather_by_sum(rank, ranks, sum_of(sum, user));
   return part;
 }
 }  // namespace

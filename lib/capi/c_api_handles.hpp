@@ -4,6 +4,7 @@
 #pragma once
 #include <atomic>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <new>
@@ -91,6 +92,15 @@ struct CError {
   ivr_status status;
   std::string message;
 };
+
+// The caller's sum of a split operation (ivr_sum_fn) as the C++ API takes it; its failure is an
+// error naming it.
+inline std::function<void(std::vector<double>&)> sum_of(ivr_sum_fn sum, void* user) {
+  return [sum, user](std::vector<double>& v) {
+    if (!sum(v.data(), v.size(), user))
+      throw CError{IVR_ERROR_INVALID_ARGUMENT, "the workers' sum (ivr_sum_fn) failed"};
+  };
+}
 
 inline const char* kind_name(Kind k) {
   switch (k) {

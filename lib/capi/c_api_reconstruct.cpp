@@ -116,10 +116,7 @@ ivr_status ivr_reconstruction_create_shared(ivr_context* c, const ivr_scene* s,
     if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
     ivr::ReconstructOptions o = core_options(options);
     o.worker = worker, o.workers = workers;  // (their range: checked by the core, named)
-    o.sum = [sum, sum_user](std::vector<double>& v) {
-      if (!sum(v.data(), v.size(), sum_user))
-        throw CError{IVR_ERROR_INVALID_ARGUMENT, "the workers' sum (ivr_sum_fn) failed"};
-    };
+    o.sum = sum_of(sum, sum_user);
     *out = create_reconstruction(c, s, targets, count, o);
   });
 }

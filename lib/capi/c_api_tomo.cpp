@@ -179,10 +179,7 @@ ivr_status ivr_tomo_split(ivr_context* c, const ivr_scene* s, const ivr_tomo_opt
     const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
                         history_capacity);
     const ivr::Scene& scene = s->scene;
-    const std::function<void(std::vector<double>&)> add = [&](std::vector<double>& v) {
-      if (!sum(v.data(), v.size(), sum_user))
-        throw CError{IVR_ERROR_INVALID_ARGUMENT, "the workers' sum (ivr_sum_fn) failed"};
-    };
+    const std::function<void(std::vector<double>&)> add = sum_of(sum, sum_user);
     if (split == IVR_SPLIT_VIEWS) {
       check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
       call.finish(ivr::tomo_shared(c->device, scene, call.lines, call.options, add, call.callback),

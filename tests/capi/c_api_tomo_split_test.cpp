@@ -222,6 +222,13 @@ TEST(CApiTomoSplit, CppWrapper) {
   for (double v : b) scale = std::max(scale, std::abs(v));
   ASSERT_GT(scale, 0.0);
   for (std::size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(a[i], b[i], 1e-5 * scale) << i;
+  // Fixed point (ivr_gradient_shared): the same bits by either call, near the float gradient.
+  go.deterministic = true;
+  const std::vector<double> fixed = ctx.gradient(scene, target, go).array("density").values;
+  EXPECT_EQ(fixed, ctx.gradient_shared(scene, target.data(), target.size(), go, workers)
+                       .array("density")
+                       .values);
+  for (std::size_t i = 0; i < a.size(); ++i) ASSERT_NEAR(fixed[i], b[i], 1e-5 * scale) << i;
 }
 
 // The C++ wrapper's shared reconstruction: each step calls the workers' sum (here worker 0 of 2
@@ -328,6 +335,76 @@ TEST(CApiTomoSplit, BadArgumentsAreRefused) {
   int first = 0, last = 0;
   EXPECT_EQ(ivr_domain_slab(4, 0, 4, &first, &last), IVR_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(ivr_domain_slab(12, 1, 2, nullptr, &last), IVR_ERROR_NULL_POINTER);
+  ivr_scene_release(scene);
+  ivr_context_release(ctx);
+}
+
+// ivr_gradient_shared: two workers on threads (views 0 and 1, then view 2), each with its own
+// context and the whole scene and target, get one process's density gradient bit for bit with
+// `deterministic` (and the loss to rounding); bad workers are refused by name.
+TEST(CApiTomoSplit, SharedGradientIsOneProcessBitForBit) {
+  const std::string json = scene_json({0, 1, 2});
+  std::vector<float> target(3 * kViewRays);
+  for (std::size_t i = 0; i < target.size(); ++i) target[i] = 0.4f + 0.3f * std::sin(0.37f * float(i));
+  // Worker `rank` of `ranks` (ranks 1: no sum): its density gradient, its loss.
+  auto run = [&](int rank, int ranks, Summit* summit, std::vector<double>& density, double& loss,
+                 std::string& error) {
+    ivr_context* ctx = nullptr;
+    ivr_scene* scene = nullptr;
+    ivr_result* result = nullptr;
+    Worker w{summit, rank};
+    if (ivr_context_create(nullptr, &ctx) != IVR_OK ||
+        ivr_scene_from_json(ctx, json.c_str(), nullptr, &scene) != IVR_OK ||
+        ivr_gradient_shared(ctx, scene, target.data(), target.size(), "density", IVR_MODE_ADJOINT,
+                            IVR_LOSS_MSE, IVR_PRECISION_F32, 0, 1, rank, ranks,
+                            ranks > 1 ? summed : nullptr, &w, &result) != IVR_OK) {
+      error = ivr_last_error();
+    } else {
+      ivr_mode mode = IVR_MODE_AUTO;
+      double seconds = 0;
+      density.resize(kVoxels);
+      if (ivr_result_info(result, &loss, &mode, &seconds) != IVR_OK ||
+          ivr_result_array_data(result, 0, density.data(), density.size()) != IVR_OK)
+        error = ivr_last_error();
+    }
+    ivr_result_release(result);
+    ivr_scene_release(scene);
+    ivr_context_release(ctx);
+  };
+  std::vector<double> one;
+  double one_loss = 0;
+  std::string error;
+  run(0, 1, nullptr, one, one_loss, error);
+  ASSERT_EQ(error, "");
+  Summit summit(2);
+  std::vector<std::vector<double>> density(2);
+  std::vector<double> loss(2);
+  std::vector<std::string> errors(2);
+  std::vector<std::thread> threads;
+  for (int r = 0; r < 2; ++r)
+    threads.emplace_back([&, r] { run(r, 2, &summit, density[r], loss[r], errors[r]); });
+  for (std::thread& t : threads) t.join();
+  for (int r = 0; r < 2; ++r) {
+    ASSERT_EQ(errors[r], "") << "worker " << r;
+    EXPECT_EQ(density[r], one) << "worker " << r << ": not one process's bits";
+    EXPECT_NEAR(loss[r], one_loss, 1e-6 * one_loss) << "worker " << r;
+  }
+  ivr_context* ctx = nullptr;
+  ivr_scene* scene = nullptr;
+  ivr_result* result = nullptr;
+  ASSERT_EQ(ivr_context_create(nullptr, &ctx), IVR_OK);
+  ASSERT_EQ(ivr_scene_from_json(ctx, json.c_str(), nullptr, &scene), IVR_OK);
+  EXPECT_EQ(ivr_gradient_shared(ctx, scene, target.data(), target.size(), "density",
+                                IVR_MODE_AUTO, IVR_LOSS_MSE, IVR_PRECISION_F32, 0, 1, 2, 2,
+                                summed, nullptr, &result),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "worker 2 of 2")) << ivr_last_error();
+  EXPECT_EQ(ivr_gradient_shared(ctx, scene, target.data(), target.size(), "density",
+                                IVR_MODE_AUTO, IVR_LOSS_MSE, IVR_PRECISION_F32, 0, 1, 0, 2,
+                                nullptr, nullptr, &result),
+            IVR_ERROR_NULL_POINTER);
+  EXPECT_TRUE(has(ivr_last_error(), "sum")) << ivr_last_error();
+  EXPECT_EQ(result, nullptr);
   ivr_scene_release(scene);
   ivr_context_release(ctx);
 }

@@ -360,11 +360,13 @@ class Context(_Owned):
             self._lib.ivr_scene_release(s)
 
     def gradient(self, scene, volume, target, wrt=("density",), mode="auto", loss="mse", step=0.0,
-             base_dir=None, info=None, _split=None):
+             base_dir=None, info=None, deterministic=False, _split=None, _shared=None):
         """(loss, {group: array}) of the loss of the render against `target` (its shape).
         `wrt` names groups as `ivr gradient --wrt` (density, tf, tf_points, scales, background,
         camera, step, "voxels:3,17,40-45", rays: a ray list's (R, 8) origins, directions and
-        ends); `info`, a dict, receives the mode that ran."""
+        ends); `info`, a dict, receives the mode that ran. `deterministic`: the density gradient
+        summed in fixed point (adjoint mode, where the device has 64-bit integer atomics), the
+        same bits on every run (and under ivr.mpi.gradient one process's bits)."""
         groups = wrt if isinstance(wrt, str) else ",".join(wrt)
         s = self._scene(scene, volume, base_dir)
         try:
@@ -377,7 +379,20 @@ class Context(_Owned):
                 raise Error("IVR_ERROR_INVALID_ARGUMENT",
                             f"target has shape {t.shape} but the scene renders {shape}")
             r = _capi.HANDLE()
-            if _split is None:
+            if _split is None and (deterministic or _shared is not None):
+                # (rank, ranks, add): ivr.mpi's workers over views, every one the whole gradient
+                rank, ranks, add = _shared if _shared is not None else (0, 1, None)
+                failure = []
+                status = self._lib.ivr_gradient_shared(
+                    self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
+                    groups.encode(), _choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
+                    _PRECISIONS[self.precision], step, 1 if deterministic else 0, rank, ranks,
+                    _sum_fn(add, failure) if add is not None else _capi.SUM_FN(), None,
+                    ctypes.byref(r))
+                if failure:
+                    raise failure[0]
+                _check(status)
+            elif _split is None:
                 _check(self._lib.ivr_gradient(
                     self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
                     groups.encode(), _choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),

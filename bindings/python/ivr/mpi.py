@@ -21,9 +21,6 @@ import numpy as np
 
 from . import Error, ray_array
 
-# Groups with one row per view (camera) or ray (rays): gathered, not summed.
-_PER_VIEW = ("camera", "rays")
-
 
 def _comm(comm):
     if comm is None:
@@ -157,7 +154,8 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
     process's result to rounding. split="slabs" (midpoint or exact): each rank differentiates over one
     slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
     summed; background and the forward lanes' groups (camera, …) come whole on every rank.
-    `options` are ctx.gradient's (mode, step, base_dir; over slabs: step, base_dir)."""
+    `options` are ctx.gradient's (mode, step, base_dir, deterministic — over views, the density
+    gradient summed in fixed point: one process's bits; over slabs: step, base_dir)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
     _check_split(split, "gradient")
@@ -188,27 +186,10 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
         raise Error("IVR_ERROR_INVALID_ARGUMENT",
                     f"ivr.mpi.gradient: target has {target.shape[0]} rows on its first axis but "
                     f"the scene has {n} views or rays")
-    mine = _mine(comm, n)
-    # Every rank needs the groups' shapes: a rank without a share differentiates view 0 and
-    # weighs it 0.
-    first, count = mine if mine else (0, 1)
-    part = target[first:first + count] if n > 1 else target
-    value, arrays = ctx.gradient(scene_share(scene, first, count), volume, part, wrt=wrt,
-                                 loss=loss, **options)
-    weight = 0.0 if not mine else 1.0 if loss == "dot" else count / n
-    from mpi4py import MPI
-    total = comm.allreduce(weight * value, op=MPI.SUM)
-    out = {}
-    for name, a in arrays.items():
-        a = np.ascontiguousarray(a, dtype=np.float64) * weight
-        if name in _PER_VIEW:
-            rows = comm.allgather(a if mine else None)
-            out[name] = np.concatenate([r for r in rows if r is not None], axis=0)
-        else:
-            summed = np.empty_like(a)
-            comm.Allreduce(a, summed, op=MPI.SUM)
-            out[name] = summed
-    return total, out
+    # Every rank a worker of the data-parallel gradient (ivr_gradient_shared): its share of the
+    # views differentiated, the shares combined through the communicator's sum.
+    return ctx.gradient(scene, volume, target, wrt=wrt, loss=loss,
+                        _shared=(comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
 
 
 def tomo(ctx, scene, lines, comm=None, split="views", **options):

@@ -91,7 +91,7 @@ struct TomoResult {
   std::vector<TomoIteration> history;  // one entry per completed iteration
   std::string stop_reason;             // "iterations", "tolerance", "interrupted"
   double setup_seconds = 0;            // compiling, uploads, SIRT's normalisations
-  int bricks = 1;                      // the projector's bricks (> 1: out of core, host CGLS)
+  int bricks = 1;                      // the projector's bricks (> 1: out of core, host vectors)
 };
 
 // Called after each iteration with the iterate's statistics; return false to stop (the last
@@ -106,8 +106,9 @@ IVR_API TomoResult tomo(Device& device, const Scene& scene, const std::vector<do
 
 // One worker's part of a reconstruction spread over workers by views (MPI ranks; docs/scaling.md):
 // `share` holds this worker's views (scene_share()) and `lines` their projections; `sum` adds a
-// vector over the workers in place (every worker getting the sum; an MPI_Allreduce). CGLS (with
-// nonneg or Tikhonov) on host vectors; every worker returns the same iterate.
+// vector over the workers in place (every worker getting the sum; an MPI_Allreduce). CGLS, SIRT or
+// LSQR (with nonneg or Tikhonov; TV is Error(unsupported)) on host vectors; every worker returns
+// the same iterate.
 IVR_API TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<double>& lines,
                                const TomoOptions& options,
                                const std::function<void(std::vector<double>&)>& sum,

@@ -9,7 +9,7 @@
 #include "ivr/domain.hpp"
 #include "ivr/error.hpp"
 #include "scene/scene.hpp"
-#include "tomo/host_cgls.hpp"
+#include "tomo/host_solvers.hpp"
 #include "tomo/project.hpp"
 
 namespace ivr {
@@ -85,7 +85,7 @@ void solve(Projector::Impl& P, const DomainPart& part, const std::vector<double>
     return sum_over(part, {mine})[0];
   };
   A.any = [&](bool flag) { return sum_over(part, {flag ? 1.0 : 0.0})[0] > 0; };
-  cgls_host(A, lines, x, o, m);
+  solve_host(A, lines, x, o, m);
 }
 
 }  // namespace
@@ -95,11 +95,7 @@ TomoResult tomo_domain(Device& device, const Scene& scene, const std::vector<dou
                        const TomoProgress& progress) {
   check_domain_part(part);
   check_tomo_options(options);
-  if (options.solver != Solver::cgls || options.tv > 0)
-    throw Error(Status::unsupported, std::string("domain-parallel reconstruction: solver ") +
-                                         solver_name(options.solver) +
-                                         (options.tv > 0 ? " with TV" : "") +
-                                         " is not available; use cgls (with nonneg or tikhonov)");
+  check_host_solver(options, "domain-parallel reconstruction");
   const auto t0 = std::chrono::steady_clock::now();
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
   Projector projector(device, description_of(scene), options.precision);

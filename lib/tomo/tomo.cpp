@@ -10,7 +10,7 @@
 
 #include "ivr/error.hpp"
 #include "brick/bricked_project.hpp"
-#include "tomo/host_cgls.hpp"
+#include "tomo/host_solvers.hpp"
 #include "tomo/linalg.hpp"
 #include "tomo/project.hpp"
 #include "scene/scene.hpp"
@@ -273,12 +273,12 @@ void lsqr(Projector::Impl& P, DeviceVectors& V, StackedSystem& A, const cl::Buff
 
 }  // namespace
 
-// CGLS on host vectors (tomo/host_cgls.hpp) with `N`: the projector streaming bricks (the volume
+// The solver on host vectors (tomo/host_solvers.hpp) with `N`: the projector streaming bricks (the volume
 // does not fit the device; float iterates come with bricks only) or in core over one worker's share
 // of the views (docs/scaling.md); `sum` (where given; T = double) adds a vector over the workers,
 // every worker getting the sum: their Nᵀ r and their dot products over lines.
 template <typename T>
-void cgls_projector(const Projector& N, const std::vector<double>& p, std::vector<T>& x,
+void solve_projector(const Projector& N, const std::vector<double>& p, std::vector<T>& x,
                     const TomoOptions& o, Monitor& m,
                     const std::function<void(std::vector<double>&)>& sum = {}) {
   Projector::Impl& P = N.impl();
@@ -304,7 +304,7 @@ void cgls_projector(const Projector& N, const std::vector<double>& p, std::vecto
     return d[0];
   };
   A.dot_volume = [](const std::vector<T>& a, const std::vector<T>& b) { return host_dot(a, b); };
-  cgls_host(A, p, x, o, m);
+  solve_host(A, p, x, o, m);
 }
 
 TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& lines,
@@ -337,14 +337,9 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
              std::to_string(i / (std::size_t(P.nx) * P.ny));
     });
   }
-  if (projector.bricks() > 1) {  // out of core: CGLS on host vectors, the projector in bricks
-    if (options.solver != Solver::cgls || options.tv > 0)
-      throw Error(Status::unsupported,
-                  std::string("out-of-core reconstruction (the volume is split into ") +
-                      std::to_string(projector.bricks()) +
-                      " bricks): solver " + solver_name(options.solver) +
-                      (options.tv > 0 ? " with TV" : "") +
-                      " is not available; use cgls (with nonneg or tikhonov)");
+  if (projector.bricks() > 1) {  // out of core: host vectors, the projector in bricks
+    check_host_solver(options, "out-of-core reconstruction (the volume is split into " +
+                                   std::to_string(projector.bricks()) + " bricks)");
     TomoResult result;
     result.bricks = projector.bricks();
     result.setup_seconds =
@@ -355,11 +350,11 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
     if (options.precision == Precision::f32) {
       result.volume = x0 ? std::vector<float>(x0->begin(), x0->end())
                          : std::vector<float>(P.voxels, 0.0f);
-      cgls_projector(projector, lines, result.volume, options, monitor);
+      solve_projector(projector, lines, result.volume, options, monitor);
       return result;
     }
     std::vector<double> x = x0 ? *x0 : std::vector<double>(P.voxels, 0.0);
-    cgls_projector(projector, lines, x, options, monitor);
+    solve_projector(projector, lines, x, options, monitor);
     result.volume.assign(x.begin(), x.end());
     result.volume_f64 = std::move(x);
     return result;
@@ -395,11 +390,7 @@ TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<dou
                        const std::function<void(std::vector<double>&)>& sum,
                        const TomoProgress& progress) {
   check_tomo_options(options);
-  if (options.solver != Solver::cgls || options.tv > 0)
-    throw Error(Status::unsupported,
-                std::string("data-parallel reconstruction: solver ") + solver_name(options.solver) +
-                    (options.tv > 0 ? " with TV" : "") +
-                    " is not available; use cgls (with nonneg or tikhonov)");
+  check_host_solver(options, "data-parallel reconstruction");
   const auto t0 = std::chrono::steady_clock::now();
   const Projector projector(device, share, options.precision);
   if (lines.size() != projector.ray_count())
@@ -415,7 +406,7 @@ TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<dou
   result.setup_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   Monitor monitor(options, progress, std::sqrt(norm[0]), result);
-  cgls_projector(projector, lines, x, options, monitor, sum);
+  solve_projector(projector, lines, x, options, monitor, sum);
   result.volume.assign(x.begin(), x.end());
   if (options.precision == Precision::f64) result.volume_f64 = std::move(x);
   return result;

@@ -91,10 +91,11 @@ TEST(BrickedProjector, RayList) {
 namespace ivr::test {
 namespace {
 
-// CGLS with the projector in bricks (host vectors) takes the in-core solver's iterates.
-// In float64 (where the device has it) the host CGLS keeps double iterates; in float32 it keeps
-// float ones (lib/tomo/tomo.cpp cgls_host), like the device's float32 iterates.
-TEST(BrickedTomo, CglsEqualsTheInCoreSolver) {
+// Every solver with the projector in bricks (host vectors: lib/tomo/host_solvers.hpp) takes the
+// in-core device solver's iterates — CGLS, SIRT and LSQR, with Tikhonov and with x ≥ 0. In float64
+// (where the device has it) the host solvers keep double iterates; in float32 float ones, like the
+// device's float32 iterates. TV stays in core (refused by name).
+TEST(BrickedTomo, SolversEqualTheInCoreSolvers) {
   const Scene s = projector_scene();
   std::vector<Precision> precisions{Precision::f32};
   if (device().info().fp64) precisions.push_back(Precision::f64);
@@ -103,31 +104,41 @@ TEST(BrickedTomo, CglsEqualsTheInCoreSolver) {
     std::vector<double> truth = randoms(N.voxel_count(), 4);
     for (double& v : truth) v = std::abs(v);
     const std::vector<double> lines = N.project(truth);
-    for (bool nonneg : {false, true}) {
-      SCOPED_TRACE(std::string(p == Precision::f64 ? "f64" : "f32") +
-                   (nonneg ? " nonneg" : " tikhonov"));
-      TomoOptions o;
-      o.precision = p;
-      o.iterations = 6;
-      o.nonneg = nonneg;
-      o.tikhonov = nonneg ? 0.0 : 1e-3;
-      const TomoResult in_core = tomo(device(), s, lines, o);
-      ScopedEnv brick("IVR_VOLUME_BRICK", "4");
-      const TomoResult bricked = tomo(device(), s, lines, o);
-      EXPECT_EQ(in_core.bricks, 1);
-      EXPECT_GT(bricked.bricks, 1);
-      EXPECT_EQ(bricked.volume_f64.empty(), p == Precision::f32);
-      ASSERT_EQ(bricked.history.size(), in_core.history.size());
-      for (std::size_t k = 0; k < in_core.history.size(); ++k)
-        EXPECT_NEAR(bricked.history[k].residual, in_core.history[k].residual,
-                    (p == Precision::f64 ? 1e-9 : 1e-4) + 1e-6 * in_core.history[k].residual)
-            << "iteration " << k + 1;
-      const std::vector<double> a(in_core.volume.begin(), in_core.volume.end()),
-          b(bricked.volume.begin(), bricked.volume.end());
-      expect_close(a, b, p == Precision::f64 ? 1e-6 : 1e-3, nonneg ? "nonneg" : "tikhonov");
-      o.solver = Solver::sirt;
-      EXPECT_THROW(tomo(device(), s, lines, o), Error);
-    }
+    for (const Solver solver : {Solver::cgls, Solver::sirt, Solver::lsqr})
+      for (bool nonneg : {false, true}) {
+        SCOPED_TRACE(std::string(p == Precision::f64 ? "f64 " : "f32 ") + solver_name(solver) +
+                     (nonneg ? " nonneg" : " tikhonov"));
+        TomoOptions o;
+        o.solver = solver;
+        o.precision = p;
+        o.iterations = 6;
+        o.nonneg = nonneg;
+        o.tikhonov = nonneg ? 0.0 : 1e-3;
+        const TomoResult in_core = tomo(device(), s, lines, o);
+        ScopedEnv brick("IVR_VOLUME_BRICK", "4");
+        const TomoResult bricked = tomo(device(), s, lines, o);
+        EXPECT_EQ(in_core.bricks, 1);
+        EXPECT_GT(bricked.bricks, 1);
+        EXPECT_EQ(bricked.volume_f64.empty(), p == Precision::f32);
+        ASSERT_EQ(bricked.history.size(), in_core.history.size());
+        for (std::size_t k = 0; k < in_core.history.size(); ++k)
+          EXPECT_NEAR(bricked.history[k].residual, in_core.history[k].residual,
+                      (p == Precision::f64 ? 1e-9 : 1e-4) + 1e-6 * in_core.history[k].residual)
+              << "iteration " << k + 1;
+        const std::vector<double> a(in_core.volume.begin(), in_core.volume.end()),
+            b(bricked.volume.begin(), bricked.volume.end());
+        expect_close(a, b, p == Precision::f64 ? 1e-6 : 1e-3, nonneg ? "nonneg" : "tikhonov");
+        if (solver == Solver::sirt && !nonneg) {
+          o.tikhonov = 0, o.tv = 1e-3;
+          try {
+            tomo(device(), s, lines, o);
+            ADD_FAILURE() << "TV out of core ran";
+          } catch (const Error& e) {
+            EXPECT_EQ(e.status(), Status::unsupported);
+            EXPECT_TRUE(has(e.what(), "TV")) << e.what();
+          }
+        }
+      }
   }
 }
 

@@ -4,7 +4,7 @@
 # the render bit for bit, the float64 gradients (density, TF, cameras), the lines and the
 # back-projection within 1e-12 of the largest entry, CGLS's iterate within 1e-12; over slabs
 # (--split slabs: each rank one slab, the rays' states exchanged) the render and the density and
-# TF gradients within 1e-12 and the camera's (forward lanes over slabs) within 1e-10, CGLS over slabs (each rank its slab of the iterate) within 1e-10; `ivr reconstruct` (views of each batch shared out) follows one
+# TF gradients within 1e-12 and the camera's (forward lanes over slabs) within 1e-10, CGLS over slabs (each rank its slab of the iterate) within 1e-10, SIRT and LSQR (x ≥ 0) over views and slabs within 1e-10; `ivr reconstruct` (views of each batch shared out) follows one
 # process's losses within 1e-10 and ends at its densities bit for bit (fixed-point gradients: the
 # shares' integer sums added exactly), as `ivr gradient --deterministic` gives one process's
 # density gradient bit for bit (float32); an error in the
@@ -33,6 +33,10 @@ JSON
 "$ivr" project scene.json -o p.npy --precision f64 >/dev/null
 "$ivr" backproject scene.json --images p.npy -o bp1.npy --precision f64 >/dev/null
 "$ivr" tomo scene.json --projections p.npy --iterations 5 -o x1.npy --precision f64 2>/dev/null
+for solver in sirt lsqr; do
+  "$ivr" tomo scene.json --projections p.npy --iterations 5 --solver "$solver" --nonneg \
+    -o "${solver}1.npy" --precision f64 2>/dev/null >/dev/null
+done
 det=(--target target.npy --wrt density,tf --mode adjoint --deterministic --json)
 out=$("$ivr" gradient scene.json "${det[@]}" -o d1)
 echo "$out" | grep -q '"deterministic":true' || { echo "gradient --deterministic: $out"; exit 1; }
@@ -60,6 +64,12 @@ for np in 2 4; do
   out=$(run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 -o "sx$np.npy" \
     --precision f64 --split slabs --json 2>/dev/null)
   echo "$out" | grep -q '"split":"slabs"' || { echo "tomo --split slabs -np $np: $out"; exit 1; }
+  for solver in sirt lsqr; do  # (host vectors: views and slabs)
+    run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 --solver "$solver" \
+      --nonneg -o "$solver$np.npy" --precision f64 2>/dev/null >/dev/null
+    run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 --solver "$solver" \
+      --nonneg -o "s$solver$np.npy" --precision f64 --split slabs 2>/dev/null >/dev/null
+  done
   out=$(run "$np" "$ivr" reconstruct scene.json "${rec[@]}" -o "rec$np" --json 2>/dev/null)
   echo "$out" | grep -q "\"ranks\":$np" || { echo "reconstruct -np $np: $out"; exit 1; }
 done
@@ -113,6 +123,13 @@ for n in (2, 4):
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-10, f"tomo --split slabs -np {n}: {err}"
     print(f"-np {n} tomo over slabs: {err:.2e}")
+    for solver in ("sirt", "lsqr"):
+        a = np.load(f"{solver}1.npy")
+        for name in (f"{solver}{n}.npy", f"s{solver}{n}.npy"):
+            b = np.load(name)
+            err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+            assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-10, f"{name}: {err}"
+            print(f"-np {n} tomo --solver {solver} ({'slabs' if name.startswith('s' + solver) else 'views'}): {err:.2e}")
 PY
 # An error (a missing target) ends every rank with a non-zero status and writes nothing.
 if run 2 "$ivr" gradient scene.json --target missing.npy --wrt density -o bad 2>err.txt; then

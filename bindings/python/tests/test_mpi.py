@@ -4,7 +4,7 @@ process's (float64: the images and gradients within 1e-12 of the largest entry; 
 bit, the float32 back-projection within 1e-6; with deterministic=True the density gradient one
 process's bit for bit); the render and the density, TF and background
 gradients over slabs (within 1e-12; the camera's, by forward lanes, 1e-10); CGLS over views and over slabs (the float32 volume within 1e-6, the
-residuals within 1e-10); a reconstruction sharing each batch's views (losses within 1e-10, a stop
+residuals within 1e-10; CGLS, SIRT and LSQR); a reconstruction sharing each batch's views (losses within 1e-10, a stop
 on one rank stopping all); more ranks than views; a ray list; bad input.
 Each rank also computes the one-process result itself, as the reference."""
 import copy
@@ -130,11 +130,13 @@ def test_render_and_gradient_over_slabs_equal_one_process(ctx, model):
 
 @pytest.mark.parametrize("split", ["views", "slabs"])
 @pytest.mark.parametrize("nonneg", [False, True])
-def test_tomo_equals_one_process(ctx, split, nonneg):
+@pytest.mark.parametrize("solver", ["cgls", "sirt", "lsqr"])
+def test_tomo_equals_one_process(ctx, split, nonneg, solver):
     s, v = dict(scene_of(5), model="absorption"), volume()
     lines = ctx.project(s, v)
     lines = lines * (1.0 + 0.05 * np.sin(np.arange(lines.size))).reshape(lines.shape)
-    options = dict(iterations=5, nonneg=nonneg, tikhonov=0.0 if nonneg else 1e-3, grid=v.shape)
+    options = dict(iterations=5, nonneg=nonneg, tikhonov=0.0 if nonneg else 1e-3, grid=v.shape,
+                   solver=solver)
     one, h1 = ctx.tomo(s, lines, **options)
     many, h = ivr.mpi.tomo(ctx, s, lines, split=split, **options)
     assert many.shape == one.shape == v.shape and many.dtype == np.float32

@@ -311,8 +311,8 @@ typedef enum ivr_split {
   IVR_SPLIT_MAX_ENUM = 0x7fffffff
 } ivr_split;
 
-/* ivr_tomo as worker `rank` of `ranks` (CGLS, SIRT or LSQR, with nonneg or tikhonov; TV is
- * IVR_ERROR_UNSUPPORTED), every worker calling it
+/* ivr_tomo as worker `rank` of `ranks` (CGLS, SIRT or LSQR, with nonneg, tikhonov or — over views
+ * — tv; TV over slabs is IVR_ERROR_UNSUPPORTED), every worker calling it
  * together with the same options; `sum` (with `sum_user`) adds over the workers.
  * IVR_SPLIT_VIEWS: `scene` holds this worker's share of the views (or rays) and `lines` (`count`
  * floats) their projections; `volume` receives the whole grid (nz * ny * nx), the same on every

@@ -55,7 +55,7 @@ void solve(Projector::Impl& P, const DomainPart& part, const std::vector<double>
   const BrickLayout& l = P.bricks;
   const std::size_t plane = std::size_t(l.dims[0]) * l.dims[1], held = l.held();
   const bool below = part.rank > 0, above = part.rank + 1 < part.ranks;
-  HostCgls<T> A;
+  HostSplit<T> A;
   A.project = [&](const std::vector<T>& v) {  // Σ_j N_j v_j: every line on every worker
     return sum_over(part, project_bricked(P, l, v.data()));
   };
@@ -95,7 +95,7 @@ TomoResult tomo_domain(Device& device, const Scene& scene, const std::vector<dou
                        const TomoProgress& progress) {
   check_domain_part(part);
   check_tomo_options(options);
-  check_host_solver(options, "domain-parallel reconstruction");
+  check_host_solver(options, "domain-parallel reconstruction", false);
   const auto t0 = std::chrono::steady_clock::now();
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
   Projector projector(device, description_of(scene), options.precision);

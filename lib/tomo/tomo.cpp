@@ -282,7 +282,7 @@ void solve_projector(const Projector& N, const std::vector<double>& p, std::vect
                     const TomoOptions& o, Monitor& m,
                     const std::function<void(std::vector<double>&)>& sum = {}) {
   Projector::Impl& P = N.impl();
-  HostCgls<T> A;
+  HostSplit<T> A;
   A.project = [&](const std::vector<T>& v) {
     if constexpr (std::is_same_v<T, double>)
       if (!P.bricks.edge) return N.project(v);
@@ -304,6 +304,7 @@ void solve_projector(const Projector& N, const std::vector<double>& p, std::vect
     return d[0];
   };
   A.dot_volume = [](const std::vector<T>& a, const std::vector<T>& b) { return host_dot(a, b); };
+  A.nx = P.nx, A.ny = P.ny, A.nz = P.nz;  // (every worker holds the whole grid)
   solve_host(A, p, x, o, m);
 }
 
@@ -338,8 +339,7 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
     });
   }
   if (projector.bricks() > 1) {  // out of core: host vectors, the projector in bricks
-    check_host_solver(options, "out-of-core reconstruction (the volume is split into " +
-                                   std::to_string(projector.bricks()) + " bricks)");
+    check_host_solver(options, "out-of-core reconstruction", true);
     TomoResult result;
     result.bricks = projector.bricks();
     result.setup_seconds =
@@ -390,7 +390,7 @@ TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<dou
                        const std::function<void(std::vector<double>&)>& sum,
                        const TomoProgress& progress) {
   check_tomo_options(options);
-  check_host_solver(options, "data-parallel reconstruction");
+  check_host_solver(options, "data-parallel reconstruction", true);
   const auto t0 = std::chrono::steady_clock::now();
   const Projector projector(device, share, options.precision);
   if (lines.size() != projector.ray_count())

@@ -149,6 +149,22 @@ def test_tomo_equals_one_process(ctx, split, nonneg, solver):
     assert all(np.array_equal(x, many) for x in COMM.allgather(many)), "ranks differ"
 
 
+@pytest.mark.parametrize("solver", ["cgls", "sirt", "lsqr"])
+def test_tv_tomo_over_views_equals_one_process(ctx, solver):
+    s, v = dict(scene_of(5), model="absorption"), volume()
+    lines = ctx.project(s, v)
+    options = dict(iterations=5, tv=1e-3, tv_reweight=2, grid=v.shape, solver=solver)
+    one, h1 = ctx.tomo(s, lines, **options)
+    many, h = ivr.mpi.tomo(ctx, s, lines, split="views", **options)
+    err = np.max(np.abs(many.astype(np.float64) - one)) / np.max(np.abs(one))
+    assert err <= 1e-6, f"TV {solver} over views on {COMM.Get_size()} ranks: {err}"
+    for a, b in zip(h, h1):
+        assert abs(a["residual"] - b["residual"]) <= 1e-10 * b["residual"] + 1e-15, (a, b)
+    if COMM.Get_size() > 1:  # over slabs TV's differences would cross the ranks: refused
+        with pytest.raises(ivr.Error, match="TV"):
+            ivr.mpi.tomo(ctx, s, lines, split="slabs", **options)
+
+
 def test_reconstruct_follows_one_process(ctx):
     s, v = scene_of(6), volume()
     targets = ctx.render(s, v)

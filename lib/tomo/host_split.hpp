@@ -1,0 +1,79 @@
+// host_split.hpp — internal: the solvers' iteration bookkeeping (Monitor), and what the host
+// solvers (host_solvers.hpp) need of a split of the projector pair: bricks streamed through one
+// device (lib/tomo/tomo.cpp), a worker's share of the views (tomo_shared) or its slab of the
+// volume (tomo_domain, lib/brick/domain_tomo.cpp).
+#pragma once
+#include <chrono>
+#include <functional>
+#include <vector>
+
+#include "ivr/tomo.hpp"
+
+namespace ivr {
+
+// Every option's range (Error(invalid_argument) naming the first out of it).
+void check_tomo_options(const TomoOptions& options);
+
+// The iteration loop's bookkeeping: history, the stopping rules, the progress callback.
+class Monitor {
+ public:
+  Monitor(const TomoOptions& o, const TomoProgress& progress, double p_norm, TomoResult& result)
+      : o_(o),
+        progress_(progress),
+        p_norm_(p_norm),
+        result_(result),
+        start_(std::chrono::steady_clock::now()) {}
+  // Records iteration k's residual norm; false when the loop must stop (reason set).
+  bool next(int k, double residual_norm) {
+    TomoIteration it;
+    it.iteration = k;
+    it.residual = p_norm_ > 0 ? residual_norm / p_norm_ : 0.0;
+    it.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    result_.history.push_back(it);
+    if (progress_ && !progress_(it)) return stop("interrupted");
+    if (o_.tolerance > 0 && it.residual <= o_.tolerance) return stop("tolerance");
+    if (k >= o_.iterations) return stop("iterations");
+    return true;
+  }
+  bool stop(const char* reason) {
+    result_.stop_reason = reason;
+    return false;
+  }
+
+ private:
+  const TomoOptions& o_;
+  const TomoProgress& progress_;
+  double p_norm_;
+  TomoResult& result_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+// The pieces the solvers on host vectors need, as one split provides them. T: the volume vectors' type —
+// float where the precision is float32 and the projector is in bricks (the device's iterates are
+// float32 then too; three float32 volumes are 12 GiB at 1024³ where double would take 24), double
+// otherwise. Dot products sum in double.
+template <typename T>
+struct HostSplit {
+  // N v: the lines this worker holds (all of them, or its share of the views).
+  std::function<std::vector<double>(const std::vector<T>&)> project;
+  // out = Nᵀ y over the voxels this worker holds (out resized to them).
+  std::function<void(const std::vector<double>&, std::vector<T>&)> backproject;
+  // ⟨a, b⟩ over the lines, and over the volume, each summed over the workers where they split it.
+  std::function<double(const std::vector<double>&, const std::vector<double>&)> dot_lines;
+  std::function<double(const std::vector<T>&, const std::vector<T>&)> dot_volume;
+  // Whether any worker's flag is set (collective); unset: this worker's alone (every worker holds
+  // the same iterate).
+  std::function<bool(bool)> any;
+  // The volume's grid where this worker holds all of it (TV's differences); 0 for a slab.
+  int nx = 0, ny = 0, nz = 0;
+};
+
+// ⟨a, b⟩ in double, in index order.
+template <typename A, typename B>
+double host_dot(const A& a, const B& b) {
+  double total = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) total += double(a[i]) * double(b[i]);
+  return total;
+}
+
+}  // namespace ivr

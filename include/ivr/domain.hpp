@@ -71,9 +71,11 @@ IVR_API Image render_domain(Device& device, const Scene& scene, const DomainPart
 // they overlap to get the volume's gradient (domain_join()) — and "tf" (tf_gradient_shape), the
 // part of the samples in this slab: sum it over the workers; "background" is the whole gradient on
 // every worker (not a part), as are the forward lanes' groups (camera, scales, tf_points,
-// voxels:LIST: their tangents travel with the rays' states). Midpoint and exact schemes (density,
-// tf and background by the adjoint; trapezoid and preintegrated are refused: their bricks' halo
-// would reach the neighbour's slab); `loss` is the whole loss on every worker.
+// voxels:LIST: their tangents travel with the rays' states). Every scheme (density, tf and
+// background by the adjoint): the trapezoid and preintegrated schemes' bricks hold a halo of
+// brick_halo planes beyond the slab's ends, fetched from the neighbours' slabs, and what the halo
+// gathers is sent back and added by the plane's owner (two all_gathers of a few planes more);
+// `loss` is the whole loss on every worker.
 IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
                                  const DomainPart& part, const GradientOptions& options = {},
                                  DomainStats* domain = nullptr,

@@ -192,7 +192,7 @@ IVR_API ivr_status ivr_gradient_shared(ivr_context* context, const ivr_scene* sc
  * worker calling it together: each marches only planes ivr_domain_slab(nz, rank, ranks) of the
  * scene's volume on its device (the scene holds the whole volume; the slab is cut from it), the
  * rays' march states passed between the workers through `sum` (ivr_sum_fn). The image is the
- * whole render on every worker. The gradient (midpoint, exact) holds this worker's parts:
+ * whole render on every worker. The gradient (every scheme) holds this worker's parts:
  * "density" its planes (planes, ny, nx) — add the workers' where neighbours share a plane — and
  * "tf" the part
  * from its samples (sum it over the workers); "background" and the forward lanes' groups (camera,

@@ -34,6 +34,7 @@ BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first, int z_la
   l.edge = edge;
   l.dims = {nx, ny, nz};
   l.z_first = z_first, l.z_last = z_last;
+  l.data_first = z_first, l.data_last = z_last;
   l.halo = halo;
   l.count[0] = bricks_along(nx, edge);
   l.count[1] = bricks_along(ny, edge);
@@ -51,14 +52,14 @@ std::array<int, 3> BrickLayout::corner(int b) const {
 }
 
 std::array<int, 3> BrickLayout::origin(int b) const {
-  const std::array<int, 3> c = corner(b), first{0, 0, z_first};
+  const std::array<int, 3> c = corner(b), first{0, 0, data_first};
   return {std::max(c[0] - halo, first[0]), std::max(c[1] - halo, first[1]),
           std::max(c[2] - halo, first[2])};
 }
 
 std::array<int, 3> BrickLayout::extent(int b) const {
   const std::array<int, 3> c = corner(b), o = origin(b);
-  const std::array<int, 3> last{dims[0] - 1, dims[1] - 1, z_last};
+  const std::array<int, 3> last{dims[0] - 1, dims[1] - 1, data_last};
   std::array<int, 3> e{};
   for (int a = 0; a < 3; ++a) e[a] = std::min(c[a] + edge + halo, last[a]) - o[a] + 1;
   return e;
@@ -70,7 +71,7 @@ std::size_t BrickLayout::voxels(int b) const {
 }
 
 std::size_t BrickLayout::largest_voxels() const {
-  const std::array<int, 3> cells{dims[0] - 1, dims[1] - 1, z_last - z_first};
+  const std::array<int, 3> cells{dims[0] - 1, dims[1] - 1, data_last - data_first};
   std::size_t n = 1;
   for (int a = 0; a < 3; ++a) n *= std::size_t(std::min(edge + 2 * halo, cells[a]) + 1);
   return n;
@@ -142,7 +143,7 @@ void extract(const T* values, const BrickLayout& l, int b, bool f64, std::vector
   for (int z = 0; z < e[2]; ++z)
     for (int y = 0; y < e[1]; ++y) {
       const T* row =
-          values + (std::size_t(o[2] - l.z_first + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
+          values + (std::size_t(o[2] - l.data_first + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
       if (f64) {
         double* dst = reinterpret_cast<double*>(out.data()) + at;
         for (int x = 0; x < e[0]; ++x) dst[x] = double(row[x]);
@@ -173,7 +174,7 @@ void add(const std::vector<unsigned char>& brick, const BrickLayout& l, int b, b
   for (int z = 0; z < e[2]; ++z)
     for (int y = 0; y < e[1]; ++y) {
       T* row =
-          values + (std::size_t(o[2] - l.z_first + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
+          values + (std::size_t(o[2] - l.data_first + z) * l.dims[1] + (o[1] + y)) * l.dims[0] + o[0];
       for (int x = 0; x < e[0]; ++x, ++at)
         row[x] += f64 ? T(reinterpret_cast<const double*>(brick.data())[at])
                       : T(reinterpret_cast<const float*>(brick.data())[at]);

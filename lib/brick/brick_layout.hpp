@@ -24,13 +24,15 @@ namespace ivr {
 //
 // Along z the bricks may cover only planes [z_first, z_last] of the volume (a domain-parallel
 // process's slab, lib/brick/domain.cpp): cut from z_first, reaching ±∞ only where the slab reaches
-// the box face, and the host values they are cut from (extract_brick, add_brick) start at plane
-// z_first.
+// the box face. The host values they are cut from (extract_brick, add_brick) hold planes
+// [data_first, data_last]: the slab's, or (a slab's gradient with a halo) the slab and `halo`
+// planes of its neighbours' on each side, into which the halo reaches.
 struct BrickLayout {
   int edge = 0;                // cells per brick edge (0: not bricked)
   std::array<int, 3> dims{};   // the volume's voxels per axis (x, y, z)
   std::array<int, 3> count{};  // bricks per axis
   int z_first = 0, z_last = 0;  // the planes the bricks cover (all: 0, dims[2] − 1)
+  int data_first = 0, data_last = 0;  // the planes the host values hold (⊇ the bricks')
   int halo = 0;                 // voxels held beyond the shared plane on each side
   int total() const { return count[0] * count[1] * count[2]; }
   // Brick b's index per axis (x fastest), first voxel and voxels per axis.
@@ -40,8 +42,9 @@ struct BrickLayout {
   std::array<int, 3> extent(int b) const;
   std::size_t voxels(int b) const;
   std::size_t largest_voxels() const;  // of any brick
-  // The host values the bricks are cut from: planes z_first … z_last of the volume.
-  std::size_t held() const { return std::size_t(dims[0]) * dims[1] * (z_last - z_first + 1); }
+  // The host values the bricks are cut from: planes data_first … data_last of the volume.
+  std::size_t held() const { return std::size_t(dims[0]) * dims[1] * held_planes(); }
+  int held_planes() const { return data_last - data_first + 1; }
   // Its planes in global voxel-centre coordinates: [lo, hi) per axis, ±infinity at the box faces.
   std::array<double, 3> lo(int b) const;
   std::array<double, 3> hi(int b) const;
@@ -65,7 +68,7 @@ void check_brick_halo(const Scene& scene, double step, const BrickLayout& layout
 // now: what an out-of-core plan may take (0: no budget known).
 std::uint64_t brick_budget(Device& device);
 
-// Brick b's voxels from host values of the layout's dims (x fastest; planes from z_first), converted to the kernels'
+// Brick b's voxels from host values of the layout's dims (x fastest; planes from data_first), converted to the kernels'
 // real (float or double) into `out` (bytes, resized).
 void extract_brick(const float* values, const BrickLayout& layout, int b, bool f64,
                    std::vector<unsigned char>& out);

@@ -130,7 +130,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   const int a_grad = a0 + 4 + 6, a_rect = a_grad + 1;
   march.launch_all(k, kAdjointBegin);
 
-  const std::size_t planes = std::size_t(l.z_last - l.z_first + 1);  // all, or a worker's slab
+  const std::size_t planes = std::size_t(l.held_planes());  // all, or a worker's (with its halo)
   std::vector<double> gradient(density ? planes * l.dims[1] * l.dims[0] : 0, 0.0);
   // Each slot's last brick read back (asynchronously) and not yet added.
   struct Pending {
@@ -242,12 +242,6 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
                           DomainStats* domain_stats) {
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
-  // A segment's near sample lies in the brick before its far end's: the bricks need a halo
-  // (brick_halo; each march checks its plan holds it), which a slab's neighbours do not hold.
-  if (domain && brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step))
-    throw Error(Status::unsupported,
-                where + ": over slabs, only the midpoint and exact schemes, not " +
-                    scheme_name(scene.integrator.scheme));
   std::vector<std::string> adjoint_groups, forward_groups;
   std::set<std::string> seen;
   for (const std::string& g : groups) {

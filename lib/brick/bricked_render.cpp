@@ -240,7 +240,7 @@ BrickedMarch::BrickedMarch(Device& device, const Scene& scene, const RenderOptio
                 "volume: holds " + std::to_string(scene.volume.data.size()) + " values but " +
                     (held == scene.volume.voxel_count()
                          ? "dims need " + std::to_string(held)
-                         : "planes " + std::to_string(l.z_first) + ".." + std::to_string(l.z_last) +
+                         : "planes " + std::to_string(l.data_first) + ".." + std::to_string(l.data_last) +
                                " need " + std::to_string(held)));
   if (scene.integrator.tolerance > 0 && !(options.step > 0))
     throw Error(Status::unsupported,

@@ -3,6 +3,7 @@
 #include "brick/domain.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <memory>
 
@@ -139,6 +140,112 @@ class StateExchange {
 
 }  // namespace
 
+namespace {
+
+// A message of plane ranges and their values: int32 pairs [first, last] (first > last: none),
+// then the ranges' values in order (T: float volumes, double gradients).
+template <typename T>
+std::vector<unsigned char> planes_message(const std::vector<std::array<int, 2>>& ranges,
+                                          const T* values, int values_first, std::size_t plane) {
+  std::vector<unsigned char> out(ranges.size() * 8);
+  std::size_t at = 0;
+  for (const std::array<int, 2>& r : ranges) {
+    std::memcpy(&out[at], r.data(), 8);
+    at += 8;
+  }
+  for (const std::array<int, 2>& r : ranges)
+    for (int z = r[0]; z <= r[1]; ++z) {
+      const std::size_t bytes = plane * sizeof(T);
+      out.resize(at + bytes);
+      std::memcpy(&out[at], values + std::size_t(z - values_first) * plane, bytes);
+      at += bytes;
+    }
+  return out;
+}
+
+// Calls take(z, values of plane z) for every plane of a planes_message of `count` ranges.
+template <typename T, typename Take>
+void read_planes(const std::vector<unsigned char>& message, std::size_t count, std::size_t plane,
+                 int from, Take&& take) {
+  std::vector<std::array<int, 2>> ranges(count);
+  std::size_t need = count * 8;
+  if (message.size() >= need)
+    for (std::size_t i = 0; i < count; ++i) {
+      std::memcpy(ranges[i].data(), &message[i * 8], 8);
+      if (ranges[i][1] >= ranges[i][0]) need += std::size_t(ranges[i][1] - ranges[i][0] + 1) * plane * sizeof(T);
+    }
+  if (message.size() != need)
+    throw Error(Status::invalid_argument, "domain halo: worker " + std::to_string(from) + " sent " +
+                                              std::to_string(message.size()) +
+                                              " bytes (do the workers share one scene?)");
+  std::size_t at = count * 8;
+  std::vector<T> values(plane);
+  for (const std::array<int, 2>& r : ranges)
+    for (int z = r[0]; z <= r[1]; ++z) {
+      std::memcpy(values.data(), &message[at], plane * sizeof(T));
+      at += plane * sizeof(T);
+      take(z, values);
+    }
+}
+
+}  // namespace
+
+// The planes layout.data_first … data_last: the slab's own values and, beyond its ends, the
+// neighbours' (each worker sends the halo + 1 planes at each end of its slab).
+std::vector<float> with_neighbour_planes(const DomainPart& part, const Slab& slab,
+                                         const BrickLayout& l, const std::vector<float>& mine) {
+  if (part.ranks == 1) return mine;  // (the whole volume: nothing beyond it)
+  const std::size_t plane = std::size_t(l.dims[0]) * l.dims[1];
+  const std::vector<std::array<int, 2>> ends = {
+      {slab.first, std::min(slab.first + l.halo, slab.last)},
+      {std::max(slab.last - l.halo, slab.first), slab.last}};
+  const std::vector<std::vector<unsigned char>> all =
+      part.all_gather(planes_message(ends, mine.data(), slab.first, plane));
+  std::vector<float> out(l.held());
+  std::vector<bool> have(std::size_t(l.held_planes()), false);
+  std::copy(mine.begin(), mine.end(), out.begin() + std::ptrdiff_t((slab.first - l.data_first) * plane));
+  for (int z = slab.first; z <= slab.last; ++z) have[std::size_t(z - l.data_first)] = true;
+  for (int w = 0; w < int(all.size()); ++w)
+    if (w != part.rank)
+      read_planes<float>(all[w], 2, plane, w, [&](int z, const std::vector<float>& values) {
+        if (z < l.data_first || z > l.data_last) return;
+        std::copy(values.begin(), values.end(), out.begin() + std::ptrdiff_t((z - l.data_first) * plane));
+        have[std::size_t(z - l.data_first)] = true;
+      });
+  for (int z = l.data_first; z <= l.data_last; ++z)
+    if (!have[std::size_t(z - l.data_first)])
+      throw Error(Status::unsupported,
+                  "domain gradient: the " + std::to_string(l.halo) + "-plane halo of worker " +
+                      std::to_string(part.rank) + "'s slab (planes " + std::to_string(slab.first) +
+                      ".." + std::to_string(slab.last) + ") reaches plane " + std::to_string(z) +
+                      ", past its neighbour's slab: use fewer workers or a shorter step");
+  return out;
+}
+
+// The slab's planes of a gradient over layout.data_first … data_last, with what the other workers'
+// halos gathered for its planes added (each plane once, by its owner: a plane neighbours share
+// is the lower's, as domain_join() adds the slabs' shared planes).
+std::vector<double> return_halo(const DomainPart& part, const Slab& slab, const BrickLayout& l,
+                                const std::vector<double>& gradient) {
+  if (part.ranks == 1) return gradient;
+  const std::size_t plane = std::size_t(l.dims[0]) * l.dims[1];
+  const std::vector<std::array<int, 2>> outside = {{l.data_first, slab.first - 1},
+                                                   {slab.last + 1, l.data_last}};
+  const std::vector<std::vector<unsigned char>> all =
+      part.all_gather(planes_message(outside, gradient.data(), l.data_first, plane));
+  std::vector<double> out(gradient.begin() + std::ptrdiff_t((slab.first - l.data_first) * plane),
+                          gradient.begin() + std::ptrdiff_t((slab.last - l.data_first + 1) * plane));
+  const int owned_first = slab.first + (part.rank > 0 ? 1 : 0);
+  for (int w = 0; w < int(all.size()); ++w)
+    if (w != part.rank)
+      read_planes<double>(all[w], 2, plane, w, [&](int z, const std::vector<double>& values) {
+        if (z < owned_first || z > slab.last) return;
+        double* at = out.data() + std::size_t(z - slab.first) * plane;
+        for (std::size_t i = 0; i < plane; ++i) at[i] += values[i];
+      });
+  return out;
+}
+
 AllGather all_gather_by_sum(int rank, int ranks, std::function<void(std::vector<double>&)> sum) {
   if (ranks < 1 || rank < 0 || rank >= ranks || !sum)
     throw Error(Status::invalid_argument, "all_gather_by_sum: worker " + std::to_string(rank) +
@@ -198,16 +305,18 @@ Scene domain_share(const Scene& scene, int rank, int ranks) {
 }
 
 BrickPlan plan_domain(Device& device, const Scene& scene, Precision precision, int forced_edge,
-                      bool gradient, const Slab& slab) {
+                      bool gradient, const Slab& slab, int halo) {
   Scene part = description_of(scene);
   part.volume.nz = slab.planes();
-  BrickPlan plan = plan_render(device, part, precision, forced_edge, gradient);
+  BrickPlan plan = plan_render(device, part, precision, forced_edge, gradient, halo);
   if (!plan.layout.edge) {  // the slab fits the device: one brick of it
     const int whole = std::max({scene.volume.nx - 1, scene.volume.ny - 1, slab.planes() - 1, 1});
-    plan = plan_render(device, part, precision, whole, gradient);
+    plan = plan_render(device, part, precision, whole, gradient, halo);
   }
   plan.layout = brick_layout(scene.volume.nx, scene.volume.ny, scene.volume.nz, plan.layout.edge,
-                             slab.first, slab.last);
+                             slab.first, slab.last, halo);
+  plan.layout.data_first = std::max(slab.first - halo, 0);
+  plan.layout.data_last = std::min(slab.last + halo, scene.volume.nz - 1);
   return plan;
 }
 
@@ -234,8 +343,26 @@ Gradient gradient_domain(Device& device, const Scene& scene, const Image& target
                          DomainStats* domain, const std::vector<std::string>& groups) {
   check_domain_part(part);
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
-  const BrickPlan plan = plan_domain(device, scene, options.precision, 0, true, slab);
-  return gradient_bricked(device, scene, target, groups, options, plan, &part, domain);
+  // The endpoint schemes' bricks hold a halo (brick_halo): at the slab's ends, planes of the
+  // neighbours' slabs, fetched first; what the halo's voxels gather is sent back after.
+  const int halo = brick_halo(scene, options.step != 0 ? options.step : scene.integrator.step);
+  const BrickPlan plan = plan_domain(device, scene, options.precision, 0, true, slab, halo);
+  if (!halo) return gradient_bricked(device, scene, target, groups, options, plan, &part, domain);
+  const std::size_t plane = std::size_t(scene.volume.nx) * scene.volume.ny;
+  if (scene.volume.data.size() != plane * slab.planes())
+    throw Error(Status::invalid_argument,
+                "volume: holds " + std::to_string(scene.volume.data.size()) + " values but planes " +
+                    std::to_string(slab.first) + ".." + std::to_string(slab.last) + " need " +
+                    std::to_string(plane * slab.planes()));
+  Scene held = description_of(scene);
+  held.volume.data = with_neighbour_planes(part, slab, plan.layout, scene.volume.data);
+  Gradient g = gradient_bricked(device, held, target, groups, options, plan, &part, domain);
+  for (GroupGradient& group : g.groups)
+    if (group.name == "density") {
+      group.values = return_halo(part, slab, plan.layout, group.values);
+      group.shape[0] = std::size_t(slab.planes());
+    }
+  return g;
 }
 
 namespace {

@@ -12,9 +12,20 @@ namespace ivr {
 void check_domain_part(const DomainPart& part);
 
 // The plan of worker part.rank's slab: its planes in bricks (forced_edge, else as its device's
-// memory needs, else one brick of the whole slab).
+// memory needs, else one brick of the whole slab), each holding `halo` voxels more on every side
+// (brick_halo) — at the slab's ends from its neighbours' planes (layout.data_first, data_last).
 BrickPlan plan_domain(Device& device, const Scene& scene, Precision precision, int forced_edge,
-                      bool gradient, const Slab& slab);
+                      bool gradient, const Slab& slab, int halo = 0);
+
+// The values of planes layout.data_first … data_last (a slab's gradient plan with a halo): `mine`,
+// the slab's planes, and its neighbours' beyond them (an all_gather of every slab's end planes).
+// Throws Error(unsupported) where the halo reaches past a neighbour's slab.
+std::vector<float> with_neighbour_planes(const DomainPart& part, const Slab& slab,
+                                         const BrickLayout& layout, const std::vector<float>& mine);
+// The slab's planes of `gradient` (planes data_first … data_last), plus what the other workers'
+// halos gathered into them (an all_gather; each plane added by one worker, its owner).
+std::vector<double> return_halo(const DomainPart& part, const Slab& slab, const BrickLayout& layout,
+                                const std::vector<double>& gradient);
 
 // Makes `march` pass the rays' states between the workers: before its sweeps it keeps a host copy
 // of the states; after each sweep the rays this worker's bricks moved go to every worker

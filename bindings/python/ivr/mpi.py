@@ -151,7 +151,7 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
              **options):
     """ctx.gradient of the whole scene, each rank differentiating its share of the views (the
     target's first axis: views, or a ray list's rays): every rank gets (loss, {group: array}), one
-    process's result to rounding. split="slabs" (midpoint or exact): each rank differentiates over one
+    process's result to rounding. split="slabs" (every scheme): each rank differentiates over one
     slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
     summed; background and the forward lanes' groups (camera, …) come whole on every rank.
     `options` are ctx.gradient's (mode, step, base_dir, deterministic — over views, the density

@@ -4,7 +4,8 @@ z planes (`render`, `gradient` and `tomo` with split="slabs", as `--split slabs`
 `reconstruct`, each batch's views shared out (as `mpirun -np N ivr reconstruct`). Each rank renders or differentiates its contiguous share of the
 views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
 loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
-summed over the ranks, as are the back-projections of the shares' lines, the per-view groups (camera, rays) gathered in view order. Every rank gets
+summed over the ranks (the gradient through the C API's ivr_gradient_shared; with
+deterministic=True the density gradient is one process's bit for bit), as are the back-projections of the shares' lines, the per-view groups (camera, rays) gathered in view order. Every rank gets
 the whole result, which equals one process's to rounding.
 
     from mpi4py import MPI
@@ -12,7 +13,8 @@ the whole result, which equals one process's to rounding.
     ctx = ivr.Context(precision="f64")
     loss, grads = ivr.mpi.gradient(ctx, scene, volume, target, wrt=("density", "tf"))
 
-Run with `mpirun -np N python3 script.py`; `comm` defaults to MPI.COMM_WORLD. The scene is a dict
+Run with `mpirun -np N python3 -m mpi4py script.py` (an exception on one rank then aborts every
+rank instead of leaving the others waiting in a collective); `comm` defaults to MPI.COMM_WORLD. The scene is a dict
 (or its JSON text) whose "cameras" list, or in-memory "rays" array, is shared out.
 """
 import json

@@ -177,7 +177,14 @@ Scene with_integrator(Scene scene, const MarchOptions& o) {
   if (!o.scheme.empty()) scene.integrator.scheme = parse_scheme(o.scheme, "--scheme");
   if (o.tolerance_option && o.tolerance_option->count() > 0)
     scene.integrator.tolerance = o.tolerance;
+  // A rank's slab (--split slabs, load_scene_for): checked as a volume of its planes.
+  const int nz = scene.volume.nz;
+  const std::size_t plane = std::size_t(scene.volume.nx) * std::size_t(scene.volume.ny);
+  if (scene.volume.data.size() != scene.volume.voxel_count() && plane &&
+      scene.volume.data.size() % plane == 0)
+    scene.volume.nz = int(scene.volume.data.size() / plane);
   validate(scene);
+  scene.volume.nz = nz;
   return scene;
 }
 

@@ -39,7 +39,7 @@ Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
                         const Image& target, const std::vector<std::string>& groups,
                         const GradientOptions& options) {
   const World& w = world();
-  Gradient mine = gradient_domain(one_device_per_rank(devices), domain_share(scene, w.rank, w.size),
+  Gradient mine = gradient_domain(one_device_per_rank(devices), scene,  // (its slab: load_scene_for)
                                   target, domain_part(), options, nullptr, groups);
   for (GroupGradient& g : mine.groups) {  // every rank takes part in each collective
     if (g.name == "tf") {  // each rank's part: its slab's samples
@@ -125,7 +125,7 @@ Runner add_gradient_command(CLI::App& app) {
     if (args->loss != "mse" && args->loss != "l1" && args->loss != "dot")
       throw input_error("--loss: unknown loss '" + args->loss + "' (known: mse, l1, dot)");
     const Precision precision = checked_precision(args->march);
-    const Scene scene = with_integrator(load_scene(args->scene), args->march);
+    const Scene scene = with_integrator(load_scene_for(args->scene, args->split), args->march);
     const Image target = load_target(args->target, scene);
     const std::vector<std::unique_ptr<Device>> devices = open_devices(args->march.device);
     Device& device = *devices[0];

@@ -130,6 +130,14 @@ Device& one_device_per_rank(const std::vector<Device*>& devices) {
   return *devices[0];
 }
 
+Scene load_scene_for(const std::string& path, const std::string& split) {
+  if (split != "slabs") return load_scene(path);
+  return load_scene(path, [](int nz) {
+    const Slab slab = domain_slab(nz, the_world.rank, the_world.size);
+    return std::pair<int, int>{slab.first, slab.last};
+  });
+}
+
 DomainPart domain_part() {
   DomainPart part;
   part.rank = the_world.rank;

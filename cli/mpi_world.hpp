@@ -4,6 +4,7 @@
 // MPI where the build found it (IVR_WITH_MPI); one process otherwise, and whenever the tool was
 // not started by mpirun.
 #pragma once
+#include <string>
 #include <vector>
 
 #include "ivr/domain.hpp"
@@ -32,6 +33,9 @@ std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned ch
 // This rank's part of a domain-parallel operation over the world (--split slabs), and its one
 // device (several are refused).
 DomainPart domain_part();
+// The scene file with, under --split slabs, only this rank's slab of its volume read (the planes
+// domain_slab gives it: domain_share's convention), else whole.
+Scene load_scene_for(const std::string& path, const std::string& split);
 Device& one_device_per_rank(const std::vector<Device*>& devices);
 
 }  // namespace ivr::cli

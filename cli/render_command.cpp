@@ -52,7 +52,7 @@ Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
                    DomainStats* domain) {
   const World& w = world();
   if (split == "slabs") {
-    return render_domain(one_device_per_rank(devices), domain_share(scene, w.rank, w.size),
+    return render_domain(one_device_per_rank(devices), scene,  // (its slab: load_scene_for)
                          domain_part(), options, stats, domain);
   }
   if (w.size == 1) return render(devices, scene, options, stats);
@@ -115,7 +115,7 @@ Runner add_render_command(CLI::App& app) {
       throw Error(Status::io, "output folder '" + folder.string() + "' does not exist");
     const Precision precision = checked_precision(args->march);
 
-    const Scene scene = with_integrator(load_scene(args->scene), args->march);
+    const Scene scene = with_integrator(load_scene_for(args->scene, args->split), args->march);
     const std::vector<std::unique_ptr<Device>> devices = open_devices(args->march.device);
     Device& device = *devices[0];
     RenderOptions options;

@@ -2,11 +2,13 @@
 // integrator and background, with the exact conventions of docs/design.md.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ivr/export.h"
@@ -164,6 +166,12 @@ IVR_API void validate_tf(const TransferFunction& tf);
 
 // Reads a scene file (docs/design.md's JSON); relative volume paths resolve against its folder.
 IVR_API Scene load_scene(const std::string& path);
+// The same with only planes [first, last] of the volume, chosen from its nz (a domain worker's
+// slab, e.g. domain_slab): volume keeps its dims and data holds those planes — domain_share()'s
+// convention, what render_domain() and gradient_domain() take. .npy and raw volume files read
+// only those planes (VolumeSource::planes); other formats and synthetic volumes are cut.
+IVR_API Scene load_scene(const std::string& path,
+                         const std::function<std::pair<int, int>(int nz)>& planes);
 // Parses scene JSON text; `base_dir` resolves relative paths; `where` names the source in errors.
 IVR_API Scene parse_scene(const std::string& json_text, const std::string& base_dir,
                           const std::string& where = "scene");

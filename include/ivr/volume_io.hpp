@@ -2,8 +2,10 @@
 #pragma once
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ivr/export.h"
@@ -24,6 +26,11 @@ struct VolumeSource {
   std::string endian = "little";  // raw: little or big
   std::optional<glm::dvec2> range;
   std::optional<glm::dvec3> spacing;
+  // Only planes [first, last] of z, chosen from the volume's nz (a domain worker's slab:
+  // domain_slab, docs/scaling.md): the Volume keeps the whole dims and `data` holds those planes
+  // (x fastest). .npy (C order) and raw files read only the header and those planes' bytes; the
+  // other formats read the whole file and keep the planes.
+  std::function<std::pair<int, int>(int nz)> planes;
 };
 
 // Reads and maps a volume; throws ivr::Error(io) for missing/unreadable/malformed files and

@@ -40,6 +40,21 @@ std::vector<unsigned char> read_binary_file(const std::string& path, const std::
   return bytes;
 }
 
+std::vector<unsigned char> read_binary_range(const std::string& path, const std::string& what,
+                                             std::uint64_t offset, std::size_t count) {
+  check_readable(path, what);
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    throw Error(Status::io, "cannot read " + what + " '" + path + "': " + std::strerror(errno));
+  std::vector<unsigned char> bytes(count);
+  in.seekg(std::streamoff(offset));
+  in.read(reinterpret_cast<char*>(bytes.data()), std::streamsize(count));
+  if (std::size_t(in.gcount()) != count)
+    throw Error(Status::io, "cannot read " + what + " '" + path + "': " + std::to_string(count) +
+                                " bytes at offset " + std::to_string(offset) + " are past its end");
+  return bytes;
+}
+
 std::string read_text_file(const std::string& path, const std::string& what) {
   const std::vector<unsigned char> bytes = read_binary_file(path, what);
   return std::string(bytes.begin(), bytes.end());

@@ -1,6 +1,7 @@
 // files.hpp — small file helpers: whole-file reads with clear errors, and atomic writes.
 #pragma once
 #include <functional>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -8,6 +9,9 @@ namespace ivr {
 
 // Whole file as bytes/text; throws ivr::Error(io) "cannot read <what> 'path': <reason>".
 std::vector<unsigned char> read_binary_file(const std::string& path, const std::string& what);
+// Bytes [offset, offset + count) of a file; throws Error(io) where it is shorter.
+std::vector<unsigned char> read_binary_range(const std::string& path, const std::string& what,
+                                             std::uint64_t offset, std::size_t count);
 std::string read_text_file(const std::string& path, const std::string& what);
 
 // Calls write(tmp) with a temporary path in the same folder that keeps `path`'s extension, then

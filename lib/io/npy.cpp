@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <climits>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 
@@ -307,10 +309,27 @@ std::vector<unsigned char> fortran_to_c(const unsigned char* src,
 
 }  // namespace
 
-TypedArray read_npy(const std::string& path) {
+TypedArray read_npy(const std::string& path, const PlaneChooser& planes) {
   TypedArray a;
-  a.bytes = read_binary_file(path, ".npy file");
+  // With `planes`, the header alone first (its length is in the preamble), the planes' bytes last.
+  std::error_code size_error;
+  const std::uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
+  const bool partial = bool(planes) && !size_error;
+  if (partial) {
+    a.bytes = read_binary_range(path, ".npy file", 0,
+                                std::size_t(std::min<std::uintmax_t>(file_bytes, 12)));
+    std::size_t end = a.bytes.size();
+    if (end >= 10 && a.bytes[6] == 1) end = 10 + (std::size_t(a.bytes[8]) | std::size_t(a.bytes[9]) << 8);
+    if (end >= 12 && (a.bytes[6] == 2 || a.bytes[6] == 3))
+      end = 12 + (std::size_t(a.bytes[8]) | std::size_t(a.bytes[9]) << 8 |
+                  std::size_t(a.bytes[10]) << 16 | std::size_t(a.bytes[11]) << 24);
+    a.bytes = read_binary_range(path, ".npy file", 0,
+                                std::size_t(std::min<std::uintmax_t>(file_bytes, end)));
+  } else {
+    a.bytes = read_binary_file(path, ".npy file");
+  }
   const std::vector<unsigned char>& b = a.bytes;
+  const std::size_t total = partial ? std::size_t(file_bytes) : b.size();
   static const unsigned char kMagic[6] = {0x93, 'N', 'U', 'M', 'P', 'Y'};
   if (b.size() < 6 || std::memcmp(b.data(), kMagic, 6) != 0)
     fail(path, "not a .npy file (bad magic, expected \\x93NUMPY)");
@@ -329,7 +348,8 @@ TypedArray read_npy(const std::string& path) {
   } else {
     fail(path, "unsupported .npy format version " + std::to_string(major));
   }
-  if (header_len > b.size() - start) fail(path, "truncated .npy header");
+  if (header_len > b.size() - start || header_len > total - start)
+    fail(path, "truncated .npy header");
   const std::string header(b.begin() + std::ptrdiff_t(start),
                            b.begin() + std::ptrdiff_t(start + header_len));
 
@@ -349,7 +369,7 @@ TypedArray read_npy(const std::string& path) {
   a.shape = shape->ints;
 
   const std::size_t elem = scalar_size(a.type);
-  const std::size_t avail = b.size() - start - header_len;
+  const std::size_t avail = total - start - header_len;
   // Compare against the bytes present before multiplying by anything, so no shape overflows.
   std::size_t count = 1;
   bool too_big = false;
@@ -372,8 +392,26 @@ TypedArray read_npy(const std::string& path) {
                    (too_big ? "more" : std::to_string(count * elem)) + ")");
   }
   a.offset = start + header_len;
+  if (partial && !fortran->flag && a.shape.size() == 3 && count > 0 && a.shape[0] <= INT_MAX) {
+    const auto [first, last] = planes(int(a.shape[0]));
+    if (first < 0 || last < first || std::size_t(last) >= a.shape[0])
+      throw Error(Status::invalid_argument, "planes " + std::to_string(first) + ".." +
+                                                std::to_string(last) + " of " +
+                                                std::to_string(a.shape[0]) + ": '" + path + "'");
+    const std::size_t plane = a.shape[1] * a.shape[2] * elem;
+    a.bytes = read_binary_range(path, ".npy file", a.offset + std::size_t(first) * plane,
+                                std::size_t(last - first + 1) * plane);
+    a.offset = 0;
+    a.first_plane = std::size_t(first);
+    a.planes = last - first + 1;
+    return a;
+  }
+  if (partial) {  // (Fortran order or not 3-D: the whole file, the planes cut by the caller)
+    a.bytes = read_binary_file(path, ".npy file");
+    if (a.bytes.size() != total) fail(path, "changed while it was read");
+  }
   if (fortran->flag && a.shape.size() > 1) {
-    a.bytes = fortran_to_c(b.data() + a.offset, a.shape, count, elem);
+    a.bytes = fortran_to_c(a.bytes.data() + a.offset, a.shape, count, elem);
     a.offset = 0;
   }
   return a;

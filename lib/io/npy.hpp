@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <glm/vec3.hpp>
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -38,12 +39,21 @@ struct TypedArray {
   bool big_endian = false;
   std::vector<unsigned char> bytes;
   std::size_t offset = 0;
+  // Where only some planes (along the slowest axis) were read: the first, and how many bytes holds
+  // (-1: all of shape[0]).
+  std::size_t first_plane = 0;
+  long long planes = -1;
   std::optional<glm::dvec3> spacing;  // (x, y, z) voxel size when the file states one
 };
 
+// Chooses the planes [first, last] to read from the count along the slowest axis.
+using PlaneChooser = std::function<std::pair<int, int>(int count)>;
+
 // Reads a .npy of a supported dtype (f4, f8, u1, i1, u2, i2, u4, i4, either byte order) and any
-// number of dimensions; Fortran-order data is transposed to C order. Throws Error(io).
-TypedArray read_npy(const std::string& path);
+// number of dimensions; Fortran-order data is transposed to C order. Throws Error(io). With
+// `planes` (3-D, C order): only the header and the chosen planes' bytes are read (first_plane,
+// planes set); otherwise the whole file.
+TypedArray read_npy(const std::string& path, const PlaneChooser& planes = {});
 
 template <class T>
 T load_scalar(const unsigned char* p, bool swap) {

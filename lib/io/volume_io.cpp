@@ -101,6 +101,19 @@ TypedArray read_raw(const VolumeSource& s) {
   std::error_code ec;
   const auto size = std::filesystem::file_size(s.path, ec);
   if (!ec && size != need) throw mismatch(std::size_t(size));
+  if (s.planes && !ec) {  // only the chosen planes' bytes
+    const auto [first, last] = s.planes(d.z);
+    if (first < 0 || last < first || last >= d.z)
+      throw Error(Status::invalid_argument, "raw volume '" + s.path + "': planes " +
+                                                std::to_string(first) + ".." + std::to_string(last) +
+                                                " of " + std::to_string(d.z));
+    const std::size_t plane = std::size_t(d.x) * d.y * volfile::scalar_size(a.type);
+    a.bytes = read_binary_range(s.path, "raw volume", std::uint64_t(first) * plane,
+                                std::size_t(last - first + 1) * plane);
+    a.first_plane = std::size_t(first);
+    a.planes = last - first + 1;
+    return a;
+  }
   a.bytes = read_binary_file(s.path, "raw volume");
   if (a.bytes.size() != need) throw mismatch(a.bytes.size());
   return a;
@@ -217,7 +230,10 @@ Volume to_volume(const TypedArray& a, const VolumeSource& s) {
       throw Error(Status::invalid_argument,
                   "volume dims " + dims_text(a.shape[2], a.shape[1], a.shape[0]) +
                       " (X x Y x Z) must each be >= 1 and < 2^31: '" + path + "'");
-  const std::size_t count = volfile::checked_count(a.shape, volfile::kMaxVoxels, path);
+  volfile::checked_count(a.shape, volfile::kMaxVoxels, path);
+  // (Only some planes read: the values are theirs, the dims the whole volume's.)
+  const std::size_t planes = a.planes < 0 ? a.shape[0] : std::size_t(a.planes);
+  const std::size_t count = planes * a.shape[1] * a.shape[2];
 
   double lo = 0, hi = 1;
   type_range(a.type, &lo, &hi);
@@ -247,7 +263,7 @@ Volume to_volume(const TypedArray& a, const VolumeSource& s) {
   });
   if (bad != count) {
     const std::size_t x = bad % a.shape[2], y = bad / a.shape[2] % a.shape[1],
-                      z = bad / (a.shape[2] * a.shape[1]);
+                      z = a.first_plane + bad / (a.shape[2] * a.shape[1]);
     std::string what;
     if (std::isnan(bad_density)) {
       what = "NaN density";
@@ -269,6 +285,22 @@ Volume to_volume(const TypedArray& a, const VolumeSource& s) {
   return v;
 }
 
+// Keeps only the planes source.planes chooses of a whole 3-D array (formats read whole).
+void keep_planes(TypedArray& a, const VolumeSource& s) {
+  if (!s.planes || a.planes >= 0 || a.shape.size() != 3 || a.shape[0] > std::size_t(INT_MAX)) return;
+  const auto [first, last] = s.planes(int(a.shape[0]));
+  if (first < 0 || last < first || std::size_t(last) >= a.shape[0])
+    throw Error(Status::invalid_argument, "volume '" + s.path + "': planes " +
+                                              std::to_string(first) + ".." + std::to_string(last) +
+                                              " of " + std::to_string(a.shape[0]));
+  const std::size_t plane = a.shape[1] * a.shape[2] * volfile::scalar_size(a.type);
+  const auto begin = a.bytes.begin() + std::ptrdiff_t(a.offset + std::size_t(first) * plane);
+  a.bytes = std::vector<unsigned char>(begin, begin + std::ptrdiff_t(std::size_t(last - first + 1) * plane));
+  a.offset = 0;
+  a.first_plane = std::size_t(first);
+  a.planes = last - first + 1;
+}
+
 }  // namespace
 
 Volume load_volume(const VolumeSource& source) {
@@ -276,7 +308,7 @@ Volume load_volume(const VolumeSource& source) {
   check_overrides(source);
   TypedArray a;
   if (format == "npy") {
-    a = volfile::read_npy(source.path);
+    a = volfile::read_npy(source.path, source.planes);
   } else if (format == "nrrd") {
     a = volfile::read_nrrd(source.path);
   } else if (format == "nifti") {
@@ -286,6 +318,7 @@ Volume load_volume(const VolumeSource& source) {
   } else {
     a = read_cvol(source.path);
   }
+  keep_planes(a, source);
   return to_volume(a, source);
 }
 

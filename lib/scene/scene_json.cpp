@@ -14,6 +14,7 @@
 
 using nlohmann::json;
 namespace fs = std::filesystem;
+#include "scene/scene.hpp"
 #include "scene/tf_kinds.hpp"
 
 namespace ivr {
@@ -84,7 +85,9 @@ class Reader {
   std::string where_;
 };
 
-Volume read_volume(const Reader& r, const json& j, const std::string& base_dir) {
+// `planes` (where given) chooses the z planes to keep (VolumeSource::planes).
+Volume read_volume(const Reader& r, const json& j, const std::string& base_dir,
+                   const std::function<std::pair<int, int>(int nz)>& planes = {}) {
   r.only_keys(j, "volume",
               {"file", "format", "dims", "type", "endian", "range", "spacing", "synthetic"});
   if (j.contains("synthetic")) {
@@ -97,6 +100,15 @@ Volume read_volume(const Reader& r, const json& j, const std::string& base_dir) 
     Volume v = synthetic_volume(r.string(j["synthetic"], "volume.synthetic"), int(d[0]), int(d[1]),
                                 int(d[2]));
     if (j.contains("spacing")) v.spacing = r.vec3(j["spacing"], "volume.spacing");
+    if (planes) {  // (generated whole, then cut)
+      const auto [first, last] = planes(v.nz);
+      if (first < 0 || last < first || last >= v.nz)
+        r.fail("volume", "planes " + std::to_string(first) + ".." + std::to_string(last) + " of " +
+                             std::to_string(v.nz));
+      const std::size_t plane = std::size_t(v.nx) * v.ny;
+      v.data = std::vector<float>(v.data.begin() + std::ptrdiff_t(plane * first),
+                                  v.data.begin() + std::ptrdiff_t(plane * (last + 1)));
+    }
     return v;
   }
   if (!j.contains("file")) r.fail("volume", "needs 'file' (or 'synthetic')");
@@ -118,6 +130,7 @@ Volume read_volume(const Reader& r, const json& j, const std::string& base_dir) 
     src.range = glm::dvec2(v[0], v[1]);
   }
   if (j.contains("spacing")) src.spacing = r.vec3(j["spacing"], "volume.spacing");
+  src.planes = planes;
   return load_volume(src);
 }
 
@@ -374,7 +387,8 @@ RayList read_rays(const Reader& r, const json& j, const std::string& base_dir,
   return make_ray_list(values.data(), rows, columns, where + ": rays");
 }
 
-Scene parse_scene(const std::string& text, const std::string& base_dir, const std::string& where) {
+Scene parse_scene(const std::string& text, const std::string& base_dir, const std::string& where,
+                  const std::function<std::pair<int, int>(int nz)>& planes) {
   const json j = parse_json(text, where);
   const Reader r(where);
   r.only_keys(j, "",
@@ -382,7 +396,7 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
   Scene s;
   if (!j.contains("volume")) r.fail("volume", "a scene needs a volume");
   try {
-    s.volume = read_volume(r, j["volume"], base_dir);
+    s.volume = read_volume(r, j["volume"], base_dir, planes);
   } catch (const Error& e) {
     if (e.status() != Status::invalid_argument && e.status() != Status::io) throw;
     const std::string msg = e.what();
@@ -425,15 +439,26 @@ Scene parse_scene(const std::string& text, const std::string& base_dir, const st
   }
   if (j.contains("integrator")) s.integrator = read_integrator(r, j["integrator"], where);
   try {
-    validate(s);
+    if (planes)  // (the densities read were checked as they were read; they are a slab's)
+      validate_description(s, s.integrator);
+    else
+      validate(s);
   } catch (const Error& e) {
     throw Error(e.status(), where + ": " + e.what());
   }
   return s;
 }
 
+Scene parse_scene(const std::string& text, const std::string& base_dir, const std::string& where) {
+  return parse_scene(text, base_dir, where, {});
+}
+
 Scene load_scene(const std::string& path) {
-  return parse_scene(read_text_file(path, "scene file"), parent_dir(path), path);
+  return parse_scene(read_text_file(path, "scene file"), parent_dir(path), path, {});
+}
+
+Scene load_scene(const std::string& path, const std::function<std::pair<int, int>(int nz)>& planes) {
+  return parse_scene(read_text_file(path, "scene file"), parent_dir(path), path, planes);
 }
 
 }  // namespace ivr

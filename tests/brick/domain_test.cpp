@@ -3,6 +3,7 @@
 // states through an in-process all-gather, give one process's image and gradient; bad input is
 // refused with clear errors.
 #include "ivr/domain.hpp"
+#include "ivr/volume_io.hpp"
 
 #include <gtest/gtest.h>
 
@@ -125,6 +126,29 @@ TEST(Domain, GradientEqualsOneProcess) {
           expect_close_values(tf_one, tf, tol, what + " tf");
         }
       }
+}
+
+// load_scene with a plane chooser reads a worker's slab (domain_slab) — of a .npy file and of a
+// synthetic volume alike — and equals domain_share of the whole scene.
+TEST(Domain, LoadSceneKeepsOnlyTheSlab) {
+  const std::string dir = temp_dir("domain_load_slab");
+  const Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
+  save_npy(dir + "/v.npy", {std::size_t(s.volume.nz), std::size_t(s.volume.ny), std::size_t(s.volume.nx)},
+           s.volume.data.data());
+  const std::string cameras = R"("cameras": [{"eye": [1.2, 0.8, 1.5], "width": 6, "height": 5}])";
+  const std::string file_scene = write_file(dir + "/file.json", R"({"volume": {"file": "v.npy"}, )" + cameras + "}");
+  const std::string synthetic_scene = write_file(
+      dir + "/synthetic.json", R"({"volume": {"synthetic": "sphere", "dims": [11, 9, 13]}, )" + cameras + "}");
+  for (const std::string& path : {file_scene, synthetic_scene})
+    for (int rank : {0, 1, 2}) {
+      const Scene slab = load_scene(path, [&](int nz) {
+        const Slab cut = domain_slab(nz, rank, 3);
+        return std::pair<int, int>{cut.first, cut.last};
+      });
+      const Scene want = domain_share(load_scene(path), rank, 3);
+      EXPECT_EQ(slab.volume.nz, 13) << path;
+      EXPECT_EQ(slab.volume.data, want.volume.data) << path << " worker " << rank;
+    }
 }
 
 template <typename F>

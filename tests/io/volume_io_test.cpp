@@ -452,4 +452,39 @@ TEST_F(VolumeIoTest, BadCvolAndUnknownExtension) {
   load_error(vti, Status::invalid_argument, {"'.gz'", "extension"});
 }
 
+// VolumeSource::planes (a domain worker's slab): the volume keeps its dims and holds only the
+// planes chosen from its nz — .npy (C order) and raw read just those bytes, the other formats
+// (and Fortran-order .npy) are read whole and cut; every format gives the whole read's values.
+TEST_F(VolumeIoTest, PlanesKeepOnlyTheSlabInEveryFormat) {
+  const std::vector<double> values = ramp(10);
+  const std::string bytes = encode<std::uint8_t>(values);
+  std::vector<std::string> paths = {
+      write("p.npy", npy("|u1", {4, 3, 2}, bytes)), write("p.raw", bytes),
+      write("p.nrrd", nrrd("type: uint8\nencoding: raw\n", bytes)),
+      write("p.cvol", cvol(2, 3, 4, 1, 1, 1, 0, bytes))};
+  // Fortran order: the same volume stored z fastest.
+  std::vector<double> fortran(24);
+  for (int z = 0; z < 4; ++z)
+    for (int y = 0; y < 3; ++y)
+      for (int x = 0; x < 2; ++x) fortran[(x * 3 + y) * 4 + z] = values[(z * 3 + y) * 2 + x];
+  paths.push_back(write("f.npy", npy("|u1", {4, 3, 2}, encode<std::uint8_t>(fortran), true)));
+  for (const std::string& path : paths) {
+    VolumeSource s = src(path);
+    if (path.size() > 4 && path.substr(path.size() - 4) == ".raw") s.dims = glm::ivec3(2, 3, 4), s.type = "uint8";
+    const ivr::Volume whole = load_volume(s);
+    int asked = -1;
+    s.planes = [&](int nz) {
+      asked = nz;
+      return std::pair<int, int>{1, 2};
+    };
+    const ivr::Volume slab = load_volume(s);
+    EXPECT_EQ(asked, 4) << path;
+    EXPECT_EQ(slab.nx * 100 + slab.ny * 10 + slab.nz, 234) << path;
+    ASSERT_EQ(slab.data.size(), 12u) << path;
+    for (std::size_t i = 0; i < 12; ++i) EXPECT_EQ(slab.data[i], whole.data[6 + i]) << path << " " << i;
+    s.planes = [](int nz) { return std::pair<int, int>{nz - 1, nz + 1}; };
+    expect_error([&] { load_volume(s); }, Status::invalid_argument, path, {"planes 3..5"});
+  }
+}
+
 }  // namespace

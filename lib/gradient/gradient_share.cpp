@@ -90,7 +90,7 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
       g.values.assign(size, 0.0);
       out.groups.push_back(g);
     }
-    out.step = mine.step;
+    out.step = mine.step != 0 ? mine.step : scene.integrator.step;
   }
   // The shares' means weighted by their sizes (the mean losses; dot: summed); with fixed point
   // every share already holds its part of the batch's mean, and the density the whole of it.

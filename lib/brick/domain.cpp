@@ -147,7 +147,10 @@ namespace {
 template <typename T>
 std::vector<unsigned char> planes_message(const std::vector<std::array<int, 2>>& ranges,
                                           const T* values, int values_first, std::size_t plane) {
-  std::vector<unsigned char> out(ranges.size() * 8);
+  const std::size_t bytes = plane * sizeof(T);
+  std::size_t planes = 0;
+  for (const std::array<int, 2>& r : ranges) planes += std::size_t(std::max(r[1] - r[0] + 1, 0));
+  std::vector<unsigned char> out(ranges.size() * 8 + planes * bytes);
   std::size_t at = 0;
   for (const std::array<int, 2>& r : ranges) {
     std::memcpy(&out[at], r.data(), 8);
@@ -155,8 +158,6 @@ std::vector<unsigned char> planes_message(const std::vector<std::array<int, 2>>&
   }
   for (const std::array<int, 2>& r : ranges)
     for (int z = r[0]; z <= r[1]; ++z) {
-      const std::size_t bytes = plane * sizeof(T);
-      out.resize(at + bytes);
       std::memcpy(&out[at], values + std::size_t(z - values_first) * plane, bytes);
       at += bytes;
     }

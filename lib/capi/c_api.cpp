@@ -224,28 +224,45 @@ ivr_result* gradient_result(ivr_context* c, const ivr::Gradient& d) {
 }
 }  // namespace
 
+namespace {
+// The checks every gradient call makes of its handles and pointers; the target as an Image.
+ivr::Image checked_gradient_call(ivr_context* c, const ivr_scene* s, const float* target,
+                                 size_t count, const char* wrt, ivr_result** out) {
+  checked(c, Kind::context, "context");
+  with_volume(checked(s, Kind::scene, "scene"));
+  same_context(s->context, c, "scene");
+  not_null(target, "target");
+  not_null(wrt, "wrt");
+  not_null(out, "result");
+  *out = nullptr;
+  return target_image(s->scene, target, count);
+}
+
+// ivr_gradient and ivr_gradient_shared: worker `rank` of `ranks` (1: the whole gradient alone).
+void gradient_call(ivr_context* c, const ivr_scene* s, const float* target, size_t count,
+                   const char* wrt, ivr_mode mode, ivr_loss loss, ivr_precision precision,
+                   double step, bool deterministic, int rank, int ranks, ivr_sum_fn sum,
+                   void* sum_user, ivr_result** out) {
+  const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out);
+  check_worker(rank, ranks);
+  if (ranks > 1 && !sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+  ivr::GradientOptions o;
+  o.mode = mode_of(mode);
+  o.loss = loss_of(loss);
+  o.precision = precision_of(precision);
+  o.step = step;
+  o.deterministic = deterministic;
+  if (ranks > 1) o.worker = rank, o.workers = ranks, o.sum = sum_of(sum, sum_user);
+  *out = gradient_result(c, ivr::gradient(c->device, s->scene, t, ivr::parse_groups(wrt), o));
+}
+}  // namespace
+
 ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target, size_t count,
                         const char* wrt, ivr_mode mode, ivr_loss loss, ivr_precision precision,
                         double step, ivr_result** out) {
   return guarded(c, "ivr_gradient", [&] {
-    checked(c, Kind::context, "context");
-    with_volume(checked(s, Kind::scene, "scene"));
-    same_context(s->context, c, "scene");
-    not_null(target, "target");
-    not_null(wrt, "wrt");
-    not_null(out, "result");
-    *out = nullptr;
-    const ivr::Mode m = mode_of(mode);
-    const ivr::Loss l = loss_of(loss);
-    const ivr::Image t = target_image(s->scene, target, count);
-    ivr::GradientOptions o;
-    o.mode = m;
-    o.loss = l;
-    o.precision = precision_of(precision);
-    o.step = step;
-    const ivr::Gradient d =
-        ivr::gradient(c->device, s->scene, t, ivr::parse_groups(wrt), o);
-    *out = gradient_result(c, d);
+    gradient_call(c, s, target, count, wrt, mode, loss, precision, step, false, 0, 1, nullptr,
+                  nullptr, out);
   });
 }
 
@@ -254,26 +271,8 @@ ivr_status ivr_gradient_shared(ivr_context* c, const ivr_scene* s, const float* 
                                ivr_precision precision, double step, int deterministic, int rank,
                                int ranks, ivr_sum_fn sum, void* sum_user, ivr_result** out) {
   return guarded(c, "ivr_gradient_shared", [&] {
-    checked(c, Kind::context, "context");
-    with_volume(checked(s, Kind::scene, "scene"));
-    same_context(s->context, c, "scene");
-    not_null(target, "target");
-    not_null(wrt, "wrt");
-    not_null(out, "result");
-    *out = nullptr;
-    if (ranks < 1 || rank < 0 || rank >= ranks)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                   "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
-    if (ranks > 1 && !sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
-    ivr::GradientOptions o;
-    o.mode = mode_of(mode);
-    o.loss = loss_of(loss);
-    o.precision = precision_of(precision);
-    o.step = step;
-    o.deterministic = deterministic != 0;
-    if (ranks > 1) o.worker = rank, o.workers = ranks, o.sum = sum_of(sum, sum_user);
-    const ivr::Image t = target_image(s->scene, target, count);
-    *out = gradient_result(c, ivr::gradient(c->device, s->scene, t, ivr::parse_groups(wrt), o));
+    gradient_call(c, s, target, count, wrt, mode, loss, precision, step, deterministic != 0, rank,
+                  ranks, sum, sum_user, out);
   });
 }
 
@@ -281,9 +280,7 @@ namespace {
 // Worker `rank` of `ranks` over slabs, its collectives through the caller's sum.
 ivr::DomainPart slab_part(int rank, int ranks, ivr_sum_fn sum, void* user) {
   if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
-  if (ranks < 1 || rank < 0 || rank >= ranks)
-    throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                 "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
+  check_worker(rank, ranks);
   ivr::DomainPart part;
   part.rank = rank, part.ranks = ranks;
   part.all_gather = ivr::all_gather_by_sum(rank, ranks, sum_of(sum, user));
@@ -318,15 +315,8 @@ ivr_status ivr_gradient_slabs(ivr_context* c, const ivr_scene* s, const float* t
                               ivr_precision precision, double step, int rank, int ranks,
                               ivr_sum_fn sum, void* sum_user, ivr_result** out) {
   return guarded(c, "ivr_gradient_slabs", [&] {
-    checked(c, Kind::context, "context");
-    with_volume(checked(s, Kind::scene, "scene"));
-    same_context(s->context, c, "scene");
-    not_null(target, "target");
-    not_null(wrt, "wrt");
-    not_null(out, "result");
-    *out = nullptr;
+    const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out);
     const ivr::DomainPart part = slab_part(rank, ranks, sum, sum_user);
-    const ivr::Image t = target_image(s->scene, target, count);
     ivr::GradientOptions o;  // (automatic: density, tf, background by the adjoint, others forward)
     o.loss = loss_of(loss);
     o.precision = precision_of(precision);

@@ -93,6 +93,13 @@ struct CError {
   std::string message;
 };
 
+// Worker `rank` of `ranks` of a split operation must exist.
+inline void check_worker(int rank, int ranks) {
+  if (ranks < 1 || rank < 0 || rank >= ranks)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
+}
+
 // The caller's sum of a split operation (ivr_sum_fn) as the C++ API takes it; its failure is an
 // error naming it.
 inline std::function<void(std::vector<double>&)> sum_of(ivr_sum_fn sum, void* user) {

@@ -173,9 +173,7 @@ ivr_status ivr_tomo_split(ivr_context* c, const ivr_scene* s, const ivr_tomo_opt
     if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS)
       throw CError{IVR_ERROR_INVALID_ARGUMENT,
                    "split " + std::to_string(int(split)) + " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS)"};
-    if (ranks < 1 || rank < 0 || rank >= ranks)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                   "worker " + std::to_string(rank) + " of " + std::to_string(ranks) + " workers"};
+    check_worker(rank, ranks);
     const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
                         history_capacity);
     const ivr::Scene& scene = s->scene;

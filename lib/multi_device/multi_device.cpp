@@ -22,7 +22,7 @@ namespace {
 template <class Job>
 void run_shares(std::size_t count, Job&& job, const std::function<void()>& failed = {}) {
   std::vector<std::exception_ptr> errors(count);
-  std::vector<bool> stopped(count, false);
+  std::vector<char> stopped(count, 0);  // (not vector<bool>: the threads write their own elements)
   std::vector<std::thread> threads;
   for (std::size_t i = 0; i < count; ++i)
     threads.emplace_back([&, i] {
@@ -30,7 +30,7 @@ void run_shares(std::size_t count, Job&& job, const std::function<void()>& faile
         job(i);
       } catch (const WorkerSumStopped&) {
         errors[i] = std::current_exception();
-        stopped[i] = true;
+        stopped[i] = 1;
       } catch (...) {
         errors[i] = std::current_exception();
         if (failed) failed();

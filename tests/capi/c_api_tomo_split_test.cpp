@@ -5,15 +5,15 @@
 // message.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
-#include <condition_variable>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
+#include "multi_device/worker_sum.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -37,34 +37,7 @@ std::string scene_json(const std::vector<int>& views) {
 constexpr std::size_t kPlane = 8 * 10, kVoxels = kPlane * 12, kViewRays = 9 * 7;
 
 // The workers' sum: every worker's values added in rank order, handed to every worker.
-class Summit {
- public:
-  explicit Summit(int workers) : parts_(std::size_t(workers)) {}
-  void sum(int rank, double* values, std::size_t count) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    const long round = round_;
-    parts_[std::size_t(rank)].assign(values, values + count);
-    if (++arrived_ == int(parts_.size())) {
-      total_.assign(count, 0.0);
-      for (const std::vector<double>& p : parts_)
-        for (std::size_t i = 0; i < count; ++i) total_[i] += p[i];
-      arrived_ = 0;
-      ++round_;
-      ready_.notify_all();
-    } else {
-      ready_.wait(lock, [&] { return round_ != round; });
-    }
-    std::copy(total_.begin(), total_.end(), values);
-  }
-
- private:
-  std::mutex mutex_;
-  std::condition_variable ready_;
-  int arrived_ = 0;
-  long round_ = 0;
-  std::vector<std::vector<double>> parts_;
-  std::vector<double> total_;
-};
+using Summit = WorkerSum;
 
 struct Worker {
   Summit* summit;
@@ -73,7 +46,9 @@ struct Worker {
 
 int summed(double* values, size_t count, void* user) {
   const Worker* w = static_cast<const Worker*>(user);
-  w->summit->sum(w->rank, values, count);
+  std::vector<double> v(values, values + count);
+  w->summit->sum(w->rank, v);
+  std::copy(v.begin(), v.end(), values);
   return 1;
 }
 

@@ -5,13 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <condition_variable>
-#include <mutex>
 #include <thread>
 #include <filesystem>
 #include <random>
 
 #include "ivr/adjoint.hpp"
+#include "multi_device/worker_sum.hpp"
 #include "reconstruct/lbfgs.hpp"
 #include "reconstruct/priors.hpp"
 #include "runtime/real_args.hpp"
@@ -168,29 +167,7 @@ struct WorkerRuns {
 };
 WorkerRuns run_workers(int workers, const Scene& scene, const Image& targets,
                        const ReconstructOptions& o) {
-  std::mutex m;
-  std::condition_variable cv;
-  std::vector<std::vector<double>> parts(static_cast<std::size_t>(workers));
-  std::vector<double> total;
-  int arrived = 0;
-  long round = 0;
-  auto sum_of = [&](int w) {
-    return [&, w](std::vector<double>& v) {
-      std::unique_lock<std::mutex> lock(m);
-      const long mine = round;
-      parts[std::size_t(w)] = v;
-      if (++arrived == workers) {
-        total.assign(v.size(), 0.0);
-        for (const std::vector<double>& part : parts)
-          for (std::size_t i = 0; i < v.size(); ++i) total[i] += part[i];
-        arrived = 0, ++round;
-        cv.notify_all();
-      } else {
-        cv.wait(lock, [&] { return round != mine; });
-      }
-      v = total;
-    };
-  };
+  WorkerSum sum(workers);
   WorkerRuns out;
   out.histories.resize(std::size_t(workers));
   out.densities.resize(std::size_t(workers));
@@ -201,7 +178,7 @@ WorkerRuns run_workers(int workers, const Scene& scene, const Image& targets,
       try {
         Device d(std::to_string(device().info().index));
         ReconstructOptions ow = o;
-        ow.worker = w, ow.workers = workers, ow.sum = sum_of(w);
+        ow.worker = w, ow.workers = workers, ow.sum = sum.of(w);
         Reconstruction r(d, scene, targets, ow);
         while (!r.done()) r.step();
         out.histories[std::size_t(w)] = r.history();
@@ -209,6 +186,7 @@ WorkerRuns run_workers(int workers, const Scene& scene, const Image& targets,
         out.densities[std::size_t(w)].assign(v.begin(), v.end());
       } catch (const std::exception& e) {
         out.errors[std::size_t(w)] = e.what();
+        sum.abort();  // (the others stop rather than wait for this worker)
       }
     });
   for (std::thread& t : threads) t.join();

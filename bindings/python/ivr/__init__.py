@@ -379,34 +379,28 @@ class Context(_Owned):
                 raise Error("IVR_ERROR_INVALID_ARGUMENT",
                             f"target has shape {t.shape} but the scene renders {shape}")
             r = _capi.HANDLE()
-            if _split is None and (deterministic or _shared is not None):
-                # (rank, ranks, add): ivr.mpi's workers over views, every one the whole gradient
-                rank, ranks, add = _shared if _shared is not None else (0, 1, None)
-                failure = []
-                status = self._lib.ivr_gradient_shared(
-                    self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
-                    groups.encode(), _choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
-                    _PRECISIONS[self.precision], step, 1 if deterministic else 0, rank, ranks,
-                    _sum_fn(add, failure) if add is not None else _capi.SUM_FN(), None,
-                    ctypes.byref(r))
-                if failure:
-                    raise failure[0]
-                _check(status)
-            elif _split is None:
-                _check(self._lib.ivr_gradient(
-                    self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
-                    groups.encode(), _choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
-                    _PRECISIONS[self.precision], step, ctypes.byref(r)))
-            else:  # (rank, ranks, add): ivr.mpi's workers over slabs (adjoint mode)
+            args = (self._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, groups.encode())
+            failure = []
+            if _split is not None:  # (rank, ranks, add): ivr.mpi's workers over slabs (adjoint mode)
                 rank, ranks, add = _split
-                failure = []
                 status = self._lib.ivr_gradient_slabs(
-                    self._live(), s, t.ctypes.data_as(ctypes.POINTER(ctypes.c_float)), t.size,
-                    groups.encode(), _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision],
-                    step, rank, ranks, _sum_fn(add, failure), None, ctypes.byref(r))
-                if failure:
-                    raise failure[0]
-                _check(status)
+                    *args, _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision], step, rank,
+                    ranks, _sum_fn(add, failure), None, ctypes.byref(r))
+            else:
+                how = (_choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
+                       _PRECISIONS[self.precision], step)
+                if deterministic or _shared is not None:
+                    # (rank, ranks, add): ivr.mpi's workers over views, every one the whole gradient
+                    rank, ranks, add = _shared if _shared is not None else (0, 1, None)
+                    status = self._lib.ivr_gradient_shared(
+                        *args, *how, 1 if deterministic else 0, rank, ranks,
+                        _capi.SUM_FN() if add is None else _sum_fn(add, failure), None,
+                        ctypes.byref(r))
+                else:
+                    status = self._lib.ivr_gradient(*args, *how, ctypes.byref(r))
+            if failure:
+                raise failure[0]
+            _check(status)
         finally:
             self._lib.ivr_scene_release(s)
         try:

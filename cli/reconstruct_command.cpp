@@ -34,7 +34,8 @@ namespace {
 struct ReconstructArgs {
   std::string scene, targets, prefix, wrt = "density", optimizer, schedule = "constant",
                                       loss = "mse", init = "scene", precision = "f32",
-                                      mode = "auto", device, truth, held_out, held_out_targets;
+                                      mode = "auto", device, truth, held_out, held_out_targets,
+                                      split = "views";
   ReconstructOptions options;  // the numeric options, bound at the library's defaults
   int checkpoint_every = 25;
   double lr = 0, step = 0;
@@ -231,12 +232,18 @@ class Progress {
 };
 
 // View 0 of the scene (its volume and TF as they are) at the reconstruction's precision and step.
-Image render_view0(Device& device, Scene scene, const ReconstructOptions& o) {
-  if (!scene.has_ray_list()) scene.cameras.resize(1);  // a ray list: every ray
+// The scene's render; over slabs (o.slabs: the scene holds this rank's planes) by every rank
+// together, each getting the image.
+Image render_with(Device& device, const Scene& scene, const ReconstructOptions& o) {
   RenderOptions r;
   r.precision = o.precision;
   r.step = o.step;
-  return render(device, scene, r);
+  return o.slabs ? render_domain(device, scene, domain_part(), r) : render(device, scene, r);
+}
+
+Image render_view0(Device& device, Scene scene, const ReconstructOptions& o) {
+  if (!scene.has_ray_list()) scene.cameras.resize(1);  // a ray list: every ray
+  return render_with(device, scene, o);
 }
 
 // The shortest text that reads back as the same double, so the CSV holds the exact values.
@@ -339,6 +346,7 @@ Runner add_reconstruct_command(CLI::App& app) {
                   "The held-out views' images, .npy of that render's shape");
   cmd->add_option("--device", a.device,
                   "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+  add_split_option(cmd, a.split);
   cmd->add_flag("--json", a.json, "Print one JSON object with timings, losses and outputs");
 
   return [args] {
@@ -347,18 +355,24 @@ Runner add_reconstruct_command(CLI::App& app) {
     // nothing.
     ReconstructOptions options = checked_options(a);
     // Under mpirun: data-parallel over each batch's views (docs/scaling.md); rank 0 reports and
-    // writes (checkpoints too: every rank holds the same state).
+    // writes (checkpoints too: every rank holds the same state). --split slabs: each rank its
+    // slab of the densities, and its own checkpoint (PREFIX_rankR_checkpoint*).
     const World& w = world();
     const bool writer = w.rank == 0;
+    options.slabs = a.split == "slabs";
     if (w.size > 1) {
       options.worker = w.rank, options.workers = w.size;
       options.sum = [](std::vector<double>& v) { sum_all(v); };
+      if (options.slabs) options.all_gather = domain_part().all_gather;
     }
+    const bool own_checkpoint = writer || options.slabs;
+    const std::string saved =
+        options.slabs && w.size > 1 ? a.prefix + "_rank" + std::to_string(w.rank) : a.prefix;
     check_output_folder(a.prefix);
-    const std::string checkpoint = a.prefix + "_checkpoint.json";
+    const std::string checkpoint = saved + "_checkpoint.json";
     if (a.resume && !fs::exists(checkpoint))
       throw input_error("--resume: no checkpoint '" + checkpoint + "' to continue from");
-    const Scene scene = load_scene(a.scene);
+    const Scene scene = load_scene_for(a.scene, a.split);
     const Image targets = load_images(a.targets, "--targets", scene);
     Volume truth;
     if (!a.truth.empty()) {
@@ -392,7 +406,7 @@ Runner add_reconstruct_command(CLI::App& app) {
     const Image before = render_view0(device, start, options);
     int resumed_from = -1;
     if (a.resume) {
-      r.resume(a.prefix);
+      r.resume(saved);
       resumed_from = r.iteration();
     }
 
@@ -412,35 +426,47 @@ Runner add_reconstruct_command(CLI::App& app) {
       if (interrupted()) break;
       const IterationRecord& rec = r.step();
       if (writer) progress.update(rec);
-      if (writer && a.checkpoint_every > 0 && rec.iteration % a.checkpoint_every == 0 &&
+      if (own_checkpoint && a.checkpoint_every > 0 && rec.iteration % a.checkpoint_every == 0 &&
           !r.done())
-        r.save_checkpoint(a.prefix);
+        r.save_checkpoint(saved);
     }
     const double seconds = progress.seconds(), rate = progress.rate(r.iteration());
     progress.finish();
     if (!r.done()) {
       // Interrupted: the state to continue from, then 128 + the signal, as a shell reports it.
+      if (!own_checkpoint) return stop_code() ? stop_code() : 130;
+      r.save_checkpoint(saved);
       if (!writer) return stop_code() ? stop_code() : 130;
-      r.save_checkpoint(a.prefix);
       std::cerr << "interrupted after iteration " << r.iteration() << " of " << total
                 << "; continue with --resume\n";
       return stop_code() ? stop_code() : 130;
     }
-    if (!writer) return 0;
-
-    // Everything is computed before the first file is written.
-    const Scene result = r.result();
+    // Everything is computed before the first file is written (over slabs the renders by every
+    // rank, the slabs gathered on rank 0).
+    Scene result = r.result();
     const Image after = render_view0(device, result, options);
-    double volume_error = NAN, held_out_psnr = NAN;
-    if (!a.truth.empty()) volume_error = relative_volume_error(result.volume, truth);
+    Image held_out_image;
     if (!a.held_out.empty()) {
       held_out.volume = result.volume;
       held_out.tf = result.tf;
-      RenderOptions ro;
-      ro.precision = used.precision;
-      ro.step = used.step;
-      held_out_psnr = psnr(render(device, held_out, ro), held_out_targets);
+      held_out_image = render_with(device, held_out, options);
     }
+    if (options.slabs) {
+      const std::vector<double> mine(result.volume.data.begin(), result.volume.data.end());
+      const std::vector<std::vector<double>> slabs = gather_parts(mine);
+      if (writer) {
+        const Volume& v = result.volume;
+        const std::vector<double> whole = domain_assemble(v.nx, v.ny, v.nz, slabs);
+        result.volume.data.assign(whole.begin(), whole.end());
+      }
+    }
+    if (!writer) {
+      if (options.slabs) Reconstruction::remove_checkpoint(saved);
+      return 0;
+    }
+    double volume_error = NAN, held_out_psnr = NAN;
+    if (!a.truth.empty()) volume_error = relative_volume_error(result.volume, truth);
+    if (!a.held_out.empty()) held_out_psnr = psnr(held_out_image, held_out_targets);
     const std::vector<IterationRecord>& history = r.history();
 
     std::vector<std::string> outputs;
@@ -468,7 +494,7 @@ Runner add_reconstruct_command(CLI::App& app) {
       save_image_file(p + "_target.png", targets, 0);
       outputs.insert(outputs.end(), {p + "_before.png", p + "_after.png", p + "_target.png"});
     }
-    Reconstruction::remove_checkpoint(p);
+    Reconstruction::remove_checkpoint(saved);
 
     const double loss_first = history.empty() ? NAN : history.front().loss;
     const double loss_final = history.empty() ? NAN : history.back().loss;
@@ -480,7 +506,7 @@ Runner add_reconstruct_command(CLI::App& app) {
           {"iterations_per_second", rate}, {"loss_first", loss_first},
           {"loss_final", loss_final},      {"optimizer", optimizer_name(used.optimizer.kind)},
           {"lr", used.optimizer.lr},       {"levels", levels},
-          {"device", device.info().name}, {"bricks", 1},  {"ranks", w.size},
+          {"device", device.info().name}, {"bricks", 1},  {"ranks", w.size}, {"split", a.split},
           {"outputs", outputs}};
       if (!a.truth.empty()) j["volume_error"] = volume_error;
       if (!a.held_out.empty()) j["held_out_psnr"] = held_out_psnr;  // null where +infinity

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "ivr/device.hpp"
+#include "ivr/domain.hpp"
 #include "ivr/export.h"
 #include "ivr/adjoint.hpp"
 #include "ivr/optimize.hpp"
@@ -74,6 +75,19 @@ struct ReconstructOptions {
   // ray list); every batch needs at least `workers` views; checkpoints are every worker's.
   int worker = 0, workers = 1;
   std::function<void(std::vector<double>&)> sum;
+  // Domain-parallel over slabs of z planes instead (mpirun -np N ivr reconstruct --split slabs;
+  // docs/scaling.md): worker `worker` holds only planes domain_slab(nz, worker, workers) of the
+  // densities (scene.volume.data holds just those: domain_share(), load_scene(path, planes)) and
+  // their optimiser state; every worker marches every view of each batch through its slab
+  // (gradient_domain: the rays' states pass between the workers), the planes neighbours share are
+  // joined and the priors' differences across slabs counted once, so every worker's iterate is
+  // one process's to rounding on its planes. Densities (and the TF jointly, its slab parts summed)
+  // with Adam or SGD, one level (coarse-to-fine levels would resample across slabs), cameras only;
+  // float sums (deterministic does not apply). result() holds this worker's planes; checkpoints
+  // are each worker's own (give each its own prefix). `all_gather` passes bytes between the
+  // workers (an MPI_Allgatherv); empty: built from `sum` (all_gather_by_sum).
+  bool slabs = false;
+  AllGather all_gather;
 };
 
 // Throws ivr::Error(invalid_argument) naming the first bad option.
@@ -111,7 +125,7 @@ class IVR_API Reconstruction {
   std::vector<int> level_dims(int level) const;  // (nx, ny, nz) of a level
 
   // The estimate so far: the scene with the current densities (at the full grid: upsampled
-  // from a coarser level) and TF.
+  // from a coarser level) and TF. Over slabs: volume.data holds this worker's planes only.
   Scene result() const;
 
   // PREFIX_checkpoint.json and PREFIX_checkpoint_*.npy (float64): iteration, level, parameters,

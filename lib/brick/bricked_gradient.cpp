@@ -45,7 +45,7 @@ PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan,
 static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image& target,
                                 const std::vector<std::string>& groups, const GradientOptions& o,
                                 const BrickPlan& plan, const DomainPart* domain,
-                                DomainStats* domain_stats) {
+                                DomainStats* domain_stats, const std::vector<double>* densities) {
   bool density = false, tf = false, background = false;
   for (const std::string& g : groups) {
     density = density || g == "density";
@@ -56,6 +56,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   ro.precision = o.precision;
   ro.step = o.step;
   BrickedMarch march(device, scene, ro, plan, "gradient");
+  march.densities_f64 = densities;
   if (domain) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
   check_brick_halo(scene, s.integrator().step, plan.layout);
@@ -239,7 +240,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
 Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
                           const std::vector<std::string>& groups, const GradientOptions& o,
                           const BrickPlan& plan, const DomainPart* domain,
-                          DomainStats* domain_stats) {
+                          DomainStats* domain_stats, const std::vector<double>* densities) {
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
   std::vector<std::string> adjoint_groups, forward_groups;
@@ -267,7 +268,8 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
 
   Gradient d;
   if (!adjoint_groups.empty())
-    d = adjoint_bricked(device, scene, target, adjoint_groups, o, plan, domain, domain_stats);
+    d = adjoint_bricked(device, scene, target, adjoint_groups, o, plan, domain, domain_stats,
+                        densities);
   BrickedTangent t;
   std::vector<cl_int4> lanes;
   std::vector<std::size_t> counts;
@@ -277,7 +279,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     counts.push_back(l.size());
   }
   if (!forward_groups.empty() || adjoint_groups.empty()) {
-    t = tangent_bricked(device, scene, target, lanes, o, plan, domain, domain_stats);
+    t = tangent_bricked(device, scene, target, lanes, o, plan, domain, domain_stats, densities);
     if (adjoint_groups.empty()) {
       d.loss = t.loss;
       d.step = o.step > 0 ? o.step : scene.integrator.step;

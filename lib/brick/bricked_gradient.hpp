@@ -14,10 +14,11 @@ namespace ivr {
 // mode is asked for), the other groups (camera, tf_points, scales, voxels, rays) by forward lanes
 // (lib/brick/bricked_tangent.cpp); throws Error(unsupported) for what it does not cover yet
 // (schemes other than midpoint, density in forward mode, forward groups over slabs). `domain`: this worker's slab alone (as
-// render_bricked); the gradient of its planes.
+// render_bricked); the gradient of its planes. `densities`: BrickedMarch::densities_f64.
 Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
                           const std::vector<std::string>& groups, const GradientOptions& options,
                           const BrickPlan& plan, const DomainPart* domain = nullptr,
-                          DomainStats* domain_stats = nullptr);
+                          DomainStats* domain_stats = nullptr,
+                          const std::vector<double>* densities = nullptr);
 
 }  // namespace ivr

@@ -319,8 +319,15 @@ void BrickedMarch::launch_all(cl::Kernel& k, int phase) {
 int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const char* tuning,
                         PacketShape tile) {
   const BrickLayout& l = plan_.layout;
+  if (densities_f64 && densities_f64->size() != l.held())
+    throw Error(Status::invalid_argument,
+                "bricked march: " + std::to_string(densities_f64->size()) +
+                    " float64 densities for the " + std::to_string(l.held()) + " held");
   auto fill = [&](int b, std::vector<unsigned char>& out) {
-    extract_brick(scene_.volume, l, b, s.f64, out);
+    if (densities_f64)
+      extract_brick(densities_f64->data(), l, b, s.f64, out);
+    else
+      extract_brick(scene_.volume, l, b, s.f64, out);
   };
   Device::Impl& dev = s.dev;
   int sweeps = 0;

@@ -99,6 +99,9 @@ class BrickedMarch {
   // Per-ray buffers that move with the state between workers (forward mode's tangents), read
   // when a sweep() begins.
   std::vector<cl::Buffer> carried;
+  // Where set, the densities the bricks are filled from (the held planes, x fastest) instead of
+  // the scene's floats: a float64 run's iterate kept in float64 (a reconstruction over slabs).
+  const std::vector<double>* densities_f64 = nullptr;
   BrickStream& stream() { return stream_; }
   cl::Kernel& render_kernel() { return *render_; }
   // On CPUs (midpoint), the rays a packet kernel marches in lanes, and their tile; 0 elsewhere.

@@ -30,7 +30,7 @@ struct Pass {
 BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& target,
                                const std::vector<cl_int4>& requested, const GradientOptions& o,
                                const BrickPlan& plan, const DomainPart* domain,
-                               DomainStats* domain_stats) {
+                               DomainStats* domain_stats, const std::vector<double>* densities) {
   const ImageExtent e = image_extent(scene);
   const std::size_t rays = e.pixels();
   const std::size_t real_size = o.precision == Precision::f64 ? 8 : 4;
@@ -91,6 +91,7 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
   ro.precision = o.precision;
   ro.step = o.step;
   BrickedMarch march(device, scene, ro, p, "gradient");
+  march.densities_f64 = densities;
   if (domain) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
   check_brick_halo(scene, s.integrator().step, p.layout);

@@ -23,10 +23,11 @@ struct BrickedTangent {
 // tangents fit beside the plan.
 // `domain` (lib/brick/domain.cpp): this worker marches its slab's bricks alone, the rays' states
 // and tangents passed between the workers, so that every worker ends with every ray's tangents
-// and returns the whole loss and gradient.
+// and returns the whole loss and gradient. `densities`: BrickedMarch::densities_f64.
 BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& target,
                                const std::vector<cl_int4>& lanes, const GradientOptions& options,
                                const BrickPlan& plan, const DomainPart* domain = nullptr,
-                               DomainStats* domain_stats = nullptr);
+                               DomainStats* domain_stats = nullptr,
+                               const std::vector<double>* densities = nullptr);
 
 }  // namespace ivr

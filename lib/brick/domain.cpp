@@ -193,8 +193,9 @@ void read_planes(const std::vector<unsigned char>& message, std::size_t count, s
 
 // The planes layout.data_first … data_last: the slab's own values and, beyond its ends, the
 // neighbours' (each worker sends the halo + 1 planes at each end of its slab).
-std::vector<float> with_neighbour_planes(const DomainPart& part, const Slab& slab,
-                                         const BrickLayout& l, const std::vector<float>& mine) {
+template <typename T>
+std::vector<T> with_neighbour_planes(const DomainPart& part, const Slab& slab, const BrickLayout& l,
+                                     const std::vector<T>& mine) {
   if (part.ranks == 1) return mine;  // (the whole volume: nothing beyond it)
   const std::size_t plane = std::size_t(l.dims[0]) * l.dims[1];
   const std::vector<std::array<int, 2>> ends = {
@@ -202,13 +203,13 @@ std::vector<float> with_neighbour_planes(const DomainPart& part, const Slab& sla
       {std::max(slab.last - l.halo, slab.first), slab.last}};
   const std::vector<std::vector<unsigned char>> all =
       part.all_gather(planes_message(ends, mine.data(), slab.first, plane));
-  std::vector<float> out(l.held());
+  std::vector<T> out(l.held());
   std::vector<bool> have(std::size_t(l.held_planes()), false);
   std::copy(mine.begin(), mine.end(), out.begin() + std::ptrdiff_t((slab.first - l.data_first) * plane));
   for (int z = slab.first; z <= slab.last; ++z) have[std::size_t(z - l.data_first)] = true;
   for (int w = 0; w < int(all.size()); ++w)
     if (w != part.rank)
-      read_planes<float>(all[w], 2, plane, w, [&](int z, const std::vector<float>& values) {
+      read_planes<T>(all[w], 2, plane, w, [&](int z, const std::vector<T>& values) {
         if (z < l.data_first || z > l.data_last) return;
         std::copy(values.begin(), values.end(), out.begin() + std::ptrdiff_t((z - l.data_first) * plane));
         have[std::size_t(z - l.data_first)] = true;
@@ -222,6 +223,10 @@ std::vector<float> with_neighbour_planes(const DomainPart& part, const Slab& sla
                       ", past its neighbour's slab: use fewer workers or a shorter step");
   return out;
 }
+template std::vector<float> with_neighbour_planes(const DomainPart&, const Slab&,
+                                                  const BrickLayout&, const std::vector<float>&);
+template std::vector<double> with_neighbour_planes(const DomainPart&, const Slab&,
+                                                   const BrickLayout&, const std::vector<double>&);
 
 // The slab's planes of a gradient over layout.data_first … data_last, with what the other workers'
 // halos gathered for its planes added (each plane once, by its owner: a plane neighbours share
@@ -245,6 +250,37 @@ std::vector<double> return_halo(const DomainPart& part, const Slab& slab, const 
         for (std::size_t i = 0; i < plane; ++i) at[i] += values[i];
       });
   return out;
+}
+
+std::vector<std::vector<double>> gather_doubles(const DomainPart& part,
+                                                const std::vector<double>& mine, const char* what) {
+  std::vector<unsigned char> bytes(mine.size() * sizeof(double));
+  if (!mine.empty()) std::memcpy(bytes.data(), mine.data(), bytes.size());
+  const std::vector<std::vector<unsigned char>> all = part.all_gather(bytes);
+  if (int(all.size()) != part.ranks)
+    throw Error(Status::invalid_argument, std::string(what) + ": all_gather gave " +
+                                              std::to_string(all.size()) + " parts for " +
+                                              std::to_string(part.ranks) + " workers");
+  std::vector<std::vector<double>> out(all.size());
+  for (std::size_t w = 0; w < all.size(); ++w) {
+    if (all[w].size() != bytes.size())
+      throw Error(Status::invalid_argument, std::string(what) + ": worker " + std::to_string(w) +
+                                                " sent " + std::to_string(all[w].size()) +
+                                                " bytes, not " + std::to_string(bytes.size()) +
+                                                " (do the workers share one scene?)");
+    out[w].resize(mine.size());
+    if (!mine.empty()) std::memcpy(out[w].data(), all[w].data(), all[w].size());
+  }
+  return out;
+}
+
+std::vector<double> sum_over(const DomainPart& part, const std::vector<double>& mine,
+                             const char* what) {
+  if (part.ranks == 1) return mine;
+  std::vector<double> sum(mine.size(), 0.0);
+  for (const std::vector<double>& w : gather_doubles(part, mine, what))
+    for (std::size_t i = 0; i < sum.size(); ++i) sum[i] += w[i];
+  return sum;
 }
 
 AllGather all_gather_by_sum(int rank, int ranks, std::function<void(std::vector<double>&)> sum) {
@@ -342,13 +378,25 @@ Image render_domain(Device& device, const Scene& scene, const DomainPart& part,
 Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
                          const DomainPart& part, const GradientOptions& options,
                          DomainStats* domain, const std::vector<std::string>& groups) {
+  return gradient_domain_values(device, scene, target, part, options, domain, groups, nullptr);
+}
+
+Gradient gradient_domain_values(Device& device, const Scene& scene, const Image& target,
+                                const DomainPart& part, const GradientOptions& options,
+                                DomainStats* domain, const std::vector<std::string>& groups,
+                                const std::vector<double>* densities) {
   check_domain_part(part);
+  if (densities && densities->size() != scene.volume.data.size())
+    throw Error(Status::invalid_argument, "domain gradient: " + std::to_string(densities->size()) +
+                                              " float64 densities for the slab's " +
+                                              std::to_string(scene.volume.data.size()));
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
   // The endpoint schemes' bricks hold a halo (brick_halo): at the slab's ends, planes of the
   // neighbours' slabs, fetched first; what the halo's voxels gather is sent back after.
   const int halo = brick_halo(scene, options.step != 0 ? options.step : scene.integrator.step);
   const BrickPlan plan = plan_domain(device, scene, options.precision, 0, true, slab, halo);
-  if (!halo) return gradient_bricked(device, scene, target, groups, options, plan, &part, domain);
+  if (!halo)
+    return gradient_bricked(device, scene, target, groups, options, plan, &part, domain, densities);
   const std::size_t plane = std::size_t(scene.volume.nx) * scene.volume.ny;
   if (scene.volume.data.size() != plane * slab.planes())
     throw Error(Status::invalid_argument,
@@ -356,8 +404,15 @@ Gradient gradient_domain(Device& device, const Scene& scene, const Image& target
                     std::to_string(slab.first) + ".." + std::to_string(slab.last) + " need " +
                     std::to_string(plane * slab.planes()));
   Scene held = description_of(scene);
-  held.volume.data = with_neighbour_planes(part, slab, plan.layout, scene.volume.data);
-  Gradient g = gradient_bricked(device, held, target, groups, options, plan, &part, domain);
+  std::vector<double> held_f64;
+  if (densities) {  // (the floats checked and passed along are these, rounded)
+    held_f64 = with_neighbour_planes(part, slab, plan.layout, *densities);
+    held.volume.data.assign(held_f64.begin(), held_f64.end());
+  } else {
+    held.volume.data = with_neighbour_planes(part, slab, plan.layout, scene.volume.data);
+  }
+  Gradient g = gradient_bricked(device, held, target, groups, options, plan, &part, domain,
+                                densities ? &held_f64 : nullptr);
   for (GroupGradient& group : g.groups)
     if (group.name == "density") {
       group.values = return_halo(part, slab, plan.layout, group.values);

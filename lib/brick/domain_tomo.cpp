@@ -2,7 +2,6 @@
 // projects it; the lines are summed over the workers, the shared planes' back-projections joined.
 #include <algorithm>
 #include <chrono>
-#include <cstring>
 
 #include "brick/bricked_project.hpp"
 #include "brick/domain.hpp"
@@ -16,64 +15,22 @@ namespace ivr {
 
 namespace {
 
-// Every worker's doubles, in rank order (through the part's all_gather).
-std::vector<std::vector<double>> gather_doubles(const DomainPart& part,
-                                                const std::vector<double>& mine) {
-  std::vector<unsigned char> bytes(mine.size() * sizeof(double));
-  if (!mine.empty()) std::memcpy(bytes.data(), mine.data(), bytes.size());
-  const std::vector<std::vector<unsigned char>> all = part.all_gather(bytes);
-  if (int(all.size()) != part.ranks)
-    throw Error(Status::invalid_argument, "domain reconstruction: all_gather gave " +
-                                              std::to_string(all.size()) + " parts for " +
-                                              std::to_string(part.ranks) + " workers");
-  std::vector<std::vector<double>> out(all.size());
-  for (std::size_t w = 0; w < all.size(); ++w) {
-    if (all[w].size() != bytes.size())
-      throw Error(Status::invalid_argument, "domain reconstruction: worker " + std::to_string(w) +
-                                                " sent " + std::to_string(all[w].size()) +
-                                                " bytes, not " + std::to_string(bytes.size()) +
-                                                " (do the workers share one scene?)");
-    out[w].resize(mine.size());
-    if (!mine.empty()) std::memcpy(out[w].data(), all[w].data(), all[w].size());
-  }
-  return out;
-}
-
-// The sum over the workers, added in rank order (the same bits on every worker).
-std::vector<double> sum_over(const DomainPart& part, const std::vector<double>& mine) {
-  if (part.ranks == 1) return mine;
-  const std::vector<std::vector<double>> all = gather_doubles(part, mine);
-  std::vector<double> sum(mine.size(), 0.0);
-  for (const std::vector<double>& w : all)
-    for (std::size_t i = 0; i < sum.size(); ++i) sum[i] += w[i];
-  return sum;
-}
+constexpr const char* kWhat = "domain reconstruction";
 
 template <typename T>
 void solve(Projector::Impl& P, const DomainPart& part, const std::vector<double>& lines,
            const TomoOptions& o, Monitor& m, std::vector<T>& x) {
   const BrickLayout& l = P.bricks;
   const std::size_t plane = std::size_t(l.dims[0]) * l.dims[1], held = l.held();
-  const bool below = part.rank > 0, above = part.rank + 1 < part.ranks;
+  const bool below = part.rank > 0;
   HostSplit<T> A;
   A.project = [&](const std::vector<T>& v) {  // Σ_j N_j v_j: every line on every worker
-    return sum_over(part, project_bricked(P, l, v.data()));
+    return sum_over(part, project_bricked(P, l, v.data()), kWhat);
   };
   A.backproject = [&](const std::vector<double>& y, std::vector<T>& out) {
     out.resize(held);
     backproject_bricked(P, l, y, out.data());
-    if (part.ranks == 1) return;
-    // A shared plane holds each neighbour's part: each adds the other's (a + b = b + a, so both
-    // workers hold the same values there).
-    std::vector<double> ends(2 * plane);
-    for (std::size_t i = 0; i < plane; ++i)
-      ends[i] = double(out[i]), ends[plane + i] = double(out[held - plane + i]);
-    const std::vector<std::vector<double>> all = gather_doubles(part, ends);
-    if (below)
-      for (std::size_t i = 0; i < plane; ++i) out[i] = T(out[i] + all[part.rank - 1][plane + i]);
-    if (above)
-      for (std::size_t i = 0; i < plane; ++i)
-        out[held - plane + i] = T(out[held - plane + i] + all[part.rank + 1][i]);
+    join_shared_planes(part, plane, out, kWhat);  // each neighbour's part of a shared plane
   };
   A.dot_lines = [](const std::vector<double>& a, const std::vector<double>& b) {
     return host_dot(a, b);  // the lines are whole on every worker
@@ -82,9 +39,9 @@ void solve(Projector::Impl& P, const DomainPart& part, const std::vector<double>
     // Over the planes this worker owns (a shared plane is its lower neighbour's).
     double mine = 0;
     for (std::size_t i = below ? plane : 0; i < a.size(); ++i) mine += double(a[i]) * double(b[i]);
-    return sum_over(part, {mine})[0];
+    return sum_over(part, {mine}, kWhat)[0];
   };
-  A.any = [&](bool flag) { return sum_over(part, {flag ? 1.0 : 0.0})[0] > 0; };
+  A.any = [&](bool flag) { return sum_over(part, {flag ? 1.0 : 0.0}, kWhat)[0] > 0; };
   solve_host(A, lines, x, o, m);
 }
 

@@ -112,7 +112,10 @@ void validate_reconstruct(const ReconstructOptions& o) {
 Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const ReconstructOptions& opt)
     : device(d), dev(d.impl()), scene(s), targets(t), o(opt) {
   validate_reconstruct(o);
-  validate(scene);
+  if (o.slabs)
+    setup_slabs();  // (the scene holds one slab's planes)
+  else
+    validate(scene);
   check_target(scene, targets);
   f64 = o.precision == Precision::f64;
   if (f64 && !dev.info.fp64)
@@ -123,7 +126,7 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
     fail("data-parallel reconstruction (" + std::to_string(o.workers) +
          " workers) shares out views: a ray list is one view");
   const int batch = o.batch > 0 ? std::min(o.batch, views) : views;
-  if (o.workers > 1 && batch < o.workers)
+  if (o.workers > 1 && !o.slabs && batch < o.workers)
     fail("data-parallel reconstruction: batches of " + std::to_string(batch) + " view(s) for " +
          std::to_string(o.workers) + " workers (each needs one)");
   if (o.automatic_optimizer)
@@ -158,6 +161,7 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
     dims.push_back({(v.nx + (1 << shift) - 1) >> shift, (v.ny + (1 << shift) - 1) >> shift,
                     (v.nz + (1 << shift) - 1) >> shift});
   }
+  if (o.slabs) dims[0][2] = slab.planes();  // (one level: this worker's planes)
   // Iterations per level in proportion 1 : 2 : 4 … (the finest gets the most).
   const int weight_sum = (1 << count) - 1;
   int done_so_far = 0;
@@ -198,7 +202,9 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
   if (o.density) {
     prior = std::make_unique<DensityPrior>(dev, f64);
     Volume start;
-    if (o.init == Init::scene) {
+    if (o.init == Init::scene && o.slabs) {
+      start.data = scene.volume.data;  // the slab's planes as given
+    } else if (o.init == Init::scene) {
       start = resample_volume(scene.volume, dims[0][0], dims[0][1], dims[0][2]);
     } else {
       start.nx = dims[0][0];
@@ -235,6 +241,14 @@ void Reconstruction::Impl::enter_level(int l, const std::vector<double>& density
   grid.volume.ny = dims[std::size_t(l)][1];
   grid.volume.nz = dims[std::size_t(l)][2];
   grid.volume.data.clear();
+  if (o.slabs) {  // the slab's densities stay on the host, between the domain gradients
+    level = l;
+    level_scene = std::move(grid);
+    slab_x = density;
+    density_opt = std::make_unique<Optimizer>(device, density.size(),
+                                              density_optimizer_options(l), o.precision);
+    return;
+  }
   SessionOptions so;
   so.precision = o.precision;
   so.step = o.step;
@@ -267,7 +281,7 @@ DeviceArray Reconstruction::Impl::batch_targets(const std::vector<int>& views) {
 }
 
 std::vector<double> Reconstruction::Impl::density_host() const {
-  return session->volume().to_doubles();
+  return o.slabs ? slab_x : session->volume().to_doubles();
 }
 
 Volume Reconstruction::Impl::level_volume() const {
@@ -320,7 +334,7 @@ const IterationRecord& Reconstruction::Impl::step() {
   const std::size_t batch_size = views.size();
   FixedShare share;
   double weight = 1;
-  if (o.workers > 1) {
+  if (o.workers > 1 && !o.slabs) {  // (over slabs every worker marches the whole batch)
     if (o.density) share = batch_share(views);
     const auto [first, count] = view_shares(batch_size, std::size_t(o.workers))[std::size_t(o.worker)];
     views = std::vector<int>(views.begin() + std::ptrdiff_t(first),
@@ -349,7 +363,19 @@ const IterationRecord& Reconstruction::Impl::step() {
   r.level = o.density ? level : 0;
   r.views = int(batch_size);
   r.lr = learning_rate(o.optimizer, o.density ? density_opt->iterations() : k);
-  if (o.density) {
+  // The TF's step from its loss gradient (the density's, jointly).
+  auto step_tf = [&](const std::vector<double>& tf_grad) {
+    std::vector<double> gu(u.size());
+    for (std::size_t i = 0; i < u.size(); ++i) gu[i] = tf_grad[i] * bounds.scale[i];
+    r.prior += tf_prior(u, cols, o.tf_smoothness, gu);
+    tf_opt->step(u, gu);
+  };
+  if (o.density && o.slabs) {
+    std::vector<double> tf_grad;
+    std::vector<double> grad = slab_gradient(views, r, tf_grad);
+    if (o.tf) step_tf(tf_grad);
+    density_opt->step(slab_x, grad);
+  } else if (o.density) {
     Session::Impl& s = session->impl();
     if (!cameras.empty()) s.upload_cameras(cameras);
     AdjointRequest request;
@@ -387,12 +413,7 @@ const IterationRecord& Reconstruction::Impl::step() {
       r.prior = prior->add_gradient(level_scene.volume.nx, level_scene.volume.ny,
                                     level_scene.volume.nz, o.tv, o.smoothness, o.tv_epsilon,
                                     buffer_of(s.volume), buffer_of(gr.density));
-    if (o.tf) {
-      std::vector<double> gu(u.size());
-      for (std::size_t i = 0; i < u.size(); ++i) gu[i] = tf_grad[i] * bounds.scale[i];
-      r.prior += tf_prior(u, cols, o.tf_smoothness, gu);
-      tf_opt->step(u, gu);
-    }
+    if (o.tf) step_tf(tf_grad);
     session->step(*density_opt, gr.density);
   } else {
     // The fixed volume, with this batch's cameras and targets; the TF set per evaluation.
@@ -437,7 +458,7 @@ const IterationRecord& Reconstruction::Impl::step() {
       u[i] = std::clamp(u[i], bounds.lower[i] / bounds.scale[i], bounds.upper[i] / bounds.scale[i]);
     apply_tf();
   }
-  if (o.density) session->finish();
+  if (session) session->finish();
   ++k;
   r.seconds = seconds_since(start);
   history.push_back(r);
@@ -472,13 +493,17 @@ int Reconstruction::levels() const {
 std::vector<int> Reconstruction::level_dims(int level) const {
   if (level < 0 || level >= levels())
     fail("level " + std::to_string(level) + " of " + std::to_string(levels()));
+  const Volume& v = impl_->scene.volume;  // (over slabs the grid's, not this worker's planes)
+  if (impl_->o.slabs) return {v.nx, v.ny, v.nz};
   return impl_->dims[std::size_t(level)];
 }
 
 Scene Reconstruction::result() const {
   const Impl& p = *impl_;
   Scene out = p.scene;
-  if (p.o.density) {
+  if (p.o.density && p.o.slabs) {  // this worker's planes (the grid's description whole)
+    out.volume.data.assign(p.slab_x.begin(), p.slab_x.end());
+  } else if (p.o.density) {
     const Volume v = p.level_volume();
     const bool full = v.nx == out.volume.nx && v.ny == out.volume.ny && v.nz == out.volume.nz;
     const glm::dvec3 spacing = out.volume.spacing;

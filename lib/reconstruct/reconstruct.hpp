@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "adjoint/adjoint.hpp"
+#include "ivr/domain.hpp"
 #include "ivr/reconstruct.hpp"
 #include "ivr/session.hpp"
 #include "reconstruct/lbfgs.hpp"
@@ -38,6 +39,12 @@ struct Reconstruction::Impl {
   std::unique_ptr<Optimizer> density_opt;
   std::unique_ptr<DensityPrior> prior;
 
+  // Over slabs (o.slabs; lib/reconstruct/reconstruct_domain.cpp): this worker's planes, their
+  // densities on the host (level_scene: the slab's grid, nx × ny × planes), the exchange.
+  Slab slab;
+  DomainPart part;
+  std::vector<double> slab_x;
+
   // TF (o.tf): normalised parameters u = value / bounds.scale.
   std::vector<double> u;
   TfBounds bounds;
@@ -57,6 +64,14 @@ struct Reconstruction::Impl {
   DeviceArray batch_targets(const std::vector<int>& views);
   // A worker's view of the batch `batch` (o.workers > 1): lib/adjoint/adjoint.hpp.
   FixedShare batch_share(const std::vector<int>& batch) const;
+
+  // Over slabs: checks the options and the slab, and sets slab, part and the single level.
+  void setup_slabs();
+  // The batch `views`' loss and this worker's planes of the density gradient (the shared planes
+  // joined), with the priors; the TF's gradient summed over the workers (o.tf). Fills r.loss,
+  // r.prior and r.device_bytes.
+  std::vector<double> slab_gradient(const std::vector<int>& views, IterationRecord& r,
+                                    std::vector<double>& tf_grad);
 };
 
 }  // namespace ivr

@@ -34,7 +34,7 @@ json fingerprint(const Reconstruction::Impl& p) {
   const Image& t = p.targets;
   const OptimizerOptions& q = o.optimizer;
   const char* init = o.init == Init::scene ? "scene" : o.init == Init::zeros ? "zeros" : "constant";
-  return {{"density", o.density},
+  json j = {{"density", o.density},
           {"tf", o.tf},
           {"iterations", o.iterations},
           {"optimizer", optimizer_name(q.kind)},
@@ -66,6 +66,8 @@ json fingerprint(const Reconstruction::Impl& p) {
           {"grid", {p.scene.volume.nx, p.scene.volume.ny, p.scene.volume.nz}},
           {"targets", {t.views, t.height, t.width, t.channels}},
           {"tf_parameters", p.o.tf ? p.u.size() : 0}};
+  if (o.slabs) j["slab"] = {o.worker, o.workers};  // each worker's own planes and state
+  return j;
 }
 
 // NaN/Inf (a diverged loss) as null: JSON has no such numbers.

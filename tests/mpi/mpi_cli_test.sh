@@ -6,7 +6,8 @@
 # (--split slabs: each rank one slab, the rays' states exchanged) the render and the density and
 # TF gradients within 1e-12 and the camera's (forward lanes over slabs) within 1e-10, CGLS over slabs (each rank its slab of the iterate) within 1e-10, SIRT and LSQR (x ≥ 0) over views and slabs within 1e-10; `ivr reconstruct` (views of each batch shared out) follows one
 # process's losses within 1e-10 and ends at its densities bit for bit (fixed-point gradients: the
-# shares' integer sums added exactly), as `ivr gradient --deterministic` gives one process's
+# shares' integer sums added exactly), over slabs (each rank its planes, both priors across them)
+# its losses and priors within 1e-12, as `ivr gradient --deterministic` gives one process's
 # density gradient bit for bit (float32); an error in the
 # ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
@@ -42,6 +43,10 @@ out=$("$ivr" gradient scene.json "${det[@]}" -o d1)
 echo "$out" | grep -q '"deterministic":true' || { echo "gradient --deterministic: $out"; exit 1; }
 rec=(--targets one.npy --init constant:0.3 --iterations 12 --batch 4 --levels 2 --precision f64)
 "$ivr" reconstruct scene.json "${rec[@]}" -o rec1 2>/dev/null >/dev/null
+# Over slabs: one level, SGD (linear in the gradient), both priors across the slabs.
+srec=(--targets one.npy --init constant:0.3 --iterations 6 --batch 4 --levels 1 --precision f64
+  --optimizer sgd --lr 1 --tv 0.05 --smoothness 0.02)
+"$ivr" reconstruct scene.json "${srec[@]}" -o srec1 2>/dev/null >/dev/null
 run() { "$mpiexec" -np "$1" --oversubscribe "${@:2}"; }
 for np in 2 4; do
   out=$(run "$np" "$ivr" render scene.json -o "r$np.npy" --precision f64 --json)
@@ -72,6 +77,10 @@ for np in 2 4; do
   done
   out=$(run "$np" "$ivr" reconstruct scene.json "${rec[@]}" -o "rec$np" --json 2>/dev/null)
   echo "$out" | grep -q "\"ranks\":$np" || { echo "reconstruct -np $np: $out"; exit 1; }
+  out=$(run "$np" "$ivr" reconstruct scene.json "${srec[@]}" -o "srec$np" --split slabs \
+    --checkpoint-every 2 --json 2>/dev/null)
+  echo "$out" | grep -q '"levels":\[\[16,16,16\]\]' || { echo "reconstruct --split slabs -np $np: $out"; exit 1; }
+  ! ls srec"$np"_*checkpoint* 2>/dev/null || { echo "reconstruct --split slabs left checkpoints"; exit 1; }
 done
 "$python" - <<'PY'
 import numpy as np
@@ -109,6 +118,17 @@ for n in (2, 4):
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert a.shape == b.shape and np.array_equal(a, b), f"reconstruct -np {n} densities: {err}"
     print(f"-np {n} reconstruct: losses {lerr:.2e}, densities identical")
+    worst = 0
+    for column, what in ((3, "losses"), (4, "priors")):
+        la = np.loadtxt("srec1_loss.csv", delimiter=",", skiprows=1)[:, column]
+        lb = np.loadtxt(f"srec{n}_loss.csv", delimiter=",", skiprows=1)[:, column]
+        lerr = np.max(np.abs(la - lb)) / np.max(np.abs(la))  # (the first prior is 0)
+        assert la.shape == lb.shape and lerr <= 1e-12, f"reconstruct --split slabs -np {n} {what}: {lerr}"
+        worst = max(worst, lerr)
+    a, b = np.load("srec1_density.npy"), np.load(f"srec{n}_density.npy")
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))  # (float32 files of float64 iterates)
+    assert a.shape == b.shape and err <= 1e-7, f"reconstruct --split slabs -np {n} densities: {err}"
+    print(f"-np {n} reconstruct over slabs: losses and priors {worst:.2e}, densities {err:.2e}")
     for one_name, many_name, what in (("p.npy", f"p{n}.npy", "project"),
                                       ("bp1.npy", f"bp{n}.npy", "backproject")):
         a, b = np.load(one_name), np.load(many_name)

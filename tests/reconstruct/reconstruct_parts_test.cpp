@@ -21,6 +21,9 @@ namespace ivr {
 namespace {
 
 using test::device;
+using test::run_workers;
+using test::Small;
+using test::WorkerRuns;
 
 // R(x) and ∇R(x) of the device prior on a host vector, in float64.
 double prior_at(DensityPrior& prior, int nx, int ny, int nz, double tv, double smooth,
@@ -127,15 +130,6 @@ TEST(ReconstructPartsTest, ResampleKeepsConstantsAndLinearRamps) {
 }
 
 // A small density problem shared by the tests below: 16³ phantom, 8 views of 24².
-struct Small {
-  Scene scene;
-  Image targets;
-  Small() {
-    scene = test::phantom_scene("[" + test::orbit(8, "[0.2, 0.1, 1]", 3, 24) + "]", 16);
-    targets = render(device(), scene);
-  }
-};
-
 TEST(ReconstructPartsTest, BatchesAndJointDensityAndTf) {
   const Small p;
   Scene start = p.scene;
@@ -155,42 +149,6 @@ TEST(ReconstructPartsTest, BatchesAndJointDensityAndTf) {
   EXPECT_GT(h.back().device_bytes, 16u * 16 * 16 * 4 * 3);
   const std::vector<double> got = tf_parameters(r.result().tf);
   EXPECT_NE(got, tf);  // the TF moved
-}
-
-// `workers` reconstructions on threads (each its own context, options `o` with its worker index and
-// a sum through a rendezvous: every worker gets Σ of all, added in worker order), run to the end:
-// each worker's history and densities, and its error where it threw.
-struct WorkerRuns {
-  std::vector<std::vector<IterationRecord>> histories;
-  std::vector<std::vector<double>> densities;
-  std::vector<std::string> errors;
-};
-WorkerRuns run_workers(int workers, const Scene& scene, const Image& targets,
-                       const ReconstructOptions& o) {
-  WorkerSum sum(workers);
-  WorkerRuns out;
-  out.histories.resize(std::size_t(workers));
-  out.densities.resize(std::size_t(workers));
-  out.errors.resize(std::size_t(workers));
-  std::vector<std::thread> threads;
-  for (int w = 0; w < workers; ++w)
-    threads.emplace_back([&, w] {
-      try {
-        Device d(std::to_string(device().info().index));
-        ReconstructOptions ow = o;
-        ow.worker = w, ow.workers = workers, ow.sum = sum.of(w);
-        Reconstruction r(d, scene, targets, ow);
-        while (!r.done()) r.step();
-        out.histories[std::size_t(w)] = r.history();
-        const std::vector<float>& v = r.result().volume.data;
-        out.densities[std::size_t(w)].assign(v.begin(), v.end());
-      } catch (const std::exception& e) {
-        out.errors[std::size_t(w)] = e.what();
-        sum.abort();  // (the others stop rather than wait for this worker)
-      }
-    });
-  for (std::thread& t : threads) t.join();
-  return out;
 }
 
 // Data-parallel over views (ReconstructOptions::workers; what mpirun -np N ivr reconstruct runs):

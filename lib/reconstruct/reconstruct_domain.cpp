@@ -1,0 +1,98 @@
+// reconstruct_domain.cpp — the reconstruction over slabs of z planes (ReconstructOptions::slabs):
+// each worker's planes of the densities, their domain gradient, the priors counted once across
+// slabs, and the planes neighbours share joined before the step.
+#include <string>
+
+#include "brick/domain.hpp"
+#include "ivr/error.hpp"
+#include "reconstruct/reconstruct.hpp"
+#include "runtime/real_args.hpp"
+#include "scene/scene.hpp"
+#include "session/session.hpp"
+
+namespace ivr {
+
+namespace {
+
+constexpr const char* kWhat = "reconstruction over slabs";
+
+[[noreturn]] void refuse(const std::string& what) {
+  throw Error(Status::invalid_argument, std::string(kWhat) + ": " + what);
+}
+
+}  // namespace
+
+void Reconstruction::Impl::setup_slabs() {
+  if (!o.density)
+    refuse("the TF alone differentiates the whole volume on every worker: split the views");
+  if (o.levels > 1)
+    refuse("coarse-to-fine levels would resample across the slabs: levels 1 (or 0), got " +
+           std::to_string(o.levels));
+  o.levels = 1;
+  if (scene.has_ray_list()) refuse("cameras only (a ray list is one view)");
+  if (scene.integrator.tolerance > 0 && o.step == 0)
+    refuse("a tolerance's step is chosen from the whole volume: give a step");
+  part.rank = o.worker;
+  part.ranks = o.workers;
+  if (o.workers > 1)
+    part.all_gather = o.all_gather ? o.all_gather : all_gather_by_sum(o.worker, o.workers, o.sum);
+  slab = domain_slab(scene.volume.nz, o.worker, o.workers);
+  // The slab's values as a volume of its planes (finite, >= 0), with the scene's description.
+  Scene held = scene;
+  held.volume.nz = slab.planes();
+  if (held.volume.data.size() != held.volume.voxel_count())
+    refuse("worker " + std::to_string(o.worker) + " of " + std::to_string(o.workers) +
+           " holds planes " + std::to_string(slab.first) + ".." + std::to_string(slab.last) +
+           ": the volume needs " + std::to_string(held.volume.voxel_count()) + " values, got " +
+           std::to_string(held.volume.data.size()) + " (domain_share())");
+  validate(held);
+}
+
+std::vector<double> Reconstruction::Impl::slab_gradient(const std::vector<int>& views,
+                                                        IterationRecord& r,
+                                                        std::vector<double>& tf_grad) {
+  // The batch's cameras and targets; the slab's current densities.
+  Scene batch = description_of(scene);
+  batch.cameras.clear();
+  for (int v : views) batch.cameras.push_back(scene.cameras[std::size_t(v)]);
+  batch.volume.data.assign(slab_x.begin(), slab_x.end());
+  const std::size_t per_view = targets.pixels.size() / scene.cameras.size();
+  Image target(int(views.size()), targets.height, targets.width, targets.channels);
+  for (int v : views)
+    target.pixels.insert(target.pixels.end(),
+                         targets.pixels.begin() + std::ptrdiff_t(std::size_t(v) * per_view),
+                         targets.pixels.begin() + std::ptrdiff_t(std::size_t(v + 1) * per_view));
+  GradientOptions go;
+  go.precision = o.precision;
+  go.step = o.step;
+  go.loss = o.loss;
+  std::vector<std::string> groups = {"density"};
+  if (o.tf) groups.push_back("tf");
+  // (float64: the iterate as it is, not its floats)
+  Gradient g = gradient_domain_values(device, batch, target, part, go, nullptr, groups,
+                                      f64 ? &slab_x : nullptr);
+  r.loss = g.loss;
+  std::vector<double> grad = std::move(g.groups[0].values);
+  const std::size_t voxels = grad.size();
+  r.device_bytes = g.device_bytes + voxels * (f64 ? 8 : 4) *
+                                        (o.optimizer.kind == OptimizerKind::adam ? 2 : 1);
+  if (o.tf) tf_grad = sum_over(part, g.groups[1].values, kWhat);  // each slab's samples' part
+
+  // The priors' terms of the planes this worker owns (a shared plane's are the upper worker's),
+  // as means over the whole volume; their value summed over the workers.
+  double prior_part = 0;
+  if (o.tv > 0 || o.smoothness > 0) {
+    const Volume& v = level_scene.volume;  // nx × ny × the slab's planes
+    const cl::Buffer x = upload_reals(dev, f64, slab_x, "the slab's densities");
+    const cl::Buffer gb = upload_reals(dev, f64, grad, "the slab's gradient");
+    const bool last = o.worker + 1 == o.workers;
+    prior_part = prior->add_gradient(v.nx, v.ny, v.nz, o.tv, o.smoothness, o.tv_epsilon, x, gb,
+                                     last ? v.nz : v.nz - 1, double(scene.volume.voxel_count()));
+    grad = download_reals(dev, f64, gb, voxels);
+  }
+  r.prior = sum_over(part, {prior_part}, kWhat)[0];
+  join_shared_planes(part, std::size_t(scene.volume.nx) * std::size_t(scene.volume.ny), grad, kWhat);
+  return grad;
+}
+
+}  // namespace ivr

@@ -81,8 +81,8 @@ IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image
                                  DomainStats* domain = nullptr,
                                  const std::vector<std::string>& groups = {"density"});
 
-// CGLS, SIRT or LSQR (with nonneg or Tikhonov; TV, whose differences cross the slabs, is
-// Error(unsupported)) over slabs: the projections `lines` (every worker passes all of
+// CGLS, SIRT or LSQR (with nonneg, Tikhonov or TV: each worker holds the TV rows of the planes it
+// owns, their parts of a shared plane joined) over slabs: the projections `lines` (every worker passes all of
 // them) of `scene`'s rays, this worker holding and solving for planes domain_slab(nz, rank, ranks)
 // of the volume (scene.volume.data is not read). Each iteration sums the workers' parts of N x over
 // the lines and joins the planes neighbours share; every worker's iterate equals one process's to

@@ -311,8 +311,8 @@ typedef enum ivr_split {
   IVR_SPLIT_MAX_ENUM = 0x7fffffff
 } ivr_split;
 
-/* ivr_tomo as worker `rank` of `ranks` (CGLS, SIRT or LSQR, with nonneg, tikhonov or — over views
- * — tv; TV over slabs is IVR_ERROR_UNSUPPORTED), every worker calling it
+/* ivr_tomo as worker `rank` of `ranks` (CGLS, SIRT or LSQR, with nonneg, tikhonov or tv; over
+ * slabs each worker holds the TV rows of its own planes), every worker calling it
  * together with the same options; `sum` (with `sum_user`) adds over the workers.
  * IVR_SPLIT_VIEWS: `scene` holds this worker's share of the views (or rays) and `lines` (`count`
  * floats) their projections; `volume` receives the whole grid (nz * ny * nx), the same on every
@@ -461,6 +461,20 @@ IVR_API ivr_status ivr_reconstruction_create_shared(ivr_context* context, const 
                                                     int worker, int workers, ivr_sum_fn sum,
                                                     void* sum_user,
                                                     ivr_reconstruction** reconstruction);
+/* ivr_reconstruction_create_shared with the work shared as `split` says: IVR_SPLIT_VIEWS is
+ * ivr_reconstruction_create_shared; IVR_SPLIT_SLABS (mpirun ivr reconstruct --split slabs): every
+ * worker passes the whole scene (its volume: the start with init scene) and targets, holds only
+ * planes ivr_domain_slab(nz, worker, workers) of the densities and their optimiser state, and
+ * marches every view of each batch through them, the rays' states passed through `sum`; the
+ * densities (and the TF jointly), one level, cameras only. ivr_reconstruction_volume then returns
+ * this worker's planes (planes * ny * nx; those neighbours share alike on both), and
+ * ivr_reconstruction_result_scene is refused (it would hold one slab). */
+IVR_API ivr_status ivr_reconstruction_create_split(ivr_context* context, const ivr_scene* scene,
+                                                   const float* targets, size_t count,
+                                                   const ivr_reconstruct_options* options,
+                                                   ivr_split split, int worker, int workers,
+                                                   ivr_sum_fn sum, void* sum_user,
+                                                   ivr_reconstruction** reconstruction);
 IVR_API ivr_status ivr_reconstruction_retain(ivr_reconstruction* reconstruction);
 IVR_API ivr_status ivr_reconstruction_release(ivr_reconstruction* reconstruction);
 /* One iteration; `iteration` (may be NULL) receives its record. IVR_ERROR_INVALID_ARGUMENT once

@@ -42,6 +42,12 @@ void solve(Projector::Impl& P, const DomainPart& part, const std::vector<double>
     return sum_over(part, {mine}, kWhat)[0];
   };
   A.any = [&](bool flag) { return sum_over(part, {flag ? 1.0 : 0.0}, kWhat)[0] > 0; };
+  // TV: the slab's grid, the rows of the planes it owns (its last is the next slab's), the rows'
+  // sums over the workers and their parts of the shared planes joined.
+  A.nx = l.dims[0], A.ny = l.dims[1], A.nz = int(held / plane);
+  A.row_planes = part.rank + 1 < part.ranks ? A.nz - 1 : A.nz;
+  A.total = [&](double mine) { return sum_over(part, {mine}, kWhat)[0]; };
+  A.join = [&](std::vector<T>& v) { join_shared_planes(part, plane, v, kWhat); };
   solve_host(A, lines, x, o, m);
 }
 
@@ -52,7 +58,6 @@ TomoResult tomo_domain(Device& device, const Scene& scene, const std::vector<dou
                        const TomoProgress& progress) {
   check_domain_part(part);
   check_tomo_options(options);
-  check_host_solver(options, "domain-parallel reconstruction", false);
   const auto t0 = std::chrono::steady_clock::now();
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
   Projector projector(device, description_of(scene), options.precision);

@@ -7,6 +7,7 @@
 
 #include "capi/c_api_handles.hpp"
 #include "capi/options.hpp"
+#include "ivr/domain.hpp"
 #include "reconstruct/reconstruct_params.hpp"
 
 using namespace ivr::capi;
@@ -67,7 +68,8 @@ ivr_reconstruction* create_reconstruction(ivr_context* c, const ivr_scene* s, co
   with_volume(checked(s, Kind::scene, "scene"));
   same_context(s->context, c, "scene");
   not_null(targets, "targets");
-  const ivr::Scene& scene = s->scene;
+  // Over slabs this worker's planes of the densities (the grid its volume calls return).
+  const ivr::Scene scene = o.slabs ? ivr::domain_share(s->scene, o.worker, o.workers) : s->scene;
   const ivr::ImageExtent cam = ivr::image_extent(scene);
   ivr::Image t{cam.views, cam.height, cam.width, scene.channels(), {}};
   const size_t want = size_t(t.views) * size_t(t.height) * size_t(t.width) * size_t(t.channels);
@@ -82,7 +84,8 @@ ivr_reconstruction* create_reconstruction(ivr_context* c, const ivr_scene* s, co
   r->explicit_box = s->explicit_box;
   r->grid.nx = scene.volume.nx;
   r->grid.ny = scene.volume.ny;
-  r->grid.nz = scene.volume.nz;
+  r->grid.nz = o.slabs ? int(scene.volume.data.size() / (size_t(scene.volume.nx) * scene.volume.ny))
+                       : scene.volume.nz;
   return publish(std::move(r), c, Kind::reconstruction);
 }
 }  // namespace
@@ -110,13 +113,27 @@ ivr_status ivr_reconstruction_create_shared(ivr_context* c, const ivr_scene* s,
                                             const ivr_reconstruct_options* options, int worker,
                                             int workers, ivr_sum_fn sum, void* sum_user,
                                             ivr_reconstruction** out) {
-  return guarded(c, "ivr_reconstruction_create_shared", [&] {
+  return ivr_reconstruction_create_split(c, s, targets, count, options, IVR_SPLIT_VIEWS, worker,
+                                         workers, sum, sum_user, out);
+}
+
+ivr_status ivr_reconstruction_create_split(ivr_context* c, const ivr_scene* s,
+                                           const float* targets, size_t count,
+                                           const ivr_reconstruct_options* options, ivr_split split,
+                                           int worker, int workers, ivr_sum_fn sum, void* sum_user,
+                                           ivr_reconstruction** out) {
+  return guarded(c, split == IVR_SPLIT_SLABS ? "ivr_reconstruction_create_split"
+                                             : "ivr_reconstruction_create_shared",
+                 [&] {
     not_null(out, "reconstruction");
     *out = nullptr;
     if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+    if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS)
+      bad("split " + std::to_string(int(split)) + " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS)");
     ivr::ReconstructOptions o = core_options(options);
     o.worker = worker, o.workers = workers;  // (their range: checked by the core, named)
     o.sum = sum_of(sum, sum_user);
+    o.slabs = split == IVR_SPLIT_SLABS;
     *out = create_reconstruction(c, s, targets, count, o);
   });
 }
@@ -226,7 +243,7 @@ ivr_status ivr_reconstruction_volume(const ivr_reconstruction* r, float* volume,
                                                    " floats; the grid has " +
                                                    std::to_string(v.data.size()) + " voxels"};
     std::copy(v.data.begin(), v.data.end(), volume);
-    if (shape) write_shape(v, shape);
+    if (shape) write_shape(r->grid, shape);  // (over slabs this worker's planes)
   });
 }
 
@@ -260,6 +277,9 @@ ivr_status ivr_reconstruction_result_scene(const ivr_reconstruction* r, ivr_scen
     not_null(out, "scene");
     *out = nullptr;
     auto s = std::make_unique<ivr_scene>();
+    if (r->reconstruction->options().slabs)
+      bad("over slabs the result scene would hold one slab: read ivr_reconstruction_volume and "
+          "join the workers' planes");
     s->scene = r->reconstruction->result();
     s->explicit_box = r->explicit_box;
     *out = publish(std::move(s), r->context, Kind::scene);

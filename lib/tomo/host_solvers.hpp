@@ -13,14 +13,6 @@
 
 namespace ivr {
 
-// TV's differences need the whole grid: refused where a worker holds a slab (`where` names it).
-inline void check_host_solver(const TomoOptions& o, const std::string& where, bool whole_volume) {
-  if (o.tv > 0 && !whole_volume)
-    throw Error(Status::unsupported, where + ": TV regularisation is not available over slabs "
-                                             "(its differences cross them); use tikhonov or "
-                                             "nonneg, or split by views");
-}
-
 // The stacked system's regulariser rows and the solvers' block vectors on host vectors: what the
 // device's StackedSystem (lib/tomo/tomo.cpp) and TV kernels (kernels/linalg.cl) do.
 template <typename T>
@@ -74,8 +66,9 @@ class HostSystem {
     for (std::size_t i = 0; i < tmp.reg.size(); ++i) r.reg[i] = -tmp.reg[i];
   }
   double dot(const Block& a, const Block& b) const {
-    const double reg = o_.tikhonov > 0 ? A_.dot_volume(a.reg, b.reg)  // (a slab: its owned planes)
-                       : o_.tv > 0     ? host_dot(a.reg, b.reg)
+    // (a slab: Tikhonov's rows over the planes it owns, TV's over the rows it holds, summed)
+    const double reg = o_.tikhonov > 0 ? A_.dot_volume(a.reg, b.reg)
+                       : o_.tv > 0     ? total(host_dot(a.reg, b.reg))
                                        : 0.0;
     return A_.dot_lines(a.data, b.data) + reg;
   }
@@ -89,21 +82,25 @@ class HostSystem {
       add_tv_adjoint(-1.0, lx.reg, g);
     }
   }
-  // out = base + a bound on the regulariser's Hessian row sums: λ, or twice the TV rows' diagonal.
+  // out = base + a bound on the regulariser's Hessian row sums: λ, or twice the TV rows' diagonal
+  // (over slabs the rows' parts of a shared plane joined).
   void add_curvature(const std::vector<T>& base, std::vector<T>& out) const {
     out.resize(n_);
-    for (std::size_t i = 0; i < n_; ++i) {
-      double d = o_.tikhonov;
-      if (o_.tv > 0) {
-        d = 0;
-        for (int k = 0; k < 3; ++k) {
-          if (has_next(i, k)) d += sw_[i] * sw_[i];
-          if (has_prev(i, k)) d += sw_[i - step(k)] * sw_[i - step(k)];
-        }
-        d *= 2;
-      }
-      out[i] = T(double(base[i]) + d);
+    if (o_.tv <= 0) {
+      for (std::size_t i = 0; i < n_; ++i) out[i] = T(double(base[i]) + o_.tikhonov);
+      return;
     }
+    std::vector<T> d(n_);
+    for (std::size_t i = 0; i < n_; ++i) {
+      double sum = 0;
+      for (int k = 0; k < 3; ++k) {
+        if (has_row(i, k)) sum += sw_[i] * sw_[i];
+        if (has_prev(i, k) && has_row(i - step(k), k)) sum += sw_[i - step(k)] * sw_[i - step(k)];
+      }
+      d[i] = T(2 * sum);
+    }
+    if (A_.join) A_.join(d);
+    for (std::size_t i = 0; i < n_; ++i) out[i] = T(double(base[i]) + double(d[i]));
   }
 
  private:
@@ -119,24 +116,37 @@ class HostSystem {
     return coordinate(i, k) + 1 < (k == 0 ? A_.nx : k == 1 ? A_.ny : A_.nz);
   }
   bool has_prev(std::size_t i, int k) const { return coordinate(i, k) > 0; }
-  // out.reg = S D x (the TV rows)
+  // Whether this worker holds voxel i's TV row along axis k (over slabs: its row planes only).
+  bool has_row(std::size_t i, int k) const {
+    return has_next(i, k) && (A_.row_planes < 0 || coordinate(i, 2) < A_.row_planes);
+  }
+  double total(double mine) const { return A_.total ? A_.total(mine) : mine; }
+  // out.reg = S D x (the TV rows; 0 where another worker holds the row)
   void apply_regularizer(const std::vector<T>& x, Block& out) const {
     out.reg.resize(3 * n_);
     for (std::size_t i = 0; i < n_; ++i)
       for (int k = 0; k < 3; ++k)
         out.reg[3 * i + k] =
-            has_next(i, k) ? T(sw_[i] * (double(x[i + step(k)]) - double(x[i]))) : T(0);
+            has_row(i, k) ? T(sw_[i] * (double(x[i + step(k)]) - double(x[i]))) : T(0);
   }
-  // out += a · Dᵀ(sw ⊙ g)
+  // out += a · Dᵀ(sw ⊙ g) (over slabs each worker's rows' part, the shared planes joined)
   void add_tv_adjoint(double a, const std::vector<T>& g, std::vector<T>& out) const {
+    std::vector<T> part(A_.join ? n_ : 0);
     for (std::size_t i = 0; i < n_; ++i) {
       double sum = 0;
       for (int k = 0; k < 3; ++k) {
-        if (has_next(i, k)) sum -= sw_[i] * double(g[3 * i + k]);
-        if (has_prev(i, k)) sum += sw_[i - step(k)] * double(g[3 * (i - step(k)) + k]);
+        if (has_row(i, k)) sum -= sw_[i] * double(g[3 * i + k]);
+        if (has_prev(i, k) && has_row(i - step(k), k))
+          sum += sw_[i - step(k)] * double(g[3 * (i - step(k)) + k]);
       }
-      out[i] = T(out[i] + a * sum);
+      if (A_.join)
+        part[i] = T(sum);
+      else
+        out[i] = T(out[i] + a * sum);
     }
+    if (!A_.join) return;
+    A_.join(part);
+    for (std::size_t i = 0; i < n_; ++i) out[i] = T(out[i] + a * double(part[i]));
   }
 
   const HostSplit<T>& A_;

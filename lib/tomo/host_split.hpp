@@ -64,8 +64,15 @@ struct HostSplit {
   // Whether any worker's flag is set (collective); unset: this worker's alone (every worker holds
   // the same iterate).
   std::function<bool(bool)> any;
-  // The volume's grid where this worker holds all of it (TV's differences); 0 for a slab.
+  // The grid of the voxels this worker holds (TV's differences): the volume's, or a slab's planes.
   int nx = 0, ny = 0, nz = 0;
+  // A slab (tomo_domain): the planes whose TV rows (forward differences) this worker holds, its
+  // first `row_planes` (a plane it shares with the next slab has its rows there, where the next
+  // plane is); `total` sums a value over the workers; `join` adds to the planes it shares with its
+  // neighbours their parts (as backproject's). Unset where a worker holds the whole grid.
+  int row_planes = -1;
+  std::function<double(double)> total;
+  std::function<void(std::vector<T>&)> join;
 };
 
 // ⟨a, b⟩ in double, in index order.

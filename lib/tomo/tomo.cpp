@@ -339,7 +339,6 @@ TomoResult tomo(Device& device, const Scene& scene, const std::vector<double>& l
     });
   }
   if (projector.bricks() > 1) {  // out of core: host vectors, the projector in bricks
-    check_host_solver(options, "out-of-core reconstruction", true);
     TomoResult result;
     result.bricks = projector.bricks();
     result.setup_seconds =
@@ -390,7 +389,6 @@ TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<dou
                        const std::function<void(std::vector<double>&)>& sum,
                        const TomoProgress& progress) {
   check_tomo_options(options);
-  check_host_solver(options, "data-parallel reconstruction", true);
   const auto t0 = std::chrono::steady_clock::now();
   const Projector projector(device, share, options.precision);
   if (lines.size() != projector.ray_count())

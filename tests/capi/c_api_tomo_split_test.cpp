@@ -254,8 +254,8 @@ TEST(CApiTomoSplit, BadArgumentsAreRefused) {
   EXPECT_EQ(call(IVR_SPLIT_VIEWS, 0, 1, summed, kVoxels - 1), IVR_ERROR_BUFFER_TOO_SMALL);
   EXPECT_EQ(call(IVR_SPLIT_VIEWS, 0, 1, failing_sum, kVoxels), IVR_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(has(ivr_last_error(), "sum")) << ivr_last_error();
-  o.tikhonov = 0, o.tv = 1e-3;  // (TV: in core only)
-  EXPECT_EQ(call(IVR_SPLIT_SLABS, 0, 1, summed, kVoxels), IVR_ERROR_UNSUPPORTED);
+  o.tikhonov = 0, o.tv = 1e-3;  // (TV over slabs: each worker the rows of its own planes)
+  EXPECT_EQ(call(IVR_SPLIT_SLABS, 0, 1, summed, kVoxels), IVR_OK) << ivr_last_error();
   // The render and gradient over slabs (their results: bindings/python/tests/test_mpi.py).
   std::vector<float> image(3 * kViewRays);
   EXPECT_EQ(ivr_render_slabs(ctx, scene, IVR_PRECISION_F32, 0, 0, 1, nullptr, nullptr, image.data(),
@@ -306,6 +306,31 @@ TEST(CApiTomoSplit, BadArgumentsAreRefused) {
       << ivr_last_error();
   ivr_reconstruct_iteration it;
   EXPECT_EQ(ivr_reconstruction_step(rec, &it), IVR_OK) << ivr_last_error();
+  EXPECT_EQ(ivr_reconstruction_release(rec), IVR_OK);
+  // Over slabs (ivr_reconstruction_create_split): one worker's planes; a bad split named, and no
+  // result scene (it would hold one slab).
+  rec = nullptr;
+  EXPECT_EQ(ivr_reconstruction_create_split(ctx, scene, image.data(), image.size(), &ro,
+                                            ivr_split(7), 0, 1, summed, &w, &rec),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "split 7")) << ivr_last_error();
+  ro.levels = 2;
+  EXPECT_EQ(ivr_reconstruction_create_split(ctx, scene, image.data(), image.size(), &ro,
+                                            IVR_SPLIT_SLABS, 0, 1, summed, &w, &rec),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "coarse-to-fine")) << ivr_last_error();
+  ro.levels = 1;
+  ASSERT_EQ(ivr_reconstruction_create_split(ctx, scene, image.data(), image.size(), &ro,
+                                            IVR_SPLIT_SLABS, 0, 1, summed, &w, &rec),
+            IVR_OK)
+      << ivr_last_error();
+  EXPECT_EQ(ivr_reconstruction_step(rec, &it), IVR_OK) << ivr_last_error();
+  int64_t shape[3] = {0, 0, 0};
+  EXPECT_EQ(ivr_reconstruction_volume(rec, nullptr, 0, shape), IVR_OK);
+  EXPECT_EQ(shape[0] * shape[1] * shape[2], int64_t(kVoxels));  // (one worker: every plane)
+  ivr_scene* whole = nullptr;
+  EXPECT_EQ(ivr_reconstruction_result_scene(rec, &whole), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "one slab")) << ivr_last_error();
   EXPECT_EQ(ivr_reconstruction_release(rec), IVR_OK);
   int first = 0, last = 0;
   EXPECT_EQ(ivr_domain_slab(4, 0, 4, &first, &last), IVR_ERROR_INVALID_ARGUMENT);

@@ -4,7 +4,7 @@
 # the render bit for bit, the float64 gradients (density, TF, cameras), the lines and the
 # back-projection within 1e-12 of the largest entry, CGLS's iterate within 1e-12; over slabs
 # (--split slabs: each rank one slab, the rays' states exchanged) the render and the density and
-# TF gradients within 1e-12 and the camera's (forward lanes over slabs) within 1e-10, CGLS over slabs (each rank its slab of the iterate) within 1e-10, SIRT and LSQR (x ≥ 0) over views and slabs within 1e-10; `ivr reconstruct` (views of each batch shared out) follows one
+# TF gradients within 1e-12 and the camera's (forward lanes over slabs) within 1e-10, CGLS over slabs (each rank its slab of the iterate) within 1e-10, SIRT and LSQR (x ≥ 0) over views and slabs within 1e-10, LSQR with TV over slabs within 1e-10; `ivr reconstruct` (views of each batch shared out) follows one
 # process's losses within 1e-10 and ends at its densities bit for bit (fixed-point gradients: the
 # shares' integer sums added exactly), over slabs (each rank its planes, both priors across them)
 # its losses and priors within 1e-12, as `ivr gradient --deterministic` gives one process's
@@ -38,6 +38,8 @@ for solver in sirt lsqr; do
   "$ivr" tomo scene.json --projections p.npy --iterations 5 --solver "$solver" --nonneg \
     -o "${solver}1.npy" --precision f64 2>/dev/null >/dev/null
 done
+"$ivr" tomo scene.json --projections p.npy --iterations 5 --solver lsqr --tv 1e-3 -o tv1.npy \
+  --precision f64 2>/dev/null >/dev/null
 det=(--target target.npy --wrt density,tf --mode adjoint --deterministic --json)
 out=$("$ivr" gradient scene.json "${det[@]}" -o d1)
 echo "$out" | grep -q '"deterministic":true' || { echo "gradient --deterministic: $out"; exit 1; }
@@ -75,6 +77,8 @@ for np in 2 4; do
     run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 --solver "$solver" \
       --nonneg -o "s$solver$np.npy" --precision f64 --split slabs 2>/dev/null >/dev/null
   done
+  run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 --solver lsqr --tv 1e-3 \
+    -o "stv$np.npy" --precision f64 --split slabs 2>/dev/null >/dev/null
   out=$(run "$np" "$ivr" reconstruct scene.json "${rec[@]}" -o "rec$np" --json 2>/dev/null)
   echo "$out" | grep -q "\"ranks\":$np" || { echo "reconstruct -np $np: $out"; exit 1; }
   out=$(run "$np" "$ivr" reconstruct scene.json "${srec[@]}" -o "srec$np" --split slabs \
@@ -150,6 +154,10 @@ for n in (2, 4):
             err = np.max(np.abs(a - b)) / np.max(np.abs(a))
             assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-10, f"{name}: {err}"
             print(f"-np {n} tomo --solver {solver} ({'slabs' if name.startswith('s' + solver) else 'views'}): {err:.2e}")
+    a, b = np.load("tv1.npy"), np.load(f"stv{n}.npy")
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-10, f"tomo --tv --split slabs -np {n}: {err}"
+    print(f"-np {n} tomo --solver lsqr --tv over slabs: {err:.2e}")
 PY
 # An error (a missing target) ends every rank with a non-zero status and writes nothing.
 if run 2 "$ivr" gradient scene.json --target missing.npy --wrt density -o bad 2>err.txt; then

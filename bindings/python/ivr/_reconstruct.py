@@ -74,12 +74,12 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
         if workers is None:
             _check(lib.ivr_reconstruction_create(ctx._live(), s, t.ctypes.data_as(_FLOAT_P),
                                                  t.size, ctypes.byref(o), ctypes.byref(r)))
-        else:  # (worker, workers, add): ivr.mpi.reconstruct; the sum lives as long as `r`
-            worker, count, add = workers
+        else:  # (split, worker, workers, add): ivr.mpi.reconstruct; the sum lives as long as `r`
+            split, worker, count, add = workers
             sum_fn = _sum_fn(add, failure)
-            _check(lib.ivr_reconstruction_create_shared(
-                ctx._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, ctypes.byref(o), worker,
-                count, sum_fn, None, ctypes.byref(r)))
+            _check(lib.ivr_reconstruction_create_split(
+                ctx._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, ctypes.byref(o), split,
+                worker, count, sum_fn, None, ctypes.byref(r)))
     finally:
         lib.ivr_scene_release(s)
     try:

@@ -1,7 +1,7 @@
 """ivr.mpi — ivr under MPI from Python (mpi4py): data-parallel over views, as `mpirun -np N ivr
 render|gradient|project|backproject|tomo` (docs/scaling.md), and domain-parallel over slabs of
-z planes (`render`, `gradient` and `tomo` with split="slabs", as `--split slabs`); and
-`reconstruct`, each batch's views shared out (as `mpirun -np N ivr reconstruct`). Each rank renders or differentiates its contiguous share of the
+z planes (`render`, `gradient`, `tomo` and `reconstruct` with split="slabs", as `--split slabs`);
+and `reconstruct`, each batch's views shared out (as `mpirun -np N ivr reconstruct`). Each rank renders or differentiates its contiguous share of the
 views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
 loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
 summed over the ranks (the gradient through the C API's ivr_gradient_shared; with
@@ -225,23 +225,30 @@ def tomo(ctx, scene, lines, comm=None, split="views", **options):
                     _split=(0, rank, ranks, add), **options)
 
 
-def reconstruct(ctx, scene, targets, comm=None, progress=None, **options):
+def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", **options):
     """ctx.reconstruct with the ranks sharing out each batch's views (as `mpirun -np N ivr
     reconstruct`): every rank passes the whole scene and targets and the same options, draws the
     same batch, differentiates its share of its views, and the loss and gradients are summed over
     the ranks before every step, so every rank holds the same iterate (one process's bit for bit
     for densities with the TF fixed and deterministic gradients, else to the rounding of the sums).
-    progress(entry) is called on every rank; returning False on any rank
-    stops every rank after the same iteration. Cameras only; every batch needs at least one view
-    per rank. Returns ctx.reconstruct's dict on every rank (checkpoint: give each rank its own
-    prefix, or one on rank 0 only)."""
+    split="slabs" (as --split slabs): each rank holds one slab of z planes of the densities and
+    marches every view through it (the densities, and the TF jointly; levels=1), the slabs gathered
+    at the end. progress(entry) is called on every rank; returning False on any rank
+    stops every rank after the same iteration. Cameras only; over views every batch needs at least
+    one view per rank. Returns ctx.reconstruct's dict on every rank, "volume" whole (checkpoint:
+    give each rank its own prefix — over slabs each rank's state is its own)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
+    _check_split(split, "reconstruct")
     from mpi4py import MPI
 
     def agreed(entry):  # (collective: every rank calls it after every iteration)
         go = progress is None or progress(entry) is not False
         return comm.allreduce(0 if go else 1, op=MPI.SUM) == 0
 
-    return ctx.reconstruct(scene, targets, progress=agreed,
-                           _workers=(comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
+    out = ctx.reconstruct(scene, targets, progress=agreed, _workers=(
+        1 if split == "slabs" else 0, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
+    if split == "slabs" and "volume" in out:
+        parts = comm.allgather(out["volume"])  # a shared plane once, from the lower rank
+        out["volume"] = np.concatenate([parts[0]] + [p[1:] for p in parts[1:]], axis=0)
+    return out

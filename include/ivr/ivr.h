@@ -466,8 +466,9 @@ IVR_API ivr_status ivr_reconstruction_create_shared(ivr_context* context, const 
  * worker passes the whole scene (its volume: the start with init scene) and targets, holds only
  * planes ivr_domain_slab(nz, worker, workers) of the densities and their optimiser state, and
  * marches every view of each batch through them, the rays' states passed through `sum`; the
- * densities (and the TF jointly), one level, cameras only. ivr_reconstruction_volume then returns
- * this worker's planes (planes * ny * nx; those neighbours share alike on both), and
+ * densities (and the TF jointly), cameras only. ivr_reconstruction_volume then returns this
+ * worker's planes of the current level's grid (planes * ny * nx; those neighbours share alike on
+ * both), and
  * ivr_reconstruction_result_scene is refused (it would hold one slab). */
 IVR_API ivr_status ivr_reconstruction_create_split(ivr_context* context, const ivr_scene* scene,
                                                    const float* targets, size_t count,

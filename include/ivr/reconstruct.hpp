@@ -82,9 +82,11 @@ struct ReconstructOptions {
   // (gradient_domain: the rays' states pass between the workers), the planes neighbours share are
   // joined and the priors' differences across slabs counted once, so every worker's iterate is
   // one process's to rounding on its planes. Densities (and the TF jointly, its slab parts summed)
-  // with Adam or SGD, one level (coarse-to-fine levels would resample across slabs), cameras only;
-  // float sums (deterministic does not apply). result() holds this worker's planes; checkpoints
-  // are each worker's own (give each its own prefix). `all_gather` passes bytes between the
+  // with Adam or SGD, cameras only; coarse-to-fine levels gather the coarse grid on every worker
+  // when a level ends (and a scene start once, to resample it), each keeping its fine planes, and
+  // have at least one cell per worker along z; float sums (deterministic does not apply).
+  // result() holds this worker's planes of the current level's grid; checkpoints are each
+  // worker's own (give each its own prefix). `all_gather` passes bytes between the
   // workers (an MPI_Allgatherv); empty: built from `sum` (all_gather_by_sum).
   bool slabs = false;
   AllGather all_gather;
@@ -125,7 +127,8 @@ class IVR_API Reconstruction {
   std::vector<int> level_dims(int level) const;  // (nx, ny, nz) of a level
 
   // The estimate so far: the scene with the current densities (at the full grid: upsampled
-  // from a coarser level) and TF. Over slabs: volume.data holds this worker's planes only.
+  // from a coarser level) and TF. Over slabs: this worker's planes of the current level's grid
+  // (volume's dims the level's, volume.data only the planes).
   Scene result() const;
 
   // PREFIX_checkpoint.json and PREFIX_checkpoint_*.npy (float64): iteration, level, parameters,

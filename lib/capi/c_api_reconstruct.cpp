@@ -84,8 +84,7 @@ ivr_reconstruction* create_reconstruction(ivr_context* c, const ivr_scene* s, co
   r->explicit_box = s->explicit_box;
   r->grid.nx = scene.volume.nx;
   r->grid.ny = scene.volume.ny;
-  r->grid.nz = o.slabs ? int(scene.volume.data.size() / (size_t(scene.volume.nx) * scene.volume.ny))
-                       : scene.volume.nz;
+  r->grid.nz = scene.volume.nz;
   return publish(std::move(r), c, Kind::reconstruction);
 }
 }  // namespace
@@ -232,18 +231,21 @@ ivr_status ivr_reconstruction_volume(const ivr_reconstruction* r, float* volume,
                                      int64_t shape[3]) {
   return guarded(context_of_reconstruction(r), "ivr_reconstruction_volume", [&] {
     const ivr::Reconstruction& rec = *checked_reconstruction(r)->reconstruction;
-    if (!volume && capacity == 0) {  // the shape only: no read-back from the device
+    const bool slabs = rec.options().slabs;
+    if (!volume && capacity == 0 && !slabs) {  // the shape only: no read-back from the device
       write_shape(r->grid, not_null(shape, "shape"));
       return;
     }
+    ivr::Volume v = rec.result().volume;
+    if (slabs) v.nz = int(v.data.size() / (size_t(v.nx) * size_t(v.ny)));  // (the level's planes)
+    if (!volume && capacity == 0) return write_shape(v, not_null(shape, "shape"));
     not_null(volume, "volume");
-    const ivr::Volume v = rec.result().volume;
     if (capacity < v.data.size())
       throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "volume holds " + std::to_string(capacity) +
                                                    " floats; the grid has " +
                                                    std::to_string(v.data.size()) + " voxels"};
     std::copy(v.data.begin(), v.data.end(), volume);
-    if (shape) write_shape(r->grid, shape);  // (over slabs this worker's planes)
+    if (shape) write_shape(v, shape);
   });
 }
 

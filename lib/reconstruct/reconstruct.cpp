@@ -154,6 +154,8 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
     const int wanted = o.levels > 0 ? o.levels : 3;
     while (count < wanted && (shortest >> count) >= 4) ++count;
     count = std::min(count, o.iterations);
+    if (o.slabs)  // every worker at least a cell of the coarsest grid along z
+      while (count > 1 && ((v.nz + (1 << (count - 1)) - 1) >> (count - 1)) - 1 < o.workers) --count;
   }
   o.levels = count;
   for (int l = 0; l < count; ++l) {
@@ -161,7 +163,6 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
     dims.push_back({(v.nx + (1 << shift) - 1) >> shift, (v.ny + (1 << shift) - 1) >> shift,
                     (v.nz + (1 << shift) - 1) >> shift});
   }
-  if (o.slabs) dims[0][2] = slab.planes();  // (one level: this worker's planes)
   // Iterations per level in proportion 1 : 2 : 4 … (the finest gets the most).
   const int weight_sum = (1 << count) - 1;
   int done_so_far = 0;
@@ -201,18 +202,22 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
   }
   if (o.density) {
     prior = std::make_unique<DensityPrior>(dev, f64);
-    Volume start;
+    std::vector<double> start;
     if (o.init == Init::scene && o.slabs) {
-      start.data = scene.volume.data;  // the slab's planes as given
+      start.assign(scene.volume.data.begin(), scene.volume.data.end());  // the slab's planes
+      if (count > 1)  // (the whole volume gathered once, resampled, this worker's planes kept)
+        start = slab_of(resample_volume(gathered(count - 1, start), dims[0][0], dims[0][1],
+                                        dims[0][2]));
     } else if (o.init == Init::scene) {
-      start = resample_volume(scene.volume, dims[0][0], dims[0][1], dims[0][2]);
+      const Volume coarse = resample_volume(scene.volume, dims[0][0], dims[0][1], dims[0][2]);
+      start.assign(coarse.data.begin(), coarse.data.end());
     } else {
-      start.nx = dims[0][0];
-      start.ny = dims[0][1];
-      start.nz = dims[0][2];
-      start.data.assign(start.voxel_count(), o.init == Init::zeros ? 0.f : float(o.init_value));
+      const int planes =
+          o.slabs ? domain_slab(dims[0][2], o.worker, o.workers).planes() : dims[0][2];
+      start.assign(std::size_t(dims[0][0]) * std::size_t(dims[0][1]) * std::size_t(planes),
+                   o.init == Init::zeros ? 0.0 : double(float(o.init_value)));
     }
-    enter_level(0, std::vector<double>(start.data.begin(), start.data.end()));
+    enter_level(0, start);
   }
 }
 
@@ -242,6 +247,8 @@ void Reconstruction::Impl::enter_level(int l, const std::vector<double>& density
   grid.volume.nz = dims[std::size_t(l)][2];
   grid.volume.data.clear();
   if (o.slabs) {  // the slab's densities stay on the host, between the domain gradients
+    slab = domain_slab(grid.volume.nz, o.worker, o.workers);
+    grid.volume.nz = slab.planes();
     level = l;
     level_scene = std::move(grid);
     slab_x = density;
@@ -320,11 +327,12 @@ const IterationRecord& Reconstruction::Impl::step() {
     fail("the reconstruction is done (" + std::to_string(o.iterations) + " iterations)");
   const auto start = std::chrono::steady_clock::now();
   if (o.density && level_of(k) != level) {
-    const Volume coarse = level_volume();
+    // (over slabs the coarse grid gathered whole on every worker, each keeping its fine planes)
+    const Volume coarse = o.slabs ? gathered(level, slab_x) : level_volume();
     const int l = level_of(k);
     const Volume fine = resample_volume(coarse, dims[std::size_t(l)][0], dims[std::size_t(l)][1],
                                         dims[std::size_t(l)][2]);
-    enter_level(l, std::vector<double>(fine.data.begin(), fine.data.end()));
+    enter_level(l, o.slabs ? slab_of(fine) : std::vector<double>(fine.data.begin(), fine.data.end()));
   }
   std::vector<int> views = batch_views(o.seed, k, image_extent(scene).views, o.batch);
   // Data-parallel: this worker's share of the batch, and its weight in the batch's mean loss: 1
@@ -493,15 +501,16 @@ int Reconstruction::levels() const {
 std::vector<int> Reconstruction::level_dims(int level) const {
   if (level < 0 || level >= levels())
     fail("level " + std::to_string(level) + " of " + std::to_string(levels()));
-  const Volume& v = impl_->scene.volume;  // (over slabs the grid's, not this worker's planes)
-  if (impl_->o.slabs) return {v.nx, v.ny, v.nz};
   return impl_->dims[std::size_t(level)];
 }
 
 Scene Reconstruction::result() const {
   const Impl& p = *impl_;
   Scene out = p.scene;
-  if (p.o.density && p.o.slabs) {  // this worker's planes (the grid's description whole)
+  if (p.o.density && p.o.slabs) {  // this worker's planes of the level's grid (described whole)
+    out.volume.nx = p.dims[std::size_t(p.level)][0];
+    out.volume.ny = p.dims[std::size_t(p.level)][1];
+    out.volume.nz = p.dims[std::size_t(p.level)][2];
     out.volume.data.assign(p.slab_x.begin(), p.slab_x.end());
   } else if (p.o.density) {
     const Volume v = p.level_volume();

@@ -39,8 +39,8 @@ struct Reconstruction::Impl {
   std::unique_ptr<Optimizer> density_opt;
   std::unique_ptr<DensityPrior> prior;
 
-  // Over slabs (o.slabs; lib/reconstruct/reconstruct_domain.cpp): this worker's planes, their
-  // densities on the host (level_scene: the slab's grid, nx × ny × planes), the exchange.
+  // Over slabs (o.slabs; lib/reconstruct/reconstruct_domain.cpp): this worker's planes of the
+  // level's grid, their densities on the host (level_scene: nx × ny × planes), the exchange.
   Slab slab;
   DomainPart part;
   std::vector<double> slab_x;
@@ -65,8 +65,14 @@ struct Reconstruction::Impl {
   // A worker's view of the batch `batch` (o.workers > 1): lib/adjoint/adjoint.hpp.
   FixedShare batch_share(const std::vector<int>& batch) const;
 
-  // Over slabs: checks the options and the slab, and sets slab, part and the single level.
+  // Over slabs: checks the options and the slab (of the whole grid), and sets part.
   void setup_slabs();
+  // Every worker's planes `mine` of level l's grid joined into its volume (collective), and this
+  // worker's planes of a volume of a level's grid.
+  Volume gathered(int l, const std::vector<double>& mine) const;
+  std::vector<double> slab_of(const Volume& whole) const;
+  // Level l's voxels this worker holds: the grid's, or over slabs its planes'.
+  std::size_t held_voxels(int l) const;
   // The batch `views`' loss and this worker's planes of the density gradient (the shared planes
   // joined), with the priors; the TF's gradient summed over the workers (o.tf). Fills r.loss,
   // r.prior and r.device_bytes.

@@ -310,8 +310,7 @@ void Reconstruction::resume(const std::string& prefix) {
   shape.iterations = p.o.iterations;
   if (p.o.density) {
     shape.level_of = [&p](int i) { return p.level_of(i); };
-    for (const std::vector<int>& d : p.dims)
-      shape.voxels.push_back(std::size_t(d[0]) * std::size_t(d[1]) * std::size_t(d[2]));
+    for (int l = 0; l < int(p.dims.size()); ++l) shape.voxels.push_back(p.held_voxels(l));
     shape.density_second_moments = p.density_optimizer_options(0).kind == OptimizerKind::adam;
   }
   if (p.o.tf) {

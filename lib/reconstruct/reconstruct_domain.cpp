@@ -1,6 +1,7 @@
 // reconstruct_domain.cpp — the reconstruction over slabs of z planes (ReconstructOptions::slabs):
 // each worker's planes of the densities, their domain gradient, the priors counted once across
 // slabs, and the planes neighbours share joined before the step.
+#include <cstring>
 #include <string>
 
 #include "brick/domain.hpp"
@@ -25,10 +26,6 @@ constexpr const char* kWhat = "reconstruction over slabs";
 void Reconstruction::Impl::setup_slabs() {
   if (!o.density)
     refuse("the TF alone differentiates the whole volume on every worker: split the views");
-  if (o.levels > 1)
-    refuse("coarse-to-fine levels would resample across the slabs: levels 1 (or 0), got " +
-           std::to_string(o.levels));
-  o.levels = 1;
   if (scene.has_ray_list()) refuse("cameras only (a ray list is one view)");
   if (scene.integrator.tolerance > 0 && o.step == 0)
     refuse("a tolerance's step is chosen from the whole volume: give a step");
@@ -51,8 +48,10 @@ void Reconstruction::Impl::setup_slabs() {
 std::vector<double> Reconstruction::Impl::slab_gradient(const std::vector<int>& views,
                                                         IterationRecord& r,
                                                         std::vector<double>& tf_grad) {
-  // The batch's cameras and targets; the slab's current densities.
+  // The batch's cameras and targets; the level's grid, the slab's current densities.
+  const std::vector<int>& grid = dims[std::size_t(level)];
   Scene batch = description_of(scene);
+  batch.volume.nx = grid[0], batch.volume.ny = grid[1], batch.volume.nz = grid[2];
   batch.cameras.clear();
   for (int v : views) batch.cameras.push_back(scene.cameras[std::size_t(v)]);
   batch.volume.data.assign(slab_x.begin(), slab_x.end());
@@ -87,12 +86,47 @@ std::vector<double> Reconstruction::Impl::slab_gradient(const std::vector<int>& 
     const cl::Buffer gb = upload_reals(dev, f64, grad, "the slab's gradient");
     const bool last = o.worker + 1 == o.workers;
     prior_part = prior->add_gradient(v.nx, v.ny, v.nz, o.tv, o.smoothness, o.tv_epsilon, x, gb,
-                                     last ? v.nz : v.nz - 1, double(scene.volume.voxel_count()));
+                                     last ? v.nz : v.nz - 1,
+                                     double(grid[0]) * double(grid[1]) * double(grid[2]));
     grad = download_reals(dev, f64, gb, voxels);
   }
   r.prior = sum_over(part, {prior_part}, kWhat)[0];
-  join_shared_planes(part, std::size_t(scene.volume.nx) * std::size_t(scene.volume.ny), grad, kWhat);
+  join_shared_planes(part, std::size_t(grid[0]) * std::size_t(grid[1]), grad, kWhat);
   return grad;
+}
+
+Volume Reconstruction::Impl::gathered(int l, const std::vector<double>& mine) const {
+  const std::vector<int>& grid = dims[std::size_t(l)];
+  std::vector<std::vector<double>> slabs(std::size_t(o.workers));
+  if (o.workers == 1) {
+    slabs[0] = mine;
+  } else {
+    std::vector<unsigned char> bytes(mine.size() * sizeof(double));
+    std::memcpy(bytes.data(), mine.data(), bytes.size());
+    const std::vector<std::vector<unsigned char>> all = part.all_gather(bytes);
+    for (std::size_t w = 0; w < slabs.size() && w < all.size(); ++w) {
+      slabs[w].resize(all[w].size() / sizeof(double));
+      std::memcpy(slabs[w].data(), all[w].data(), slabs[w].size() * sizeof(double));
+    }
+  }
+  const std::vector<double> whole = domain_assemble(grid[0], grid[1], grid[2], slabs);  // (sizes checked)
+  Volume v;
+  v.nx = grid[0], v.ny = grid[1], v.nz = grid[2];
+  v.data.assign(whole.begin(), whole.end());
+  return v;
+}
+
+std::vector<double> Reconstruction::Impl::slab_of(const Volume& whole) const {
+  const Slab s = domain_slab(whole.nz, o.worker, o.workers);
+  const std::size_t plane = std::size_t(whole.nx) * std::size_t(whole.ny);
+  return std::vector<double>(whole.data.begin() + std::ptrdiff_t(plane * std::size_t(s.first)),
+                             whole.data.begin() + std::ptrdiff_t(plane * std::size_t(s.last + 1)));
+}
+
+std::size_t Reconstruction::Impl::held_voxels(int l) const {
+  const std::vector<int>& d = dims[std::size_t(l)];
+  const int planes = o.slabs ? domain_slab(d[2], o.worker, o.workers).planes() : d[2];
+  return std::size_t(d[0]) * std::size_t(d[1]) * std::size_t(planes);
 }
 
 }  // namespace ivr

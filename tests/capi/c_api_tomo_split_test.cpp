@@ -314,11 +314,6 @@ TEST(CApiTomoSplit, BadArgumentsAreRefused) {
                                             ivr_split(7), 0, 1, summed, &w, &rec),
             IVR_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(has(ivr_last_error(), "split 7")) << ivr_last_error();
-  ro.levels = 2;
-  EXPECT_EQ(ivr_reconstruction_create_split(ctx, scene, image.data(), image.size(), &ro,
-                                            IVR_SPLIT_SLABS, 0, 1, summed, &w, &rec),
-            IVR_ERROR_INVALID_ARGUMENT);
-  EXPECT_TRUE(has(ivr_last_error(), "coarse-to-fine")) << ivr_last_error();
   ro.levels = 1;
   ASSERT_EQ(ivr_reconstruction_create_split(ctx, scene, image.data(), image.size(), &ro,
                                             IVR_SPLIT_SLABS, 0, 1, summed, &w, &rec),

@@ -45,8 +45,8 @@ out=$("$ivr" gradient scene.json "${det[@]}" -o d1)
 echo "$out" | grep -q '"deterministic":true' || { echo "gradient --deterministic: $out"; exit 1; }
 rec=(--targets one.npy --init constant:0.3 --iterations 12 --batch 4 --levels 2 --precision f64)
 "$ivr" reconstruct scene.json "${rec[@]}" -o rec1 2>/dev/null >/dev/null
-# Over slabs: one level, SGD (linear in the gradient), both priors across the slabs.
-srec=(--targets one.npy --init constant:0.3 --iterations 6 --batch 4 --levels 1 --precision f64
+# Over slabs: two levels (8³, 16³), SGD (linear in the gradient), both priors across the slabs.
+srec=(--targets one.npy --init constant:0.3 --iterations 6 --batch 4 --levels 2 --precision f64
   --optimizer sgd --lr 1 --tv 0.05 --smoothness 0.02)
 "$ivr" reconstruct scene.json "${srec[@]}" -o srec1 2>/dev/null >/dev/null
 run() { "$mpiexec" -np "$1" --oversubscribe "${@:2}"; }
@@ -83,7 +83,7 @@ for np in 2 4; do
   echo "$out" | grep -q "\"ranks\":$np" || { echo "reconstruct -np $np: $out"; exit 1; }
   out=$(run "$np" "$ivr" reconstruct scene.json "${srec[@]}" -o "srec$np" --split slabs \
     --checkpoint-every 2 --json 2>/dev/null)
-  echo "$out" | grep -q '"levels":\[\[16,16,16\]\]' || { echo "reconstruct --split slabs -np $np: $out"; exit 1; }
+  echo "$out" | grep -q '"levels":\[\[8,8,8\],\[16,16,16\]\]' || { echo "reconstruct --split slabs -np $np: $out"; exit 1; }
   ! ls srec"$np"_*checkpoint* 2>/dev/null || { echo "reconstruct --split slabs left checkpoints"; exit 1; }
 done
 "$python" - <<'PY'

@@ -70,11 +70,11 @@ void expect_slabs_follow_one_process(const Scene& scene, const Image& targets,
   }
 }
 
-ReconstructOptions slab_options(Precision precision) {
+ReconstructOptions slab_options(Precision precision, int levels = 1) {
   ReconstructOptions o;
   o.iterations = 5;
   o.batch = 5;
-  o.levels = 1;
+  o.levels = levels;
   o.init = Init::constant;
   o.precision = precision;
   o.deterministic = false;  // (float sums in both: the slabs' bricks have no fixed point)
@@ -98,6 +98,28 @@ TEST(ReconstructDomain, WorkersFollowOneProcessWithThePriors) {
     expect_slabs_follow_one_process(p.scene, p.targets, slab_options(Precision::f64), {1, 2, 3},
                                     1e-12);
   expect_slabs_follow_one_process(p.scene, p.targets, slab_options(Precision::f32), {2}, 1e-5);
+}
+
+// Coarse to fine over 4³ (3 cells: one per worker), 8³ and 16³ grids, from the scene's densities:
+// the start gathered and resampled once, each coarse grid gathered when its level ends, each worker
+// keeping its planes of the next — one process's levels to 1e-12 (float64).
+TEST(ReconstructDomain, CoarseToFineLevelsFollowOneProcess) {
+  if (!device().info().fp64) GTEST_SKIP() << "needs cl_khr_fp64";
+  const Small p;
+  Scene start = p.scene;
+  for (std::size_t i = 0; i < start.volume.data.size(); ++i)
+    start.volume.data[i] = 0.5f * start.volume.data[i] + 0.2f;
+  ReconstructOptions o = slab_options(Precision::f64, 3);
+  o.init = Init::scene;
+  o.iterations = 7;  // (1 + 2 + 4 over the levels)
+  Reconstruction one(device(), start, p.targets, o);
+  ASSERT_EQ(one.levels(), 3);
+  expect_slabs_follow_one_process(start, p.targets, o, {2, 3}, 1e-12);
+  ReconstructOptions four = o;  // (4 workers: the coarsest grid would have 3 cells, so 2 levels)
+  four.slabs = true;
+  const WorkerRuns runs = run_workers(4, start, p.targets, four);
+  ASSERT_EQ(runs.errors, std::vector<std::string>(4));
+  EXPECT_EQ(runs.histories[0].back().level, 1);
 }
 
 // The TF jointly (each slab's samples' part summed over the workers) under the trapezoid scheme,
@@ -194,9 +216,6 @@ TEST(ReconstructDomain, RefusalsNameWhatIsMissing) {
     }
     return std::string("no error");
   };
-  ReconstructOptions levels = o;
-  levels.levels = 2;
-  EXPECT_NE(message(mine, levels).find("coarse-to-fine levels"), std::string::npos);
   ReconstructOptions tf_alone = o;
   tf_alone.density = false;
   tf_alone.tf = true;

@@ -232,7 +232,7 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", **
     the ranks before every step, so every rank holds the same iterate (one process's bit for bit
     for densities with the TF fixed and deterministic gradients, else to the rounding of the sums).
     split="slabs" (as --split slabs): each rank holds one slab of z planes of the densities and
-    marches every view through it (the densities, and the TF jointly; levels=1), the slabs gathered
+    marches every view through it (the densities, and the TF jointly), the slabs gathered
     at the end. progress(entry) is called on every rank; returning False on any rank
     stops every rank after the same iteration. Cameras only; over views every batch needs at least
     one view per rank. Returns ctx.reconstruct's dict on every rank, "volume" whole (checkpoint:

@@ -90,17 +90,15 @@ class HostSystem {
       for (std::size_t i = 0; i < n_; ++i) out[i] = T(double(base[i]) + o_.tikhonov);
       return;
     }
-    std::vector<T> d(n_);
-    for (std::size_t i = 0; i < n_; ++i) {
+    out.assign(base.begin(), base.end());
+    add_parts(1.0, out, [&](std::size_t i) {
       double sum = 0;
       for (int k = 0; k < 3; ++k) {
         if (has_row(i, k)) sum += sw_[i] * sw_[i];
         if (has_prev(i, k) && has_row(i - step(k), k)) sum += sw_[i - step(k)] * sw_[i - step(k)];
       }
-      d[i] = T(2 * sum);
-    }
-    if (A_.join) A_.join(d);
-    for (std::size_t i = 0; i < n_; ++i) out[i] = T(double(base[i]) + double(d[i]));
+      return 2 * sum;
+    });
   }
 
  private:
@@ -131,22 +129,29 @@ class HostSystem {
   }
   // out += a · Dᵀ(sw ⊙ g) (over slabs each worker's rows' part, the shared planes joined)
   void add_tv_adjoint(double a, const std::vector<T>& g, std::vector<T>& out) const {
-    std::vector<T> part(A_.join ? n_ : 0);
-    for (std::size_t i = 0; i < n_; ++i) {
+    add_parts(a, out, [&](std::size_t i) {
       double sum = 0;
       for (int k = 0; k < 3; ++k) {
         if (has_row(i, k)) sum -= sw_[i] * double(g[3 * i + k]);
         if (has_prev(i, k) && has_row(i - step(k), k))
           sum += sw_[i - step(k)] * double(g[3 * (i - step(k)) + k]);
       }
-      if (A_.join)
-        part[i] = T(sum);
-      else
-        out[i] = T(out[i] + a * sum);
+      return sum;
+    });
+  }
+  // out[i] += a · part(i), part(i) this worker's TV rows' share at voxel i: in place where a
+  // worker holds the whole grid; over slabs (A_.join) gathered in a volume vector first and the
+  // neighbours' shares of the shared planes added.
+  template <typename Part>
+  void add_parts(double a, std::vector<T>& out, Part&& part) const {
+    if (!A_.join) {
+      for (std::size_t i = 0; i < n_; ++i) out[i] = T(out[i] + a * part(i));
+      return;
     }
-    if (!A_.join) return;
-    A_.join(part);
-    for (std::size_t i = 0; i < n_; ++i) out[i] = T(out[i] + a * double(part[i]));
+    std::vector<T> parts(n_);
+    for (std::size_t i = 0; i < n_; ++i) parts[i] = T(part(i));
+    A_.join(parts);
+    for (std::size_t i = 0; i < n_; ++i) out[i] = T(out[i] + a * double(parts[i]));
   }
 
   const HostSplit<T>& A_;

@@ -23,6 +23,36 @@
 #define IVR_BRICK_BEGIN 0
 #define IVR_BRICK_MARCH 1
 #define IVR_BRICK_FINISH 2
+// BEGIN for independent segments over slabs (lib/brick/domain_segments.cpp): each ray's march
+// starts where its window in the planes [brick_lo, brick_hi) starts, from transmittance 1, and ends
+// where that window ends (BS_TEND); a ray that misses them is done.
+#define IVR_BRICK_SEGMENT_BEGIN 5
+
+// The first sample (midpoint) or segment (endpoint schemes: the one whose far end lies past `ta`)
+// of a march whose window starts at `ta`: what the windows before it leave (brick_march's tests).
+// The division only guesses; the same comparisons as brick_march's then decide, so the result
+// does not depend on how a device rounds it. (exact: its pieces start at ta; the count is 0.)
+inline uint window_first(const RayMarch* m, real ta) {
+#if IVR_SCHEME == IVR_SCHEME_EXACT
+  (void)m, (void)ta;
+  return 0u;
+#else
+  const int n = (int)m->n;
+#if IVR_ENDPOINT_SAMPLES
+  const int last = max(n - 1, 0);  // the last segment lies in the window that reaches t1
+#define IVR_BEFORE(k) ((k) + 1 < n && sample_t(m, (k) + 1) <= ta)
+#else
+  const int last = n;
+#define IVR_BEFORE(k) (sample_t(m, (k)) < ta)
+#endif
+  const real guess = floor((ta - m->t0) / m->dt);
+  int i = (int)clamp(guess, (real)0, (real)last);
+  while (i > 0 && !IVR_BEFORE(i - 1)) --i;
+  while (i < last && IVR_BEFORE(i)) ++i;
+#undef IVR_BEFORE
+  return (uint)i;
+#endif
+}
 
 // Marches the ray's window [tb0, tb1] in this brick (m: the global march with u0 moved to the
 // brick's voxels); true where the ray stopped early.
@@ -53,8 +83,10 @@ inline bool brick_march(__global const real* volume, int4 dims, const RayMarch* 
   int segment = 0;
   uint i = su[BU_NEXT];
   EndSample a;
-  if (!(su[BU_FLAGS] & IVR_BRICK_STARTED)) {  // sample 0 lies in the first window
-    a = end_sample(volume, dims, m, 0, tf, tf_count, tf_scalars, &segment);
+  if (!(su[BU_FLAGS] & IVR_BRICK_STARTED)) {  // the march's first window: sample `next`, 0 but
+    // where a worker's segment starts inside the ray (IVR_BRICK_SEGMENT_BEGIN; the brick's halo
+    // holds it)
+    a = end_sample(volume, dims, m, (int)i, tf, tf_count, tf_scalars, &segment);
     r->samples += 1;
     su[BU_FLAGS] |= IVR_BRICK_STARTED;
   } else {
@@ -161,7 +193,7 @@ __kernel void bricked_render(__global const real* restrict volume, const int4 di
   }
 
   RayMarch m;
-  if (phase == IVR_BRICK_BEGIN) {
+  if (phase == IVR_BRICK_BEGIN || phase == IVR_BRICK_SEGMENT_BEGIN) {
     const bool hit = march_begin(camera_ray(cam, x, y, width, height), cam, x, y, width, height,
                                  box_min, box_max, inv_voxel, step, &m);
     for (int k = 0; k < IVR_BRICK_REALS; ++k) s[k] = (real)0;
@@ -175,6 +207,19 @@ __kernel void bricked_render(__global const real* restrict volume, const int4 di
     s[BS_U0 + 0] = m.u0x, s[BS_U0 + 1] = m.u0y, s[BS_U0 + 2] = m.u0z;
     s[BS_U0 + 3] = m.dux, s[BS_U0 + 4] = m.duy, s[BS_U0 + 5] = m.duz;
     su[BU_N] = m.n;
+    s[BS_TEND] = m.t1;
+    if (phase == IVR_BRICK_SEGMENT_BEGIN && !(su[BU_FLAGS] & IVR_BRICK_DONE)) {
+      // (brick_window with the slab's planes: the same expressions as its bricks', so the window
+      // starts where the brick that takes the ray first has its window start)
+      real ta = m.t0, tb = m.t1;
+      brick_window(m.u0x, m.u0y, m.u0z, m.dux, m.duy, m.duz, brick_lo, brick_hi, &ta, &tb);
+      if (!(tb > ta)) {
+        su[BU_FLAGS] = IVR_BRICK_DONE;
+        return;
+      }
+      s[BS_TNEXT] = ta, s[BS_TEND] = tb;
+      su[BU_NEXT] = window_first(&m, ta);
+    }
     return;
   }
   real tb1;
@@ -184,5 +229,5 @@ __kernel void bricked_render(__global const real* restrict volume, const int4 di
       brick_march(volume, dims, &m, tb1, tf, tf_count, tf_scalars, min_transmittance, &r, s, su);
   brick_store(&r, s, su);
   s[BS_TNEXT] = tb1;
-  if (stopped || tb1 >= m.t1) su[BU_FLAGS] |= IVR_BRICK_DONE;
+  if (stopped || tb1 >= s[BS_TEND]) su[BU_FLAGS] |= IVR_BRICK_DONE;
 }

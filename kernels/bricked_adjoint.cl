@@ -164,7 +164,7 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
     s[BS_KR] = kr[l], s[BS_KG] = kg[l], s[BS_KB] = kb[l];
     su[BU_NEXT] = (uint)next[l];
     s[BS_TNEXT] = w.tb1[l];
-    if (next[l] >= end[l] || w.tb1[l] >= w.t1[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+    if (next[l] >= end[l] || w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
   }
 }
 

@@ -97,16 +97,16 @@ __kernel void bricked_render_packet(
   }
 #else
   // bricked.cl's brick_march for the endpoint schemes, lane by lane: the segments whose far end
-  // lies in the window (segment_in_window), from the carried end sample (sample 0 where the lane's
-  // march starts here).
+  // lies in the window (segment_in_window), from the carried end sample (sample `next` where the
+  // lane's march starts here).
   EndSample a;
   a.ux = a.uy = a.uz = (vreal)(real)0;
   a.d = IVR_LOAD_RAYS(ad), a.sigma = IVR_LOAD_RAYS(asigma);
   a.er = IVR_LOAD_RAYS(aer), a.eg = IVR_LOAD_RAYS(aeg), a.eb = IVR_LOAD_RAYS(aeb);
   const vint fresh = entered && (IVR_LOAD_RAYS(started) == (vint)0);
   if (vany(fresh)) {
-    const EndSample first = end_sample(volume, dims, &m, (vint)0, tf, tf_count, tf_scalars,
-                                       &segment);
+    // (sample `next`: 0, or a segment's start in a worker's slab — IVR_BRICK_SEGMENT_BEGIN)
+    const EndSample first = end_sample(volume, dims, &m, i, tf, tf_count, tf_scalars, &segment);
     end_sample_where(&a, &first, fresh);
     r.samples += vcount(fresh);
   }
@@ -181,9 +181,9 @@ __kernel void bricked_render_packet(
     su[BU_FLAGS] |= IVR_BRICK_STARTED;
 #endif
 #if IVR_EARLY_TERMINATION
-    if (stopped[l] || w.tb1[l] >= w.t1[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+    if (stopped[l] || w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
 #else
-    if (w.tb1[l] >= w.t1[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+    if (w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
 #endif
   }
 }

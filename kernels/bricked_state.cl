@@ -9,7 +9,7 @@
 #include "rays.cl"
 
 // The per-ray state: reals, then uints.
-#define IVR_BRICK_REALS 24
+#define IVR_BRICK_REALS 25
 #define IVR_BRICK_UINTS 5
 // reals: the Radiance sums, the carried end sample (trapezoid, preintegrated), where the march
 // stands
@@ -34,6 +34,9 @@
 #define BS_T1 16
 #define BS_DT 17
 #define BS_U0 18  // u0x, u0y, u0z, dux, duy, duz
+// Where this march ends the ray: its end t1, or (independent segments over slabs,
+// IVR_BRICK_SEGMENT_BEGIN) the end of its window in this worker's slab; the ray is done there.
+#define BS_TEND 24
 // uints
 #define BU_SAMPLES 0
 #define BU_END 1
@@ -65,7 +68,7 @@ inline bool brick_enter(__global const real* s, __global const uint* su, real4 b
 // and, where it does, its global march and its window's start and end. A lane that does not (or lies past
 // the image's edge) holds zeros: n = 0, it marches nothing and writes nothing.
 typedef struct {
-  real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], tb0[IVR_RAYS], tb1[IVR_RAYS];
+  real t0[IVR_RAYS], t1[IVR_RAYS], dt[IVR_RAYS], tb0[IVR_RAYS], tb1[IVR_RAYS], tend[IVR_RAYS];
   real u0x[IVR_RAYS], u0y[IVR_RAYS], u0z[IVR_RAYS], dux[IVR_RAYS], duy[IVR_RAYS], duz[IVR_RAYS];
   int n[IVR_RAYS], entered[IVR_RAYS];
   size_t pixel[IVR_RAYS];
@@ -90,13 +93,14 @@ inline bool brick_enter_lanes(__global const real* state, __global const uint* s
         w->entered[l] = 1;
         w->t0[l] = m.t0, w->t1[l] = m.t1, w->dt[l] = m.dt, w->tb1[l] = b1, w->n[l] = (int)m.n;
         w->tb0[l] = state[pixel * IVR_BRICK_REALS + BS_TNEXT];  // (where the window starts)
+        w->tend[l] = state[pixel * IVR_BRICK_REALS + BS_TEND];
         w->u0x[l] = m.u0x, w->u0y[l] = m.u0y, w->u0z[l] = m.u0z;
         w->dux[l] = m.dux, w->duy[l] = m.duy, w->duz[l] = m.duz;
         any = true;
         continue;
       }
     }
-    w->t0[l] = w->t1[l] = w->dt[l] = w->tb0[l] = w->tb1[l] = (real)0;
+    w->t0[l] = w->t1[l] = w->dt[l] = w->tb0[l] = w->tb1[l] = w->tend[l] = (real)0;
     w->u0x[l] = w->u0y[l] = w->u0z[l] = w->dux[l] = w->duy[l] = w->duz[l] = (real)0;
     w->n[l] = 0;
   }

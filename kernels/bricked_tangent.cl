@@ -128,7 +128,7 @@ __kernel void bricked_tangent(
     brick_store(&r, s, su);
     su[BU_NEXT] = (uint)i;
     s[BS_TNEXT] = tb1;
-    if (brick_stopped(&r, min_transmittance) || tb1 >= m.t1) su[BU_FLAGS] |= IVR_BRICK_DONE;
+    if (brick_stopped(&r, min_transmittance) || tb1 >= s[BS_TEND]) su[BU_FLAGS] |= IVR_BRICK_DONE;
     return;
   }
 

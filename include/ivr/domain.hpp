@@ -42,10 +42,27 @@ using AllGather =
 IVR_API AllGather all_gather_by_sum(int rank, int ranks,
                                     std::function<void(std::vector<double>&)> sum);
 
+// How the workers march the rays through their slabs (docs/scaling.md).
+enum class SlabMarch {
+  // The rays' march states passed between the workers after each sweep: the unsplit march exactly
+  // (early termination included), but a ray is marched by one worker at a time.
+  states,
+  // Every worker marches its slab's segment of every ray at once, from transmittance 1; the
+  // segments are exchanged once and composited in order along each ray, and the adjoint starts
+  // each worker's segment from the transmittance and radiance in front of it. Equal to the
+  // unsplit march to rounding where early termination is off (integrator.min_transmittance 0);
+  // with it on, a segment stops where its own transmittance falls below the threshold, so a ray
+  // goes on where the unsplit march would have stopped (a difference below min_transmittance
+  // times the radiance and background behind). Render, and the density, TF and background
+  // gradients (forward lanes — camera, scales, tf_points, voxels — need `states`).
+  segments,
+};
+
 // This worker's part of a domain-parallel operation.
 struct DomainPart {
   int rank = 0, ranks = 1;
   AllGather all_gather;  // the exchange of the rays' states after each sweep over the slabs
+  SlabMarch march = SlabMarch::states;  // (every worker the same)
 };
 
 // How a domain-parallel operation went, per worker.

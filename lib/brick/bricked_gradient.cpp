@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <array>
+#include <memory>
 #include <set>
 #include <string>
 
 #include "adjoint/private_sums.hpp"
 #include "brick/bricked_tangent.hpp"
 #include "brick/domain.hpp"
+#include "brick/domain_segments.hpp"
 #include "ivr/error.hpp"
 #include "ivr/jacobian.hpp"
 #include "ivr/tf_parameters.hpp"
@@ -57,11 +59,17 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   ro.step = o.step;
   BrickedMarch march(device, scene, ro, plan, "gradient");
   march.densities_f64 = densities;
-  if (domain) attach_exchange(march, *domain, domain_stats);
+  const bool segments = domain && domain->march == SlabMarch::segments;
+  if (domain && !segments) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
   check_brick_halo(scene, s.integrator().step, plan.layout);
   march.session().set_target(target);
-  march.render();
+  // Over independent segments: this worker's segments, composited with the others'.
+  std::unique_ptr<SegmentMarch> composited;
+  if (segments)
+    composited = std::make_unique<SegmentMarch>(march, scene, *domain, domain_stats);
+  else
+    march.render();
 
   const BrickLayout& l = plan.layout;
   const ImageExtent e = image_extent(scene);
@@ -129,7 +137,11 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
     });
   }
   const int a_grad = a0 + 4 + 6, a_rect = a_grad + 1;
+  // The adjoint's BEGIN: each pixel's loss terms and adjoint from the composited rays (over
+  // segments written into the states first; each ray's march then restarted at its segment).
+  if (composited) composited->write_totals();
   march.launch_all(k, kAdjointBegin);
+  if (composited) composited->seed_adjoint();
 
   const std::size_t planes = std::size_t(l.held_planes());  // all, or a worker's (with its halo)
   std::vector<double> gradient(density ? planes * l.dims[1] * l.dims[0] : 0, 0.0);
@@ -252,6 +264,11 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     if (domain && adjoint && o.mode == Mode::forward)  // (their parts are per slab)
       throw Error(Status::unsupported, where + ": over slabs, " + g +
                                            " is differentiated by the adjoint, not forward mode");
+    if (domain && domain->march == SlabMarch::segments && !adjoint && g != "step")
+      throw Error(Status::unsupported,
+                  where + ": over independent segments, " + g +
+                      " (forward lanes) is not built; march the rays' states (SlabMarch::states, "
+                      "--slab-march states)");
     if (g == "density" && o.mode == Mode::forward)
       throw Error(Status::unsupported,
                   where +

@@ -18,11 +18,11 @@ namespace ivr {
 
 namespace {
 
-constexpr int kStateReals = 24, kStateUints = 5;  // kernels/bricked.cl IVR_BRICK_REALS / _UINTS
+constexpr int kStateReals = kBrickStateReals, kStateUints = kBrickStateUints;
 // Runs of views up to this long launch each view over its brick's pixels alone (brick_pixels);
 // longer ones launch once over every pixel of the run.
 constexpr int kCulledViews = 16;
-enum Phase { kBegin = 0, kMarch = 1, kFinish = 2 };
+enum Phase { kBegin = 0, kMarch = 1, kFinish = 2, kSegmentBegin = 5 };
 
 // The cameras or rays, their parameters and the TF on the device (bounds), and a little for the
 // session's one-byte buffers.
@@ -391,7 +391,21 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const
 }
 
 void BrickedMarch::render() {
-  launch_all(*render_, kBegin);
+  if (segments) {
+    // The layout's planes along z (its first and last bricks'; ±∞ at the box faces): the slab.
+    const BrickLayout& l = plan_.layout;
+    const int last = (l.count[2] - 1) * l.count[0] * l.count[1];
+    cl_call("setting the bricked march's segment planes", [&] {
+      set_brick(*render_, 0, 0);
+      set_real4(*render_, a0_ + 1, s.f64, -INFINITY, -INFINITY, l.lo(0)[2]);
+      set_real4(*render_, a0_ + 2, s.f64, INFINITY, INFINITY, l.hi(last)[2]);
+      render_->setArg(a0_, cl_int(kSegmentBegin));
+    });
+    op.events.push_back(enqueue(
+        s.dev, *render_, pixel_launch(s.dev, *render_, "render", e_.width, e_.height, e_.views, false)));
+  } else {
+    launch_all(*render_, kBegin);
+  }
   if (march_packet_)
     sweep(*march_packet_, kMarch, {}, "bricked_packet", tile_);
   else
@@ -412,6 +426,11 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
   if (domain) attach_exchange(march, *domain, domain_stats);
   march.render();
   const Image out = image_of(march.image);
+  bricked_render_stats(march, plan, stats);
+  return out;
+}
+
+void bricked_render_stats(BrickedMarch& march, const BrickPlan& plan, RenderStats* stats) {
   if (stats) {
     const OperationStats st = march.session().last_stats();
     stats->kernel_seconds = st.kernel_seconds;
@@ -427,7 +446,6 @@ Image render_bricked(Device& device, const Scene& scene, const RenderOptions& op
     stats->uploaded_bytes = march.stream().uploaded_bytes;
     stats->brick_uploads = march.stream().uploads;
   }
-  return out;
 }
 
 }  // namespace ivr

@@ -16,6 +16,10 @@
 
 namespace ivr {
 
+// The out-of-core march's per-ray state (kernels/bricked_state.cl): IVR_BRICK_REALS reals and
+// IVR_BRICK_UINTS uints a ray.
+constexpr int kBrickStateReals = 25, kBrickStateUints = 5;
+
 // How a render runs: in core (bricks = 1, layout.edge = 0) or in bricks, with how many bricks the
 // device holds at once.
 struct BrickPlan {
@@ -88,6 +92,10 @@ class BrickedMarch {
   int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const char* tuning,
             PacketShape tile = {});
   void render();  // BEGIN, the sweeps, FINISH: `image`, `samples`
+  // Independent segments (lib/brick/domain_segments.cpp): render()'s BEGIN starts each ray where
+  // its window in the layout's planes along z (a worker's slab) starts, from transmittance 1, and
+  // the march ends it where that window ends; the image is then this slab's segments alone.
+  bool segments = false;
   Session& session() { return session_; }
   const cl::Buffer& state() const { return state_; }
   const cl::Buffer& state_u() const { return state_u_; }
@@ -133,6 +141,14 @@ class BrickedMarch {
   int a0_ = 0;
   std::vector<ViewGroup> groups_;
 };
+
+// A finished march's stats (kernel and build time, samples, bricks, sweeps, uploads) into *stats
+// (where given).
+void bricked_render_stats(BrickedMarch& march, const BrickPlan& plan, RenderStats* stats);
+
+// A finished march's stats (kernel and build time, samples, bricks, sweeps, uploads) into *stats
+// (where given).
+void bricked_render_stats(BrickedMarch& march, const BrickPlan& plan, RenderStats* stats);
 
 // $IVR_VOLUME_BRICK (cells per brick edge; 0 when unset). Throws on a malformed value.
 int volume_brick_from_env();

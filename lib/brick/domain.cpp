@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "brick/bricked_gradient.hpp"
+#include "brick/domain_segments.hpp"
 #include "ivr/error.hpp"
 #include "session/session.hpp"
 
@@ -357,6 +358,16 @@ BrickPlan plan_domain(Device& device, const Scene& scene, Precision precision, i
   return plan;
 }
 
+const std::vector<float>& slab_values(const Scene& scene, const Slab& slab) {
+  const std::size_t plane = std::size_t(scene.volume.nx) * scene.volume.ny;
+  if (scene.volume.data.size() != plane * slab.planes())
+    throw Error(Status::invalid_argument,
+                "volume: holds " + std::to_string(scene.volume.data.size()) + " values but planes " +
+                    std::to_string(slab.first) + ".." + std::to_string(slab.last) + " need " +
+                    std::to_string(plane * slab.planes()));
+  return scene.volume.data;
+}
+
 void attach_exchange(BrickedMarch& march, const DomainPart& part, DomainStats* stats) {
   check_domain_part(part);
   march.workers = part.ranks;
@@ -370,9 +381,25 @@ Image render_domain(Device& device, const Scene& scene, const DomainPart& part,
                     const RenderOptions& options, RenderStats* stats, DomainStats* domain) {
   check_domain_part(part);
   const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
+  if (part.march == SlabMarch::states) {
+    const BrickPlan plan =
+        plan_domain(device, scene, options.precision, options.volume_brick, false, slab);
+    return render_bricked(device, scene, options, plan, stats, &part, domain);
+  }
+  // Independent segments: the endpoint schemes' first segment in a slab starts at a sample before
+  // it, which the bricks' halo holds (fetched from the neighbours' planes).
+  const int halo = brick_halo(scene, options.step != 0 ? options.step : scene.integrator.step);
   const BrickPlan plan =
-      plan_domain(device, scene, options.precision, options.volume_brick, false, slab);
-  return render_bricked(device, scene, options, plan, stats, &part, domain);
+      plan_domain(device, scene, options.precision, options.volume_brick, false, slab, halo);
+  Scene held = description_of(scene);
+  held.volume.data = halo ? with_neighbour_planes(part, slab, plan.layout, slab_values(scene, slab))
+                          : slab_values(scene, slab);
+  BrickedMarch march(device, held, options, plan, "render");
+  check_brick_halo(held, march.s.integrator().step, plan.layout);
+  const SegmentMarch segments(march, held, part, domain);
+  bricked_render_stats(march, plan, stats);
+  if (stats) stats->samples = segments.samples();
+  return segments.image();
 }
 
 Gradient gradient_domain(Device& device, const Scene& scene, const Image& target,
@@ -397,12 +424,7 @@ Gradient gradient_domain_values(Device& device, const Scene& scene, const Image&
   const BrickPlan plan = plan_domain(device, scene, options.precision, 0, true, slab, halo);
   if (!halo)
     return gradient_bricked(device, scene, target, groups, options, plan, &part, domain, densities);
-  const std::size_t plane = std::size_t(scene.volume.nx) * scene.volume.ny;
-  if (scene.volume.data.size() != plane * slab.planes())
-    throw Error(Status::invalid_argument,
-                "volume: holds " + std::to_string(scene.volume.data.size()) + " values but planes " +
-                    std::to_string(slab.first) + ".." + std::to_string(slab.last) + " need " +
-                    std::to_string(plane * slab.planes()));
+  slab_values(scene, slab);
   Scene held = description_of(scene);
   std::vector<double> held_f64;
   if (densities) {  // (the floats checked and passed along are these, rounded)

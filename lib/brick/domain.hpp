@@ -35,6 +35,9 @@ Gradient gradient_domain_values(Device& device, const Scene& scene, const Image&
 std::vector<double> return_halo(const DomainPart& part, const Slab& slab, const BrickLayout& layout,
                                 const std::vector<double>& gradient);
 
+// The scene's densities, checked to be the slab's planes (else Error(invalid_argument)).
+const std::vector<float>& slab_values(const Scene& scene, const Slab& slab);
+
 // Makes `march` pass the rays' states between the workers: before its sweeps it keeps a host copy
 // of the states; after each sweep the rays this worker's bricks moved go to every worker
 // (part.all_gather) and the rays the others moved are written into its states. A ray's march

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "ivr/domain.hpp"
+#include "ivr/error.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -72,6 +73,18 @@ inline std::vector<T> on_workers(int ranks, F f) {
   for (std::thread& t : threads) t.join();
   for (int w = 0; w < ranks; ++w) EXPECT_EQ(errors[w], "") << "worker " << w;
   return out;
+}
+
+// Expects f() to throw an ivr::Error of `status` whose message names `part`.
+template <typename F>
+inline void expect_error(F f, Status status, const std::string& part) {
+  try {
+    f();
+    ADD_FAILURE() << "no error; expected one naming '" << part << "'";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.status(), status) << e.what();
+    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace ivr::test

@@ -151,17 +151,6 @@ TEST(Domain, LoadSceneKeepsOnlyTheSlab) {
     }
 }
 
-template <typename F>
-void expect_error(F f, Status status, const std::string& part) {
-  try {
-    f();
-    ADD_FAILURE() << "no error; expected one naming '" << part << "'";
-  } catch (const Error& e) {
-    EXPECT_EQ(e.status(), status) << e.what();
-    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
-  }
-}
-
 // Forward lanes over slabs: the camera's tangents travel with the rays' states, so every worker
 // ends with the whole camera gradient — the in-core adjoint's to rounding — beside the density's
 // slab parts (joined) and the background's (whole).

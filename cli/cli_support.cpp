@@ -135,9 +135,12 @@ void add_march_options(CLI::App* cmd, MarchOptions& o) {
 void add_split_option(CLI::App* cmd, std::string& split) {
   cmd->add_option("--split", split,
                   "Under mpirun: views (default: each rank its share of the views, the whole "
-                  "volume on every rank) or slabs (each rank one slab of z planes, the rays' "
-                  "march states passed between ranks; one device per rank; docs/scaling.md)")
-      ->check(CLI::IsMember({"views", "slabs"}));
+                  "volume on every rank), slabs (each rank one slab of z planes, the rays' "
+                  "march states passed between ranks; one device per rank; docs/scaling.md) or "
+                  "segments (slabs, each rank marching its segments of every ray at once, "
+                  "composited after one exchange; with early termination on, within its "
+                  "threshold of the one-process render)")
+      ->check(CLI::IsMember({"views", "slabs", "segments"}));
 }
 
 std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors) {

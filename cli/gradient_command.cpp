@@ -37,10 +37,10 @@ struct GradientArgs {
 // …) are whole on every rank.
 Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
                         const Image& target, const std::vector<std::string>& groups,
-                        const GradientOptions& options) {
+                        const GradientOptions& options, const std::string& split) {
   const World& w = world();
   Gradient mine = gradient_domain(one_device_per_rank(devices), scene,  // (its slab: load_scene_for)
-                                  target, domain_part(), options, nullptr, groups);
+                                  target, domain_part(split), options, nullptr, groups);
   for (GroupGradient& g : mine.groups) {  // every rank takes part in each collective
     if (g.name == "tf") {  // each rank's part: its slab's samples
       sum_all(g.values);
@@ -61,7 +61,7 @@ Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
 Gradient gradient_ranks(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
                         const std::vector<std::string>& groups, GradientOptions options,
                         const std::string& split) {
-  if (split == "slabs") return gradient_slabs(devices, scene, target, groups, options);
+  if (split != "views") return gradient_slabs(devices, scene, target, groups, options, split);
   const World& w = world();
   if (w.size == 1) return gradient(devices, scene, target, groups, options);
   // Each rank a worker of the data-parallel gradient (GradientOptions::workers), summing over

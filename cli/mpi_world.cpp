@@ -131,15 +131,16 @@ Device& one_device_per_rank(const std::vector<Device*>& devices) {
 }
 
 Scene load_scene_for(const std::string& path, const std::string& split) {
-  if (split != "slabs") return load_scene(path);
+  if (split == "views") return load_scene(path);
   return load_scene(path, [](int nz) {
     const Slab slab = domain_slab(nz, the_world.rank, the_world.size);
     return std::pair<int, int>{slab.first, slab.last};
   });
 }
 
-DomainPart domain_part() {
+DomainPart domain_part(const std::string& split) {
   DomainPart part;
+  part.march = split == "segments" ? SlabMarch::segments : SlabMarch::states;
   part.rank = the_world.rank;
   part.ranks = the_world.size;
   part.all_gather = [](const std::vector<unsigned char>& mine) { return all_gather(mine); };

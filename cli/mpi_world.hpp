@@ -30,10 +30,10 @@ std::vector<double> gather(const std::vector<double>& mine);
 std::vector<std::vector<double>> gather_parts(const std::vector<double>& mine);
 // Every rank's bytes by rank, on every rank (MPI_Allgatherv).
 std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned char>& mine);
-// This rank's part of a domain-parallel operation over the world (--split slabs), and its one
-// device (several are refused).
-DomainPart domain_part();
-// The scene file with, under --split slabs, only this rank's slab of its volume read (the planes
+// This rank's part of a domain-parallel operation over the world (--split slabs or segments:
+// SlabMarch::states or segments), and its one device (several are refused).
+DomainPart domain_part(const std::string& split = "slabs");
+// The scene file with, under --split slabs or segments, only this rank's slab of its volume read (the planes
 // domain_slab gives it: domain_share's convention), else whole.
 Scene load_scene_for(const std::string& path, const std::string& split);
 Device& one_device_per_rank(const std::vector<Device*>& devices);

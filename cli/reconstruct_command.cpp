@@ -238,7 +238,10 @@ Image render_with(Device& device, const Scene& scene, const ReconstructOptions& 
   RenderOptions r;
   r.precision = o.precision;
   r.step = o.step;
-  return o.slabs ? render_domain(device, scene, domain_part(), r) : render(device, scene, r);
+  if (!o.slabs) return render(device, scene, r);
+  DomainPart part = domain_part();
+  part.march = o.slab_march;
+  return render_domain(device, scene, part, r);
 }
 
 Image render_view0(Device& device, Scene scene, const ReconstructOptions& o) {
@@ -359,7 +362,8 @@ Runner add_reconstruct_command(CLI::App& app) {
     // slab of the densities, and its own checkpoint (PREFIX_rankR_checkpoint*).
     const World& w = world();
     const bool writer = w.rank == 0;
-    options.slabs = a.split == "slabs";
+    options.slabs = a.split != "views";
+    options.slab_march = a.split == "segments" ? SlabMarch::segments : SlabMarch::states;
     if (w.size > 1) {
       options.worker = w.rank, options.workers = w.size;
       options.sum = [](std::vector<double>& v) { sum_all(v); };

@@ -51,9 +51,9 @@ Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
                    const RenderOptions& options, RenderStats* stats, const std::string& split,
                    DomainStats* domain) {
   const World& w = world();
-  if (split == "slabs") {
+  if (split != "views") {
     return render_domain(one_device_per_rank(devices), scene,  // (its slab: load_scene_for)
-                         domain_part(), options, stats, domain);
+                         domain_part(split), options, stats, domain);
   }
   if (w.size == 1) return render(devices, scene, options, stats);
   const auto parts = view_shares(share_items(scene), std::size_t(w.size));

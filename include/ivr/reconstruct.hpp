@@ -90,6 +90,9 @@ struct ReconstructOptions {
   // workers (an MPI_Allgatherv); empty: built from `sum` (all_gather_by_sum).
   bool slabs = false;
   AllGather all_gather;
+  // Over slabs: pass the rays' march states (exact, early termination included) or march each
+  // worker's segments of every ray at once and composite them (ivr/domain.hpp, SlabMarch).
+  SlabMarch slab_march = SlabMarch::states;
 };
 
 // Throws ivr::Error(invalid_argument) naming the first bad option.

@@ -31,6 +31,7 @@ void Reconstruction::Impl::setup_slabs() {
     refuse("a tolerance's step is chosen from the whole volume: give a step");
   part.rank = o.worker;
   part.ranks = o.workers;
+  part.march = o.slab_march;
   if (o.workers > 1)
     part.all_gather = o.all_gather ? o.all_gather : all_gather_by_sum(o.worker, o.workers, o.sum);
   slab = domain_slab(scene.volume.nz, o.worker, o.workers);

@@ -8,7 +8,9 @@
 # process's losses within 1e-10 and ends at its densities bit for bit (fixed-point gradients: the
 # shares' integer sums added exactly), over slabs (each rank its planes, both priors across them)
 # its losses and priors within 1e-12, as `ivr gradient --deterministic` gives one process's
-# density gradient bit for bit (float32); an error in the
+# density gradient bit for bit (float32); over independent segments (--split segments, early
+# termination off) the render, the density and TF gradients and the reconstruction's losses within
+# 1e-12, in one exchange; an error in the
 # ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
@@ -49,6 +51,11 @@ rec=(--targets one.npy --init constant:0.3 --iterations 12 --batch 4 --levels 2 
 srec=(--targets one.npy --init constant:0.3 --iterations 6 --batch 4 --levels 2 --precision f64
   --optimizer sgd --lr 1 --tv 0.05 --smoothness 0.02)
 "$ivr" reconstruct scene.json "${srec[@]}" -o srec1 2>/dev/null >/dev/null
+# Independent segments equal the unsplit march where early termination is off.
+sed 's/"step": 0.5}/"step": 0.5, "min_transmittance": 0}/' scene.json > scene0.json
+"$ivr" render scene0.json -o one0.npy --precision f64
+"$ivr" gradient scene0.json --target target.npy --wrt density,tf,background -o g0 --precision f64
+"$ivr" reconstruct scene0.json "${srec[@]}" -o grec1 2>/dev/null >/dev/null
 run() { "$mpiexec" -np "$1" --oversubscribe "${@:2}"; }
 for np in 2 4; do
   out=$(run "$np" "$ivr" render scene.json -o "r$np.npy" --precision f64 --json)
@@ -68,6 +75,12 @@ for np in 2 4; do
   echo "$out" | grep -q '"exchanged_bytes":0,' && { echo "render --split slabs -np $np exchanged nothing: $out"; exit 1; }
   run "$np" "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o "sg$np" \
     --precision f64 --split slabs >/dev/null
+  out=$(run "$np" "$ivr" render scene0.json -o "seg$np.npy" --precision f64 --split segments --json)
+  echo "$out" | grep -q '"exchanges":1,' || { echo "render --split segments -np $np: $out"; exit 1; }
+  run "$np" "$ivr" gradient scene0.json --target target.npy --wrt density,tf,background \
+    -o "gseg$np" --precision f64 --split segments >/dev/null
+  run "$np" "$ivr" reconstruct scene0.json "${srec[@]}" -o "grec$np" --split segments \
+    2>/dev/null >/dev/null
   out=$(run "$np" "$ivr" tomo scene.json --projections p.npy --iterations 5 -o "sx$np.npy" \
     --precision f64 --split slabs --json 2>/dev/null)
   echo "$out" | grep -q '"split":"slabs"' || { echo "tomo --split slabs -np $np: $out"; exit 1; }
@@ -114,6 +127,20 @@ for n in (2, 4):
         tol = 1e-10 if g == "camera" else 1e-12
         assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= tol, f"slabs {g} -np {n}: {err}"
         print(f"-np {n} slabs: render and {g} gradient {err:.2e}")
+    s = np.load(f"seg{n}.npy")
+    err = np.max(np.abs(s - np.load("one0.npy"))) / np.max(np.abs(one))
+    assert s.shape == one.shape and err <= 1e-12, f"render --split segments -np {n}: {err}"
+    worst = err
+    for g in ("density", "tf", "background"):
+        a, b = np.load(f"g0_{g}.npy"), np.load(f"gseg{n}_{g}.npy")
+        err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+        assert a.shape == b.shape and np.all(np.isfinite(b)) and err <= 1e-12, f"segments {g} -np {n}: {err}"
+        worst = max(worst, err)
+    la = np.loadtxt("grec1_loss.csv", delimiter=",", skiprows=1)[:, 3:5]
+    lb = np.loadtxt(f"grec{n}_loss.csv", delimiter=",", skiprows=1)[:, 3:5]
+    lerr = np.max(np.abs(la - lb)) / np.max(np.abs(la))
+    assert la.shape == lb.shape and lerr <= 1e-12, f"reconstruct --split segments -np {n}: {lerr}"
+    print(f"-np {n} segments: render and gradients {worst:.2e}, reconstruction's losses and priors {lerr:.2e}")
     la = np.loadtxt("rec1_loss.csv", delimiter=",", skiprows=1)[:, 3]
     lb = np.loadtxt(f"rec{n}_loss.csv", delimiter=",", skiprows=1)[:, 3]
     lerr = np.max(np.abs(la - lb) / la)

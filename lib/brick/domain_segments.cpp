@@ -164,7 +164,7 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
     }
     std::copy(v, v + 4, &total_[i * 4]);
   }
-  if (stats) ++stats->exchanges, stats->sent_bytes += mine.size();
+  if (stats && part.ranks > 1) ++stats->exchanges, stats->sent_bytes += mine.size();
 }
 
 Image SegmentMarch::image() const {

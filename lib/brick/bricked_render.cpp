@@ -307,6 +307,12 @@ void BrickedMarch::set_brick(cl::Kernel& k, int b, int slot) {
 void BrickedMarch::launch_all(cl::Kernel& k, int phase) {
   cl_call("running the bricked march on " + s.dev.info.name, [&] {
     set_brick(k, 0, 0);
+    if (phase == kSegmentBegin) {  // the layout's planes along z (±∞ at the box faces): the slab
+      const BrickLayout& l = plan_.layout;
+      const int last = (l.count[2] - 1) * l.count[0] * l.count[1];
+      set_real4(k, a0_ + 1, s.f64, -INFINITY, -INFINITY, l.lo(0)[2]);
+      set_real4(k, a0_ + 2, s.f64, INFINITY, INFINITY, l.hi(last)[2]);
+    }
     k.setArg(a0_, cl_int(phase));
     // A pass over the whole image, one ray per work-item, as the in-core one-ray render's: its
     // launch shape ("render"). (The "bricked" rows shape the sweeps' rectangles; their 1x1 on
@@ -391,21 +397,7 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const
 }
 
 void BrickedMarch::render() {
-  if (segments) {
-    // The layout's planes along z (its first and last bricks'; ±∞ at the box faces): the slab.
-    const BrickLayout& l = plan_.layout;
-    const int last = (l.count[2] - 1) * l.count[0] * l.count[1];
-    cl_call("setting the bricked march's segment planes", [&] {
-      set_brick(*render_, 0, 0);
-      set_real4(*render_, a0_ + 1, s.f64, -INFINITY, -INFINITY, l.lo(0)[2]);
-      set_real4(*render_, a0_ + 2, s.f64, INFINITY, INFINITY, l.hi(last)[2]);
-      render_->setArg(a0_, cl_int(kSegmentBegin));
-    });
-    op.events.push_back(enqueue(
-        s.dev, *render_, pixel_launch(s.dev, *render_, "render", e_.width, e_.height, e_.views, false)));
-  } else {
-    launch_all(*render_, kBegin);
-  }
+  launch_all(*render_, segments ? kSegmentBegin : kBegin);
   if (march_packet_)
     sweep(*march_packet_, kMarch, {}, "bricked_packet", tile_);
   else

@@ -188,6 +188,17 @@ IVR_API ivr_status ivr_gradient_shared(ivr_context* context, const ivr_scene* sc
                                        ivr_mode mode, ivr_loss loss, ivr_precision precision,
                                        double step, int deterministic, int rank, int ranks,
                                        ivr_sum_fn sum, void* sum_user, ivr_result** result);
+/* How a split operation shares the work among its workers. */
+typedef enum ivr_split {
+  IVR_SPLIT_VIEWS = 0, /* each worker its share of the views (or rays) and the whole volume */
+  IVR_SPLIT_SLABS = 1, /* each worker one slab of z planes of the volume and every view, the
+                          rays' march states passed from slab to slab */
+  IVR_SPLIT_SEGMENTS = 2, /* each worker one slab and every view, each ray's segments marched
+                             independently and composited in order (render, gradient,
+                             reconstruction: docs/scaling.md) */
+  IVR_SPLIT_MAX_ENUM = 0x7fffffff
+} ivr_split;
+
 /* ivr_render and ivr_gradient as worker `rank` of `ranks` over slabs (docs/scaling.md), every
  * worker calling it together: each marches only planes ivr_domain_slab(nz, rank, ranks) of the
  * scene's volume on its device (the scene holds the whole volume; the slab is cut from it), the
@@ -199,7 +210,14 @@ IVR_API ivr_status ivr_gradient_shared(ivr_context* context, const ivr_scene* sc
  * scales, tf_points, voxels:LIST) are whole on every worker, as is the loss.
  * ivr_sum_fn: a sum over the workers of a split operation, called by every worker together:
  * `values` (`count` doubles) replaced by their elementwise sum over the workers, the same on every
- * worker — an MPI_Allreduce with MPI_SUM from the caller's MPI. Return non-zero on success. */
+ * worker — an MPI_Allreduce with MPI_SUM from the caller's MPI. Return non-zero on success.
+ * ivr_render_split and ivr_gradient_split: the same with the slab march `split` names —
+ * IVR_SPLIT_SLABS (the march states passed, as ivr_render_slabs) or IVR_SPLIT_SEGMENTS (every
+ * worker marches its slab's segment of every ray at once, from transmittance 1; one exchange of
+ * the segments, composited in order per ray; the adjoint seeded from the composited front). Over
+ * segments the gradient takes density, tf and background (the forward lanes' groups are
+ * refused), and early termination stops a segment only where its own transmittance falls below
+ * the threshold (docs/scaling.md). */
 IVR_API ivr_status ivr_render_slabs(ivr_context* context, const ivr_scene* scene,
                                     ivr_precision precision, double step, int rank, int ranks,
                                     ivr_sum_fn sum, void* sum_user, float* image, size_t capacity);
@@ -208,6 +226,15 @@ IVR_API ivr_status ivr_gradient_slabs(ivr_context* context, const ivr_scene* sce
                                       ivr_loss loss, ivr_precision precision, double step, int rank,
                                       int ranks, ivr_sum_fn sum, void* sum_user,
                                       ivr_result** result);
+IVR_API ivr_status ivr_render_split(ivr_context* context, const ivr_scene* scene,
+                                    ivr_precision precision, double step, ivr_split split,
+                                    int rank, int ranks, ivr_sum_fn sum, void* sum_user,
+                                    float* image, size_t capacity);
+IVR_API ivr_status ivr_gradient_split(ivr_context* context, const ivr_scene* scene,
+                                      const float* target, size_t count, const char* wrt,
+                                      ivr_loss loss, ivr_precision precision, double step,
+                                      ivr_split split, int rank, int ranks, ivr_sum_fn sum,
+                                      void* sum_user, ivr_result** result);
 /* The loss (mean over every element: IVR_LOSS_MSE of the squared, IVR_LOSS_L1 of the absolute
  * differences) of `image` against `target`, both `count` floats. */
 IVR_API ivr_status ivr_image_loss(const float* image, const float* target, size_t count,
@@ -304,12 +331,6 @@ IVR_API ivr_status ivr_tomo(ivr_context* context, const ivr_scene* scene,
                             ivr_tomo_summary* summary);
 
 
-/* How a split operation shares the work among its workers. */
-typedef enum ivr_split {
-  IVR_SPLIT_VIEWS = 0, /* each worker its share of the views (or rays) and the whole volume */
-  IVR_SPLIT_SLABS = 1, /* each worker one slab of z planes of the volume and every view */
-  IVR_SPLIT_MAX_ENUM = 0x7fffffff
-} ivr_split;
 
 /* ivr_tomo as worker `rank` of `ranks` (CGLS, SIRT or LSQR, with nonneg, tikhonov or tv; over
  * slabs each worker holds the TV rows of its own planes), every worker calling it
@@ -319,7 +340,8 @@ typedef enum ivr_split {
  * worker. IVR_SPLIT_SLABS: `scene` and `lines` are the whole scene's, on every worker; `volume`
  * receives this worker's planes [first, last] of the grid (planes * ny * nx floats; the slab of
  * ivr_domain_slab), the planes neighbours share alike on both. progress, history and summary as
- * ivr_tomo's. Equal to one process's ivr_tomo to rounding. */
+ * ivr_tomo's. Equal to one process's ivr_tomo to rounding. (No IVR_SPLIT_SEGMENTS: a line
+ * integral's slab parts add in one sum already.) */
 IVR_API ivr_status ivr_tomo_split(ivr_context* context, const ivr_scene* scene,
                                   const ivr_tomo_options* options, ivr_split split, int rank,
                                   int ranks, ivr_sum_fn sum, void* sum_user, const float* lines,
@@ -465,7 +487,8 @@ IVR_API ivr_status ivr_reconstruction_create_shared(ivr_context* context, const 
  * ivr_reconstruction_create_shared; IVR_SPLIT_SLABS (mpirun ivr reconstruct --split slabs): every
  * worker passes the whole scene (its volume: the start with init scene) and targets, holds only
  * planes ivr_domain_slab(nz, worker, workers) of the densities and their optimiser state, and
- * marches every view of each batch through them, the rays' states passed through `sum`; the
+ * marches every view of each batch through them, the rays' states passed through `sum`
+ * (IVR_SPLIT_SEGMENTS: each ray's segments marched at once and composited in order); the
  * densities (and the TF jointly), cameras only. ivr_reconstruction_volume then returns this
  * worker's planes of the current level's grid (planes * ny * nx; those neighbours share alike on
  * both), and

@@ -377,17 +377,18 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                   const GradientOptions& options = {}) {
     return gradient(scene, target.data(), target.size(), options);
   }
-  // Over slabs (ivr_render_slabs, ivr_gradient_slabs; `slabs.split` is not read): worker
-  // slabs.rank of slabs.ranks marches only its slab of the scene's volume, every worker calling
-  // together; the image is the whole render, the gradient (density, tf) this worker's parts.
+  // Over slabs (ivr_render_split, ivr_gradient_split): worker slabs.rank of slabs.ranks marches
+  // only its slab of the scene's volume, every worker calling together; the image is the whole
+  // render, the gradient (density, tf) this worker's parts. slabs.split IVR_SPLIT_SEGMENTS marches
+  // each ray's segments independently; any other value passes the rays' march states.
   Array<float> render(const Scene& scene, const Options& options, const Workers& slabs) {
     Array<float> image{scene.image_shape(), {}};
     image.values.resize(detail::product(image.shape));
     detail::Sum sum{&slabs.sum, nullptr};
-    const ivr_status status = ivr_render_slabs(
-        get(), scene.get(), ivr_precision(options.precision), options.step, slabs.rank,
-        slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum, image.values.data(),
-        image.size());
+    const ivr_status status = ivr_render_split(
+        get(), scene.get(), ivr_precision(options.precision), options.step, slab_march(slabs),
+        slabs.rank, slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum,
+        image.values.data(), image.size());
     if (sum.error) std::rethrow_exception(sum.error);
     detail::check(status);
     return image;
@@ -396,10 +397,10 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                   const GradientOptions& options, const Workers& slabs) {
     ivr_result* r = nullptr;
     detail::Sum sum{&slabs.sum, nullptr};
-    const ivr_status status = ivr_gradient_slabs(
+    const ivr_status status = ivr_gradient_split(
         get(), scene.get(), target.data(), target.size(), options.wrt.c_str(),
-        ivr_loss(options.loss), ivr_precision(options.precision), options.step, slabs.rank,
-        slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum, &r);
+        ivr_loss(options.loss), ivr_precision(options.precision), options.step, slab_march(slabs),
+        slabs.rank, slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum, &r);
     if (sum.error) std::rethrow_exception(sum.error);
     detail::check(status);
     return Result(r);
@@ -472,6 +473,9 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
   }
 
  private:
+  static ivr_split slab_march(const Workers& slabs) {
+    return slabs.split == IVR_SPLIT_SEGMENTS ? IVR_SPLIT_SEGMENTS : IVR_SPLIT_SLABS;
+  }
   Array<float> project(const Scene& scene, const float* volume, size_t count, Precision precision) {
     std::vector<int64_t> shape = scene.image_shape();
     shape[3] = 1;

@@ -121,18 +121,20 @@ ivr_status ivr_reconstruction_create_split(ivr_context* c, const ivr_scene* s,
                                            const ivr_reconstruct_options* options, ivr_split split,
                                            int worker, int workers, ivr_sum_fn sum, void* sum_user,
                                            ivr_reconstruction** out) {
-  return guarded(c, split == IVR_SPLIT_SLABS ? "ivr_reconstruction_create_split"
+  return guarded(c, split != IVR_SPLIT_VIEWS ? "ivr_reconstruction_create_split"
                                              : "ivr_reconstruction_create_shared",
                  [&] {
     not_null(out, "reconstruction");
     *out = nullptr;
     if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
-    if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS)
-      bad("split " + std::to_string(int(split)) + " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS)");
+    if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS && split != IVR_SPLIT_SEGMENTS)
+      bad("split " + std::to_string(int(split)) +
+          " (IVR_SPLIT_VIEWS, IVR_SPLIT_SLABS or IVR_SPLIT_SEGMENTS)");
     ivr::ReconstructOptions o = core_options(options);
     o.worker = worker, o.workers = workers;  // (their range: checked by the core, named)
     o.sum = sum_of(sum, sum_user);
-    o.slabs = split == IVR_SPLIT_SLABS;
+    o.slabs = split != IVR_SPLIT_VIEWS;
+    if (split == IVR_SPLIT_SEGMENTS) o.slab_march = ivr::SlabMarch::segments;
     *out = create_reconstruction(c, s, targets, count, o);
   });
 }

@@ -172,7 +172,9 @@ ivr_status ivr_tomo_split(ivr_context* c, const ivr_scene* s, const ivr_tomo_opt
     if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
     if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS)
       throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                   "split " + std::to_string(int(split)) + " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS)"};
+                   "split " + std::to_string(int(split)) +
+                       " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS; a line integral's slab parts add "
+                       "in one sum already, so tomography has no IVR_SPLIT_SEGMENTS)"};
     check_worker(rank, ranks);
     const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
                         history_capacity);

@@ -347,11 +347,11 @@ class Context(_Owned):
             if _split is None:
                 _check(self._lib.ivr_render(self._live(), s, _PRECISIONS[self.precision], step,
                                             image, out.size))
-            else:  # (rank, ranks, add): ivr.mpi's workers over slabs
-                rank, ranks, add = _split
-                status = self._lib.ivr_render_slabs(self._live(), s, _PRECISIONS[self.precision],
-                                                    step, rank, ranks, _sum_fn(add, failure),
-                                                    None, image, out.size)
+            else:  # (split, rank, ranks, add): ivr.mpi's workers over slabs (1) or segments (2)
+                split, rank, ranks, add = _split
+                status = self._lib.ivr_render_split(self._live(), s, _PRECISIONS[self.precision],
+                                                    step, split, rank, ranks,
+                                                    _sum_fn(add, failure), None, image, out.size)
                 if failure:
                     raise failure[0]
                 _check(status)
@@ -381,11 +381,11 @@ class Context(_Owned):
             r = _capi.HANDLE()
             args = (self._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, groups.encode())
             failure = []
-            if _split is not None:  # (rank, ranks, add): ivr.mpi's workers over slabs (adjoint mode)
-                rank, ranks, add = _split
-                status = self._lib.ivr_gradient_slabs(
-                    *args, _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision], step, rank,
-                    ranks, _sum_fn(add, failure), None, ctypes.byref(r))
+            if _split is not None:  # (split, rank, ranks, add): ivr.mpi's workers over slabs
+                split, rank, ranks, add = _split
+                status = self._lib.ivr_gradient_split(
+                    *args, _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision], step,
+                    split, rank, ranks, _sum_fn(add, failure), None, ctypes.byref(r))
             else:
                 how = (_choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
                        _PRECISIONS[self.precision], step)

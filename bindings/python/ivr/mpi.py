@@ -1,6 +1,8 @@
 """ivr.mpi — ivr under MPI from Python (mpi4py): data-parallel over views, as `mpirun -np N ivr
 render|gradient|project|backproject|tomo` (docs/scaling.md), and domain-parallel over slabs of
-z planes (`render`, `gradient`, `tomo` and `reconstruct` with split="slabs", as `--split slabs`);
+z planes (`render`, `gradient`, `tomo` and `reconstruct` with split="slabs", as `--split slabs`;
+`render`, `gradient` and `reconstruct` also with split="segments", each ray's slab segments
+marched at once and composited in order, as `--split segments`);
 and `reconstruct`, each batch's views shared out (as `mpirun -np N ivr reconstruct`). Each rank renders or differentiates its contiguous share of the
 views (a ray list: of the rays) with the whole volume; the images are gathered in view order, the
 loss and the gradients weighted by the shares' sizes (mse, l1: the mean losses; dot: summed) and
@@ -95,22 +97,30 @@ def _summer(comm):
     return add
 
 
-def _check_split(split, where):
-    if split not in ("views", "slabs"):
-        raise Error("IVR_ERROR_INVALID_ARGUMENT", f"ivr.mpi.{where}: split {split!r} (views or slabs)")
+_SPLITS = {"views": 0, "slabs": 1, "segments": 2}  # (the C API's ivr_split)
+
+
+def _check_split(split, where, allowed=("views", "slabs", "segments")):
+    if split not in allowed:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.{where}: split {split!r} ({', '.join(allowed[:-1])} or {allowed[-1]})")
+    return _SPLITS[split]
 
 
 def render(ctx, scene, volume=None, comm=None, split="views", **options):
     """ctx.render of the whole scene, each rank rendering its share: every rank gets the images of
     every view (views, H, W, C) (a ray list: (rays, C)). split="slabs": each rank marches one slab
     of z planes of the volume on its device, the rays' march states passed between the ranks (the
-    whole volume is given on every rank; the device holds its slab). `options` are ctx.render's."""
+    whole volume is given on every rank; the device holds its slab). split="segments": each rank
+    marches its slab's segment of every ray at once, the segments exchanged once and composited in
+    order (early termination then stops a segment only on its own transmittance: docs/scaling.md).
+    `options` are ctx.render's."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
-    _check_split(split, "render")
-    if split == "slabs":
-        return ctx.render(scene, volume, _split=(comm.Get_rank(), comm.Get_size(), _summer(comm)),
-                          **options)
+    code = _check_split(split, "render")
+    if split != "views":
+        return ctx.render(scene, volume,
+                          _split=(code, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
     mine = _mine(comm, _items(scene))
     image = ctx.render(scene_share(scene, *mine), volume, **options) if mine else None
     return np.concatenate([p for p in comm.allgather(image) if p is not None], axis=0)
@@ -156,15 +166,16 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
     process's result to rounding. split="slabs" (every scheme): each rank differentiates over one
     slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
     summed; background and the forward lanes' groups (camera, …) come whole on every rank.
+    split="segments": the same over independent segments (density, tf and background only).
     `options` are ctx.gradient's (mode, step, base_dir, deterministic — over views, the density
     gradient summed in fixed point: one process's bits; over slabs: step, base_dir)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
-    _check_split(split, "gradient")
-    if split == "slabs":
-        value, arrays = ctx.gradient(scene, volume, target, wrt=wrt, loss=loss,
-                                     _split=(comm.Get_rank(), comm.Get_size(), _summer(comm)),
-                                     **options)
+    code = _check_split(split, "gradient")
+    if split != "views":
+        value, arrays = ctx.gradient(
+            scene, volume, target, wrt=wrt, loss=loss,
+            _split=(code, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
         out = {}
         for name, a in arrays.items():
             a = np.ascontiguousarray(a, dtype=np.float64)
@@ -204,7 +215,7 @@ def tomo(ctx, scene, lines, comm=None, split="views", **options):
     `options` are ctx.tomo's (iterations, nonneg, tikhonov, tolerance, progress, grid, info)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
-    _check_split(split, "tomo")
+    _check_split(split, "tomo", ("views", "slabs"))  # (a line's slab parts add: no segments)
     add = _summer(comm)
     rank, ranks = comm.Get_rank(), comm.Get_size()
     n = _items(scene)
@@ -233,13 +244,13 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", **
     for densities with the TF fixed and deterministic gradients, else to the rounding of the sums).
     split="slabs" (as --split slabs): each rank holds one slab of z planes of the densities and
     marches every view through it (the densities, and the TF jointly), the slabs gathered
-    at the end. progress(entry) is called on every rank; returning False on any rank
+    at the end; split="segments" likewise, each ray's segments marched at once. progress(entry) is called on every rank; returning False on any rank
     stops every rank after the same iteration. Cameras only; over views every batch needs at least
     one view per rank. Returns ctx.reconstruct's dict on every rank, "volume" whole (checkpoint:
     give each rank its own prefix — over slabs each rank's state is its own)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
-    _check_split(split, "reconstruct")
+    code = _check_split(split, "reconstruct")
     from mpi4py import MPI
 
     def agreed(entry):  # (collective: every rank calls it after every iteration)
@@ -247,8 +258,8 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", **
         return comm.allreduce(0 if go else 1, op=MPI.SUM) == 0
 
     out = ctx.reconstruct(scene, targets, progress=agreed, _workers=(
-        1 if split == "slabs" else 0, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
-    if split == "slabs" and "volume" in out:
+        code, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
+    if split != "views" and "volume" in out:
         parts = comm.allgather(out["volume"])  # a shared plane once, from the lower rank
         out["volume"] = np.concatenate([parts[0]] + [p[1:] for p in parts[1:]], axis=0)
     return out

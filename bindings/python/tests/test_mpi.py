@@ -3,8 +3,10 @@ gradient, projection and back-projection, each rank doing its share of the views
 process's (float64: the images and gradients within 1e-12 of the largest entry; the lines bit for
 bit, the float32 back-projection within 1e-6; with deterministic=True the density gradient one
 process's bit for bit); the render and the density, TF and background
-gradients over slabs (within 1e-12; the camera's, by forward lanes, 1e-10); CGLS over views and over slabs (the float32 volume within 1e-6, the
-residuals within 1e-10; CGLS, SIRT and LSQR); a reconstruction sharing each batch's views (losses within 1e-10, a stop
+gradients over slabs (within 1e-12; the camera's, by forward lanes, 1e-10) and over independent
+segments (within 1e-12); CGLS over views and over slabs (the float32 volume within 1e-6, the
+residuals within 1e-10; CGLS, SIRT and LSQR); a reconstruction sharing each batch's views, and
+one over slabs and over segments (losses within 1e-10, a stop
 on one rank stopping all); more ranks than views; a ray list; bad input.
 Each rank also computes the one-process result itself, as the reference."""
 import copy
@@ -141,6 +143,26 @@ def test_endpoint_gradients_over_slabs_equal_one_process(ctx, scheme):
         close(g1[name], gn[name], f"{scheme} {name} gradient over slabs")
 
 
+@pytest.mark.parametrize("scheme", ["midpoint", "trapezoid"])
+def test_render_and_gradient_over_segments_equal_one_process(ctx, scheme):
+    # Each rank's segment of every ray marched at once from transmittance 1, composited in order
+    # (no early termination: a segment cannot know the transmittance in front of it).
+    s = dict(scene_of(3), integrator={"scheme": scheme, "step": 0.5, "min_transmittance": 0})
+    v = volume()
+    one = ctx.render(s, v)
+    close(one, ivr.mpi.render(ctx, s, v, split="segments"), f"{scheme} render over segments")
+    target = 0.8 * one + 0.05
+    wrt = ("density", "tf", "background")
+    l1, g1 = ctx.gradient(s, v, target, wrt=wrt, mode="adjoint")
+    ln, gn = ivr.mpi.gradient(ctx, s, v, target, wrt=wrt, split="segments")
+    assert abs(ln - l1) <= 1e-12 * abs(l1), (ln, l1)
+    assert sorted(gn) == sorted(g1)
+    for name in wrt:
+        close(g1[name], gn[name], f"{scheme} {name} gradient over segments")
+    with pytest.raises(ivr.Error, match="segments"):  # (forward lanes: over states only)
+        ivr.mpi.gradient(ctx, s, v, target, wrt=("camera",), split="segments")
+
+
 @pytest.mark.parametrize("split", ["views", "slabs"])
 @pytest.mark.parametrize("nonneg", [False, True])
 @pytest.mark.parametrize("solver", ["cgls", "sirt", "lsqr"])
@@ -199,16 +221,19 @@ def test_reconstruct_follows_one_process(ctx):
     assert stopped["stopped"] and len(stopped["history"]) == 3
 
 
-def test_reconstruct_over_slabs_follows_one_process(ctx):
+@pytest.mark.parametrize("split", ["slabs", "segments"])
+def test_reconstruct_over_slabs_follows_one_process(ctx, split):
     # Each rank one slab of the 4 planes (3 cells: 2 or 3 ranks), both priors across the slabs;
     # SGD, whose steps are linear in the gradient (Adam's per-voxel scaling would magnify the
-    # rounding of a voxel whose gradient is rounding noise).
+    # rounding of a voxel whose gradient is rounding noise). (No early termination: over segments
+    # a segment cannot know the transmittance in front of it.)
     s, v = scene_of(6), volume()
+    s["integrator"] = {"scheme": "midpoint", "step": 0.5, "min_transmittance": 0}
     targets = ctx.render(s, v)
     options = dict(volume=np.full_like(v, 0.3), wrt=("density", "tf"), iterations=5, batch=4,
                    levels=1, optimizer="sgd", lr=1.0, tv=0.05, smoothness=0.02, seed=5)
     one = ctx.reconstruct(s, targets, **options)
-    many = ivr.mpi.reconstruct(ctx, s, targets, split="slabs", **options)
+    many = ivr.mpi.reconstruct(ctx, s, targets, split=split, **options)
     assert len(many["history"]) == len(one["history"]) == 5
     for a, b in zip(many["history"], one["history"]):
         assert a["views"] == b["views"] and abs(a["loss"] - b["loss"]) <= 1e-12 * b["loss"], (a, b)
@@ -216,9 +241,9 @@ def test_reconstruct_over_slabs_follows_one_process(ctx):
     assert many["volume"].shape == v.shape
     # (float64 iterates; the volume comes back as float32)
     err = np.max(np.abs(many["volume"] - one["volume"])) / np.max(np.abs(one["volume"]))
-    assert err <= 1e-7, f"reconstruct over slabs on {COMM.Get_size()} ranks: {err}"
+    assert err <= 1e-7, f"reconstruct over {split} on {COMM.Get_size()} ranks: {err}"
     err = np.max(np.abs(many["tf"] - one["tf"])) / np.max(np.abs(one["tf"]))
-    assert err <= 1e-12, f"reconstruct over slabs on {COMM.Get_size()} ranks, TF: {err}"
+    assert err <= 1e-12, f"reconstruct over {split} on {COMM.Get_size()} ranks, TF: {err}"
     with pytest.raises(ivr.Error, match="split 'rows'"):
         ivr.mpi.reconstruct(ctx, s, targets, split="rows", **options)
 
@@ -256,6 +281,8 @@ def test_bad_input_is_refused_clearly(ctx):
         ivr.mpi.tomo(ctx, s, np.zeros((3, 5, 6, 1), np.float32), split="rows")
     with pytest.raises(ivr.Error, match="split 'rows'"):
         ivr.mpi.render(ctx, s, v, split="rows")
+    with pytest.raises(ivr.Error, match="split 'segments' \\(views or slabs\\)"):
+        ivr.mpi.tomo(ctx, s, np.zeros((3, 5, 6, 1), np.float32), split="segments")
     if COMM.Get_size() > 1:  # more ranks than views
         with pytest.raises(ivr.Error, match="at most one rank each"):
             ivr.mpi.tomo(ctx, scene_of(1), np.zeros((1, 5, 6, 1), np.float32))

@@ -1,0 +1,251 @@
+// c_api_segments_test.cpp — the C API's slab marches by name (ivr_render_split, ivr_gradient_split):
+// two and three workers on threads over independent segments (IVR_SPLIT_SEGMENTS) and over passed
+// states (IVR_SPLIT_SLABS) give one process's ivr_render and ivr_gradient (float64, 1e-12); the C++
+// wrapper's Workers::split reaches them; bad splits are refused by name.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "ivr/ivr.h"
+#include "ivr/ivr.hpp"
+#include "multi_device/worker_sum.hpp"
+#include "test_support.hpp"
+
+namespace ivr::test {
+namespace {
+
+// Emission–absorption through a TF with colour and extinction, trapezoid (its segments carry a
+// near sample across each slab face), two perspective views and an orthographic one.
+const char* const kScene = R"({
+  "volume": {"synthetic": "shepp_logan", "dims": [8, 10, 12]}, "model": "emission_absorption",
+  "tf": {"type": "piecewise_linear", "points": [
+    {"density": 0, "color": [0.1, 0, 0], "extinction": 0.5},
+    {"density": 1, "color": [1, 0.7, 0.4], "extinction": 6},
+    {"density": 2, "color": [0.5, 0.8, 1], "extinction": 12}]},
+  "background": [0.2, 0.3, 0.1],
+  "cameras": [
+    {"eye": [2, 0.1, 0.05], "target": [0, 0, 0], "up": [0, 0, 1], "width": 9, "height": 7,
+     "fov_y": 40},
+    {"eye": [0.3, -0.4, 2], "target": [0, 0, 0], "up": [0, 1, 0], "width": 9, "height": 7,
+     "fov_y": 45},
+    {"eye": [0.2, 2, -1.3], "target": [0, 0, 0], "up": [0, 0, 1], "width": 9, "height": 7,
+     "projection": "orthographic", "ortho_height": 1.3}],
+  "integrator": {"scheme": "trapezoid", "step": 0.4, "min_transmittance": 0}})";
+constexpr std::size_t kPlane = 8 * 10, kPlanes = 12, kPixels = 3 * 9 * 7 * 4;  // (RGBA)
+
+struct Worker {
+  WorkerSum* sum;
+  int rank;
+  int calls = 0;  // of the sum
+};
+
+int summed(double* values, size_t count, void* user) {
+  Worker* w = static_cast<Worker*>(user);
+  ++w->calls;
+  std::vector<double> v(values, values + count);
+  w->sum->sum(w->rank, v);
+  std::copy(v.begin(), v.end(), values);
+  return 1;
+}
+
+// A worker's (or the one process's) image, loss and gradients "density" (its planes), "tf" (its
+// part) and "background".
+struct Outcome {
+  std::vector<float> image;
+  int render_sums = 0;  // the sum's calls during the render (the exchanges' collectives)
+  double loss = 0;
+  std::vector<double> density, tf, background;
+  std::string error;
+};
+
+void read_arrays(const ivr_result* result, Outcome& out) {
+  size_t count = 0;
+  ivr_mode mode = IVR_MODE_AUTO;
+  double seconds = 0;
+  if (ivr_result_info(result, &out.loss, &mode, &seconds) != IVR_OK ||
+      ivr_result_array_count(result, &count) != IVR_OK)
+    return void(out.error = ivr_last_error());
+  for (size_t i = 0; i < count; ++i) {
+    const char* name = nullptr;
+    int rank = 0;
+    int64_t shape[5] = {};
+    if (ivr_result_array_shape(result, i, &name, &rank, shape) != IVR_OK)
+      return void(out.error = ivr_last_error());
+    size_t n = 1;
+    for (int d = 0; d < rank; ++d) n *= size_t(shape[d]);
+    const std::string which = name;
+    std::vector<double>& to =
+        which == "density" ? out.density : which == "tf" ? out.tf : out.background;
+    to.resize(n);
+    if (ivr_result_array_data(result, i, to.data(), n) != IVR_OK)
+      return void(out.error = ivr_last_error());
+  }
+}
+
+// ranks 0: one process (ivr_render, ivr_gradient); else worker `rank` of `ranks` over `split`.
+Outcome run(ivr_split split, int rank, int ranks, WorkerSum* sum, const std::vector<float>& target) {
+  Outcome out;
+  ivr_context* ctx = nullptr;
+  ivr_scene* scene = nullptr;
+  ivr_result* result = nullptr;
+  Worker w{sum, rank};
+  out.image.assign(kPixels, -1.0f);
+  const char* wrt = "density,tf,background";
+  bool ok = ivr_context_create(nullptr, &ctx) == IVR_OK &&
+            ivr_scene_from_json(ctx, kScene, nullptr, &scene) == IVR_OK &&
+            (ranks == 0 ? ivr_render(ctx, scene, IVR_PRECISION_F64, 0, out.image.data(), kPixels)
+                        : ivr_render_split(ctx, scene, IVR_PRECISION_F64, 0, split, rank, ranks,
+                                           summed, &w, out.image.data(), kPixels)) == IVR_OK;
+  out.render_sums = w.calls;
+  ok = ok &&
+      (ranks == 0 ? ivr_gradient(ctx, scene, target.data(), kPixels, wrt, IVR_MODE_ADJOINT,
+                                 IVR_LOSS_MSE, IVR_PRECISION_F64, 0, &result)
+                  : ivr_gradient_split(ctx, scene, target.data(), kPixels, wrt, IVR_LOSS_MSE,
+                                       IVR_PRECISION_F64, 0, split, rank, ranks, summed, &w,
+                                       &result)) == IVR_OK;
+  if (!ok) {
+    out.error = ivr_last_error();
+    sum->abort();
+  } else {
+    read_arrays(result, out);
+  }
+  ivr_result_release(result);
+  ivr_scene_release(scene);
+  ivr_context_release(ctx);
+  return out;
+}
+
+double relative(const std::vector<double>& a, const std::vector<double>& b) {
+  double worst = 0, scale = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    worst = std::max(worst, std::abs(a[i] - b[i]));
+    scale = std::max(scale, std::abs(b[i]));
+  }
+  return worst / std::max(scale, 1e-300);
+}
+
+TEST(CApiSegments, WorkersGiveOneProcess) {
+  if (!device().info().fp64) GTEST_SKIP() << "float64 needed for the comparison";
+  std::vector<float> target(kPixels);
+  for (std::size_t i = 0; i < kPixels; ++i) target[i] = 0.3f + 0.25f * std::sin(0.41f * float(i));
+  WorkerSum none(1);
+  const Outcome one = run(IVR_SPLIT_SLABS, 0, 0, &none, target);
+  ASSERT_EQ(one.error, "");
+  ASSERT_EQ(one.density.size(), kPlane * kPlanes);
+  int segments_sums = 0;
+  for (int ranks : {2, 3})
+    for (ivr_split split : {IVR_SPLIT_SEGMENTS, IVR_SPLIT_SLABS}) {
+      const std::string what = std::string(split == IVR_SPLIT_SEGMENTS ? "segments" : "slabs") +
+                               ", " + std::to_string(ranks) + " workers";
+      WorkerSum sum(ranks);
+      std::vector<Outcome> parts(static_cast<std::size_t>(ranks));
+      std::vector<std::thread> threads;
+      for (int r = 0; r < ranks; ++r)
+        threads.emplace_back([&, r] { parts[std::size_t(r)] = run(split, r, ranks, &sum, target); });
+      for (std::thread& t : threads) t.join();
+      std::vector<double> density, tf(one.tf.size(), 0.0);
+      // Over segments the halo's and the segments' exchanges, whatever the workers; over passed
+      // states one exchange a sweep, a sweep a slab here (3 workers: more than the segments').
+      if (split == IVR_SPLIT_SEGMENTS && ranks == 2) segments_sums = parts[0].render_sums;
+      if (split == IVR_SPLIT_SEGMENTS && ranks == 3)
+        EXPECT_EQ(parts[0].render_sums, segments_sums) << what;
+      if (split == IVR_SPLIT_SLABS && ranks == 3)
+        EXPECT_GT(parts[0].render_sums, segments_sums) << what << ": not the segments' march?";
+      for (int r = 0; r < ranks; ++r) {
+        const Outcome& p = parts[std::size_t(r)];
+        ASSERT_EQ(p.error, "") << what << ", worker " << r;
+        double worst = 0;
+        for (std::size_t i = 0; i < kPixels; ++i)
+          worst = std::max(worst, std::abs(double(p.image[i]) - one.image[i]));
+        EXPECT_LE(worst, 1e-6) << what << ", worker " << r << ": image (float32 of float64)";
+        EXPECT_NEAR(p.loss, one.loss, 1e-12 * one.loss) << what << ", worker " << r;
+        EXPECT_LE(relative(p.background, one.background), 1e-12) << what << ", worker " << r;
+        // The slabs joined (a shared plane the two parts' sum), the TF parts summed.
+        int first = 0, last = 0;
+        ASSERT_EQ(ivr_domain_slab(int(kPlanes), r, ranks, &first, &last), IVR_OK);
+        ASSERT_EQ(p.density.size(), kPlane * std::size_t(last - first + 1)) << what;
+        density.resize(kPlane * std::size_t(last + 1), 0.0);
+        for (std::size_t i = 0; i < p.density.size(); ++i)
+          density[kPlane * std::size_t(first) + i] += p.density[i];
+        ASSERT_EQ(p.tf.size(), tf.size()) << what;
+        for (std::size_t i = 0; i < tf.size(); ++i) tf[i] += p.tf[i];
+      }
+      EXPECT_LE(relative(density, one.density), 1e-12) << what << ": density";
+      EXPECT_LE(relative(tf, one.tf), 1e-12) << what << ": tf";
+    }
+}
+
+// The C++ wrapper: Workers::split IVR_SPLIT_SEGMENTS reaches the segments (a forward lane group is
+// refused there by name, which the passed states take); a bad split is refused by every entry.
+TEST(CApiSegments, SplitsAreNamedAndBadOnesRefused) {
+  api::Context ctx;
+  const api::Scene scene = ctx.scene_from_json(kScene);
+  api::Workers one;
+  one.sum = [](double*, size_t) {};
+  one.split = IVR_SPLIT_SEGMENTS;
+  const api::Array<float> image = ctx.render(scene, {}, one);
+  api::GradientOptions go;
+  go.wrt = "camera";
+  try {
+    ctx.gradient(scene, image.values, go, one);
+    ADD_FAILURE() << "the camera's forward lanes over segments were not refused";
+  } catch (const api::Exception& e) {
+    EXPECT_TRUE(has(e.what(), "segments")) << e.what();
+  }
+  one.split = IVR_SPLIT_VIEWS;  // (the wrapper reads anything but segments as passed states)
+  EXPECT_NO_THROW(ctx.gradient(scene, image.values, go, one));
+
+  ivr_context* c = ctx.get();
+  WorkerSum sum(1);
+  Worker w{&sum, 0};
+  std::vector<float> out(kPixels);
+  for (ivr_split bad : {IVR_SPLIT_VIEWS, ivr_split(7)}) {
+    const std::string name = "split " + std::to_string(int(bad));
+    EXPECT_EQ(ivr_render_split(c, scene.get(), IVR_PRECISION_F32, 0, bad, 0, 1, summed, &w,
+                               out.data(), out.size()),
+              IVR_ERROR_INVALID_ARGUMENT);
+    EXPECT_TRUE(has(ivr_last_error(), name)) << ivr_last_error();
+    ivr_result* result = nullptr;
+    EXPECT_EQ(ivr_gradient_split(c, scene.get(), image.values.data(), image.size(), "density",
+                                 IVR_LOSS_MSE, IVR_PRECISION_F32, 0, bad, 0, 1, summed, &w,
+                                 &result),
+              IVR_ERROR_INVALID_ARGUMENT);
+    EXPECT_TRUE(has(ivr_last_error(), name)) << ivr_last_error();
+    EXPECT_EQ(result, nullptr);
+  }
+  EXPECT_EQ(ivr_render_split(c, scene.get(), IVR_PRECISION_F32, 0, IVR_SPLIT_SEGMENTS, 0, 1,
+                             nullptr, nullptr, out.data(), out.size()),
+            IVR_ERROR_NULL_POINTER);
+  // Tomography has no segments (a line's slab parts add in one sum already).
+  ivr_tomo_options o;
+  ASSERT_EQ(ivr_tomo_options_init(&o), IVR_OK);
+  std::vector<float> lines(3 * 9 * 7, 0.1f), volume(kPlane * kPlanes);
+  EXPECT_EQ(ivr_tomo_split(c, scene.get(), &o, IVR_SPLIT_SEGMENTS, 0, 1, summed, &w, lines.data(),
+                           lines.size(), volume.data(), volume.size(), nullptr, nullptr, nullptr,
+                           0, nullptr),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "split 2")) << ivr_last_error();
+  // A reconstruction over segments is made (its runs: bindings/python/tests/test_mpi.py); a bad
+  // split named.
+  ivr_reconstruct_options ro;
+  ASSERT_EQ(ivr_reconstruct_options_init(&ro), IVR_OK);
+  ro.iterations = 1;
+  ivr_reconstruction* rec = nullptr;
+  EXPECT_EQ(ivr_reconstruction_create_split(c, scene.get(), image.values.data(), image.size(), &ro,
+                                            ivr_split(5), 0, 1, summed, &w, &rec),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "split 5")) << ivr_last_error();
+  ASSERT_EQ(ivr_reconstruction_create_split(c, scene.get(), image.values.data(), image.size(), &ro,
+                                            IVR_SPLIT_SEGMENTS, 0, 1, summed, &w, &rec),
+            IVR_OK)
+      << ivr_last_error();
+  EXPECT_EQ(ivr_reconstruction_step(rec, nullptr), IVR_OK) << ivr_last_error();
+  ivr_reconstruction_release(rec);
+}
+
+}  // namespace
+}  // namespace ivr::test

@@ -31,8 +31,11 @@ struct GradientOptions {
   double step = 0;  // > 0 overrides the scene's integrator step and tolerance (voxel units)
   Loss loss = Loss::mse;
   // The density gradient summed in fixed point where the device has 64-bit integer atomics
-  // (AdjointOptions::deterministic; adjoint mode in core): the same bits on every run, and over
-  // several devices or workers the one process's bits.
+  // (AdjointOptions::deterministic; adjoint mode): the same bits on every run, and over several
+  // devices or data-parallel workers in core the one process's bits. Out of core and over slabs
+  // (gradient_domain) the bricks' integer sums are added exactly on the host: the same bits on
+  // every run for the same bricks and workers, within the fixed-point rounding (not the bits) of
+  // the in-core gradient (docs/scaling.md).
   bool deterministic = false;
   // Data-parallel over views (docs/scaling.md): this call is worker `worker` of `workers` (> 1),
   // every worker passing the whole scene and target and calling together; each differentiates its

@@ -8,7 +8,9 @@
 #include <set>
 #include <string>
 
+#include "adjoint/adjoint.hpp"
 #include "adjoint/private_sums.hpp"
+#include "brick/bricked_fixed.hpp"
 #include "brick/bricked_tangent.hpp"
 #include "brick/domain.hpp"
 #include "brick/domain_segments.hpp"
@@ -43,11 +45,13 @@ PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan,
 
 }  // namespace
 
-// The adjoint's groups (density, tf, background: each once) out of core.
+// The adjoint's groups (density, tf, background: each once) out of core; `fixed_exponent` set: the
+// deterministic density gradient's second pass, at that scale.
 static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image& target,
                                 const std::vector<std::string>& groups, const GradientOptions& o,
                                 const BrickPlan& plan, const DomainPart* domain,
-                                DomainStats* domain_stats, const std::vector<double>* densities) {
+                                DomainStats* domain_stats, const std::vector<double>* densities,
+                                const int* fixed_exponent = nullptr) {
   bool density = false, tf = false, background = false;
   for (const std::string& g : groups) {
     density = density || g == "density";
@@ -75,6 +79,13 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   const ImageExtent e = image_extent(scene);
   const std::size_t rays = e.pixels();
   Device::Impl& dev = s.dev;
+  // Deterministic: the density gradient in fixed point where the device has 64-bit integer
+  // atomics (lib/brick/bricked_fixed.hpp), without private sums; else the float sums (and the
+  // result says which).
+  std::unique_ptr<BrickedFixed> fixed;
+  if (density && o.deterministic && has_int64_atomics(dev) && !tuning_probe())
+    fixed = std::make_unique<BrickedFixed>(scene, l, target, o.loss, densities, domain,
+                                           fixed_exponent);
   // BEGIN one ray per work-item; the sweeps' march in packets of rays where the render's is,
   // there with private sums where they pay and fit beside the plan's bricks (their copies are a
   // brick's gradient per compute unit).
@@ -83,13 +94,14 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   const std::size_t tf_size = tf_shape[0] * tf_shape[1];
   config.set(Switch::loss_l1, o.loss == Loss::l1).set(Switch::loss_dot, o.loss == Loss::dot);
   config.set(Switch::grad_density, density).set(Switch::grad_tf, tf);
+  config.set(Switch::deterministic, bool(fixed));
   // IVR_TF_ROWS sizes the per-ray TF-gradient cache (kernels/adjoint_tf.cl), as in core.
   config.set(Switch::tf_rows, int(std::min<std::size_t>(tf_shape[0], 1 << 20)));
   config.with_atomics(atomic_add_for(dev.info, s.f64));
   cl::Kernel& k = s.kernels.get(config, &march.op.stats.build_seconds);
   const PrivateSums priv =
-      density ? bricked_private_sums(dev, plan, march.lanes() > 1, s.real_size, rays)
-              : PrivateSums{};
+      density && !fixed ? bricked_private_sums(dev, plan, march.lanes() > 1, s.real_size, rays)
+                        : PrivateSums{};
   cl::Kernel* marching = &k;
   KernelConfig packet = config;
   if (march.lanes() > 1) {
@@ -101,14 +113,19 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   // Per pixel: its loss and dL/dbackground terms (kernels/bricked_adjoint.cl).
   const cl::Buffer pixel_terms = dev.buffer(CL_MEM_READ_WRITE, rays * 4 * s.real_size, nullptr,
                                             "the per-pixel loss and background terms");
-  const std::size_t slot_bytes = l.largest_voxels() * s.real_size;
   // Two slots for a brick's gradient: the host adds one brick's into the volume's while the
-  // device marches the next (the plan counts both).
+  // device marches the next (the plan counts both). In fixed point a slot holds the header and a
+  // long a voxel: two with float64 reals, one with float32 (in the plan's room for two; the host
+  // then adds a brick's before the next is marched into it).
+  const std::size_t slot_bytes =
+      fixed ? (BrickedFixed::kHeader + l.largest_voxels()) * sizeof(cl_long)
+            : l.largest_voxels() * s.real_size;
+  const cl::Buffer slot0 = dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size,
+                                      nullptr, "a brick's density gradient");
   const std::array<cl::Buffer, 2> grads = {
-      dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size, nullptr,
-                 "a brick's density gradient"),
-      dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size, nullptr,
-                 "a brick's density gradient")};
+      slot0, fixed && !s.f64 ? slot0
+                             : dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size,
+                                          nullptr, "a brick's density gradient")};
   const std::size_t tf_bytes = std::max<std::size_t>(tf_size, 1) * s.real_size;
   const cl::Buffer grad_tf =
       dev.buffer(CL_MEM_READ_WRITE, tf_bytes, nullptr, "the transfer-function gradient");
@@ -155,7 +172,10 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   auto add_pending = [&](Pending& p) {
     if (p.brick < 0) return;
     p.read.wait();
-    add_brick(p.host, l, p.brick, s.f64, gradient.data());
+    if (fixed)
+      fixed->add(p.host, l, p.brick);
+    else
+      add_brick(p.host, l, p.brick, s.f64, gradient.data());
     p.brick = -1;
   };
   int turn = 0;      // the slot of the brick being marched
@@ -164,11 +184,20 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   if (density) {
     hooks.before = [&](int b, std::vector<cl::Event>& wait) {
       add_pending(pending[turn]);  // the slot's last brick, before the slot is written again
-      if (priv.on) return;         // (the sum of the copies overwrites the slot)
+      if (grads[0] == grads[1]) add_pending(pending[turn ^ 1]);  // (one slot: its other brick)
+      if (priv.on) return;  // (the sum of the copies overwrites the slot)
       marching->setArg(a_grad, grads[turn]);
       cl::Event zeroed;
-      dev.queue.enqueueFillBuffer(grads[turn], cl_uchar(0), 0, l.voxels(b) * s.real_size, nullptr,
-                                  &zeroed);
+      if (fixed) {  // the scale and cap, the counters and sums zeroed
+        const std::size_t header = sizeof(cl_long) * BrickedFixed::kHeader;
+        dev.queue.enqueueFillBuffer(grads[turn], cl_long(0), header,
+                                    l.voxels(b) * sizeof(cl_long));
+        dev.queue.enqueueWriteBuffer(grads[turn], CL_FALSE, 0, header, fixed->header().data(),
+                                     nullptr, &zeroed);
+      } else {
+        dev.queue.enqueueFillBuffer(grads[turn], cl_uchar(0), 0, l.voxels(b) * s.real_size,
+                                    nullptr, &zeroed);
+      }
       wait.push_back(zeroed);
     };
     if (priv.on)  // one work-group of one item per compute unit, taking turns of the tiles
@@ -198,7 +227,8 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
         done = {summed};
       }
       Pending& p = pending[turn];
-      p.host.resize(l.voxels(b) * s.real_size);
+      p.host.resize(fixed ? (BrickedFixed::kHeader + l.voxels(b)) * sizeof(cl_long)
+                          : l.voxels(b) * s.real_size);
       dev.queue.enqueueReadBuffer(grads[turn], CL_FALSE, 0, p.host.size(), p.host.data(), &done,
                                   &p.read);
       dev.queue.flush();
@@ -212,6 +242,19 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   else
     march.sweep(*marching, kAdjointMarch, hooks, "bricked_packet", march.tile());
   for (Pending& p : pending) add_pending(p);
+  if (fixed) {
+    // Where the scale failed (a segment over the cap) or was far too loose: once more at the
+    // scale the largest segment calls for (every worker alike).
+    const int next = fixed->next();
+    if (next != fixed->exponent()) {
+      if (fixed_exponent)
+        throw Error(Status::opencl, "the out-of-core fixed-point density gradient overflowed at "
+                                    "scale 2^" + std::to_string(next));
+      return adjoint_bricked(device, scene, target, groups, o, plan, domain, domain_stats,
+                             densities, &next);
+    }
+    gradient = fixed->values(s.f64);
+  }
 
   // The loss and the background gradient: the per-pixel terms' column sums (in float64).
   const std::vector<double> terms = download_reals(dev, s.f64, pixel_terms, rays * 4);
@@ -243,6 +286,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   d.device_bytes = plan.bricked_bytes + (priv.on ? priv.bytes(s.real_size) : 0);
   d.bricks = plan.bricks();
   d.atomics = atomic_add_name(atomic_add_for(dev.info, s.f64));
+  d.deterministic = bool(fixed);
   return d;
 }
 
@@ -268,7 +312,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
       throw Error(Status::unsupported,
                   where + ": over independent segments, " + g +
                       " (forward lanes) is not built; march the rays' states (SlabMarch::states, "
-                      "--slab-march states)");
+                      "--split slabs)");
     if (g == "density" && o.mode == Mode::forward)
       throw Error(Status::unsupported,
                   where +

@@ -239,8 +239,13 @@ Gradient gradient_one(Device& device, const Scene& scene, const Image& target,
       plan_render(device, scene, o.precision, 0, true,
                   brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step));
   if (bricks.layout.edge) {
-    if (share) share(Mode::forward);  // (out of core: no fixed point; the caller weights)
-    return gradient_bricked(device, scene, target, groups, o, bricks);
+    if (!share) return gradient_bricked(device, scene, target, groups, o, bricks);
+    // A data-parallel worker out of core votes for float sums (its share's fixed-point sums
+    // would not be the batch's: the caller weights and sums the shares).
+    share(Mode::forward);
+    GradientOptions floats = o;
+    floats.deterministic = false;
+    return gradient_bricked(device, scene, target, groups, floats, bricks);
   }
   Session session = one_shot_session(device, scene, {o.precision, o.step});
   session.set_target(target);

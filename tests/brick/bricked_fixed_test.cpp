@@ -1,0 +1,133 @@
+// bricked_fixed_test.cpp — the deterministic (fixed-point) density gradient out of core and over
+// slabs (lib/brick/bricked_fixed.cpp): the same bits on every run, near the float gradient and the
+// in-core fixed-point one, a second pass where the a-priori scale fails or is far too loose, and
+// the TF gradient untouched.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "adjoint/adjoint.hpp"
+#include "brick_support.hpp"
+#include "domain_support.hpp"
+#include "ivr/domain.hpp"
+#include "ivr/gradient.hpp"
+#include "test_support.hpp"
+
+namespace ivr::test {
+namespace {
+
+// Fixed point rounds each contribution to 2^−S: within this of the float sums, relative to the
+// largest entry (the a-priori scale keeps at least 24 bits of the largest contribution).
+double fixed_tolerance(Precision p) {
+  return p == Precision::f64 ? 1e-7 : 1e-5;
+}
+
+bool int64_atomics() {
+  return has_int64_atomics(device().impl());
+}
+
+Image target_of(const Scene& s) {
+  Image target = render(device(), s);
+  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+  return target;
+}
+
+TEST(BrickedFixed, DensityGradientRepeatsBitForBitOutOfCore) {
+  if (!int64_atomics()) GTEST_SKIP() << "no cl_khr_int64_base_atomics: float sums";
+  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid})
+    for (Precision p : {Precision::f64, Precision::f32}) {
+      if (p == Precision::f64 && !device().info().fp64) continue;
+      const Scene s = bricked_scene(Model::emission_absorption, scheme);
+      const Image target = target_of(s);
+      GradientOptions o;
+      o.precision = p;
+      o.mode = Mode::adjoint;
+      const Gradient floats = gradient(device(), s, target, {"density", "tf"}, o);
+      o.deterministic = true;
+      const Gradient in_core = gradient(device(), s, target, {"density", "tf"}, o);
+      ASSERT_TRUE(in_core.deterministic);
+      for (const char* edge : {"1", "4"}) {
+        const std::string what = std::string(scheme_name(scheme)) + " " + name(p) +
+                                 ", bricks of " + edge;
+        ScopedEnv brick("IVR_VOLUME_BRICK", edge);
+        const Gradient a = gradient(device(), s, target, {"density", "tf"}, o);
+        const Gradient b = gradient(device(), s, target, {"density", "tf"}, o);
+        EXPECT_GT(a.bricks, 1) << what;
+        EXPECT_TRUE(a.deterministic) << what;
+        EXPECT_EQ(a.groups[0].values, b.groups[0].values) << what << ": not the same bits";
+        expect_close_values(floats.groups[0].values, a.groups[0].values, fixed_tolerance(p),
+                            what + " against the float sums");
+        expect_close_values(in_core.groups[0].values, a.groups[0].values, fixed_tolerance(p),
+                            what + " against the in-core fixed point");
+        // The TF gradient keeps its float sums (within the float comparison's tolerance).
+        expect_close_values(floats.groups[1].values, a.groups[1].values,
+                            p == Precision::f64 ? 1e-12 : 1e-5, what + " tf");
+      }
+    }
+}
+
+// A scale the bound set too fine (rays over the cap) or too coarse (fewer than 24 bits kept) is
+// corrected by a second pass at the scale the largest segment calls for: the same bits either way.
+TEST(BrickedFixed, SecondPassCorrectsTheScale) {
+  if (!int64_atomics()) GTEST_SKIP() << "no cl_khr_int64_base_atomics: float sums";
+  const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
+  const Scene s = bricked_scene(Model::absorption, Scheme::midpoint);
+  const Image target = target_of(s);
+  GradientOptions o;
+  o.precision = p;
+  o.mode = Mode::adjoint;
+  const Gradient floats = gradient(device(), s, target, {"density"}, o);
+  o.deterministic = true;
+  ScopedEnv brick("IVR_VOLUME_BRICK", "3");
+  std::vector<std::vector<double>> got;
+  for (const char* shift : {"-40", "40"}) {
+    ScopedEnv bound("IVR_FIXED_BOUND_SHIFT", shift);
+    const Gradient g = gradient(device(), s, target, {"density"}, o);
+    EXPECT_TRUE(g.deterministic) << shift;
+    expect_close_values(floats.groups[0].values, g.groups[0].values, fixed_tolerance(p),
+                        std::string("bound shifted by 2^") + shift);
+    got.push_back(g.groups[0].values);
+  }
+  EXPECT_EQ(got[0], got[1]) << "the second passes' scales differ";
+}
+
+// Over slabs (states passed, and independent segments) every worker takes the same scale: the
+// joined gradient repeats bit for bit and lies near one process's.
+TEST(BrickedFixed, OverSlabsRepeatsBitForBit) {
+  if (!int64_atomics()) GTEST_SKIP() << "no cl_khr_int64_base_atomics: float sums";
+  const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
+  Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
+  s.integrator.min_transmittance = 0;  // (segments: one process's march)
+  const Image target = target_of(s);
+  GradientOptions o;
+  o.precision = p;
+  o.mode = Mode::adjoint;
+  const Gradient floats = gradient(device(), s, target, {"density"}, o);
+  o.deterministic = true;
+  for (SlabMarch march : {SlabMarch::states, SlabMarch::segments}) {
+    const std::string what = march == SlabMarch::states ? "states" : "segments";
+    std::vector<std::vector<double>> joined;
+    for (int run = 0; run < 2; ++run) {
+      const std::vector<Gradient> parts =
+          on_workers<Gradient>(3, [&](int w, DomainPart part, Device& d) {
+            part.march = march;
+            return gradient_domain(d, domain_share(s, w, 3), target, part, o, nullptr,
+                                   {"density"});
+          });
+      std::vector<std::vector<double>> slabs;
+      for (const Gradient& g : parts) {
+        EXPECT_TRUE(g.deterministic) << what;
+        slabs.push_back(g.groups.at(0).values);
+      }
+      joined.push_back(domain_join(11, 9, 13, slabs));
+    }
+    EXPECT_EQ(joined[0], joined[1]) << what << ": not the same bits";
+    expect_close_values(floats.groups[0].values, joined[0], fixed_tolerance(p), what);
+  }
+}
+
+}  // namespace
+}  // namespace ivr::test

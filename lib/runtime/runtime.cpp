@@ -8,6 +8,7 @@
 #include <cctype>
 #include <chrono>
 #include <cstdlib>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
@@ -156,6 +157,10 @@ struct Found {
 };
 
 std::vector<Found> discover() {
+  // One thread at a time: the first listing initialises the platforms' drivers, and two threads
+  // doing so at once (contexts made on several threads) made PoCL report no device to one.
+  static std::mutex listing;
+  std::lock_guard<std::mutex> lock(listing);
   std::vector<cl::Platform> platforms;
   try {
     cl::Platform::get(&platforms);

@@ -8,6 +8,9 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
 
 #include "runtime/kernel_sources.hpp"
 #include "runtime/program_cache.hpp"
@@ -29,6 +32,25 @@ TEST(Runtime, ListsDevicesWithConsistentIndices) {
                 devices[i].type == "accelerator" || devices[i].type == "other");
     EXPECT_GT(devices[i].max_allocation, 0u);
   }
+}
+
+// Contexts made on several threads at once, as the first OpenCL calls of the process (each test runs
+// in a process of its own): every thread finds the device (PoCL's first listing is not safe to
+// run twice at once; the listing is serialised).
+TEST(Runtime, ContextsMadeOnSeveralThreadsAtOnce) {
+  std::vector<std::string> errors(4);
+  std::vector<std::thread> threads;
+  for (std::size_t t = 0; t < errors.size(); ++t)
+    threads.emplace_back([&errors, t] {
+      try {
+        Device d("");
+        if (d.info().name.empty()) errors[t] = "a device without a name";
+      } catch (const std::exception& e) {
+        errors[t] = e.what();
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  for (std::size_t t = 0; t < errors.size(); ++t) EXPECT_EQ(errors[t], "") << "thread " << t;
 }
 
 TEST(Runtime, SelectsByIndexPairTypeAndName) {

@@ -114,6 +114,16 @@ IVR_API ivr_status ivr_scene_release(ivr_scene* scene);
  * to the default (centred, longest side 1) unless the scene's JSON gave one. */
 IVR_API ivr_status ivr_scene_set_volume(ivr_scene* scene, const void* data, ivr_dtype dtype,
                                         const int64_t shape[3]);
+/* Worker `rank` of `ranks`' slab of a volume of `nz` planes: replaces the scene's volume by a copy
+ * of `data`, shape (planes, ny, nx) — planes ivr_domain_slab(nz, rank, ranks) of the whole
+ * (nz, ny, nx) volume, so that a worker over slabs never holds the rest (dtypes as
+ * ivr_scene_set_volume; the box the whole volume's). Such a scene serves only that worker's
+ * operations over slabs and segments — ivr_render_split, ivr_gradient_split,
+ * ivr_reconstruction_create_split, with the same rank and ranks —; the others refuse it by name.
+ * ivr_scene_set_volume makes the scene whole again. */
+IVR_API ivr_status ivr_scene_set_volume_slab(ivr_scene* scene, const void* data, ivr_dtype dtype,
+                                             const int64_t shape[3], int64_t nz, int rank,
+                                             int ranks);
 /* Volumes and transfer functions of their own, made once and set on any scene of the context
  * (the scene takes a copy: later changes to one do not reach the other). */
 /* A volume from caller memory, copied (dtypes as ivr_scene_set_volume), spacing 1. */

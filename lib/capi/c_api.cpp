@@ -227,9 +227,10 @@ ivr_result* gradient_result(ivr_context* c, const ivr::Gradient& d) {
 namespace {
 // The checks every gradient call makes of its handles and pointers; the target as an Image.
 ivr::Image checked_gradient_call(ivr_context* c, const ivr_scene* s, const float* target,
-                                 size_t count, const char* wrt, ivr_result** out) {
+                                 size_t count, const char* wrt, ivr_result** out,
+                                 bool slab_allowed = false) {
   checked(c, Kind::context, "context");
-  with_volume(checked(s, Kind::scene, "scene"));
+  with_volume(checked(s, Kind::scene, "scene"), slab_allowed);
   same_context(s->context, c, "scene");
   not_null(target, "target");
   not_null(wrt, "wrt");
@@ -298,7 +299,7 @@ void render_split(ivr_context* c, const ivr_scene* s, ivr_precision precision, d
                   ivr_split split, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
                   float* image, size_t capacity) {
   checked(c, Kind::context, "context");
-  with_volume(checked(s, Kind::scene, "scene"));
+  with_volume(checked(s, Kind::scene, "scene"), true);
   same_context(s->context, c, "scene");
   not_null(image, "image");
   const ivr::DomainPart part = slab_part(split, rank, ranks, sum, sum_user);
@@ -308,9 +309,8 @@ void render_split(ivr_context* c, const ivr_scene* s, ivr_precision precision, d
     throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "image holds " + std::to_string(capacity) +
                                                  " floats; the render has " +
                                                  std::to_string(want)};
-  const ivr::Image out =
-      ivr::render_domain(c->device, ivr::domain_share(s->scene, rank, ranks), part,
-                         ivr::RenderOptions{precision_of(precision), step});
+  const ivr::Image out = ivr::render_domain(c->device, split_scene(s, rank, ranks), part,
+                                            ivr::RenderOptions{precision_of(precision), step});
   std::memcpy(image, out.pixels.data(), out.pixels.size() * sizeof(float));
 }
 
@@ -318,14 +318,14 @@ void gradient_split(ivr_context* c, const ivr_scene* s, const float* target, siz
                     const char* wrt, ivr_loss loss, ivr_precision precision, double step,
                     ivr_split split, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
                     ivr_result** out) {
-  const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out);
+  const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out, true);
   const ivr::DomainPart part = slab_part(split, rank, ranks, sum, sum_user);
   ivr::GradientOptions o;  // (automatic: density, tf, background by the adjoint, others forward)
   o.loss = loss_of(loss);
   o.precision = precision_of(precision);
   o.step = step;
-  const ivr::Gradient d = ivr::gradient_domain(c->device, ivr::domain_share(s->scene, rank, ranks),
-                                               t, part, o, nullptr, ivr::parse_groups(wrt));
+  const ivr::Gradient d = ivr::gradient_domain(c->device, split_scene(s, rank, ranks), t, part, o,
+                                               nullptr, ivr::parse_groups(wrt));
   *out = gradient_result(c, d);
 }
 }  // namespace

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "ivr/core.hpp"
+#include "ivr/domain.hpp"
 #include "ivr/ivr.h"
 
 // The handle types: each holds its reference count; all but contexts hold their context.
@@ -31,6 +32,9 @@ struct ivr_scene {
   ivr::Scene scene;
   bool explicit_box = false;  // the JSON gave a box: kept when the volume is replaced
   bool has_volume = true;     // false until ivr_scene_set_volume for JSON without "volume"
+  // ivr_scene_set_volume_slab: the volume holds only worker slab_rank of slab_ranks' planes
+  // (slab_ranks 0: the whole volume).
+  int slab_rank = 0, slab_ranks = 0;
 };
 
 // A volume or transfer function of its own, copied into the scenes it is set on.
@@ -290,12 +294,34 @@ inline ivr::Volume volume_from_memory(const void* data, ivr_dtype dtype, const i
 }
 
 // The scene must have its volume before any march.
-inline const ivr_scene* with_volume(const ivr_scene* s) {
+// The scene's volume whole (a slab's scene is refused: only its worker's split operations take it,
+// through split_scene).
+inline const ivr_scene* with_volume(const ivr_scene* s, bool slab_allowed = false) {
   if (!s->has_volume)
     throw CError{IVR_ERROR_INVALID_ARGUMENT,
                  "the scene has no volume: its JSON has none and ivr_scene_set_volume was not "
                  "called"};
+  if (s->slab_ranks > 0 && !slab_allowed)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "the scene holds only worker " + std::to_string(s->slab_rank) + " of " +
+                     std::to_string(s->slab_ranks) +
+                     "'s slab of its volume (ivr_scene_set_volume_slab): only that worker's "
+                     "operations over slabs take it (ivr_render_split, ivr_gradient_split, "
+                     "ivr_reconstruction_create_split)"};
   return s;
+}
+
+// Worker `rank` of `ranks`' part of the scene over slabs: its planes cut from the whole volume, or
+// the slab the scene holds (which must be this worker's).
+inline ivr::Scene split_scene(const ivr_scene* s, int rank, int ranks) {
+  with_volume(s, true);
+  if (s->slab_ranks == 0) return ivr::domain_share(s->scene, rank, ranks);
+  if (s->slab_rank != rank || s->slab_ranks != ranks)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "the scene holds worker " + std::to_string(s->slab_rank) + " of " +
+                     std::to_string(s->slab_ranks) + "'s slab, not worker " +
+                     std::to_string(rank) + " of " + std::to_string(ranks) + "'s"};
+  return s->scene;
 }
 
 // A volume's shape as the C API gives it: (nz, ny, nx).

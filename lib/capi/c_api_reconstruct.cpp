@@ -65,11 +65,11 @@ ivr_camera camera_of(const ivr::Camera& c) {
 ivr_reconstruction* create_reconstruction(ivr_context* c, const ivr_scene* s, const float* targets,
                                           size_t count, const ivr::ReconstructOptions& o) {
   checked(c, Kind::context, "context");
-  with_volume(checked(s, Kind::scene, "scene"));
+  with_volume(checked(s, Kind::scene, "scene"), o.slabs);
   same_context(s->context, c, "scene");
   not_null(targets, "targets");
   // Over slabs this worker's planes of the densities (the grid its volume calls return).
-  const ivr::Scene scene = o.slabs ? ivr::domain_share(s->scene, o.worker, o.workers) : s->scene;
+  const ivr::Scene scene = o.slabs ? split_scene(s, o.worker, o.workers) : s->scene;
   const ivr::ImageExtent cam = ivr::image_extent(scene);
   ivr::Image t{cam.views, cam.height, cam.width, scene.channels(), {}};
   const size_t want = size_t(t.views) * size_t(t.height) * size_t(t.width) * size_t(t.channels);

@@ -228,6 +228,7 @@ ivr_status ivr_session_create(ivr_context* c, const ivr_scene* s, const ivr_sess
   return guarded(c, "ivr_session_create", [&] {
     checked(c, Kind::context, "context");
     checked(s, Kind::scene, "scene");
+    if (s->has_volume) with_volume(s);  // (a slab's scene refused by name)
     same_context(s->context, c, "scene");
     out_handle(out, "session");
     const ivr::SessionOptions so = core_options(o);

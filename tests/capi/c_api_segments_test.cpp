@@ -12,6 +12,7 @@
 
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
+#include "ivr/ivr_session.h"
 #include "multi_device/worker_sum.hpp"
 #include "test_support.hpp"
 
@@ -245,6 +246,104 @@ TEST(CApiSegments, SplitsAreNamedAndBadOnesRefused) {
       << ivr_last_error();
   EXPECT_EQ(ivr_reconstruction_step(rec, nullptr), IVR_OK) << ivr_last_error();
   ivr_reconstruction_release(rec);
+}
+
+// ivr_scene_set_volume_slab: workers holding their planes alone render and differentiate as
+// workers given the whole volume do (2 workers on threads, over segments and over states); other
+// operations and other workers refuse the scene by name; ivr_scene_set_volume makes it whole.
+TEST(CApiSegments, AWorkerHoldsItsSlabAlone) {
+  std::vector<float> values(kPlane * kPlanes);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = 0.5f + 0.4f * std::sin(0.3f * float(i));
+  const int64_t shape[3] = {int64_t(kPlanes), 10, 8};
+  // Worker `rank` of 2: its image and density part, its scene whole or its slab alone.
+  struct Part {
+    std::vector<float> image = std::vector<float>(kPixels);
+    Outcome gradient;
+    std::string error;
+  };
+  auto worker = [&](ivr_split split, int rank, bool slab_alone, WorkerSum* sum, Part& out) {
+    ivr_context* c = nullptr;
+    ivr_scene* scene = nullptr;
+    ivr_result* result = nullptr;
+    Worker w{sum, rank};
+    int first = 0, last = 0;
+    const int64_t planes[3] = {0, 10, 8};
+    bool ok = ivr_context_create(nullptr, &c) == IVR_OK &&
+              ivr_scene_from_json(c, kScene, nullptr, &scene) == IVR_OK &&
+              ivr_domain_slab(int(kPlanes), rank, 2, &first, &last) == IVR_OK;
+    if (ok && slab_alone) {
+      const int64_t slab_shape[3] = {last - first + 1, planes[1], planes[2]};
+      ok = ivr_scene_set_volume_slab(scene, values.data() + kPlane * std::size_t(first),
+                                     IVR_FLOAT32, slab_shape, int64_t(kPlanes), rank,
+                                     2) == IVR_OK;
+    } else if (ok) {
+      ok = ivr_scene_set_volume(scene, values.data(), IVR_FLOAT32, shape) == IVR_OK;
+    }
+    ok = ok &&
+         ivr_render_split(c, scene, IVR_PRECISION_F32, 0, split, rank, 2, summed, &w,
+                          out.image.data(), kPixels) == IVR_OK &&
+         ivr_gradient_split(c, scene, out.image.data(), kPixels, "density", IVR_LOSS_L1,
+                            IVR_PRECISION_F32, 0, split, rank, 2, summed, &w, &result) == IVR_OK;
+    if (ok) read_arrays(result, out.gradient);
+    if (!ok) {
+      out.error = ivr_last_error();
+      sum->abort();
+    }
+    ivr_result_release(result);
+    ivr_scene_release(scene);
+    ivr_context_release(c);
+  };
+  for (ivr_split split : {IVR_SPLIT_SEGMENTS, IVR_SPLIT_SLABS}) {
+    std::vector<std::vector<Part>> runs;
+    for (bool slab_alone : {false, true}) {
+      WorkerSum sum(2);
+      std::vector<Part> parts(2);
+      std::thread other([&] { worker(split, 1, slab_alone, &sum, parts[1]); });
+      worker(split, 0, slab_alone, &sum, parts[0]);
+      other.join();
+      for (const Part& p : parts) ASSERT_EQ(p.error, "") << parts[0].error << " / " << parts[1].error;
+      runs.push_back(std::move(parts));
+    }
+    for (int r = 0; r < 2; ++r) {
+      EXPECT_EQ(runs[0][r].image, runs[1][r].image) << "worker " << r;
+      EXPECT_FALSE(runs[1][r].gradient.density.empty());
+      EXPECT_EQ(runs[0][r].gradient.density, runs[1][r].gradient.density) << "worker " << r;
+    }
+  }
+  // Refused: another worker's call, the whole-volume operations, a slab of the wrong size.
+  api::Context ctx;
+  ivr_context* c = ctx.get();
+  const api::Scene slab = ctx.scene_from_json(kScene);
+  int first = 0, last = 0;
+  ASSERT_EQ(ivr_domain_slab(int(kPlanes), 1, 2, &first, &last), IVR_OK);
+  const int64_t slab_shape[3] = {last - first + 1, 10, 8};
+  ASSERT_EQ(ivr_scene_set_volume_slab(slab.get(), values.data() + kPlane * std::size_t(first),
+                                      IVR_FLOAT32, slab_shape, int64_t(kPlanes), 1, 2),
+            IVR_OK)
+      << ivr_last_error();
+  WorkerSum sum(1);
+  Worker w{&sum, 0};
+  std::vector<float> b(kPixels);
+  EXPECT_EQ(ivr_render_split(c, slab.get(), IVR_PRECISION_F32, 0, IVR_SPLIT_SLABS, 0, 2, summed,
+                             &w, b.data(), b.size()),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "not worker 0 of 2")) << ivr_last_error();
+  EXPECT_EQ(ivr_render(c, slab.get(), IVR_PRECISION_F32, 0, b.data(), b.size()),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "ivr_scene_set_volume_slab")) << ivr_last_error();
+  ivr_session* session = nullptr;
+  EXPECT_EQ(ivr_session_create(c, slab.get(), nullptr, &session), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(session, nullptr);
+  EXPECT_EQ(ivr_scene_set_volume_slab(slab.get(), values.data(), IVR_FLOAT32, shape,
+                                      int64_t(kPlanes), 1, 2),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "planes")) << ivr_last_error();
+  EXPECT_EQ(ivr_scene_set_volume_slab(slab.get(), values.data(), IVR_FLOAT32, slab_shape,
+                                      int64_t(kPlanes), 2, 2),
+            IVR_ERROR_INVALID_ARGUMENT);
+  ASSERT_EQ(ivr_scene_set_volume(slab.get(), values.data(), IVR_FLOAT32, shape), IVR_OK);
+  EXPECT_EQ(ivr_render(c, slab.get(), IVR_PRECISION_F32, 0, b.data(), b.size()), IVR_OK)
+      << ivr_last_error();
 }
 
 }  // namespace

@@ -75,6 +75,13 @@ def _volume_array(volume):
     return np.ascontiguousarray(v)
 
 
+def _slab_of(split):
+    """(nz, rank, ranks) where a split call's volume is that rank's slab of nz planes, else None."""
+    if split is None or split[-1] is None:
+        return None
+    return (split[-1], split[-4], split[-3])
+
+
 class _Owned:
     """Holds one C handle (self._handle) and releases it with the C function named by
     `_release` on close(), at garbage collection or on leaving a with-block; `_what` names it
@@ -289,7 +296,8 @@ class Context(_Owned):
             self._lib.ivr_volume_release(handle)
 
     # One scene handle for the duration of a call.
-    def _scene(self, scene, volume, base_dir):
+    def _scene(self, scene, volume, base_dir, slab=None):
+        # slab (nz, rank, ranks): `volume` is that worker's planes of a volume of nz planes.
         rays = None
         if isinstance(scene, dict) and "rays" in scene and not isinstance(scene["rays"], dict):
             # A ray list in memory: the JSON holds a stand-in ray (so that the scene is whole),
@@ -309,8 +317,13 @@ class Context(_Owned):
             if volume is not None:
                 v = _volume_array(volume)
                 shape = (ctypes.c_int64 * 3)(*v.shape)
-                _check(self._lib.ivr_scene_set_volume(handle, v.ctypes.data_as(ctypes.c_void_p),
-                                                      _DTYPES[v.dtype], shape))
+                if slab is None:
+                    _check(self._lib.ivr_scene_set_volume(
+                        handle, v.ctypes.data_as(ctypes.c_void_p), _DTYPES[v.dtype], shape))
+                else:
+                    _check(self._lib.ivr_scene_set_volume_slab(
+                        handle, v.ctypes.data_as(ctypes.c_void_p), _DTYPES[v.dtype], shape,
+                        *slab))
         except BaseException:
             self._lib.ivr_scene_release(handle)
             raise
@@ -338,7 +351,7 @@ class Context(_Owned):
 
     def render(self, scene, volume=None, step=0.0, base_dir=None, _split=None):
         """The image of every view: float32 (views, H, W, C)."""
-        s = self._scene(scene, volume, base_dir)
+        s = self._scene(scene, volume, base_dir, _slab_of(_split))
         failure = []
         try:
             shape = self._image_shape(s)
@@ -347,8 +360,8 @@ class Context(_Owned):
             if _split is None:
                 _check(self._lib.ivr_render(self._live(), s, _PRECISIONS[self.precision], step,
                                             image, out.size))
-            else:  # (split, rank, ranks, add): ivr.mpi's workers over slabs (1) or segments (2)
-                split, rank, ranks, add = _split
+            else:  # (split, rank, ranks, add, nz): ivr.mpi's workers over slabs (1) or segments (2)
+                split, rank, ranks, add, _ = _split
                 status = self._lib.ivr_render_split(self._live(), s, _PRECISIONS[self.precision],
                                                     step, split, rank, ranks,
                                                     _sum_fn(add, failure), None, image, out.size)
@@ -368,7 +381,7 @@ class Context(_Owned):
         summed in fixed point (adjoint mode, where the device has 64-bit integer atomics), the
         same bits on every run (and under ivr.mpi.gradient one process's bits)."""
         groups = wrt if isinstance(wrt, str) else ",".join(wrt)
-        s = self._scene(scene, volume, base_dir)
+        s = self._scene(scene, volume, base_dir, _slab_of(_split))
         try:
             shape = self._image_shape(s)
             t = np.ascontiguousarray(target, dtype=np.float32)
@@ -381,8 +394,8 @@ class Context(_Owned):
             r = _capi.HANDLE()
             args = (self._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, groups.encode())
             failure = []
-            if _split is not None:  # (split, rank, ranks, add): ivr.mpi's workers over slabs
-                split, rank, ranks, add = _split
+            if _split is not None:  # (split, rank, ranks, add, nz): ivr.mpi's workers over slabs
+                split, rank, ranks, add, _ = _split
                 status = self._lib.ivr_gradient_split(
                     *args, _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision], step,
                     split, rank, ranks, _sum_fn(add, failure), None, ctypes.byref(r))

@@ -66,7 +66,10 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
                     "reconstruct: resume=True needs checkpoint= (the prefix it was saved under)")
     prefix = os.fspath(checkpoint).encode() if checkpoint is not None else None
 
-    s = ctx._scene(scene, volume, base_dir)
+    # (workers (split, worker, workers, add, nz): with nz the volume is the worker's slab)
+    s = ctx._scene(scene, volume, base_dir,
+                   None if workers is None or workers[4] is None
+                   else (workers[4], workers[1], workers[2]))
     try:
         t = _targets(ctx, s, targets)
         r = _capi.HANDLE()
@@ -75,7 +78,7 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
             _check(lib.ivr_reconstruction_create(ctx._live(), s, t.ctypes.data_as(_FLOAT_P),
                                                  t.size, ctypes.byref(o), ctypes.byref(r)))
         else:  # (split, worker, workers, add): ivr.mpi.reconstruct; the sum lives as long as `r`
-            split, worker, count, add = workers
+            split, worker, count, add, _ = workers
             sum_fn = _sum_fn(add, failure)
             _check(lib.ivr_reconstruction_create_split(
                 ctx._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, ctypes.byref(o), split,

@@ -86,6 +86,42 @@ def _mine(comm, n):
     return shares[rank] if rank < len(shares) else None
 
 
+def slab(nz, comm=None):
+    """(first, last): the z planes of a volume of nz planes that this rank holds over slabs (the C
+    API's ivr_domain_slab) — what to load and pass as `volume` with nz=… to render, gradient and
+    reconstruct over slabs or segments, so that no rank holds the whole volume."""
+    import ctypes
+    from . import _check, _library
+    comm = _comm(comm)
+    first, last = ctypes.c_int(), ctypes.c_int()
+    _check(_library().ivr_domain_slab(int(nz), comm.Get_rank(), comm.Get_size(),
+                                      ctypes.byref(first), ctypes.byref(last)))
+    return first.value, last.value
+
+
+def _slab_split(code, comm, nz):
+    return (code, comm.Get_rank(), comm.Get_size(), _summer(comm), None if nz is None else int(nz))
+
+
+def _complete_shared_planes(comm, part):
+    """This rank's planes of a slab-split density gradient with the planes it shares with its
+    neighbours completed by their parts (each shared plane the two ranks' sum, on both)."""
+    ends = comm.allgather((part[:1].copy(), part[-1:].copy()))
+    rank, out = comm.Get_rank(), part.copy()
+    if rank > 0:
+        out[:1] += ends[rank - 1][1]
+    if rank + 1 < len(ends):
+        out[-1:] += ends[rank + 1][0]
+    return out
+
+
+def _whole_volume(nz, where):
+    if nz is not None:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.{where}: nz (a rank's slab for a volume) applies over slabs or "
+                    f"segments; over views every rank holds the whole volume")
+
+
 def _summer(comm):
     """add(a): `a` (float64) replaced by its sum over the ranks (MPI_Allreduce)."""
     from mpi4py import MPI
@@ -107,20 +143,21 @@ def _check_split(split, where, allowed=("views", "slabs", "segments")):
     return _SPLITS[split]
 
 
-def render(ctx, scene, volume=None, comm=None, split="views", **options):
+def render(ctx, scene, volume=None, comm=None, split="views", nz=None, **options):
     """ctx.render of the whole scene, each rank rendering its share: every rank gets the images of
     every view (views, H, W, C) (a ray list: (rays, C)). split="slabs": each rank marches one slab
     of z planes of the volume on its device, the rays' march states passed between the ranks (the
     whole volume is given on every rank; the device holds its slab). split="segments": each rank
     marches its slab's segment of every ray at once, the segments exchanged once and composited in
     order (early termination then stops a segment only on its own transmittance: docs/scaling.md).
-    `options` are ctx.render's."""
+    Over slabs or segments with nz=NZ, `volume` is this rank's planes ivr.mpi.slab(NZ) alone
+    (planes, ny, nx): no rank holds the whole volume. `options` are ctx.render's."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
     code = _check_split(split, "render")
     if split != "views":
-        return ctx.render(scene, volume,
-                          _split=(code, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
+        return ctx.render(scene, volume, _split=_slab_split(code, comm, nz), **options)
+    _whole_volume(nz, "render")
     mine = _mine(comm, _items(scene))
     image = ctx.render(scene_share(scene, *mine), volume, **options) if mine else None
     return np.concatenate([p for p in comm.allgather(image) if p is not None], axis=0)
@@ -160,26 +197,30 @@ def backproject(ctx, scene, lines, comm=None, **options):
 
 
 def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None, split="views",
-             **options):
+             nz=None, gather=True, **options):
     """ctx.gradient of the whole scene, each rank differentiating its share of the views (the
     target's first axis: views, or a ray list's rays): every rank gets (loss, {group: array}), one
     process's result to rounding. split="slabs" (every scheme): each rank differentiates over one
     slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
     summed; background and the forward lanes' groups (camera, …) come whole on every rank.
-    split="segments": the same over independent segments (density, tf and background only).
+    split="segments": the same over independent segments (density, tf and background only). Over
+    slabs or segments with nz=NZ, `volume` is this rank's planes ivr.mpi.slab(NZ) alone; with
+    gather=False "density" is this rank's planes (the planes it shares with a neighbour complete)
+    instead of the whole grid on every rank.
     `options` are ctx.gradient's (mode, step, base_dir, deterministic — over views, the density
     gradient summed in fixed point: one process's bits; over slabs: step, base_dir)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
     code = _check_split(split, "gradient")
     if split != "views":
-        value, arrays = ctx.gradient(
-            scene, volume, target, wrt=wrt, loss=loss,
-            _split=(code, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
+        value, arrays = ctx.gradient(scene, volume, target, wrt=wrt, loss=loss,
+                                     _split=_slab_split(code, comm, nz), **options)
         out = {}
         for name, a in arrays.items():
             a = np.ascontiguousarray(a, dtype=np.float64)
-            if name == "density":  # the slabs in rank order, each shared plane the two parts' sum
+            if name == "density" and not gather:
+                out[name] = _complete_shared_planes(comm, a)
+            elif name == "density":  # the slabs in rank order, each shared plane the two parts' sum
                 parts = comm.allgather(a)
                 whole = parts[0]
                 for p in parts[1:]:
@@ -193,6 +234,7 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
             else:
                 out[name] = a
         return value, out
+    _whole_volume(nz, "gradient")
     n = _items(scene)
     target = np.asarray(target, dtype=np.float32)
     if n > 1 and target.shape[0] != n:
@@ -236,7 +278,8 @@ def tomo(ctx, scene, lines, comm=None, split="views", **options):
                     _split=(0, rank, ranks, add), **options)
 
 
-def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", **options):
+def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", nz=None, gather=True,
+                **options):
     """ctx.reconstruct with the ranks sharing out each batch's views (as `mpirun -np N ivr
     reconstruct`): every rank passes the whole scene and targets and the same options, draws the
     same batch, differentiates its share of its views, and the loss and gradients are summed over
@@ -244,7 +287,9 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", **
     for densities with the TF fixed and deterministic gradients, else to the rounding of the sums).
     split="slabs" (as --split slabs): each rank holds one slab of z planes of the densities and
     marches every view through it (the densities, and the TF jointly), the slabs gathered
-    at the end; split="segments" likewise, each ray's segments marched at once. progress(entry) is called on every rank; returning False on any rank
+    at the end; split="segments" likewise, each ray's segments marched at once. Over slabs or
+    segments with nz=NZ, options["volume"] (the start) is this rank's planes ivr.mpi.slab(NZ)
+    alone, and with gather=False "volume" comes back as this rank's planes. progress(entry) is called on every rank; returning False on any rank
     stops every rank after the same iteration. Cameras only; over views every batch needs at least
     one view per rank. Returns ctx.reconstruct's dict on every rank, "volume" whole (checkpoint:
     give each rank its own prefix — over slabs each rank's state is its own)."""
@@ -257,9 +302,11 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", **
         go = progress is None or progress(entry) is not False
         return comm.allreduce(0 if go else 1, op=MPI.SUM) == 0
 
-    out = ctx.reconstruct(scene, targets, progress=agreed, _workers=(
-        code, comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
-    if split != "views" and "volume" in out:
+    if split == "views":
+        _whole_volume(nz, "reconstruct")
+    out = ctx.reconstruct(scene, targets, progress=agreed, _workers=_slab_split(code, comm, nz),
+                          **options)
+    if split != "views" and "volume" in out and gather:
         parts = comm.allgather(out["volume"])  # a shared plane once, from the lower rank
         out["volume"] = np.concatenate([parts[0]] + [p[1:] for p in parts[1:]], axis=0)
     return out

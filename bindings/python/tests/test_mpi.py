@@ -163,6 +163,39 @@ def test_render_and_gradient_over_segments_equal_one_process(ctx, scheme):
         ivr.mpi.gradient(ctx, s, v, target, wrt=("camera",), split="segments")
 
 
+@pytest.mark.parametrize("split", ["slabs", "segments"])
+def test_each_rank_holding_only_its_slab_equals_the_whole_volume(ctx, split):
+    # (ivr_scene_set_volume_slab: a rank's planes alone; the results those of the whole volume)
+    s = dict(scene_of(3), integrator={"scheme": "midpoint", "step": 0.5, "min_transmittance": 0})
+    v = volume()
+    first, last = ivr.mpi.slab(v.shape[0])
+    mine = v[first:last + 1].copy()
+    whole = ivr.mpi.render(ctx, s, v, split=split)
+    assert np.array_equal(ivr.mpi.render(ctx, s, mine, split=split, nz=v.shape[0]), whole)
+    target = 0.8 * whole + 0.05
+    wrt = ("density", "tf")
+    l1, g1 = ivr.mpi.gradient(ctx, s, v, target, wrt=wrt, split=split)
+    ln, gn = ivr.mpi.gradient(ctx, s, mine, target, wrt=wrt, split=split, nz=v.shape[0],
+                              gather=False)
+    assert abs(ln - l1) <= 1e-12 * abs(l1)
+    close(g1["tf"], gn["tf"], f"tf over {split}, each rank its slab")
+    # gather=False: this rank's planes, the shared ones complete (the joined gradient's own)
+    assert gn["density"].shape == mine.shape
+    close(g1["density"][first:last + 1], gn["density"], f"density over {split}, its slab")
+    options = dict(volume=np.full_like(mine, 0.3), wrt=("density",), iterations=2, batch=3,
+                   levels=1, optimizer="sgd", lr=1.0, seed=5)
+    out = ivr.mpi.reconstruct(ctx, s, whole, split=split, nz=v.shape[0], gather=False, **options)
+    ref = ivr.mpi.reconstruct(ctx, s, whole, split=split,
+                              **dict(options, volume=np.full_like(v, 0.3)))
+    assert out["volume"].shape == mine.shape
+    err = np.max(np.abs(out["volume"] - ref["volume"][first:last + 1]))
+    assert err <= 1e-6, f"reconstruct over {split}, each rank its slab: {err}"
+    with pytest.raises(ivr.Error, match="planes"):  # another rank's slab's size
+        ivr.mpi.render(ctx, s, v[:1], split=split, nz=v.shape[0])
+    with pytest.raises(ivr.Error, match="over slabs or segments"):
+        ivr.mpi.render(ctx, s, mine, nz=v.shape[0])
+
+
 @pytest.mark.parametrize("split", ["views", "slabs"])
 @pytest.mark.parametrize("nonneg", [False, True])
 @pytest.mark.parametrize("solver", ["cgls", "sirt", "lsqr"])

@@ -53,8 +53,9 @@ enum class SlabMarch {
   // unsplit march to rounding where early termination is off (integrator.min_transmittance 0);
   // with it on, a segment stops where its own transmittance falls below the threshold, so a ray
   // goes on where the unsplit march would have stopped (a difference below min_transmittance
-  // times the radiance and background behind). Render, and the density, TF and background
-  // gradients (forward lanes — camera, scales, tf_points, voxels — need `states`).
+  // times the radiance and background behind). Render, the density, TF and background gradients
+  // (the adjoint), and the forward lanes' (camera, scales, tf_points, voxels, rays: each
+  // segment's tangents composited as dC = dC₁ + dT₁·C₂ + T₁·dC₂, dT = dT₁·T₂ + T₁·dT₂).
   segments,
 };
 

@@ -224,10 +224,9 @@ typedef enum ivr_split {
  * ivr_render_split and ivr_gradient_split: the same with the slab march `split` names —
  * IVR_SPLIT_SLABS (the march states passed, as ivr_render_slabs) or IVR_SPLIT_SEGMENTS (every
  * worker marches its slab's segment of every ray at once, from transmittance 1; one exchange of
- * the segments, composited in order per ray; the adjoint seeded from the composited front). Over
- * segments the gradient takes density, tf and background (the forward lanes' groups are
- * refused), and early termination stops a segment only where its own transmittance falls below
- * the threshold (docs/scaling.md). */
+ * the segments, composited in order per ray — the forward lanes' tangents with them —; the
+ * adjoint seeded from the composited front). Over segments early termination stops a segment
+ * only where its own transmittance falls below the threshold (docs/scaling.md). */
 IVR_API ivr_status ivr_render_slabs(ivr_context* context, const ivr_scene* scene,
                                     ivr_precision precision, double step, int rank, int ranks,
                                     ivr_sum_fn sum, void* sum_user, float* image, size_t capacity);

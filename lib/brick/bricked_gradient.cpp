@@ -308,11 +308,6 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
     if (domain && adjoint && o.mode == Mode::forward)  // (their parts are per slab)
       throw Error(Status::unsupported, where + ": over slabs, " + g +
                                            " is differentiated by the adjoint, not forward mode");
-    if (domain && domain->march == SlabMarch::segments && !adjoint && g != "step")
-      throw Error(Status::unsupported,
-                  where + ": over independent segments, " + g +
-                      " (forward lanes) is not built; march the rays' states (SlabMarch::states, "
-                      "--split slabs)");
     if (g == "density" && o.mode == Mode::forward)
       throw Error(Status::unsupported,
                   where +

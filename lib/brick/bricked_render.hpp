@@ -146,10 +146,6 @@ class BrickedMarch {
 // (where given).
 void bricked_render_stats(BrickedMarch& march, const BrickPlan& plan, RenderStats* stats);
 
-// A finished march's stats (kernel and build time, samples, bricks, sweeps, uploads) into *stats
-// (where given).
-void bricked_render_stats(BrickedMarch& march, const BrickPlan& plan, RenderStats* stats);
-
 // $IVR_VOLUME_BRICK (cells per brick edge; 0 when unset). Throws on a malformed value.
 int volume_brick_from_env();
 

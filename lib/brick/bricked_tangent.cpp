@@ -5,6 +5,7 @@
 #include <string>
 
 #include "brick/domain.hpp"
+#include "brick/domain_segments.hpp"
 #include "ivr/error.hpp"
 #include "ivr_constants.h"
 #include "jacobian/jacobian.hpp"
@@ -92,7 +93,10 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
   ro.step = o.step;
   BrickedMarch march(device, scene, ro, p, "gradient");
   march.densities_f64 = densities;
-  if (domain) attach_exchange(march, *domain, domain_stats);
+  // Over independent segments each pass's march is this worker's segments, composited with the
+  // others' (their tangents too) before FINISH; over states the tangents move with the states.
+  const bool segments = domain && domain->march == SlabMarch::segments;
+  if (domain && !segments) attach_exchange(march, *domain, domain_stats);
   Session::Impl& s = march.s;
   check_brick_halo(scene, s.integrator().step, p.layout);
   Device::Impl& dev = s.dev;
@@ -152,10 +156,19 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
       k.setArg(a++, cl::Local(std::size_t(finish.group_x) * finish.group_y * row * s.real_size));
     });
     // The march restarted (BEGIN), the tangents zero, the sweeps, then each pixel's terms.
-    march.launch_all(march.render_kernel(), kBegin);
-    dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
-    march.carried = {tangents};  // (over slabs: they move with the rays' states)
-    march.sweep(k, kTangentMarch, {}, "bricked");
+    if (segments) {
+      dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
+      const SegmentTangents carried{&tangents, ps.lanes, sums,
+                                    [&] { march.sweep(k, kTangentMarch, {}, "bricked"); }};
+      SegmentMarch composited(march, scene, *domain, domain_stats, &carried);
+      composited.write_totals();
+      composited.write_tangents();
+    } else {
+      march.launch_all(march.render_kernel(), kBegin);
+      dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
+      march.carried = {tangents};  // (over slabs: they move with the rays' states)
+      march.sweep(k, kTangentMarch, {}, "bricked");
+    }
     cl_call("running the bricked tangent's finish on " + dev.info.name, [&] {
       march.set_brick(k, 0, 0);
       k.setArg(a0, cl_int(kTangentFinish));

@@ -18,10 +18,12 @@ namespace {
 constexpr int kT = 0, kC = 1, kK = 4, kTau = 7, kKTau = 8, kTNext = 14, kTEnd = 24;
 constexpr int kUSamples = 0, kUEnd = 1, kUNext = 2, kUFlags = 3;
 constexpr std::uint32_t kDone = 1;
+constexpr int kSegmentBegin = 5;  // kernels/bricked.cl
 static_assert(kTEnd + 1 == kBrickStateReals, "the state's last real");
 
 // A segment as sent: the ray, its samples, where its window starts, and its (T, r, g, b) or
-// (τ, 0, 0, 0) — its radiance with the compensation the march carried folded in.
+// (τ, 0, 0, 0) — its radiance with the compensation the march carried folded in —, then its
+// tangents where forward lanes are marched.
 struct Entry {
   std::uint32_t ray, samples;
   double start, v[4];
@@ -32,20 +34,30 @@ struct Piece {
   double start;
   int worker;
   double v[4];
+  const unsigned char* tangents;  // (in the gathered bytes)
 };
 }  // namespace
 
 SegmentMarch::SegmentMarch(BrickedMarch& march, const Scene& scene, const DomainPart& part,
-                           DomainStats* stats)
+                           DomainStats* stats, const SegmentTangents* tangents)
     : march_(march),
       scene_(scene),
       emission_(scene.model == Model::emission_absorption),
-      rays_(march.rays()) {
+      rays_(march.rays()),
+      tangents_(tangents) {
   check_domain_part(part);
   march_.segments = true;
-  march_.before_sweeps = [this] { start_ = read(); };
-  march_.render();
-  march_.before_sweeps = nullptr;
+  if (tangents_) {  // the render's BEGIN, then the tangent kernel's sweeps
+    march_.launch_all(march_.render_kernel(), kSegmentBegin);
+    start_ = read();
+    tangents_->sweep();
+    tangent_end_ = download_reals(march_.s.dev, march_.s.f64, *tangents_->buffer,
+                                  rays_ * std::size_t(tangents_->lanes * tangents_->sums));
+  } else {
+    march_.before_sweeps = [this] { start_ = read(); };
+    march_.render();
+    march_.before_sweeps = nullptr;
+  }
   end_ = read();
   composite(part, stats);
 }
@@ -64,20 +76,16 @@ SegmentMarch::States SegmentMarch::read() const {
 
 void SegmentMarch::write(const States& states) {
   Device::Impl& dev = march_.s.dev;
+  write_reals(dev, march_.s.f64, march_.state(), states.reals);
   cl_call("writing the segments' states", [&] {
-    if (march_.s.f64) {
-      dev.queue.enqueueWriteBuffer(march_.state(), CL_TRUE, 0, states.reals.size() * 8,
-                                   states.reals.data());
-    } else {
-      const std::vector<float> floats(states.reals.begin(), states.reals.end());
-      dev.queue.enqueueWriteBuffer(march_.state(), CL_TRUE, 0, floats.size() * 4, floats.data());
-    }
     dev.queue.enqueueWriteBuffer(march_.state_u(), CL_TRUE, 0, states.uints.size() * 4,
                                  states.uints.data());
   });
 }
 
 void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
+  const std::size_t extra = tangents_ ? std::size_t(tangents_->lanes * tangents_->sums) : 0;
+  const std::size_t entry_bytes = kEntryBytes + extra * 8;
   // This worker's segments: the rays with a window in its slab.
   std::vector<unsigned char> mine;
   for (std::size_t i = 0; i < rays_; ++i) {
@@ -92,11 +100,12 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
       e.v[0] = s[kTau] - s[kKTau];
     }
     const std::size_t at = mine.size();
-    mine.resize(at + kEntryBytes);
+    mine.resize(at + entry_bytes);
     std::memcpy(&mine[at], &e.ray, 4);
     std::memcpy(&mine[at + 4], &e.samples, 4);
     std::memcpy(&mine[at + 8], &e.start, 8);
     std::memcpy(&mine[at + 16], e.v, 32);
+    if (extra) std::memcpy(&mine[at + kEntryBytes], &tangent_end_[i * extra], extra * 8);
   }
   const std::vector<std::vector<unsigned char>> all =
       part.ranks == 1 ? std::vector<std::vector<unsigned char>>{mine} : part.all_gather(mine);
@@ -107,11 +116,11 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
   // Every worker's segments by ray (counted, then placed), each ray's in the order it meets them.
   std::vector<std::size_t> first(rays_ + 1, 0);
   for (int w = 0; w < part.ranks; ++w) {
-    if (all[w].size() % kEntryBytes)
+    if (all[w].size() % entry_bytes)
       throw Error(Status::invalid_argument, "domain segments: worker " + std::to_string(w) +
                                                 " sent " + std::to_string(all[w].size()) +
                                                 " bytes, not whole segments");
-    for (std::size_t at = 0; at < all[w].size(); at += kEntryBytes) {
+    for (std::size_t at = 0; at < all[w].size(); at += entry_bytes) {
       std::uint32_t ray = 0;
       std::memcpy(&ray, &all[w][at], 4);
       if (ray >= rays_)
@@ -128,7 +137,7 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
   std::vector<std::size_t> fill(first.begin(), first.end() - 1);
   samples_ = 0;
   for (int w = 0; w < part.ranks; ++w)
-    for (std::size_t at = 0; at < all[w].size(); at += kEntryBytes) {
+    for (std::size_t at = 0; at < all[w].size(); at += entry_bytes) {
       std::uint32_t ray = 0, samples = 0;
       std::memcpy(&ray, &all[w][at], 4);
       std::memcpy(&samples, &all[w][at + 4], 4);
@@ -136,10 +145,13 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
       p.worker = w;
       std::memcpy(&p.start, &all[w][at + 8], 8);
       std::memcpy(p.v, &all[w][at + 16], 32);
+      p.tangents = &all[w][at + kEntryBytes];
       samples_ += samples;
     }
   total_.assign(rays_ * 4, 0.0);
   front_.assign(rays_ * 4, 0.0);
+  tangent_total_.assign(rays_ * extra, 0.0);
+  std::vector<double> segment(extra);
   for (std::size_t i = 0; i < rays_; ++i) {
     std::sort(pieces.begin() + std::ptrdiff_t(first[i]), pieces.begin() + std::ptrdiff_t(first[i + 1]),
               [](const Piece& a, const Piece& b) {
@@ -155,6 +167,20 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
                         std::to_string(pieces[k - 1].worker) + " and " + std::to_string(p.worker) +
                         " that start alike (do the workers share one scene?)");
       if (p.worker == part.rank) std::copy(v, v + 4, &front_[i * 4]);
+      if (extra) {  // the tangents first: they take the front's T and C as they were
+        std::memcpy(segment.data(), p.tangents, extra * 8);
+        double* d = &tangent_total_[i * extra];
+        if (emission_) {
+          for (int l = 0; l < tangents_->lanes; ++l) {
+            double* q = d + l * 4;  // (dT, dr, dg, db) in front; the segment's after it
+            const double* g = &segment[std::size_t(l) * 4];
+            for (int c = 1; c < 4; ++c) q[c] += q[0] * p.v[c] + v[0] * g[c];
+            q[0] = q[0] * p.v[0] + v[0] * g[0];
+          }
+        } else {
+          for (std::size_t k2 = 0; k2 < extra; ++k2) d[k2] += segment[k2];  // (dτ)
+        }
+      }
       if (emission_) {
         for (int c = 1; c < 4; ++c) v[c] += v[0] * p.v[c];
         v[0] *= p.v[0];
@@ -204,6 +230,11 @@ void SegmentMarch::write_totals() {
     }
   }
   write(s);
+}
+
+void SegmentMarch::write_tangents() {
+  if (!tangents_) return;
+  write_reals(march_.s.dev, march_.s.f64, *tangents_->buffer, tangent_total_);
 }
 
 void SegmentMarch::seed_adjoint() {

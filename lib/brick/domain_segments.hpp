@@ -4,6 +4,7 @@
 // the adjoint starts each worker's segment from what lies in front of it.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "brick/bricked_render.hpp"
@@ -11,13 +12,23 @@
 
 namespace ivr {
 
+// Forward lanes over segments (lib/brick/bricked_tangent.cpp): each ray's `lanes` tangents of
+// `sums` reals in `buffer` (kernels/bricked_tangent.cl: d T and d (r, g, b), or d τ), zero before
+// `sweep` — the tangent kernel's sweeps — marches them with the segments.
+struct SegmentTangents {
+  const cl::Buffer* buffer = nullptr;
+  int lanes = 0, sums = 0;
+  std::function<void()> sweep;
+};
+
 // One march's segments, composited. Constructing it runs the march (its BEGIN at each ray's
-// window in the worker's slab, its sweeps) and the one exchange (part.all_gather): afterwards
-// every worker holds the same composited rays.
+// window in the worker's slab, its sweeps: the render's, or with `tangents` theirs) and the one
+// exchange (part.all_gather): afterwards every worker holds the same composited rays (and their
+// tangents: dC = dC₁ + dT₁·C₂ + T₁·dC₂, dT = dT₁·T₂ + T₁·dT₂; under absorption the dτ add).
 class SegmentMarch {
  public:
   SegmentMarch(BrickedMarch& march, const Scene& scene, const DomainPart& part,
-               DomainStats* stats);
+               DomainStats* stats, const SegmentTangents* tangents = nullptr);
   // The composited image (the same on every worker), as the one-process render writes it.
   Image image() const;
   // Every worker's samples, over all rays.
@@ -25,6 +36,9 @@ class SegmentMarch {
   // The whole rays' sums into the march's states: what the adjoint's BEGIN turns into the loss
   // and dL/dpixel (kernels/bricked_adjoint.cl).
   void write_totals();
+  // The whole rays' tangents into the tangents' buffer: what FINISH turns into the pixels'
+  // derivatives (with `tangents` only).
+  void write_tangents();
   // After the adjoint's BEGIN: each ray's adjoint march restarted at its window in this worker's
   // slab, from the transmittance and radiance in front of it, ending where its segment ended.
   void seed_adjoint();
@@ -46,6 +60,8 @@ class SegmentMarch {
   // Per ray: (T, r, g, b) under emission–absorption, (τ, 0, 0, 0) under absorption — the whole
   // ray's, and the part in front of this worker's segment.
   std::vector<double> total_, front_;
+  const SegmentTangents* tangents_;
+  std::vector<double> tangent_end_, tangent_total_;  // this worker's segments', the whole rays' 
   std::uint64_t samples_ = 0;
 };
 

@@ -35,6 +35,20 @@ inline cl::Buffer upload_reals(Device::Impl& dev, bool f64, const std::vector<do
   return dev.buffer(flags, converted.size() * 4, converted.data(), what);
 }
 
+// The values into the device vector `buffer` (at least as long), as the kernels' reals.
+inline void write_reals(Device::Impl& dev, bool f64, const cl::Buffer& buffer,
+                        const std::vector<double>& values) {
+  if (values.empty()) return;
+  cl_call("writing a vector to the device", [&] {
+    if (f64) {
+      dev.queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, values.size() * 8, values.data());
+    } else {
+      const std::vector<float> converted(values.begin(), values.end());
+      dev.queue.enqueueWriteBuffer(buffer, CL_TRUE, 0, converted.size() * 4, converted.data());
+    }
+  });
+}
+
 inline std::vector<double> download_reals(Device::Impl& dev, bool f64, const cl::Buffer& buffer,
                                           std::size_t n) {
   std::vector<double> out(n);

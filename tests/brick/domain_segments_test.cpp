@@ -154,14 +154,5 @@ TEST(DomainSegments, GradientEqualsOneProcess) {
     }
 }
 
-TEST(DomainSegments, ForwardLanesAreRefusedClearly) {
-  const Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
-  DomainPart part;
-  part.march = SlabMarch::segments;
-  expect_error(
-      [&] { gradient_domain(device(), s, render(device(), s), part, {}, nullptr, {"camera"}); },
-      Status::unsupported, "independent segments");
-}
-
 }  // namespace
 }  // namespace ivr::test

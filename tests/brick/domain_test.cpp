@@ -154,36 +154,55 @@ TEST(Domain, LoadSceneKeepsOnlyTheSlab) {
 // Forward lanes over slabs: the camera's tangents travel with the rays' states, so every worker
 // ends with the whole camera gradient — the in-core adjoint's to rounding — beside the density's
 // slab parts (joined) and the background's (whole).
-TEST(Domain, CameraGradientOverSlabs) {
+// The camera's gradient by forward lanes over slabs — the tangents carried with the rays' states,
+// or (SlabMarch::segments) each worker's segments' tangents composited with the others' — beside
+// the density's and background's by the adjoint, against one process's adjoint.
+TEST(Domain, CameraGradientOverSlabsAndSegments) {
+  struct Case {
+    SlabMarch march;
+    Model model;
+    Scheme scheme;
+  };
+  const Case cases[] = {{SlabMarch::states, Model::emission_absorption, Scheme::midpoint},
+                        {SlabMarch::segments, Model::emission_absorption, Scheme::midpoint},
+                        {SlabMarch::segments, Model::emission_absorption, Scheme::trapezoid},
+                        {SlabMarch::segments, Model::absorption, Scheme::exact}};
   const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
-  const Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
-  Image target = render(device(), s);
-  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
-  GradientOptions o;
-  o.precision = p;
-  o.mode = Mode::adjoint;
-  const std::vector<std::string> groups = {"density", "camera", "background"};
-  const Gradient one = gradient(device(), s, target, groups, o);
-  o.mode = Mode::automatic;
-  const double tol = p == Precision::f64 ? 1e-10 : 1e-4;
-  for (int ranks : {2, 3}) {
-    const std::vector<Gradient> parts =
-        on_workers<Gradient>(ranks, [&](int w, const DomainPart& part, Device& d) {
-          return gradient_domain(d, domain_share(s, w, ranks), target, part, o, nullptr, groups);
-        });
-    std::vector<std::vector<double>> slabs;
-    for (int w = 0; w < ranks; ++w) {
-      ASSERT_EQ(parts[w].groups.size(), 3u);
-      slabs.push_back(parts[w].groups[0].values);
-      EXPECT_EQ(parts[w].groups[1].values, parts[0].groups[1].values) << "worker " << w;
-      EXPECT_NEAR(parts[w].loss, one.loss, tol * one.loss);
+  for (const Case& c : cases) {
+    Scene s = bricked_scene(c.model, c.scheme);
+    // (Over segments one process's march where early termination is off.)
+    if (c.march == SlabMarch::segments) s.integrator.min_transmittance = 0;
+    Image target = render(device(), s);
+    for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+    GradientOptions o;
+    o.precision = p;
+    o.mode = Mode::adjoint;
+    const std::vector<std::string> groups = {"density", "camera", "background"};
+    const Gradient one = gradient(device(), s, target, groups, o);
+    o.mode = Mode::automatic;
+    const double tol = p == Precision::f64 ? 1e-10 : 1e-4;
+    for (int ranks : {2, 3}) {
+      const std::vector<Gradient> parts =
+          on_workers<Gradient>(ranks, [&](int w, DomainPart part, Device& d) {
+            part.march = c.march;
+            return gradient_domain(d, domain_share(s, w, ranks), target, part, o, nullptr, groups);
+          });
+      const std::string what = std::string(c.march == SlabMarch::states ? "states " : "segments ") +
+                               scheme_name(c.scheme) + ", " + std::to_string(ranks) + " workers";
+      std::vector<std::vector<double>> slabs;
+      for (int w = 0; w < ranks; ++w) {
+        ASSERT_EQ(parts[w].groups.size(), 3u) << what;
+        slabs.push_back(parts[w].groups[0].values);
+        EXPECT_EQ(parts[w].groups[1].values, parts[0].groups[1].values) << what << ", worker " << w;
+        EXPECT_NEAR(parts[w].loss, one.loss, tol * one.loss) << what;
+      }
+      expect_close_values(one.groups[0].values,
+                          domain_join(s.volume.nx, s.volume.ny, s.volume.nz, slabs), tol,
+                          what + " density");
+      expect_close_values(one.groups[1].values, parts[0].groups[1].values, tol, what + " camera");
+      expect_close_values(one.groups[2].values, parts[0].groups[2].values, tol,
+                          what + " background");
     }
-    const std::string what = std::to_string(ranks) + " workers";
-    expect_close_values(one.groups[0].values,
-                        domain_join(s.volume.nx, s.volume.ny, s.volume.nz, slabs), tol,
-                        what + " density");
-    expect_close_values(one.groups[1].values, parts[0].groups[1].values, tol, what + " camera");
-    expect_close_values(one.groups[2].values, parts[0].groups[2].values, tol, what + " background");
   }
 }
 

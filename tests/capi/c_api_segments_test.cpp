@@ -180,25 +180,48 @@ TEST(CApiSegments, WorkersGiveOneProcess) {
     }
 }
 
-// The C++ wrapper: Workers::split IVR_SPLIT_SEGMENTS reaches the segments (a forward lane group is
-// refused there by name, which the passed states take); a bad split is refused by every entry.
+// The C++ wrapper: Workers::split IVR_SPLIT_SEGMENTS reaches the segments (3 workers on threads:
+// fewer sums than over passed states, which any other value means), the camera's forward lanes
+// included; a bad split is refused by every entry.
 TEST(CApiSegments, SplitsAreNamedAndBadOnesRefused) {
   api::Context ctx;
   const api::Scene scene = ctx.scene_from_json(kScene);
-  api::Workers one;
-  one.sum = [](double*, size_t) {};
-  one.split = IVR_SPLIT_SEGMENTS;
-  const api::Array<float> image = ctx.render(scene, {}, one);
-  api::GradientOptions go;
-  go.wrt = "camera";
-  try {
-    ctx.gradient(scene, image.values, go, one);
-    ADD_FAILURE() << "the camera's forward lanes over segments were not refused";
-  } catch (const api::Exception& e) {
-    EXPECT_TRUE(has(e.what(), "segments")) << e.what();
-  }
-  one.split = IVR_SPLIT_VIEWS;  // (the wrapper reads anything but segments as passed states)
-  EXPECT_NO_THROW(ctx.gradient(scene, image.values, go, one));
+  // Worker 0's sum calls over a render and a camera gradient by 3 workers through the wrapper.
+  auto sums_of = [&](ivr_split split) {
+    WorkerSum sum(3);
+    std::vector<int> calls(3, 0);
+    std::vector<std::string> errors(3);
+    auto work = [&](int w) {
+      try {
+        api::Context mine;
+        const api::Scene sc = mine.scene_from_json(kScene);
+        api::Workers part;
+        part.rank = w, part.ranks = 3, part.split = split;
+        part.sum = [&, w](double* values, size_t count) {
+          ++calls[std::size_t(w)];
+          std::vector<double> v(values, values + count);
+          sum.sum(w, v);
+          std::copy(v.begin(), v.end(), values);
+        };
+        const api::Array<float> image = mine.render(sc, {}, part);
+        api::GradientOptions go;
+        go.wrt = "camera";
+        mine.gradient(sc, image.values, go, part);
+      } catch (const std::exception& e) {
+        errors[std::size_t(w)] = e.what();
+        sum.abort();
+      }
+    };
+    std::thread a(work, 1), b(work, 2);
+    work(0);
+    a.join(), b.join();
+    for (const std::string& e : errors) EXPECT_EQ(e, "");
+    return calls[0];
+  };
+  const int segments = sums_of(IVR_SPLIT_SEGMENTS), states = sums_of(IVR_SPLIT_VIEWS);
+  EXPECT_GT(segments, 0);
+  EXPECT_LT(segments, states) << "Workers::split did not reach the segments";
+  const api::Array<float> image = ctx.render(scene);
 
   ivr_context* c = ctx.get();
   WorkerSum sum(1);

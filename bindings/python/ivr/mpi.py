@@ -203,7 +203,7 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
     process's result to rounding. split="slabs" (every scheme): each rank differentiates over one
     slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
     summed; background and the forward lanes' groups (camera, …) come whole on every rank.
-    split="segments": the same over independent segments (density, tf and background only). Over
+    split="segments": the same over independent segments (the camera's tangents composited). Over
     slabs or segments with nz=NZ, `volume` is this rank's planes ivr.mpi.slab(NZ) alone; with
     gather=False "density" is this rank's planes (the planes it shares with a neighbour complete)
     instead of the whole grid on every rank.

@@ -38,6 +38,12 @@ std::size_t segments_per_ray(const BrickLayout& l, const DomainPart* domain) {
 }
 }  // namespace
 
+bool BrickedFixed::everywhere(const DomainPart* domain, bool mine) {
+  bool all = true;
+  for (const std::vector<double>& w : gathered(domain, {mine ? 1.0 : 0.0})) all = all && w[0] != 0;
+  return all;
+}
+
 BrickedFixed::BrickedFixed(const Scene& scene, const BrickLayout& layout, const Image& target,
                            Loss loss, const std::vector<double>* densities,
                            const DomainPart* domain, const int* exponent)

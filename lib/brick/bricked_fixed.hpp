@@ -24,6 +24,9 @@ namespace ivr {
 // decision (all-gathered).
 class BrickedFixed {
  public:
+  // Whether every worker's device has 64-bit integer atomics (`mine`: this one's); a collective
+  // over slabs, so that all take fixed point or none.
+  static bool everywhere(const DomainPart* domain, bool mine);
   static constexpr std::size_t kHeader = 5;  // IVR_FIXED_HEADER (kernels/ivr_constants.h)
   // The first pass's scale (or `exponent`, a second pass's) for `scene`'s rays over `layout`.
   BrickedFixed(const Scene& scene, const BrickLayout& layout, const Image& target, Loss loss,

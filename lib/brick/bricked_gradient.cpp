@@ -83,7 +83,8 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   // atomics (lib/brick/bricked_fixed.hpp), without private sums; else the float sums (and the
   // result says which).
   std::unique_ptr<BrickedFixed> fixed;
-  if (density && o.deterministic && has_int64_atomics(dev) && !tuning_probe())
+  if (density && o.deterministic && !tuning_probe() &&
+      BrickedFixed::everywhere(domain, has_int64_atomics(dev)))
     fixed = std::make_unique<BrickedFixed>(scene, l, target, o.loss, densities, domain,
                                            fixed_exponent);
   // BEGIN one ray per work-item; the sweeps' march in packets of rays where the render's is,

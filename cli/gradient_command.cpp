@@ -37,10 +37,11 @@ struct GradientArgs {
 // …) are whole on every rank.
 Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
                         const Image& target, const std::vector<std::string>& groups,
-                        const GradientOptions& options, const std::string& split) {
+                        const GradientOptions& options, const std::string& split,
+                        DomainStats* domain) {
   const World& w = world();
   Gradient mine = gradient_domain(one_device_per_rank(devices), scene,  // (its slab: load_scene_for)
-                                  target, domain_part(split), options, nullptr, groups);
+                                  target, domain_part(split), options, domain, groups);
   for (GroupGradient& g : mine.groups) {  // every rank takes part in each collective
     if (g.name == "tf") {  // each rank's part: its slab's samples
       sum_all(g.values);
@@ -60,8 +61,9 @@ Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
 
 Gradient gradient_ranks(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
                         const std::vector<std::string>& groups, GradientOptions options,
-                        const std::string& split) {
-  if (split != "views") return gradient_slabs(devices, scene, target, groups, options, split);
+                        const std::string& split, DomainStats* domain) {
+  if (split != "views")
+    return gradient_slabs(devices, scene, target, groups, options, split, domain);
   const World& w = world();
   if (w.size == 1) return gradient(devices, scene, target, groups, options);
   // Each rank a worker of the data-parallel gradient (GradientOptions::workers), summing over
@@ -133,8 +135,9 @@ Runner add_gradient_command(CLI::App& app) {
     options.step = args->march.step;
     options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;
     options.deterministic = args->deterministic;
+    DomainStats domain;  // (over slabs: rank 0's exchanges of the rays' states or segments)
     const Gradient d =
-        gradient_ranks(pointers(devices), scene, target, groups, options, args->split);
+        gradient_ranks(pointers(devices), scene, target, groups, options, args->split, &domain);
     if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
 
     std::vector<Output> outputs;
@@ -161,6 +164,8 @@ Runner add_gradient_command(CLI::App& app) {
                             {"seconds", d.kernel_seconds},
                             {"device_bytes", d.device_bytes},
                             {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices}, {"ranks", world().size}, {"split", args->split},
+                            {"exchanges", domain.exchanges},
+                            {"exchanged_bytes", domain.sent_bytes},
                             {"precision", args->march.precision},
                             {"scheme", scheme_name(scene.integrator.scheme)},
                             {"step", d.step},

@@ -159,6 +159,7 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
     if (segments) {
       dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
       const SegmentTangents carried{&tangents, ps.lanes, sums,
+                                    ps.rays ? kColumns : int(ps.count),
                                     [&] { march.sweep(k, kTangentMarch, {}, "bricked"); }};
       SegmentMarch composited(march, scene, *domain, domain_stats, &carried);
       composited.write_totals();

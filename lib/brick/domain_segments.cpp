@@ -84,7 +84,9 @@ void SegmentMarch::write(const States& states) {
 }
 
 void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
-  const std::size_t extra = tangents_ ? std::size_t(tangents_->lanes * tangents_->sums) : 0;
+  // Per ray the tangents' stride in the buffer, and what is sent of them (the used lanes').
+  const std::size_t stride = tangents_ ? std::size_t(tangents_->lanes * tangents_->sums) : 0;
+  const std::size_t extra = tangents_ ? std::size_t(tangents_->used * tangents_->sums) : 0;
   const std::size_t entry_bytes = kEntryBytes + extra * 8;
   // This worker's segments: the rays with a window in its slab.
   std::vector<unsigned char> mine;
@@ -105,7 +107,7 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
     std::memcpy(&mine[at + 4], &e.samples, 4);
     std::memcpy(&mine[at + 8], &e.start, 8);
     std::memcpy(&mine[at + 16], e.v, 32);
-    if (extra) std::memcpy(&mine[at + kEntryBytes], &tangent_end_[i * extra], extra * 8);
+    if (extra) std::memcpy(&mine[at + kEntryBytes], &tangent_end_[i * stride], extra * 8);
   }
   const std::vector<std::vector<unsigned char>> all =
       part.ranks == 1 ? std::vector<std::vector<unsigned char>>{mine} : part.all_gather(mine);
@@ -150,7 +152,7 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
     }
   total_.assign(rays_ * 4, 0.0);
   front_.assign(rays_ * 4, 0.0);
-  tangent_total_.assign(rays_ * extra, 0.0);
+  tangent_total_.assign(rays_ * stride, 0.0);
   std::vector<double> segment(extra);
   for (std::size_t i = 0; i < rays_; ++i) {
     std::sort(pieces.begin() + std::ptrdiff_t(first[i]), pieces.begin() + std::ptrdiff_t(first[i + 1]),
@@ -169,9 +171,9 @@ void SegmentMarch::composite(const DomainPart& part, DomainStats* stats) {
       if (p.worker == part.rank) std::copy(v, v + 4, &front_[i * 4]);
       if (extra) {  // the tangents first: they take the front's T and C as they were
         std::memcpy(segment.data(), p.tangents, extra * 8);
-        double* d = &tangent_total_[i * extra];
+        double* d = &tangent_total_[i * stride];
         if (emission_) {
-          for (int l = 0; l < tangents_->lanes; ++l) {
+          for (int l = 0; l < tangents_->used; ++l) {
             double* q = d + l * 4;  // (dT, dr, dg, db) in front; the segment's after it
             const double* g = &segment[std::size_t(l) * 4];
             for (int c = 1; c < 4; ++c) q[c] += q[0] * p.v[c] + v[0] * g[c];

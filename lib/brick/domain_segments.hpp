@@ -14,10 +14,11 @@ namespace ivr {
 
 // Forward lanes over segments (lib/brick/bricked_tangent.cpp): each ray's `lanes` tangents of
 // `sums` reals in `buffer` (kernels/bricked_tangent.cl: d T and d (r, g, b), or d τ), zero before
-// `sweep` — the tangent kernel's sweeps — marches them with the segments.
+// `sweep` — the tangent kernel's sweeps — marches them with the segments; the first `used` lanes
+// are sent (the rest of a pass is padding, left 0).
 struct SegmentTangents {
   const cl::Buffer* buffer = nullptr;
-  int lanes = 0, sums = 0;
+  int lanes = 0, sums = 0, used = 0;
   std::function<void()> sweep;
 };
 

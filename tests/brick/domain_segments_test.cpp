@@ -83,6 +83,20 @@ TEST(DomainSegments, RayListEqualsOneProcess) {
         return render_domain(d, domain_share(s, w, 3), over_segments(part), o);
       });
   expect_same(one, images[0], 1e-12, "ray list, 3 workers");
+  // The rays' own columns (one pass of 8 forward lanes a ray), their segments' tangents
+  // composited, against one process's.
+  Image target = one;
+  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+  GradientOptions go;
+  go.precision = Precision::f64;
+  const Gradient g1 = gradient(device(), s, target, {"rays"}, go);
+  const std::vector<Gradient> parts =
+      on_workers<Gradient>(3, [&](int w, const DomainPart& part, Device& d) {
+        return gradient_domain(d, domain_share(s, w, 3), target, over_segments(part), go, nullptr,
+                               {"rays"});
+      });
+  expect_close_values(g1.groups.at(0).values, parts[0].groups.at(0).values, 1e-10,
+                      "ray list's rays, 3 workers");
 }
 
 // With early termination on, a segment stops where its own transmittance falls below the

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "adjoint/adjoint_bound.hpp"
+#include "brick/domain.hpp"
 #include "ivr/error.hpp"
 
 namespace ivr {
@@ -17,15 +18,7 @@ namespace {
 std::vector<std::vector<double>> gathered(const DomainPart* domain,
                                           const std::vector<double>& mine) {
   if (!domain || domain->ranks <= 1) return {mine};
-  std::vector<unsigned char> bytes(mine.size() * sizeof(double));
-  std::memcpy(bytes.data(), mine.data(), bytes.size());
-  std::vector<std::vector<double>> out;
-  for (const std::vector<unsigned char>& part : domain->all_gather(bytes)) {
-    std::vector<double> v(part.size() / sizeof(double));
-    std::memcpy(v.data(), part.data(), v.size() * sizeof(double));
-    out.push_back(std::move(v));
-  }
-  return out;
+  return gather_doubles(*domain, mine, "the fixed-point density gradient's scale");
 }
 
 // The most segments one ray can have: the bricks it may cross along each axis (a line meets at

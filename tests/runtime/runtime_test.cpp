@@ -39,16 +39,19 @@ TEST(Runtime, ListsDevicesWithConsistentIndices) {
 // run twice at once; the listing is serialised).
 TEST(Runtime, ContextsMadeOnSeveralThreadsAtOnce) {
   std::vector<std::string> errors(4);
+  auto make = [&errors](std::size_t t) {
+    try {
+      Device d("");
+      if (d.info().name.empty()) errors[t] = "a device without a name";
+    } catch (const std::exception& e) {
+      errors[t] = e.what();
+    }
+  };
+  // (This thread is one of them: a driver initialised on a thread that then ends upset
+  // AddressSanitizer's thread teardown, "unable to unmap".)
   std::vector<std::thread> threads;
-  for (std::size_t t = 0; t < errors.size(); ++t)
-    threads.emplace_back([&errors, t] {
-      try {
-        Device d("");
-        if (d.info().name.empty()) errors[t] = "a device without a name";
-      } catch (const std::exception& e) {
-        errors[t] = e.what();
-      }
-    });
+  for (std::size_t t = 1; t < errors.size(); ++t) threads.emplace_back(make, t);
+  make(0);
   for (std::thread& t : threads) t.join();
   for (std::size_t t = 0; t < errors.size(); ++t) EXPECT_EQ(errors[t], "") << "thread " << t;
 }

@@ -396,8 +396,12 @@ int BrickedMarch::sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const
   return sweeps;
 }
 
-void BrickedMarch::render() {
+void BrickedMarch::begin() {
   launch_all(*render_, segments ? kSegmentBegin : kBegin);
+}
+
+void BrickedMarch::render() {
+  begin();
   if (march_packet_)
     sweep(*march_packet_, kMarch, {}, "bricked_packet", tile_);
   else

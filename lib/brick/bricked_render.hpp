@@ -91,6 +91,8 @@ class BrickedMarch {
   // kernel's tile).
   int sweep(cl::Kernel& k, int phase, const BrickHooks& hooks, const char* tuning,
             PacketShape tile = {});
+  // BEGIN: every ray's march restarted (with `segments`, at its window in the slab).
+  void begin();
   void render();  // BEGIN, the sweeps, FINISH: `image`, `samples`
   // Independent segments (lib/brick/domain_segments.cpp): render()'s BEGIN starts each ray where
   // its window in the layout's planes along z (a worker's slab) starts, from transmittance 1, and

@@ -16,7 +16,6 @@
 namespace ivr {
 
 namespace {
-constexpr int kBegin = 0;                             // kernels/bricked.cl
 constexpr int kTangentMarch = 5, kTangentFinish = 6;  // kernels/bricked_tangent.cl
 constexpr int kColumns = RayList::kColumns;
 
@@ -156,8 +155,8 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
       k.setArg(a++, cl::Local(std::size_t(finish.group_x) * finish.group_y * row * s.real_size));
     });
     // The march restarted (BEGIN), the tangents zero, the sweeps, then each pixel's terms.
+    dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
     if (segments) {
-      dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
       const SegmentTangents carried{&tangents, ps.lanes, sums,
                                     ps.rays ? kColumns : int(ps.count),
                                     [&] { march.sweep(k, kTangentMarch, {}, "bricked"); }};
@@ -165,8 +164,7 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
       composited.write_totals();
       composited.write_tangents();
     } else {
-      march.launch_all(march.render_kernel(), kBegin);
-      dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
+      march.begin();
       march.carried = {tangents};  // (over slabs: they move with the rays' states)
       march.sweep(k, kTangentMarch, {}, "bricked");
     }

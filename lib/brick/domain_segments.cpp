@@ -18,7 +18,6 @@ namespace {
 constexpr int kT = 0, kC = 1, kK = 4, kTau = 7, kKTau = 8, kTNext = 14, kTEnd = 24;
 constexpr int kUSamples = 0, kUEnd = 1, kUNext = 2, kUFlags = 3;
 constexpr std::uint32_t kDone = 1;
-constexpr int kSegmentBegin = 5;  // kernels/bricked.cl
 static_assert(kTEnd + 1 == kBrickStateReals, "the state's last real");
 
 // A segment as sent: the ray, its samples, where its window starts, and its (T, r, g, b) or
@@ -48,7 +47,7 @@ SegmentMarch::SegmentMarch(BrickedMarch& march, const Scene& scene, const Domain
   check_domain_part(part);
   march_.segments = true;
   if (tangents_) {  // the render's BEGIN, then the tangent kernel's sweeps
-    march_.launch_all(march_.render_kernel(), kSegmentBegin);
+    march_.begin();
     start_ = read();
     tangents_->sweep();
     tangent_end_ = download_reals(march_.s.dev, march_.s.f64, *tangents_->buffer,

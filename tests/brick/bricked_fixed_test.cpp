@@ -29,6 +29,13 @@ bool int64_atomics() {
   return has_int64_atomics(device().impl());
 }
 
+GradientOptions adjoint_options(Precision p) {
+  GradientOptions o;
+  o.precision = p;
+  o.mode = Mode::adjoint;
+  return o;
+}
+
 Image target_of(const Scene& s) {
   Image target = render(device(), s);
   for (float& v : target.pixels) v = 0.8f * v + 0.05f;
@@ -42,9 +49,7 @@ TEST(BrickedFixed, DensityGradientRepeatsBitForBitOutOfCore) {
       if (p == Precision::f64 && !device().info().fp64) continue;
       const Scene s = bricked_scene(Model::emission_absorption, scheme);
       const Image target = target_of(s);
-      GradientOptions o;
-      o.precision = p;
-      o.mode = Mode::adjoint;
+      GradientOptions o = adjoint_options(p);
       const Gradient floats = gradient(device(), s, target, {"density", "tf"}, o);
       o.deterministic = true;
       const Gradient in_core = gradient(device(), s, target, {"density", "tf"}, o);
@@ -76,9 +81,7 @@ TEST(BrickedFixed, SecondPassCorrectsTheScale) {
   const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
   const Scene s = bricked_scene(Model::absorption, Scheme::midpoint);
   const Image target = target_of(s);
-  GradientOptions o;
-  o.precision = p;
-  o.mode = Mode::adjoint;
+  GradientOptions o = adjoint_options(p);
   const Gradient floats = gradient(device(), s, target, {"density"}, o);
   o.deterministic = true;
   ScopedEnv brick("IVR_VOLUME_BRICK", "3");
@@ -102,9 +105,7 @@ TEST(BrickedFixed, OverSlabsRepeatsBitForBit) {
   Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);
   s.integrator.min_transmittance = 0;  // (segments: one process's march)
   const Image target = target_of(s);
-  GradientOptions o;
-  o.precision = p;
-  o.mode = Mode::adjoint;
+  GradientOptions o = adjoint_options(p);
   const Gradient floats = gradient(device(), s, target, {"density"}, o);
   o.deterministic = true;
   for (SlabMarch march : {SlabMarch::states, SlabMarch::segments}) {

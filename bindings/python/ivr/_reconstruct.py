@@ -5,8 +5,8 @@ import os
 
 import numpy as np
 
-from . import (Error, _capi, _check, _choice, _optional_choice, _sum_fn, _FLOAT_P, _LOSSES,
-               _MODES, _PRECISIONS)
+from . import (Error, _capi, _check, _choice, _optional_choice, _slab_of, _sum_fn, _FLOAT_P,
+               _LOSSES, _MODES, _PRECISIONS)
 
 _OPTIMIZERS = {"auto": 0, "adam": 1, "sgd": 2, "lbfgs": 3}
 _OPTIMIZER_NAMES = {v: k for k, v in _OPTIMIZERS.items()}
@@ -67,9 +67,7 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
     prefix = os.fspath(checkpoint).encode() if checkpoint is not None else None
 
     # (workers (split, worker, workers, add, nz): with nz the volume is the worker's slab)
-    s = ctx._scene(scene, volume, base_dir,
-                   None if workers is None or workers[4] is None
-                   else (workers[4], workers[1], workers[2]))
+    s = ctx._scene(scene, volume, base_dir, _slab_of(workers))
     try:
         t = _targets(ctx, s, targets)
         r = _capi.HANDLE()

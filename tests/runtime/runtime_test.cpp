@@ -47,8 +47,8 @@ TEST(Runtime, ContextsMadeOnSeveralThreadsAtOnce) {
       errors[t] = e.what();
     }
   };
-  // (This thread is one of them: a driver initialised on a thread that then ends upset
-  // AddressSanitizer's thread teardown, "unable to unmap".)
+  // (This thread is one of them. Under AddressSanitizer a thread that initialised the driver and
+  // then ends needs use_sigaltstack=0: tests/test_environment.cpp.)
   std::vector<std::thread> threads;
   for (std::size_t t = 1; t < errors.size(); ++t) threads.emplace_back(make, t);
   make(0);

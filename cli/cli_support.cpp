@@ -136,7 +136,8 @@ void add_split_option(CLI::App* cmd, std::string& split) {
   cmd->add_option("--split", split,
                   "Under mpirun: views (default: each rank its share of the views, the whole "
                   "volume on every rank), slabs (each rank one slab of z planes, the rays' "
-                  "march states passed between ranks; one device per rank; docs/scaling.md) or "
+                  "march states passed between ranks; one device per rank — without mpirun, each "
+                  "--device one slab; docs/scaling.md) or "
                   "segments (slabs, each rank marching its segments of every ray at once, "
                   "composited after one exchange; with early termination on, within its "
                   "threshold of the one-process render)")

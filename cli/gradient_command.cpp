@@ -34,12 +34,15 @@ struct GradientArgs {
 
 // Under mpirun with --split slabs each rank differentiates over its slab: rank 0 joins the density's slabs, the
 // TF gradient's parts are summed over the ranks; the background's and the forward lanes' (camera,
-// …) are whole on every rank.
+// …) are whole on every rank. One process with several devices: each device a slab, joined alike.
 Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
                         const Image& target, const std::vector<std::string>& groups,
                         const GradientOptions& options, const std::string& split,
                         DomainStats* domain) {
   const World& w = world();
+  if (w.size == 1 && devices.size() > 1)  // one process: its devices share the slabs
+    return gradient_domain(devices, scene, target, domain_part(split).march, options, domain,
+                           groups);
   Gradient mine = gradient_domain(one_device_per_rank(devices), scene,  // (its slab: load_scene_for)
                                   target, domain_part(split), options, domain, groups);
   for (GroupGradient& g : mine.groups) {  // every rank takes part in each collective

@@ -125,7 +125,7 @@ std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned ch
 
 Device& one_device_per_rank(const std::vector<Device*>& devices) {
   if (devices.size() > 1)
-    throw Error(Status::invalid_argument, "--split slabs: one device per rank, not --device with " +
+    throw Error(Status::invalid_argument, "--split slabs under mpirun: one device per rank, not --device with " +
                                               std::to_string(devices.size()));
   return *devices[0];
 }

@@ -46,12 +46,15 @@ std::vector<std::string> output_paths(const std::string& out, int views) {
 
 // Under mpirun, each rank renders its share of the views (a ray list: rays) and rank 0 gathers
 // the images in view order (the other ranks get an empty image); with --split slabs each rank its
-// slab, every rank getting the image; else the render itself.
+// slab, every rank getting the image (one process with several devices: each device a slab);
+// else the render itself.
 Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
                    const RenderOptions& options, RenderStats* stats, const std::string& split,
                    DomainStats* domain) {
   const World& w = world();
   if (split != "views") {
+    if (w.size == 1 && devices.size() > 1)  // one process: its devices share the slabs
+      return render_domain(devices, scene, domain_part(split).march, options, stats, domain);
     return render_domain(one_device_per_rank(devices), scene,  // (its slab: load_scene_for)
                          domain_part(split), options, stats, domain);
   }

@@ -99,6 +99,27 @@ IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image
                                  DomainStats* domain = nullptr,
                                  const std::vector<std::string>& groups = {"density"});
 
+// The same over several devices in one process (docs/scaling.md): `scene` holds the whole
+// volume; device i of n takes its slab, domain_share(scene, i, n), and marches it on a thread of its
+// own, the devices meeting in this process where ranks would over MPI — so a volume that fits no
+// one device's memory is spread over all of theirs (and each slab is streamed in bricks where its
+// device needs it). The image equals render_domain()'s over n workers. Stats: samples summed, the
+// slowest device's kernel time, the largest device's memory, bricks summed over the devices;
+// `domain` is device 0's. Throws Error(invalid_argument) for no or null devices and for more
+// devices than the volume has cells along z.
+IVR_API Image render_domain(const std::vector<Device*>& devices, const Scene& scene,
+                            SlabMarch march = SlabMarch::states, const RenderOptions& options = {},
+                            RenderStats* stats = nullptr, DomainStats* domain = nullptr);
+
+// The gradient over several devices' slabs, as whole as one process's: "density" of the whole
+// volume (the slabs joined, domain_join()), "tf" summed over the devices in device order, the
+// other groups whole on every device and taken from device 0. options.workers must be 1 (a data-
+// parallel worker's devices are not split further).
+IVR_API Gradient gradient_domain(const std::vector<Device*>& devices, const Scene& scene,
+                                 const Image& target, SlabMarch march = SlabMarch::states,
+                                 const GradientOptions& options = {}, DomainStats* domain = nullptr,
+                                 const std::vector<std::string>& groups = {"density"});
+
 // CGLS, SIRT or LSQR (with nonneg, Tikhonov or TV: each worker holds the TV rows of the planes it
 // owns, their parts of a shared plane joined) over slabs: the projections `lines` (every worker passes all of
 // them) of `scene`'s rays, this worker holding and solving for planes domain_slab(nz, rank, ranks)

@@ -2,55 +2,13 @@
 // into contiguous shares, one per device, each share rendered or differentiated on its device in a
 // thread of its own, and the results combined on the host in device order (docs/scaling.md).
 #include <algorithm>
-#include <exception>
-#include <functional>
-#include <thread>
 
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "ivr/render.hpp"
-#include "multi_device/worker_sum.hpp"
+#include "multi_device/run_shares.hpp"
 
 namespace ivr {
-
-namespace {
-
-
-// Runs job(i) for every share on its own thread; rethrows the first share's error (in order), a
-// share's own rather than a sum's that another share's failure stopped (WorkerSum::abort, called
-// through `failed` as soon as any share fails).
-template <class Job>
-void run_shares(std::size_t count, Job&& job, const std::function<void()>& failed = {}) {
-  std::vector<std::exception_ptr> errors(count);
-  std::vector<char> stopped(count, 0);  // (not vector<bool>: the threads write their own elements)
-  std::vector<std::thread> threads;
-  for (std::size_t i = 0; i < count; ++i)
-    threads.emplace_back([&, i] {
-      try {
-        job(i);
-      } catch (const WorkerSumStopped&) {
-        errors[i] = std::current_exception();
-        stopped[i] = 1;
-      } catch (...) {
-        errors[i] = std::current_exception();
-        if (failed) failed();
-      }
-    });
-  for (std::thread& t : threads) t.join();
-  for (std::size_t i = 0; i < count; ++i)
-    if (errors[i] && !stopped[i]) std::rethrow_exception(errors[i]);
-  for (const std::exception_ptr& e : errors)
-    if (e) std::rethrow_exception(e);
-}
-
-void check_devices(const std::vector<Device*>& devices) {
-  if (devices.empty()) throw Error(Status::invalid_argument, "devices: none given");
-  for (std::size_t i = 0; i < devices.size(); ++i)
-    if (!devices[i])
-      throw Error(Status::invalid_argument, "devices[" + std::to_string(i) + "]: null");
-}
-
-}  // namespace
 
 std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n, std::size_t parts) {
   std::vector<std::pair<std::size_t, std::size_t>> out;

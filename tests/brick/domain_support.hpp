@@ -1,9 +1,8 @@
 // domain_support.hpp — the domain-parallel tests' workers (domain_test, domain_tomo_test): threads,
-// each with its own device context, meeting in an in-process all-gather.
+// each with its own device context, meeting in the library's in-process all-gather.
 #pragma once
 #include <gtest/gtest.h>
 
-#include <condition_variable>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -12,39 +11,10 @@
 
 #include "ivr/domain.hpp"
 #include "ivr/error.hpp"
+#include "multi_device/worker_sum.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
-
-// Every worker's bytes to every worker, in rank order (what MPI_Allgatherv does for mpirun).
-class Rendezvous {
- public:
-  explicit Rendezvous(int ranks) : ranks_(ranks), parts_(ranks) {}
-  std::vector<std::vector<unsigned char>> all_gather(int rank,
-                                                     const std::vector<unsigned char>& mine) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    const long round = round_;
-    parts_[rank] = mine;
-    if (++arrived_ == ranks_) {
-      result_ = parts_;
-      arrived_ = 0;
-      ++round_;
-      ready_.notify_all();
-    } else {
-      ready_.wait(lock, [&] { return round_ != round; });
-    }
-    ++calls_;
-    return result_;
-  }
-  long calls() const { return calls_; }
-
- private:
-  std::mutex mutex_;
-  std::condition_variable ready_;
-  int ranks_, arrived_ = 0;
-  long round_ = 0, calls_ = 0;
-  std::vector<std::vector<unsigned char>> parts_, result_;
-};
 
 // Runs f(w, part, device) on `ranks` threads; what each returns, by worker.
 // Each worker has a context of its own on the test device.
@@ -53,7 +23,7 @@ inline std::vector<T> on_workers(int ranks, F f) {
   std::vector<std::unique_ptr<Device>> devices;
   for (int w = 0; w < ranks; ++w)
     devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
-  Rendezvous meeting(ranks);
+  WorkerGather meeting(ranks);  // (the library's, as its several devices' slabs meet)
   std::vector<T> out(ranks);
   std::vector<std::string> errors(ranks);
   std::vector<std::thread> threads;
@@ -61,13 +31,12 @@ inline std::vector<T> on_workers(int ranks, F f) {
     threads.emplace_back([&, w] {
       DomainPart part;
       part.rank = w, part.ranks = ranks;
-      part.all_gather = [&, w](const std::vector<unsigned char>& mine) {
-        return meeting.all_gather(w, mine);
-      };
+      part.all_gather = meeting.of(w);
       try {
         out[w] = f(w, part, *devices[w]);
       } catch (const std::exception& e) {
         errors[w] = e.what();
+        meeting.abort();  // (the others' exchanges stop rather than wait for this worker)
       }
     });
   for (std::thread& t : threads) t.join();

@@ -35,7 +35,9 @@ struct GradientOptions {
   // devices or data-parallel workers in core the one process's bits. Out of core and over slabs
   // (gradient_domain) the bricks' integer sums are added exactly on the host: the same bits on
   // every run for the same bricks and workers, within the fixed-point rounding (not the bits) of
-  // the in-core gradient (docs/scaling.md).
+  // the in-core gradient; data-parallel workers out of core, asking for the adjoint's groups
+  // alone (density, tf, background) over bricks of one edge, give the one process's bits over
+  // those bricks (docs/scaling.md).
   bool deterministic = false;
   // Data-parallel over views (docs/scaling.md): this call is worker `worker` of `workers` (> 1),
   // every worker passing the whole scene and target and calling together; each differentiates its

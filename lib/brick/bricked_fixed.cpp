@@ -39,10 +39,12 @@ bool BrickedFixed::everywhere(const DomainPart* domain, bool mine) {
 
 BrickedFixed::BrickedFixed(const Scene& scene, const BrickLayout& layout, const Image& target,
                            Loss loss, const std::vector<double>* densities,
-                           const DomainPart* domain, const int* exponent)
-    : domain_(domain), sums_(layout.held(), 0) {
+                           const DomainPart* domain, const FixedShare* share,
+                           const int* exponent)
+    : domain_(domain), share_(share), sums_(layout.held(), 0) {
   const ImageExtent e = image_extent(scene);
-  const std::size_t rays = e.pixels();
+  // (A share: the batch's rays, the cap every share's segments must keep to.)
+  const std::size_t rays = share ? share->rays : e.pixels();
   cap_exponent_ = fixed_cap_exponent(rays * segments_per_ray(layout, domain));
   if (exponent) {
     exponent_ = *exponent;
@@ -57,9 +59,11 @@ BrickedFixed::BrickedFixed(const Scene& scene, const BrickLayout& layout, const 
     if (!(lo <= hi)) lo = hi = 0;
     for (float v : target.pixels) target_max = std::max(target_max, std::abs(double(v)));
     for (double v : target.pixels_f64) target_max = std::max(target_max, std::abs(v));
+    // (A share: the batch's target and mean, every share the same bound.)
+    if (share) target_max = share->target_max;
     const double mine = std::ldexp(
         ray_gradient_bound(scene, tf_extremes(scene.tf, lo, hi), target_max, loss,
-                           rays * std::size_t(scene.channels())),
+                           share ? share->elements : rays * std::size_t(scene.channels())),
         fixed_bound_shift());
     double bound = 0;
     for (const std::vector<double>& b : gathered(domain, {mine})) bound = std::max(bound, b[0]);
@@ -109,6 +113,12 @@ int BrickedFixed::next() const {
     largest_ray = std::max(largest_ray, w[2]);
     nonfinite = nonfinite || w[3] != 0;
   }
+  if (share_) {  // the batch's counters and maxima (a non-finite one travels as +inf)
+    float big = nonfinite ? INFINITY : float(largest), big_ray = float(largest_ray);
+    share_->agree(over, big, big_ray);
+    nonfinite = !std::isfinite(big) || !std::isfinite(big_ray);
+    largest = big, largest_ray = big_ray;
+  }
   if (nonfinite)
     throw Error(Status::opencl,
                 "the out-of-core fixed-point density gradient met a contribution that is not "
@@ -117,10 +127,12 @@ int BrickedFixed::next() const {
 }
 
 std::vector<double> BrickedFixed::values(bool f64) const {
-  std::vector<double> out(sums_.size());
-  for (std::size_t i = 0; i < sums_.size(); ++i)
-    out[i] = f64 ? std::ldexp(double(sums_[i]), -exponent_)
-                 : double(std::ldexp(float(sums_[i]), -exponent_));
+  std::vector<std::int64_t> sums = sums_;
+  if (share_) share_->add(sums);  // (exact: the batch's integers, whatever the shares)
+  std::vector<double> out(sums.size());
+  for (std::size_t i = 0; i < sums.size(); ++i)
+    out[i] = f64 ? std::ldexp(double(sums[i]), -exponent_)
+                 : double(std::ldexp(float(sums[i]), -exponent_));
   return out;
 }
 

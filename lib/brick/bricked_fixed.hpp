@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "adjoint/adjoint.hpp"
 #include "brick/brick_layout.hpp"
 #include "ivr/domain.hpp"
 #include "ivr/gradient.hpp"
@@ -21,7 +22,8 @@ namespace ivr {
 // voxel's sum over every brick leaves the 64-bit range; the a-priori bound (on a whole ray's
 // Σ |contribution|, so on every segment's) sets the first scale, a second pass runs where it
 // failed or was far too loose. Over slabs every worker takes the same scale and the same
-// decision (all-gathered).
+// decision (all-gathered); a data-parallel share of a batch (FixedShare) takes the batch's scale
+// and, through the share's collectives, the batch's decision and the shares' summed integers.
 class BrickedFixed {
  public:
   // Whether every worker's device has 64-bit integer atomics (`mine`: this one's); a collective
@@ -31,7 +33,7 @@ class BrickedFixed {
   // The first pass's scale (or `exponent`, a second pass's) for `scene`'s rays over `layout`.
   BrickedFixed(const Scene& scene, const BrickLayout& layout, const Image& target, Loss loss,
                const std::vector<double>* densities, const DomainPart* domain,
-               const int* exponent);
+               const FixedShare* share, const int* exponent);
   // A slot's header before its brick: the scale, the cap, the counters zeroed.
   const std::array<cl_long, kHeader>& header() const { return header_; }
   // Brick b's slot as read back (the header, then its voxels' sums): its counters, and its sums
@@ -42,11 +44,13 @@ class BrickedFixed {
   int next() const;
   int exponent() const { return exponent_; }
   // The held voxels' sums as reals: sum · 2^−S, rounded to float first where the kernels' real
-  // is float (as the in-core fixed_to_real).
+  // is float (as the in-core fixed_to_real); a share's after the shares' sums are added (a
+  // collective).
   std::vector<double> values(bool f64) const;
 
  private:
   const DomainPart* domain_;
+  const FixedShare* share_;
   int exponent_ = 0, cap_exponent_ = 0;
   std::array<cl_long, kHeader> header_{};
   std::int64_t over_cap_ = 0;

@@ -51,7 +51,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
                                 const std::vector<std::string>& groups, const GradientOptions& o,
                                 const BrickPlan& plan, const DomainPart* domain,
                                 DomainStats* domain_stats, const std::vector<double>* densities,
-                                const int* fixed_exponent = nullptr) {
+                                const FixedShare* share, const int* fixed_exponent = nullptr) {
   bool density = false, tf = false, background = false;
   for (const std::string& g : groups) {
     density = density || g == "density";
@@ -83,9 +83,10 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   // atomics (lib/brick/bricked_fixed.hpp), without private sums; else the float sums (and the
   // result says which).
   std::unique_ptr<BrickedFixed> fixed;
-  if (density && o.deterministic && !tuning_probe() &&
-      BrickedFixed::everywhere(domain, has_int64_atomics(dev)))
-    fixed = std::make_unique<BrickedFixed>(scene, l, target, o.loss, densities, domain,
+  // (A data-parallel share summed in fixed point: every worker voted for it.)
+  if (density && (share || (o.deterministic && !tuning_probe() &&
+                            BrickedFixed::everywhere(domain, has_int64_atomics(dev)))))
+    fixed = std::make_unique<BrickedFixed>(scene, l, target, o.loss, densities, domain, share,
                                            fixed_exponent);
   // BEGIN one ray per work-item; the sweeps' march in packets of rays where the render's is,
   // there with private sums where they pay and fit beside the plan's bricks (their copies are a
@@ -143,7 +144,9 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
     cl_call("setting the bricked adjoint's arguments", [&] {
       kernel->setArg(a0 + 4 + 2, adj);
       kernel->setArg(a0 + 4 + 3, buffer_of(s.target));
-      set_real(*kernel, a0 + 4 + 4, s.f64, 1.0 / double(rays * scene.channels()));
+      // (A share of a batch: the batch's mean, each share holding its part of it.)
+      set_real(*kernel, a0 + 4 + 4, s.f64,
+               1.0 / double(share ? share->elements : rays * scene.channels()));
       kernel->setArg(a0 + 4 + 5, pixel_terms);
       kernel->setArg(a0 + 4 + 6, kernel == marching && priv.on ? copies : grads[0]);
       kernel->setArg(a0 + 4 + 7, cl_int4{{0, 0, 0, 0}});
@@ -252,7 +255,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
         throw Error(Status::opencl, "the out-of-core fixed-point density gradient overflowed at "
                                     "scale 2^" + std::to_string(next));
       return adjoint_bricked(device, scene, target, groups, o, plan, domain, domain_stats,
-                             densities, &next);
+                             densities, share, &next);
     }
     gradient = fixed->values(s.f64);
   }
@@ -297,7 +300,8 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
 Gradient gradient_bricked(Device& device, const Scene& scene, const Image& target,
                           const std::vector<std::string>& groups, const GradientOptions& o,
                           const BrickPlan& plan, const DomainPart* domain,
-                          DomainStats* domain_stats, const std::vector<double>* densities) {
+                          DomainStats* domain_stats, const std::vector<double>* densities,
+                          const FixedShare* share) {
   const std::string where = "out-of-core gradient (the volume is split into " +
                             std::to_string(plan.bricks()) + " bricks; docs/scaling.md)";
   std::vector<std::string> adjoint_groups, forward_groups;
@@ -326,7 +330,7 @@ Gradient gradient_bricked(Device& device, const Scene& scene, const Image& targe
   Gradient d;
   if (!adjoint_groups.empty())
     d = adjoint_bricked(device, scene, target, adjoint_groups, o, plan, domain, domain_stats,
-                        densities);
+                        densities, share);
   BrickedTangent t;
   std::vector<cl_int4> lanes;
   std::vector<std::size_t> counts;

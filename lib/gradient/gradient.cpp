@@ -146,7 +146,7 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
                     : std::max<std::size_t>(p.lanes, RayList::kColumns);
   }
   // A data-parallel worker: the fixed-point decision, agreed with the others (a collective).
-  const FixedShare* fixed_share = share ? share(out.plan.mode) : nullptr;
+  const FixedShare* fixed_share = share ? share(out.plan.mode, 0) : nullptr;
   OperationRecord& op = s.begin("gradient");
   cl_call("splitting the gradient into its groups", [&] {
     if (out.plan.mode == Mode::forward) {
@@ -240,12 +240,19 @@ Gradient gradient_one(Device& device, const Scene& scene, const Image& target,
                   brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step));
   if (bricks.layout.edge) {
     if (!share) return gradient_bricked(device, scene, target, groups, o, bricks);
-    // A data-parallel worker out of core votes for float sums (its share's fixed-point sums
-    // would not be the batch's: the caller weights and sums the shares).
-    share(Mode::forward);
-    GradientOptions floats = o;
-    floats.deterministic = false;
-    return gradient_bricked(device, scene, target, groups, floats, bricks);
+    // A data-parallel worker out of core: fixed point where every worker runs the adjoint alone
+    // (the forward lanes' groups would be the share's own means, not parts of the batch's) over
+    // bricks of one edge — each share then sums its rays' segments at the batch's scale, and the
+    // shares' integer sums are the one process's over those bricks.
+    bool adjoint_alone = o.mode != Mode::forward;
+    for (const std::string& g : groups)
+      adjoint_alone = adjoint_alone && (g == "density" || g == "tf" || g == "background");
+    const FixedShare* fixed =
+        share(adjoint_alone ? Mode::adjoint : Mode::forward, bricks.layout.edge);
+    GradientOptions mine = o;
+    mine.deterministic = fixed != nullptr;
+    return gradient_bricked(device, scene, target, groups, mine, bricks, nullptr, nullptr, nullptr,
+                            fixed);
   }
   Session session = one_shot_session(device, scene, {o.precision, o.step});
   session.set_target(target);

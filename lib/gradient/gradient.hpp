@@ -10,11 +10,12 @@
 
 namespace ivr {
 
-// A data-parallel worker's run (gradient_shared): told the mode planned for this worker, returns
-// the batch's FixedShare where every worker sums the density in fixed point (the density's adjoint
-// then gives the whole batch's gradient, the rest the batch's parts), else nullptr (the share's
-// own means, weighted by the caller).
-using ShareDecision = std::function<const FixedShare*(Mode planned)>;
+// A data-parallel worker's run (gradient_shared): told the mode planned for this worker and its
+// out-of-core bricks' edge (0: in core), returns the batch's FixedShare where every worker sums
+// the density in fixed point over the same bricks (the density's adjoint then gives the whole
+// batch's gradient, the rest the batch's parts), else nullptr (the share's own means, weighted by
+// the caller).
+using ShareDecision = std::function<const FixedShare*(Mode planned, int brick_edge)>;
 
 SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
                                  const GradientRequest& request,
@@ -25,7 +26,8 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
                          const std::vector<std::string>& groups, const GradientOptions& o);
 
 // The one-shot gradient on this worker's own scene and target (no sharing), and, where `share`
-// is given, its decision asked once the mode is planned (not asked out of core).
+// is given, its decision asked once the mode is planned (out of core: adjoint where only the
+// adjoint's groups are asked for, the bricks' edge with it).
 Gradient gradient_one(Device& device, const Scene& scene, const Image& target,
                       const std::vector<std::string>& groups, const GradientOptions& o,
                       const ShareDecision& share = {});

@@ -65,13 +65,19 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
     return whole_when_fixed(g.substr(0, g.find(':')));  // (voxels:LIST)
   });
   bool fixed = false;
-  const ShareDecision decide = [&](Mode planned) -> const FixedShare* {
+  // Fixed point where every worker votes for it and all run in core or all over bricks of one
+  // edge (the scale's cap counts a ray's segments): the edges' sum and sum of squares are those of
+  // `workers` equal edges only where all are equal.
+  const ShareDecision decide = [&](Mode planned, int brick_edge) -> const FixedShare* {
+    const double edge = double(brick_edge);
     std::vector<double> votes{o.deterministic && active && density && planned == Mode::adjoint &&
                                       has_int64_atomics(device.impl())
                                   ? 1.0
-                                  : 0.0};
+                                  : 0.0,
+                              edge, edge * edge};
     o.sum(votes);
-    fixed = votes[0] == double(o.workers);
+    const double n = double(o.workers);
+    fixed = votes[0] == n && votes[1] == n * edge && votes[2] == n * edge * edge;
     return fixed ? &batch : nullptr;
   };
   Gradient out;
@@ -79,7 +85,7 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
     out = gradient_one(device, scene_share(scene, first, count),
                        target_share(scene, target, first, count), groups, mine, decide);
   } else {  // no view for this worker: zeros of every group's shape, in every collective
-    decide(Mode::forward);
+    decide(Mode::forward, 0);
     for (std::size_t k = 0; k < groups.size(); ++k) {
       GroupGradient g;
       g.name = groups[k].substr(0, groups[k].find(':'));

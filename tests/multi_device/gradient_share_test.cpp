@@ -150,6 +150,52 @@ TEST(GradientShare, DeterministicWorkersEqualOneProcessBitForBit) {
   }
 }
 
+// Out of core (bricks of 3 cells forced for every worker and the one process): with the adjoint's
+// groups alone each share sums its rays' segments at the batch's scale into the batch's integers,
+// so the density gradient is the one process's out-of-core one bit for bit; asking for a forward
+// lane (camera) as well turns fixed point off (the lanes' means are the share's own), to rounding.
+TEST(GradientShare, OutOfCoreDeterministicWorkersEqualOneProcessBitForBit) {
+  if (!has_int64_atomics(device().impl())) GTEST_SKIP() << "no 64-bit integer atomics";
+  ScopedEnv bricks("IVR_VOLUME_BRICK", "3");
+  const Scene s = views_scene(5);
+  std::vector<Precision> precisions{Precision::f32};
+  if (device().info().fp64) precisions.push_back(Precision::f64);
+  for (const Precision p : precisions) {
+    const Image target = target_for(s, p);
+    GradientOptions o;
+    o.precision = p;
+    o.deterministic = true;
+    const double tol = p == Precision::f64 ? 1e-12 : 2e-5;
+    const std::vector<std::string> adjoint = {"density", "tf", "background"};
+    const Gradient one = gradient(device(), s, target, adjoint, o);
+    ASSERT_TRUE(one.deterministic);
+    ASSERT_GT(one.bricks, 1);
+    for (int workers : {2, 3}) {
+      const Runs r = on_threads(workers, s, target, adjoint, o);
+      for (int w = 0; w < workers; ++w) {
+        const std::string what = std::string(name(p)) + ", " + std::to_string(workers) +
+                                 " workers, worker " + std::to_string(w);
+        ASSERT_EQ(r.errors[std::size_t(w)], "") << what;
+        const Gradient& g = r.gradients[std::size_t(w)];
+        EXPECT_TRUE(g.deterministic) << what;
+        EXPECT_GT(g.bricks, 1) << what;
+        EXPECT_EQ(g.groups[0].values, one.groups[0].values) << what << ": density not bit for bit";
+        expect_near_groups(g, one, tol, what);
+      }
+    }
+    const std::vector<std::string> with_camera = {"density", "camera"};
+    const Gradient one_camera = gradient(device(), s, target, with_camera, o);
+    const Runs r = on_threads(2, s, target, with_camera, o);
+    for (int w = 0; w < 2; ++w) {
+      const std::string what = std::string(name(p)) + ", with camera, worker " + std::to_string(w);
+      ASSERT_EQ(r.errors[std::size_t(w)], "") << what;
+      EXPECT_FALSE(r.gradients[std::size_t(w)].deterministic) << what;
+      // (fixed point against float sums: the fixed-point rounding of the largest entry)
+      expect_near_groups(r.gradients[std::size_t(w)], one_camera, std::max(tol, 1e-7), what);
+    }
+  }
+}
+
 // Without fixed point (and with more workers than views, where fixed point is off: a worker
 // without a view votes against it), the workers' gradient equals one process's to rounding —
 // the mean losses weighted by the shares' sizes, dot summed, camera rows in view order.

@@ -84,7 +84,9 @@ struct ReconstructOptions {
   // one process's to rounding on its planes. Densities (and the TF jointly, its slab parts summed)
   // with Adam or SGD, cameras only; coarse-to-fine levels gather the coarse grid on every worker
   // when a level ends (and a scene start once, to resample it), each keeping its fine planes, and
-  // have at least one cell per worker along z; float sums (deterministic does not apply).
+  // have at least one cell per worker along z. With `deterministic` the slabs' bricks sum the
+  // density in fixed point where every worker's device has 64-bit integer atomics (the same
+  // bits on every run, so a resumed run equals an uninterrupted one; not one process's bits).
   // result() holds this worker's planes of the current level's grid; checkpoints are each
   // worker's own (give each its own prefix). `all_gather` passes bytes between the
   // workers (an MPI_Allgatherv); empty: built from `sum` (all_gather_by_sum).
@@ -109,6 +111,9 @@ struct IterationRecord {
   // Device memory held during the iteration: the gradient evaluation's buffers plus the
   // densities and the optimiser's moments (0 for the TF alone, whose state is a few values).
   std::uint64_t device_bytes = 0;
+  // The densities' gradient was summed in fixed point (`deterministic` where the devices can;
+  // like device_bytes, not kept by checkpoints).
+  bool deterministic = false;
 };
 
 class IVR_API Reconstruction {

@@ -404,6 +404,7 @@ const IterationRecord& Reconstruction::Impl::step() {
     OperationRecord& op = s.begin("gradient");
     AdjointResult gr = enqueue_adjoint(s, batch_targets(views), request, op);
     r.loss = gr.loss.to_doubles()[0];
+    r.deterministic = op.stats.deterministic;
     std::vector<double> tf_grad = o.tf ? gr.tf.to_doubles() : std::vector<double>{};
     if (o.workers > 1) {  // the batch's gradient from the workers' parts of it (unweighted)
       if (op.stats.deterministic) {  // (the densities' fixed-point sums are added already)

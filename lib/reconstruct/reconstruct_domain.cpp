@@ -66,12 +66,16 @@ std::vector<double> Reconstruction::Impl::slab_gradient(const std::vector<int>& 
   go.precision = o.precision;
   go.step = o.step;
   go.loss = o.loss;
+  // The slabs' bricks sum the density in fixed point where every worker's device can
+  // (BrickedFixed): a run repeats bit for bit, so a resumed run equals an uninterrupted one.
+  go.deterministic = o.deterministic;
   std::vector<std::string> groups = {"density"};
   if (o.tf) groups.push_back("tf");
   // (float64: the iterate as it is, not its floats)
   Gradient g = gradient_domain_values(device, batch, target, part, go, nullptr, groups,
                                       f64 ? &slab_x : nullptr);
   r.loss = g.loss;
+  r.deterministic = g.deterministic;
   std::vector<double> grad = std::move(g.groups[0].values);
   const std::size_t voxels = grad.size();
   r.device_bytes = g.device_bytes + voxels * (f64 ? 8 : 4) *

@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "adjoint/adjoint.hpp"
 #include "reconstruct/reconstruct_support.hpp"
 
 namespace ivr {
@@ -77,7 +78,7 @@ ReconstructOptions slab_options(Precision precision, int levels = 1) {
   o.levels = levels;
   o.init = Init::constant;
   o.precision = precision;
-  o.deterministic = false;  // (float sums in both: the slabs' bricks have no fixed point)
+  o.deterministic = false;  // (float sums in both: fixed point out of core is not in core's bits)
   o.tv = 0.05;
   o.smoothness = 0.02;
   // SGD: its steps are linear in the gradient, so the iterates keep the gradients' agreement
@@ -141,15 +142,20 @@ TEST(ReconstructDomain, DensityAndTfUnderAnEndpointScheme) {
 
 // Each worker's checkpoint holds its planes and their optimiser state (its own prefix; the slab
 // in the fingerprint): two workers stopped after 2 of 5 iterations, resumed by new ones, end where
-// uninterrupted workers do (float64 within 1e-12: the bricks' atomic sums vary in the last bits);
-// resuming another worker's checkpoint is refused.
+// uninterrupted workers do — bit for bit with the bricks' fixed-point density sums
+// (`deterministic`, where the device has 64-bit integer atomics), else within 1e-12 in float64
+// (float atomic sums vary in the last bits); resuming another worker's checkpoint is refused.
 TEST(ReconstructDomain, EachWorkerResumesFromItsOwnCheckpoint) {
   if (!device().info().fp64) GTEST_SKIP() << "needs cl_khr_fp64";
   const Small p;
   ReconstructOptions o = slab_options(Precision::f64);
   o.slabs = true;
+  o.deterministic = has_int64_atomics(device().impl());
   const WorkerRuns whole = run_workers(2, p.scene, p.targets, o);
   ASSERT_EQ(whole.errors, std::vector<std::string>(2));
+  for (int w = 0; w < 2; ++w)
+    for (const IterationRecord& r : whole.histories[std::size_t(w)])
+      EXPECT_EQ(r.deterministic, o.deterministic) << "worker " << w << ", iteration " << r.iteration;
   const std::string dir = test::temp_dir("slab_resume");
   std::vector<std::vector<double>> resumed(2);
   std::vector<std::string> errors(2), swapped(2);
@@ -193,6 +199,7 @@ TEST(ReconstructDomain, EachWorkerResumesFromItsOwnCheckpoint) {
     const std::vector<double>& a = whole.densities[std::size_t(w)];
     const std::vector<double>& b = resumed[std::size_t(w)];
     ASSERT_EQ(a.size(), b.size());
+    if (o.deterministic) EXPECT_EQ(a, b) << "worker " << w << ": not bit for bit";
     double worst = 0, scale = 0;
     for (std::size_t i = 0; i < a.size(); ++i)
       worst = std::max(worst, std::abs(a[i] - b[i])), scale = std::max(scale, std::abs(a[i]));

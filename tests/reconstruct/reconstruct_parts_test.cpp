@@ -207,7 +207,7 @@ TEST(ReconstructPartsTest, DeterministicWorkersEqualOneProcessBitForBit) {
     if (!adjoint(device(), p.scene, p.targets, fixed).deterministic)
       GTEST_SKIP() << "fixed point needs 64-bit integer atomics";
     Reconstruction one(device(), p.scene, p.targets, o);
-    while (!one.done()) one.step();
+    while (!one.done()) EXPECT_TRUE(one.step().deterministic);
     const std::vector<float>& a = one.result().volume.data;
     const std::vector<double> want(a.begin(), a.end());
     for (int workers : {2, 3}) {
@@ -217,6 +217,7 @@ TEST(ReconstructPartsTest, DeterministicWorkersEqualOneProcessBitForBit) {
         const std::string what = std::string(test::name(precision)) + ", worker " + std::to_string(w) +
                                  " of " + std::to_string(workers);
         EXPECT_EQ(runs.densities[std::size_t(w)], want) << what;
+        EXPECT_TRUE(runs.histories[std::size_t(w)].back().deterministic) << what;
         ASSERT_EQ(runs.histories[std::size_t(w)].size(), one.history().size()) << what;
         for (std::size_t k = 0; k < one.history().size(); ++k)
           EXPECT_NEAR(runs.histories[std::size_t(w)][k].loss, one.history()[k].loss,

@@ -155,6 +155,41 @@ class IVR_API Reconstruction {
   std::unique_ptr<Impl> impl_;
 };
 
+// A reconstruction over several devices' slabs in one process (docs/scaling.md): device i of n is
+// worker i of ReconstructOptions::slabs — it holds planes domain_slab(nz, i, n) of the densities
+// and their optimiser state — and runs its part of every step on a thread of its own, the devices'
+// sums and exchanges meeting in the process where MPI ranks' would meet over the network; so a
+// volume that fits no one device is reconstructed on all of them. Equal to the workers'
+// reconstruction over slabs (one process's to rounding). `scene` holds the whole volume (the
+// start with Init::scene); options.worker, workers, sum and all_gather must be left unset (they
+// are the devices'), options.slabs and slab_march are taken as given (slabs set). After a device
+// fails, the object refuses further steps.
+class IVR_API SlabsReconstruction {
+ public:
+  SlabsReconstruction(const std::vector<Device*>& devices, const Scene& scene,
+                      const Image& targets, const ReconstructOptions& options = {});
+  ~SlabsReconstruction();
+  SlabsReconstruction(SlabsReconstruction&&) noexcept;
+  SlabsReconstruction& operator=(SlabsReconstruction&&) noexcept;
+
+  const IterationRecord& step();  // device 0's record (the loss and prior are every device's)
+  bool done() const;
+  int iteration() const;
+  const std::vector<IterationRecord>& history() const;
+  int devices() const;
+  // The current level's grid, whole: every device's planes joined (domain_assemble); at the
+  // last level the full grid.
+  Scene result() const;
+  // Device i's checkpoint under PREFIX_deviceI (its planes and state; Reconstruction's files).
+  void save_checkpoint(const std::string& prefix) const;
+  void resume(const std::string& prefix);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
 // Peak signal-to-noise ratio of `image` against `reference` over every element, with peak 1
 // (images in [0, 1]): 10·log10(1 / mse); +infinity when they are equal.
 IVR_API double psnr(const Image& image, const Image& reference);

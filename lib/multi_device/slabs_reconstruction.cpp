@@ -1,0 +1,112 @@
+// slabs_reconstruction.cpp — a reconstruction over several devices' slabs in one process
+// (SlabsReconstruction, ivr/reconstruct.hpp): each device a slab worker of its own, every step run
+// on the devices' threads together, their sums and all-gathers meeting in the process.
+#include <memory>
+
+#include "ivr/domain.hpp"
+#include "ivr/error.hpp"
+#include "ivr/reconstruct.hpp"
+#include "multi_device/run_shares.hpp"
+
+namespace ivr {
+
+struct SlabsReconstruction::Impl {
+  std::vector<Device*> devices;
+  WorkerSum sum;
+  WorkerGather gather;
+  std::vector<std::unique_ptr<Reconstruction>> workers;
+  std::vector<IterationRecord> records;
+  bool failed = false;
+
+  explicit Impl(const std::vector<Device*>& d)
+      : devices(d), sum(int(d.size())), gather(int(d.size())), workers(d.size()),
+        records(d.size()) {}
+
+  // job(i) on every device's thread; a device that fails stops the others' collectives, and the
+  // object is then of no further use (the devices' states may differ).
+  template <class Job>
+  void each(const char* what, Job&& job) {
+    if (failed)
+      throw Error(Status::invalid_argument, std::string("SlabsReconstruction::") + what +
+                                                ": a device failed before; make a new one");
+    try {
+      run_shares(devices.size(), job, [this] {
+        sum.abort();
+        gather.abort();
+      });
+    } catch (...) {
+      failed = true;
+      throw;
+    }
+  }
+};
+
+SlabsReconstruction::SlabsReconstruction(const std::vector<Device*>& devices, const Scene& scene,
+                                         const Image& targets, const ReconstructOptions& options) {
+  check_devices(devices);
+  if (options.workers != 1 || options.worker != 0 || options.sum || options.all_gather)
+    throw Error(Status::invalid_argument,
+                "SlabsReconstruction: options.worker, workers, sum and all_gather are the "
+                "devices'; leave them unset");
+  const int n = int(devices.size());
+  domain_slab(scene.volume.nz, 0, n);  // more devices than cells: said before any thread starts
+  impl_ = std::make_unique<Impl>(devices);
+  Impl& m = *impl_;
+  m.each("SlabsReconstruction", [&](std::size_t i) {
+    ReconstructOptions o = options;
+    o.slabs = true;
+    o.worker = int(i), o.workers = n;
+    o.sum = m.sum.of(int(i));
+    o.all_gather = m.gather.of(int(i));
+    m.workers[i] = std::make_unique<Reconstruction>(*devices[i], domain_share(scene, int(i), n),
+                                                    targets, o);
+  });
+}
+
+SlabsReconstruction::~SlabsReconstruction() = default;
+SlabsReconstruction::SlabsReconstruction(SlabsReconstruction&&) noexcept = default;
+SlabsReconstruction& SlabsReconstruction::operator=(SlabsReconstruction&&) noexcept = default;
+
+const IterationRecord& SlabsReconstruction::step() {
+  Impl& m = *impl_;
+  if (done()) throw Error(Status::invalid_argument, "SlabsReconstruction::step: already done");
+  m.each("step", [&](std::size_t i) { m.records[i] = m.workers[i]->step(); });
+  return m.workers[0]->history().back();
+}
+
+bool SlabsReconstruction::done() const { return impl_->workers[0]->done(); }
+int SlabsReconstruction::iteration() const { return impl_->workers[0]->iteration(); }
+const std::vector<IterationRecord>& SlabsReconstruction::history() const {
+  return impl_->workers[0]->history();
+}
+int SlabsReconstruction::devices() const { return int(impl_->devices.size()); }
+
+Scene SlabsReconstruction::result() const {
+  std::vector<std::vector<double>> slabs;
+  Scene out;
+  for (const std::unique_ptr<Reconstruction>& w : impl_->workers) {
+    Scene part = w->result();  // (the level's grid described whole, this device's planes)
+    slabs.emplace_back(part.volume.data.begin(), part.volume.data.end());
+    if (slabs.size() == 1) out = std::move(part);
+  }
+  const std::vector<double> whole =
+      domain_assemble(out.volume.nx, out.volume.ny, out.volume.nz, slabs);
+  out.volume.data.assign(whole.begin(), whole.end());
+  return out;
+}
+
+void SlabsReconstruction::save_checkpoint(const std::string& prefix) const {
+  Impl& m = *impl_;
+  run_shares(m.devices.size(), [&](std::size_t i) {
+    m.workers[i]->save_checkpoint(prefix + "_device" + std::to_string(i));
+  });
+}
+
+void SlabsReconstruction::resume(const std::string& prefix) {
+  Impl& m = *impl_;
+  m.each("resume", [&](std::size_t i) {
+    m.workers[i]->resume(prefix + "_device" + std::to_string(i));
+  });
+}
+
+}  // namespace ivr

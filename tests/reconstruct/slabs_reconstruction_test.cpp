@@ -1,0 +1,142 @@
+// slabs_reconstruction_test.cpp — a reconstruction over several devices' slabs in one process
+// (SlabsReconstruction; here separate contexts on the test device): it follows one process (the
+// losses, priors and the whole volume), coarse to fine included; its per-device checkpoints resume
+// bit for bit; bad options are refused before any work.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "adjoint/adjoint.hpp"
+#include "reconstruct/reconstruct_support.hpp"
+
+namespace ivr {
+namespace {
+
+using test::device;
+using test::Small;
+
+std::vector<std::unique_ptr<Device>> contexts(int count) {
+  std::vector<std::unique_ptr<Device>> d;
+  for (int i = 0; i < count; ++i)
+    d.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
+  return d;
+}
+
+std::vector<Device*> raw(const std::vector<std::unique_ptr<Device>>& d) {
+  std::vector<Device*> out;
+  for (const auto& p : d) out.push_back(p.get());
+  return out;
+}
+
+ReconstructOptions options(Precision precision) {
+  ReconstructOptions o;
+  o.iterations = 4;
+  o.batch = 4;
+  o.levels = 2;  // (8³ then 16³: the coarse grid gathered between)
+  o.init = Init::constant;
+  o.precision = precision;
+  o.deterministic = false;  // (float sums in both: fixed point out of core is not in core's bits)
+  o.tv = 0.05;
+  // SGD keeps the gradients' agreement in the iterates (ReconstructDomain's slab_options).
+  o.automatic_optimizer = false;
+  o.optimizer.kind = OptimizerKind::sgd;
+  o.optimizer.lr = 1;
+  return o;
+}
+
+// 2 and 3 devices against one process, float64: every iteration's loss and prior within 1e-12,
+// the whole volume within 1e-12 of the largest density.
+TEST(SlabsReconstruction, FollowsOneProcess) {
+  if (!device().info().fp64) GTEST_SKIP() << "needs cl_khr_fp64";
+  const Small p;
+  const ReconstructOptions o = options(Precision::f64);
+  Reconstruction one(device(), p.scene, p.targets, o);
+  while (!one.done()) one.step();
+  const Scene want = one.result();
+  for (int count : {2, 3}) {
+    const std::string what = std::to_string(count) + " devices";
+    const auto devices = contexts(count);
+    SlabsReconstruction many(raw(devices), p.scene, p.targets, o);
+    EXPECT_EQ(many.devices(), count);
+    while (!many.done()) many.step();
+    ASSERT_EQ(many.history().size(), one.history().size()) << what;
+    for (std::size_t k = 0; k < one.history().size(); ++k) {
+      const IterationRecord& a = one.history()[k];
+      const IterationRecord& b = many.history()[k];
+      EXPECT_NEAR(b.loss, a.loss, 1e-12 * a.loss) << what << ", iteration " << k + 1;
+      EXPECT_NEAR(b.prior, a.prior, 1e-12 * a.prior + 1e-300) << what << ", iteration " << k + 1;
+      EXPECT_EQ(b.level, a.level) << what;
+    }
+    const Scene got = many.result();
+    ASSERT_EQ(got.volume.nz, want.volume.nz) << what;
+    ASSERT_EQ(got.volume.data.size(), want.volume.data.size()) << what;
+    double worst = 0, scale = 0;
+    for (std::size_t i = 0; i < want.volume.data.size(); ++i) {
+      worst = std::max(worst, std::abs(double(got.volume.data[i]) - want.volume.data[i]));
+      scale = std::max(scale, std::abs(double(want.volume.data[i])));
+    }
+    EXPECT_LE(worst, 1e-6 * scale) << what;  // (the volumes are float32: their rounding)
+  }
+}
+
+// Stopped after 2 iterations, each device's checkpoint saved, resumed by a new object: the end is
+// the uninterrupted run's bit for bit (fixed point where the device has 64-bit integer atomics).
+TEST(SlabsReconstruction, ResumesFromItsDevicesCheckpoints) {
+  if (!has_int64_atomics(device().impl())) GTEST_SKIP() << "fixed point needs 64-bit atomics";
+  const Small p;
+  ReconstructOptions o = options(Precision::f32);
+  o.levels = 1;
+  o.deterministic = true;
+  const auto devices = contexts(2);
+  SlabsReconstruction whole(raw(devices), p.scene, p.targets, o);
+  while (!whole.done()) EXPECT_TRUE(whole.step().deterministic);
+  const std::string prefix = test::temp_dir("slabs_reconstruction") + "/run";
+  {
+    SlabsReconstruction first(raw(devices), p.scene, p.targets, o);
+    first.step();
+    first.step();
+    first.save_checkpoint(prefix);
+  }
+  SlabsReconstruction resumed(raw(devices), p.scene, p.targets, o);
+  resumed.resume(prefix);
+  EXPECT_EQ(resumed.iteration(), 2);
+  while (!resumed.done()) resumed.step();
+  EXPECT_EQ(resumed.result().volume.data, whole.result().volume.data);
+  // A missing device checkpoint: refused, and the object then refuses to go on.
+  SlabsReconstruction missing(raw(devices), p.scene, p.targets, o);
+  EXPECT_THROW(missing.resume(prefix + "_none"), Error);
+  try {
+    missing.step();
+    ADD_FAILURE() << "a step after a device failed";
+  } catch (const Error& e) {
+    EXPECT_TRUE(test::has(e.what(), "a device failed before")) << e.what();
+  }
+}
+
+TEST(SlabsReconstruction, BadOptionsAreRefusedBeforeAnyWork) {
+  const Small p;  // 16 planes: 15 cells
+  ReconstructOptions o = options(Precision::f32);
+  o.levels = 1;
+  auto expect_refused = [&](const std::vector<Device*>& devices, const ReconstructOptions& opt,
+                            const std::string& part) {
+    try {
+      SlabsReconstruction r(devices, p.scene, p.targets, opt);
+      ADD_FAILURE() << "no error; expected one naming '" << part << "'";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.status(), Status::invalid_argument) << e.what();
+      EXPECT_TRUE(test::has(e.what(), part)) << e.what();
+    }
+  };
+  expect_refused({}, o, "none given");
+  expect_refused(raw(contexts(16)), o, "16 workers for a volume of 16 planes");
+  ReconstructOptions worker = o;
+  worker.workers = 2;
+  expect_refused({&device()}, worker, "leave them unset");
+}
+
+}  // namespace
+}  // namespace ivr

@@ -1,12 +1,16 @@
 // out_of_core.cpp — the out-of-core suite (docs/scaling.md): the render, the density gradient
 // (float sums and fixed point) and forward mode of a volume streamed through the device in bricks (midpoint; trapezoid at 64³)
 // against the same operation in core, end to end, in alternating rounds (issue 24's target:
-// bricked ≥ 0.7× the in-core throughput where the volume fits); and, with --cases v1024, a 1024³ volume under a 1 GiB
-// device-memory cap beside the in-core 512³ scaled by volume.
+// bricked ≥ 0.7× the in-core throughput where the volume fits); the volume's slabs over two
+// devices of one process against one in core; and, with --cases v1024, a 1024³ volume under a
+// 1 GiB device-memory cap beside the in-core 512³ scaled by volume.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iostream>
 #include <optional>
+
+#include "ivr/domain.hpp"
 
 #include "../bench_scene.hpp"
 #include "../bench_support.hpp"
@@ -119,6 +123,62 @@ void compare(Context& ctx, const std::string& base, const Scene& scene, int edge
               << edge << ") " << mb.wall.median * 1e3 << " ms, in core " << mi.wall.median * 1e3
               << " ms (throughput " << ratio << "x)\n";
     record_checked(ctx, std::move(rb), check);
+  }
+}
+
+// The volume's slabs over two devices of one process (render_domain / gradient_domain over
+// devices; here two contexts on the bench device, which share its compute units — what two GPUs
+// would run) against the device in core: the render over states and over segments and the density
+// gradient, each checked against the in-core result; the ratio is the in-core / slabs wall time.
+void device_slabs(Context& ctx, const std::string& name, Scene scene) {
+  scene.integrator.min_transmittance = 0;  // (segments: one process's march)
+  Device second(std::to_string(ctx.device.info().index));
+  const std::vector<Device*> devices = {&ctx.device, &second};
+  const nlohmann::json params = {{"volume", scene.volume.nx}, {"image", scene.cameras[0].width},
+                                 {"devices", 2}};
+  const Image in_core = render(ctx.device, scene);
+  Image target = in_core;
+  for (float& v : target.pixels) v = 0.9f * v + 0.02f;
+  GradientOptions go;
+  go.mode = Mode::adjoint;
+  struct Op {
+    const char* name;
+    std::function<std::vector<double>()> one, slabs;
+  };
+  auto pixels = [](const Image& i) { return widen(i.pixels); };
+  auto density = [](const Gradient& g) { return g.groups[0].values; };
+  const std::vector<Op> ops = {
+      {"render", [&] { return pixels(render(ctx.device, scene)); },
+       [&] { return pixels(render_domain(devices, scene, SlabMarch::states)); }},
+      {"render_segments", [&] { return pixels(render(ctx.device, scene)); },
+       [&] { return pixels(render_domain(devices, scene, SlabMarch::segments)); }},
+      {"gradient", [&] { return density(gradient(ctx.device, scene, target, {"density"}, go)); },
+       [&] {
+         return density(gradient_domain(devices, scene, target, SlabMarch::states, go));
+       }}};
+  for (const Op& op : ops) {
+    const Check check =
+        check_max(difference(op.slabs(), op.one()), "one device in core", 0, 1e-5);
+    std::vector<double> ratios;
+    Measurement mi, ms;
+    for (int round = 0; round < 3 && check.passed; ++round) {
+      mi = measure(ctx.budget, [&] { (void)op.one(); return -1.0; });
+      ms = measure(ctx.budget, [&] { (void)op.slabs(); return -1.0; });
+      ratios.push_back(mi.wall.median / ms.wall.median);
+    }
+    std::sort(ratios.begin(), ratios.end());
+    const double ratio = ratios.empty() ? 0 : ratios[ratios.size() / 2];
+    const std::string case_name = name + "_" + op.name;
+    Record ri{ctx.device_key, "out_of_core", case_name, "ivr-in-core", params};
+    add_timing(ri, mi);
+    record_checked(ctx, std::move(ri), Check{true, "reference of the slabs record", "", 0, 0});
+    Record rs{ctx.device_key, "out_of_core", case_name, "ivr-2-device-slabs", params};
+    add_timing(rs, ms);
+    rs.metrics["throughput_vs_in_core"] = ratio;
+    std::cerr << "ivr-bench: out_of_core/" << case_name << ": 2 devices' slabs "
+              << ms.wall.median * 1e3 << " ms, one device in core " << mi.wall.median * 1e3
+              << " ms (throughput " << ratio << "x)\n";
+    record_checked(ctx, std::move(rs), check);
   }
 }
 
@@ -242,6 +302,15 @@ void out_of_core_suite(Context& ctx) {
       Scene scene = bench_scene(n, ctx.quick ? 64 : 256);
       scene.integrator.scheme = Scheme::trapezoid;
       compare(ctx, base + "_b" + std::to_string(n / 2), scene, n / 2);
+    }
+  }
+  // Two devices' slabs (two contexts on this device here).
+  {
+    const int n = ctx.quick ? 32 : 64;
+    const std::string base = "v" + std::to_string(n) + "_i256_device_slabs";
+    if (ctx.wants(base)) {
+      std::cerr << "ivr-bench: out_of_core/" << base << "...\n";
+      device_slabs(ctx, base, bench_scene(n, ctx.quick ? 64 : 256));
     }
   }
   // Minutes and ~14 GB of host memory: only when asked for by name.

@@ -3,6 +3,7 @@
 // result, loss curve and before/after images as files.
 #include <unistd.h>
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -231,22 +232,25 @@ class Progress {
   bool drawn_ = false;
 };
 
-// View 0 of the scene (its volume and TF as they are) at the reconstruction's precision and step.
-// The scene's render; over slabs (o.slabs: the scene holds this rank's planes) by every rank
-// together, each getting the image.
-Image render_with(Device& device, const Scene& scene, const ReconstructOptions& o) {
+// The scene's render at the reconstruction's precision and step; over slabs (o.slabs: the scene
+// holds this rank's planes) by every rank together, each getting the image; over several devices'
+// slabs (the scene whole) by the devices together.
+Image render_with(const std::vector<Device*>& devices, const Scene& scene,
+                  const ReconstructOptions& o) {
   RenderOptions r;
   r.precision = o.precision;
   r.step = o.step;
-  if (!o.slabs) return render(device, scene, r);
+  if (!o.slabs) return render(*devices[0], scene, r);
+  if (devices.size() > 1) return render_domain(devices, scene, o.slab_march, r);
   DomainPart part = domain_part();
   part.march = o.slab_march;
-  return render_domain(device, scene, part, r);
+  return render_domain(*devices[0], scene, part, r);
 }
 
-Image render_view0(Device& device, Scene scene, const ReconstructOptions& o) {
+// View 0 of the scene (its volume and TF as they are).
+Image render_view0(const std::vector<Device*>& devices, Scene scene, const ReconstructOptions& o) {
   if (!scene.has_ray_list()) scene.cameras.resize(1);  // a ray list: every ray
-  return render_with(device, scene, o);
+  return render_with(devices, scene, o);
 }
 
 // The shortest text that reads back as the same double, so the CSV holds the exact values.
@@ -265,7 +269,12 @@ std::string csv_text(const std::vector<IterationRecord>& history) {
 }
 
 // The loss plot's data: the image loss and the priors per iteration, each level by its grid.
-LossCurve loss_curve(const Reconstruction& r, const ReconstructOptions& used) {
+// The devices a reconstruction runs on (--json "devices").
+int devices_of(const Reconstruction&) { return 1; }
+int devices_of(const SlabsReconstruction& r) { return r.devices(); }
+
+template <class AnyReconstruction>  // Reconstruction or SlabsReconstruction
+LossCurve loss_curve(const AnyReconstruction& r, const ReconstructOptions& used) {
   LossCurve c;
   const std::vector<IterationRecord>& history = r.history();
   for (std::size_t i = 0; i < history.size(); ++i) {
@@ -348,7 +357,8 @@ Runner add_reconstruct_command(CLI::App& app) {
   cmd->add_option("--held-out-targets", a.held_out_targets,
                   "The held-out views' images, .npy of that render's shape");
   cmd->add_option("--device", a.device,
-                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE); "
+                  "with --split slabs|segments several, comma-separated: each a slab");
   add_split_option(cmd, a.split);
   cmd->add_flag("--json", a.json, "Print one JSON object with timings, losses and outputs");
 
@@ -362,6 +372,15 @@ Runner add_reconstruct_command(CLI::App& app) {
     // slab of the densities, and its own checkpoint (PREFIX_rankR_checkpoint*).
     const World& w = world();
     const bool writer = w.rank == 0;
+    // Several devices in one process (--device A,B): each a slab of the densities.
+    const int devices_asked = int(std::count(a.device.begin(), a.device.end(), ',')) + 1;
+    const bool on_devices = devices_asked > 1;
+    if (on_devices && a.split == "views")
+      throw input_error("--device with " + std::to_string(devices_asked) +
+                        " devices: only with --split slabs or segments (each device a slab)");
+    if (on_devices && w.size > 1)
+      throw input_error("--device with " + std::to_string(devices_asked) +
+                        " devices under mpirun: one device per rank");
     options.slabs = a.split != "views";
     options.slab_march = a.split == "segments" ? SlabMarch::segments : SlabMarch::states;
     if (w.size > 1) {
@@ -373,7 +392,14 @@ Runner add_reconstruct_command(CLI::App& app) {
     const std::string saved =
         options.slabs && w.size > 1 ? a.prefix + "_rank" + std::to_string(w.rank) : a.prefix;
     check_output_folder(a.prefix);
-    const std::string checkpoint = saved + "_checkpoint.json";
+    // (Several devices: each its own files, PREFIX_deviceI_checkpoint*.)
+    const std::string checkpoint = saved + (on_devices ? "_device0" : "") + "_checkpoint.json";
+    const auto remove_checkpoint = [&] {
+      if (on_devices)
+        SlabsReconstruction::remove_checkpoint(saved, devices_asked);
+      else
+        Reconstruction::remove_checkpoint(saved);
+    };
     if (a.resume && !fs::exists(checkpoint))
       throw input_error("--resume: no checkpoint '" + checkpoint + "' to continue from");
     const Scene scene = load_scene_for(a.scene, a.split);
@@ -398,27 +424,30 @@ Runner add_reconstruct_command(CLI::App& app) {
       held_out_targets = load_images(a.held_out_targets, "--held-out-targets", held_out);
     }
 
-    Device device(a.device);
+    const std::vector<std::unique_ptr<Device>> opened = open_devices(a.device);
+    const std::vector<Device*> devices = pointers(opened);
+    Device& device = *devices[0];
     // Signals from here on: construction compiles kernels, which may take a while.
     const InterruptGuard interrupt;
-    Reconstruction r(device, scene, targets, options);
-    // The start at the full grid (the first level's coarse copy would blur it).
-    Scene start = scene;
-    if (options.density && options.init != Init::scene)
-      std::fill(start.volume.data.begin(), start.volume.data.end(),
-                options.init == Init::zeros ? 0.f : float(options.init_value));
-    const Image before = render_view0(device, start, options);
-    int resumed_from = -1;
-    if (a.resume) {
-      r.resume(saved);
-      resumed_from = r.iteration();
-    }
+    // The run, the same for one device (or rank) and for several devices' slabs.
+    const auto run = [&](auto& r) -> int {
+      // The start at the full grid (the first level's coarse copy would blur it).
+      Scene start = scene;
+      if (options.density && options.init != Init::scene)
+        std::fill(start.volume.data.begin(), start.volume.data.end(),
+                  options.init == Init::zeros ? 0.f : float(options.init_value));
+      const Image before = render_view0(devices, start, options);
+      int resumed_from = -1;
+      if (a.resume) {
+        r.resume(saved);
+        resumed_from = r.iteration();
+      }
 
-    const ReconstructOptions& used = r.options();
-    const int total = used.iterations;
-    Progress progress(total, r.iteration());
-    const auto stop_code = [&] {
-      return interrupt.signal() == SIGINT ? 130 : interrupt.signal() == SIGTERM ? 143 : 0;
+      const ReconstructOptions& used = r.options();
+      const int total = used.iterations;
+      Progress progress(total, r.iteration());
+      const auto stop_code = [&] {
+        return interrupt.signal() == SIGINT ? 130 : interrupt.signal() == SIGTERM ? 143 : 0;
     };
     // A signal to any rank stops every rank after the same iteration.
     const auto interrupted = [&] {
@@ -448,14 +477,14 @@ Runner add_reconstruct_command(CLI::App& app) {
     // Everything is computed before the first file is written (over slabs the renders by every
     // rank, the slabs gathered on rank 0).
     Scene result = r.result();
-    const Image after = render_view0(device, result, options);
+    const Image after = render_view0(devices, result, options);
     Image held_out_image;
     if (!a.held_out.empty()) {
       held_out.volume = result.volume;
       held_out.tf = result.tf;
-      held_out_image = render_with(device, held_out, options);
+      held_out_image = render_with(devices, held_out, options);
     }
-    if (options.slabs) {
+    if (options.slabs && !on_devices) {  // (several devices' result is whole already)
       const std::vector<double> mine(result.volume.data.begin(), result.volume.data.end());
       const std::vector<std::vector<double>> slabs = gather_parts(mine);
       if (writer) {
@@ -498,7 +527,7 @@ Runner add_reconstruct_command(CLI::App& app) {
       save_image_file(p + "_target.png", targets, 0);
       outputs.insert(outputs.end(), {p + "_before.png", p + "_after.png", p + "_target.png"});
     }
-    Reconstruction::remove_checkpoint(saved);
+    remove_checkpoint();
 
     const double loss_first = history.empty() ? NAN : history.front().loss;
     const double loss_final = history.empty() ? NAN : history.back().loss;
@@ -511,6 +540,7 @@ Runner add_reconstruct_command(CLI::App& app) {
           {"loss_final", loss_final},      {"optimizer", optimizer_name(used.optimizer.kind)},
           {"lr", used.optimizer.lr},       {"levels", levels},
           {"device", device.info().name}, {"bricks", 1},  {"ranks", w.size}, {"split", a.split},
+          {"devices", devices_of(r)},
           {"outputs", outputs}};
       if (!a.truth.empty()) j["volume_error"] = volume_error;
       if (!a.held_out.empty()) j["held_out_psnr"] = held_out_psnr;  // null where +infinity
@@ -539,6 +569,13 @@ Runner add_reconstruct_command(CLI::App& app) {
     }
     // A signal during the last iteration: the run is complete, so it is not an interruption.
     return 0;
+    };
+    if (on_devices) {
+      SlabsReconstruction r(devices, scene, targets, options);
+      return run(r);
+    }
+    Reconstruction r(device, scene, targets, options);
+    return run(r);
   };
 }
 

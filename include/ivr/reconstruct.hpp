@@ -177,12 +177,17 @@ class IVR_API SlabsReconstruction {
   int iteration() const;
   const std::vector<IterationRecord>& history() const;
   int devices() const;
+  const ReconstructOptions& options() const;  // device 0's, with what automatic resolved to
+  int levels() const;
+  std::vector<int> level_dims(int level) const;  // (nx, ny, nz) of a level's whole grid
   // The current level's grid, whole: every device's planes joined (domain_assemble); at the
   // last level the full grid.
   Scene result() const;
   // Device i's checkpoint under PREFIX_deviceI (its planes and state; Reconstruction's files).
   void save_checkpoint(const std::string& prefix) const;
   void resume(const std::string& prefix);
+  // Deletes the checkpoint files of `prefix`'s `devices` devices (those that exist).
+  static void remove_checkpoint(const std::string& prefix, int devices);
 
   struct Impl;
 

@@ -80,6 +80,13 @@ const std::vector<IterationRecord>& SlabsReconstruction::history() const {
   return impl_->workers[0]->history();
 }
 int SlabsReconstruction::devices() const { return int(impl_->devices.size()); }
+const ReconstructOptions& SlabsReconstruction::options() const {
+  return impl_->workers[0]->options();
+}
+int SlabsReconstruction::levels() const { return impl_->workers[0]->levels(); }
+std::vector<int> SlabsReconstruction::level_dims(int level) const {
+  return impl_->workers[0]->level_dims(level);
+}
 
 Scene SlabsReconstruction::result() const {
   std::vector<std::vector<double>> slabs;
@@ -100,6 +107,11 @@ void SlabsReconstruction::save_checkpoint(const std::string& prefix) const {
   run_shares(m.devices.size(), [&](std::size_t i) {
     m.workers[i]->save_checkpoint(prefix + "_device" + std::to_string(i));
   });
+}
+
+void SlabsReconstruction::remove_checkpoint(const std::string& prefix, int devices) {
+  for (int i = 0; i < devices; ++i)
+    Reconstruction::remove_checkpoint(prefix + "_device" + std::to_string(i));
 }
 
 void SlabsReconstruction::resume(const std::string& prefix) {

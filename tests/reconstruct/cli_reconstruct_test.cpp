@@ -313,6 +313,34 @@ TEST_F(CliReconstruct, InterruptedRunResumesBitForBit) {
     EXPECT_EQ(e.path().filename().string().find("checkpoint"), std::string::npos) << e.path();
 }
 
+// --split slabs with --device A,B and no mpirun: each device a slab (SlabsReconstruction); the
+// densities those of one device over slabs to rounding, "devices": 2 in --json, the devices'
+// checkpoints written on the way and removed at the end; several devices over views refused.
+TEST_F(CliReconstruct, SeveralDevicesEachTakeASlab) {
+  if (!device().info().fp64) GTEST_SKIP() << "needs cl_khr_fp64";
+  const std::string d = std::to_string(device().info().index);
+  const std::string options = " --iterations 6 --levels 1 --init constant:0.5 --precision f64 "
+                              "--checkpoint-every 2 --json --split slabs --device ";
+  const CliResult one = run_cli(base() + "One" + options + d);
+  ASSERT_EQ(one.status, 0) << one.err;
+  const CliResult two = run_cli(base() + "Two" + options + d + "," + d);
+  ASSERT_EQ(two.status, 0) << two.err;
+  const nlohmann::json j = nlohmann::json::parse(two.out);
+  EXPECT_EQ(j["devices"], 2) << two.out;
+  EXPECT_EQ(j["iterations"], 6) << two.out;
+  const std::vector<double> a = load_npy(prefix() + "One_density.npy").data;
+  const std::vector<double> b = load_npy(prefix() + "Two_density.npy").data;
+  ASSERT_EQ(a.size(), b.size());
+  double worst = 0, scale = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    worst = std::max(worst, std::abs(a[i] - b[i])), scale = std::max(scale, std::abs(a[i]));
+  EXPECT_LE(worst, 1e-6 * scale);  // (float32 files of float64 iterates equal to 1e-12)
+  for (const char* device_file : {"Two_device0_checkpoint.json", "Two_device1_checkpoint.json"})
+    EXPECT_FALSE(fs::exists(prefix() + device_file)) << device_file << " left behind";
+  EXPECT_TRUE(has(expect_failure(base() + "Views --device " + d + "," + d),
+                  "only with --split slabs or segments"));
+}
+
 TEST_F(CliReconstruct, EveryBadInputIsOneLineAndWritesNothing) {
   const std::string b = base() + " --iterations 2";
   EXPECT_TRUE(has(expect_failure(b + " --lr -0.5"), "--lr must be > 0, got -0.5"));

@@ -51,6 +51,19 @@ Device& device() {
   return d;
 }
 
+std::vector<std::unique_ptr<Device>> device_contexts(int count) {
+  std::vector<std::unique_ptr<Device>> out;
+  for (int i = 0; i < count; ++i)
+    out.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
+  return out;
+}
+
+std::vector<Device*> pointers_to(const std::vector<std::unique_ptr<Device>>& devices) {
+  std::vector<Device*> out;
+  for (const auto& d : devices) out.push_back(d.get());
+  return out;
+}
+
 Scene constant_scene(float density, int n, int image) {
   Scene s;
   s.volume.nx = s.volume.ny = s.volume.nz = n;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -33,6 +34,11 @@ using reference::uniform;
 
 // One shared device for the whole test process ($IVR_DEVICE or the default).
 Device& device();
+
+// `count` contexts of their own on the test device: the "several devices" of one process (or the
+// workers on threads) that the multi-device and domain tests run on; and their pointers.
+std::vector<std::unique_ptr<Device>> device_contexts(int count);
+std::vector<Device*> pointers_to(const std::vector<std::unique_ptr<Device>>& devices);
 
 // Sets an environment variable for the scope of a test, restoring the old value after.
 class ScopedEnv {

@@ -26,6 +26,26 @@ double seconds_of(const std::function<void()>& f) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// One way against in core, in alternating rounds (3, while `check` holds): the last round's
+// measurements and the median over the rounds of the in-core / other wall-time ratio.
+struct Alternated {
+  Measurement in_core, other;
+  double ratio = 0;
+};
+Alternated alternate(Context& ctx, const Check& check, const std::function<void()>& in_core,
+                     const std::function<void()>& other) {
+  Alternated a;
+  std::vector<double> ratios;
+  for (int round = 0; round < 3 && check.passed; ++round) {
+    a.in_core = measure(ctx.budget, [&] { in_core(); return -1.0; });
+    a.other = measure(ctx.budget, [&] { other(); return -1.0; });
+    ratios.push_back(a.in_core.wall.median / a.other.wall.median);
+  }
+  std::sort(ratios.begin(), ratios.end());
+  a.ratio = ratios.empty() ? 0 : ratios[ratios.size() / 2];
+  return a;
+}
+
 // Procedural densities of an n³ grid (x fastest), for large n (no file).
 template <typename T>
 std::vector<T> procedural_volume(int n) {
@@ -102,15 +122,9 @@ void compare(Context& ctx, const std::string& base, const Scene& scene, int edge
       else (void)run_gradient(gradients[op - 1], true);
     };
     const Check& check = checks[op];
-    std::vector<double> ratios;
-    Measurement mi, mb;
-    for (int round = 0; round < 3 && check.passed; ++round) {
-      mi = measure(ctx.budget, [&] { run_in_core(); return -1.0; });
-      mb = measure(ctx.budget, [&] { run_bricked(); return -1.0; });
-      ratios.push_back(mi.wall.median / mb.wall.median);
-    }
-    std::sort(ratios.begin(), ratios.end());
-    const double ratio = ratios.empty() ? 0 : ratios[ratios.size() / 2];
+    const Alternated t = alternate(ctx, check, run_in_core, run_bricked);
+    const Measurement &mi = t.in_core, &mb = t.other;
+    const double ratio = t.ratio;
     const std::string name = base + "_" + (is_render ? "render" : gradients[op - 1].name);
     Record ri{ctx.device_key, "out_of_core", name, "ivr-in-core", params};
     add_timing(ri, mi);
@@ -159,15 +173,10 @@ void device_slabs(Context& ctx, const std::string& name, Scene scene) {
   for (const Op& op : ops) {
     const Check check =
         check_max(difference(op.slabs(), op.one()), "one device in core", 0, 1e-5);
-    std::vector<double> ratios;
-    Measurement mi, ms;
-    for (int round = 0; round < 3 && check.passed; ++round) {
-      mi = measure(ctx.budget, [&] { (void)op.one(); return -1.0; });
-      ms = measure(ctx.budget, [&] { (void)op.slabs(); return -1.0; });
-      ratios.push_back(mi.wall.median / ms.wall.median);
-    }
-    std::sort(ratios.begin(), ratios.end());
-    const double ratio = ratios.empty() ? 0 : ratios[ratios.size() / 2];
+    const Alternated t =
+        alternate(ctx, check, [&] { (void)op.one(); }, [&] { (void)op.slabs(); });
+    const Measurement &mi = t.in_core, &ms = t.other;
+    const double ratio = t.ratio;
     const std::string case_name = name + "_" + op.name;
     Record ri{ctx.device_key, "out_of_core", case_name, "ivr-in-core", params};
     add_timing(ri, mi);

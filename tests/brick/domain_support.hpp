@@ -20,9 +20,7 @@ namespace ivr::test {
 // Each worker has a context of its own on the test device.
 template <typename T, typename F>
 inline std::vector<T> on_workers(int ranks, F f) {
-  std::vector<std::unique_ptr<Device>> devices;
-  for (int w = 0; w < ranks; ++w)
-    devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
+  const std::vector<std::unique_ptr<Device>> devices = device_contexts(ranks);
   WorkerGather meeting(ranks);  // (the library's, as its several devices' slabs meet)
   std::vector<T> out(ranks);
   std::vector<std::string> errors(ranks);

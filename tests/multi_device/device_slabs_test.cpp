@@ -24,20 +24,6 @@
 namespace ivr::test {
 namespace {
 
-// `count` devices: separate contexts on the test device.
-std::vector<std::unique_ptr<Device>> contexts(int count) {
-  std::vector<std::unique_ptr<Device>> d;
-  for (int i = 0; i < count; ++i)
-    d.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
-  return d;
-}
-
-std::vector<Device*> raw(const std::vector<std::unique_ptr<Device>>& d) {
-  std::vector<Device*> out;
-  for (const auto& p : d) out.push_back(p.get());
-  return out;
-}
-
 const char* march_name(SlabMarch m) {
   return m == SlabMarch::states ? "states" : "segments";
 }
@@ -66,18 +52,18 @@ TEST(DeviceSlabs, RenderAndGradientsEqualOneDevice) {
     for (int count : {2, 3}) {
       const std::string what =
           std::string(march_name(march)) + ", " + std::to_string(count) + " devices";
-      const auto devices = contexts(count);
+      const auto devices = device_contexts(count);
       RenderStats st;
       DomainStats ds;
       ro.volume_brick = count == 2 ? 3 : 0;  // bricks inside each slab, or a slab a brick
-      const Image many = render_domain(raw(devices), s, march, ro, &st, &ds);
+      const Image many = render_domain(pointers_to(devices), s, march, ro, &st, &ds);
       expect_same(one, many, p == Precision::f64 ? 1e-12 : 1e-5, what);
       EXPECT_EQ(st.devices, count) << what;
       EXPECT_GE(st.bricks, count) << what;  // (summed over the devices' slabs)
       EXPECT_GT(ds.exchanges, 0) << what;
       EXPECT_GT(ds.received_bytes, 0u) << what;
 
-      const Gradient gm = gradient_domain(raw(devices), s, target, march, go, nullptr, groups);
+      const Gradient gm = gradient_domain(pointers_to(devices), s, target, march, go, nullptr, groups);
       EXPECT_EQ(gm.devices, count) << what;
       const double tol = p == Precision::f64 ? 1e-10 : 1e-4;
       EXPECT_NEAR(gm.loss, g1.loss, tol * g1.loss) << what;
@@ -107,9 +93,9 @@ TEST(DeviceSlabs, DeterministicGradientIsTheSameBitsTwice) {
   o.mode = Mode::adjoint;
   const Gradient floats = gradient(device(), s, target, {"density"}, o);
   o.deterministic = true;
-  const auto devices = contexts(2);
-  const Gradient a = gradient_domain(raw(devices), s, target, SlabMarch::states, o);
-  const Gradient b = gradient_domain(raw(devices), s, target, SlabMarch::states, o);
+  const auto devices = device_contexts(2);
+  const Gradient a = gradient_domain(pointers_to(devices), s, target, SlabMarch::states, o);
+  const Gradient b = gradient_domain(pointers_to(devices), s, target, SlabMarch::states, o);
   EXPECT_TRUE(a.deterministic);
   ASSERT_EQ(a.groups.size(), 1u);
   EXPECT_EQ(a.groups[0].values, b.groups[0].values);
@@ -118,8 +104,8 @@ TEST(DeviceSlabs, DeterministicGradientIsTheSameBitsTwice) {
 
 TEST(DeviceSlabs, BadInputIsRefusedBeforeAnyWork) {
   const Scene s = bricked_scene(Model::emission_absorption, Scheme::midpoint);  // 13 planes
-  const auto many = contexts(13);  // one more than the 12 cells
-  expect_error([&] { render_domain(raw(many), s); }, Status::invalid_argument,
+  const auto many = device_contexts(13);  // one more than the 12 cells
+  expect_error([&] { render_domain(pointers_to(many), s); }, Status::invalid_argument,
                "13 workers for a volume of 13 planes");
   expect_error([&] { render_domain(std::vector<Device*>{}, s); }, Status::invalid_argument,
                "none given");
@@ -129,12 +115,12 @@ TEST(DeviceSlabs, BadInputIsRefusedBeforeAnyWork) {
   worker.worker = 1, worker.workers = 2;
   const Image target = render(device(), s);
   expect_error(
-      [&] { gradient_domain(raw(contexts(2)), s, target, SlabMarch::states, worker); },
+      [&] { gradient_domain(pointers_to(device_contexts(2)), s, target, SlabMarch::states, worker); },
       Status::invalid_argument, "give each worker one device");
   // A device's own error is the one reported, the other devices' exchanges stopped.
   Scene bad = s;
   bad.volume.data.pop_back();
-  expect_error([&] { render_domain(raw(contexts(2)), bad); }, Status::invalid_argument, "volume");
+  expect_error([&] { render_domain(pointers_to(device_contexts(2)), bad); }, Status::invalid_argument, "volume");
 }
 
 // The in-process all-gather: every worker's part in worker order each round; a worker's abort

@@ -58,9 +58,7 @@ struct Runs {
 Runs on_threads(int workers, const Scene& s, const Image& target,
                 const std::vector<std::string>& groups, const GradientOptions& o,
                 int failing_worker = -1) {
-  std::vector<std::unique_ptr<Device>> devices;
-  for (int w = 0; w < workers; ++w)
-    devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
+  const std::vector<std::unique_ptr<Device>> devices = device_contexts(workers);
   WorkerSum sum(workers);
   Runs out;
   out.gradients.resize(std::size_t(workers));
@@ -136,13 +134,8 @@ TEST(GradientShare, DeterministicWorkersEqualOneProcessBitForBit) {
       }
     }
     // Several devices in one process: the same path, the same bits.
-    std::vector<std::unique_ptr<Device>> devices;
-    std::vector<Device*> raw;
-    for (int i = 0; i < 3; ++i) {
-      devices.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
-      raw.push_back(devices.back().get());
-    }
-    const Gradient many = gradient(raw, s, target, groups, o);
+    const std::vector<std::unique_ptr<Device>> devices = device_contexts(3);
+    const Gradient many = gradient(pointers_to(devices), s, target, groups, o);
     EXPECT_EQ(many.devices, 3);
     EXPECT_TRUE(many.deterministic);
     EXPECT_EQ(many.groups[0].values, one.groups[0].values) << "3 devices";

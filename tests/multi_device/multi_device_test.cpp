@@ -35,19 +35,6 @@ Scene five_views() {
   return s;
 }
 
-// `count` devices: separate contexts on the test device.
-std::vector<std::unique_ptr<Device>> copies(int count) {
-  std::vector<std::unique_ptr<Device>> d;
-  for (int i = 0; i < count; ++i) d.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
-  return d;
-}
-
-std::vector<Device*> raw(const std::vector<std::unique_ptr<Device>>& d) {
-  std::vector<Device*> out;
-  for (const auto& p : d) out.push_back(p.get());
-  return out;
-}
-
 TEST(MultiDevice, RenderAndGradientsEqualOneDevice) {
   const Scene s = five_views();
   const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
@@ -63,14 +50,14 @@ TEST(MultiDevice, RenderAndGradientsEqualOneDevice) {
   const std::vector<std::string> groups = {"density", "tf", "background", "camera"};
   const Gradient g1 = gradient(device(), s, target, groups, go);
   for (int count : {2, 3, 7}) {  // 7 devices for 5 views: two get none
-    const auto devices = copies(count);
+    const auto devices = device_contexts(count);
     RenderStats st;
-    const Image many = render(raw(devices), s, ro, &st);
+    const Image many = render(pointers_to(devices), s, ro, &st);
     EXPECT_EQ(st.devices, std::min(count, 5));
     ASSERT_EQ(many.views, one.views);
     EXPECT_EQ(many.pixels, one.pixels) << count << " devices";
     EXPECT_EQ(many.pixels_f64, one.pixels_f64) << count << " devices";
-    const Gradient gm = gradient(raw(devices), s, target, groups, go);
+    const Gradient gm = gradient(pointers_to(devices), s, target, groups, go);
     EXPECT_EQ(gm.devices, std::min(count, 5));
     const double tol = p == Precision::f64 ? 1e-12 : 1e-5;
     EXPECT_NEAR(gm.loss, g1.loss, tol * std::abs(g1.loss)) << count;

@@ -19,19 +19,6 @@ namespace {
 using test::device;
 using test::Small;
 
-std::vector<std::unique_ptr<Device>> contexts(int count) {
-  std::vector<std::unique_ptr<Device>> d;
-  for (int i = 0; i < count; ++i)
-    d.push_back(std::make_unique<Device>(std::to_string(device().info().index)));
-  return d;
-}
-
-std::vector<Device*> raw(const std::vector<std::unique_ptr<Device>>& d) {
-  std::vector<Device*> out;
-  for (const auto& p : d) out.push_back(p.get());
-  return out;
-}
-
 ReconstructOptions options(Precision precision) {
   ReconstructOptions o;
   o.iterations = 4;
@@ -59,8 +46,8 @@ TEST(SlabsReconstruction, FollowsOneProcess) {
   const Scene want = one.result();
   for (int count : {2, 3}) {
     const std::string what = std::to_string(count) + " devices";
-    const auto devices = contexts(count);
-    SlabsReconstruction many(raw(devices), p.scene, p.targets, o);
+    const auto devices = test::device_contexts(count);
+    SlabsReconstruction many(test::pointers_to(devices), p.scene, p.targets, o);
     EXPECT_EQ(many.devices(), count);
     while (!many.done()) many.step();
     ASSERT_EQ(many.history().size(), one.history().size()) << what;
@@ -91,23 +78,23 @@ TEST(SlabsReconstruction, ResumesFromItsDevicesCheckpoints) {
   ReconstructOptions o = options(Precision::f32);
   o.levels = 1;
   o.deterministic = true;
-  const auto devices = contexts(2);
-  SlabsReconstruction whole(raw(devices), p.scene, p.targets, o);
+  const auto devices = test::device_contexts(2);
+  SlabsReconstruction whole(test::pointers_to(devices), p.scene, p.targets, o);
   while (!whole.done()) EXPECT_TRUE(whole.step().deterministic);
   const std::string prefix = test::temp_dir("slabs_reconstruction") + "/run";
   {
-    SlabsReconstruction first(raw(devices), p.scene, p.targets, o);
+    SlabsReconstruction first(test::pointers_to(devices), p.scene, p.targets, o);
     first.step();
     first.step();
     first.save_checkpoint(prefix);
   }
-  SlabsReconstruction resumed(raw(devices), p.scene, p.targets, o);
+  SlabsReconstruction resumed(test::pointers_to(devices), p.scene, p.targets, o);
   resumed.resume(prefix);
   EXPECT_EQ(resumed.iteration(), 2);
   while (!resumed.done()) resumed.step();
   EXPECT_EQ(resumed.result().volume.data, whole.result().volume.data);
   // A missing device checkpoint: refused, and the object then refuses to go on.
-  SlabsReconstruction missing(raw(devices), p.scene, p.targets, o);
+  SlabsReconstruction missing(test::pointers_to(devices), p.scene, p.targets, o);
   EXPECT_THROW(missing.resume(prefix + "_none"), Error);
   try {
     missing.step();
@@ -132,7 +119,7 @@ TEST(SlabsReconstruction, BadOptionsAreRefusedBeforeAnyWork) {
     }
   };
   expect_refused({}, o, "none given");
-  expect_refused(raw(contexts(16)), o, "16 workers for a volume of 16 planes");
+  expect_refused(test::pointers_to(test::device_contexts(16)), o, "16 workers for a volume of 16 planes");
   ReconstructOptions worker = o;
   worker.workers = 2;
   expect_refused({&device()}, worker, "leave them unset");

@@ -89,6 +89,8 @@ TEST(BrickedGradient, EveryMarchFormEqualsTheInCoreAdjoint) {
       const Gradient in_core = gradient(device(), s, target, {"density"}, o);
       for (const Form& f : {Form{"private sums", "1", "1"}, Form{"atomics", "1", "0"},
                             Form{"one ray", "0", "0"}}) {
+        // Private sums serve CPU devices only (elsewhere IVR_PRIVATE_SUMS=1 is refused by name).
+        if (std::string(f.name) == "private sums" && device().info().type != "cpu") continue;
         ScopedEnv brick("IVR_VOLUME_BRICK", "4");
         ScopedEnv packet("IVR_PACKET", f.packet);
         ScopedEnv sums("IVR_PRIVATE_SUMS", f.private_sums);

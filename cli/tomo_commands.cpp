@@ -37,7 +37,8 @@ void add_common(CLI::App* cmd, CommonArgs& a, const std::string& output_help) {
   cmd->add_option("-o,--output", a.output, output_help)->required();
   cmd->add_option("--precision", a.precision, "Arithmetic precision: f32 (default) or f64");
   cmd->add_option("--device", a.device,
-                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE)");
+                  "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE); "
+                  "tomo --split slabs: several, comma-separated, one slab each");
   cmd->add_flag("--json", a.json, "Print one JSON object with timings and the output path");
 }
 
@@ -262,7 +263,8 @@ Runner add_tomo_command(CLI::App& app) {
   cmd->add_option("--split", args->split,
                   "Under mpirun: views (default: each rank its share of the views and the whole "
                   "volume) or slabs (each rank one slab of z planes of the iterate, the lines "
-                  "summed over the ranks; CGLS; docs/scaling.md)")
+                  "summed over the ranks; without mpirun, each --device one slab; "
+                  "docs/scaling.md)")
       ->check(CLI::IsMember({"views", "slabs"}));
   cmd->add_option("--iterations", o.iterations, "Most iterations")->capture_default_str();
   cmd->add_flag("--nonneg", o.nonneg, "Keep every voxel >= 0");
@@ -286,7 +288,11 @@ Runner add_tomo_command(CLI::App& app) {
                                     ? load_rays(args->intensities, "--intensities", scene, false)
                                     : load_rays(args->projections, "--projections", scene, true);
     if (from_intensities) lines = lines_from_intensities(scene, lines, args->clamp);
-    Device device(c.device);
+    const std::vector<std::unique_ptr<Device>> opened = open_devices(c.device);
+    Device& device = *opened[0];
+    if (opened.size() > 1 && args->split != "slabs")
+      throw input_error("--device: several devices take one slab each (--split slabs); over "
+                        "views, one device");
 
     const InterruptGuard interrupt;
     const int total = args->options.iterations;
@@ -301,9 +307,13 @@ Runner add_tomo_command(CLI::App& app) {
       return interrupt.signal() == 0;
     };
     TomoResult r;
-    if (args->split == "slabs") {
+    if (args->split == "slabs" && opened.size() > 1 && world().size == 1) {
+      // Each device its slab of the iterate, the whole iterate back (docs/scaling.md).
+      r = tomo_domain(pointers(opened), scene, lines, args->options, progress);
+    } else if (args->split == "slabs") {
       // Each rank its slab of the iterate (docs/scaling.md); rank 0 joins the slabs.
-      r = tomo_domain(device, scene, lines, domain_part(), args->options, progress);
+      r = tomo_domain(one_device_per_rank(pointers(opened)), scene, lines, domain_part(),
+                      args->options, progress);
       const std::vector<std::vector<double>> slabs =
           gather_parts(std::vector<double>(r.volume.begin(), r.volume.end()));
       const std::vector<std::vector<double>> slabs_f64 = gather_parts(r.volume_f64);
@@ -344,6 +354,7 @@ Runner add_tomo_command(CLI::App& app) {
       std::cout << nlohmann::json{{"solver", solver_name(args->options.solver)},
                                   {"precision", c.precision},
                                   {"device", device.info().name}, {"bricks", r.bricks},
+                                  {"devices", opened.size()},
                                   {"ranks", world().size},
                                   {"split", args->split},
                                   {"iterations", r.history.size()},

@@ -131,6 +131,17 @@ IVR_API TomoResult tomo_domain(Device& device, const Scene& scene, const std::ve
                                const DomainPart& part, const TomoOptions& options = {},
                                const TomoProgress& progress = {});
 
+// The same over several devices in one process: device i of n solves for slab i on a thread of
+// its own, the devices meeting in this process where ranks would over MPI. Returns the whole
+// iterate (the slabs joined, domain_assemble()), equal to tomo_domain()'s over n workers and to
+// one process's to rounding; history and stop_reason are device 0's (every device's alike),
+// bricks summed, setup_seconds the slowest device's. `progress` is asked on device 0 and its
+// answer reaches every device (all stop at the same iteration). Throws Error(invalid_argument)
+// for no or null devices and for more devices than the volume has cells along z.
+IVR_API TomoResult tomo_domain(const std::vector<Device*>& devices, const Scene& scene,
+                               const std::vector<double>& lines, const TomoOptions& options = {},
+                               const TomoProgress& progress = {});
+
 // The volume's values (nz × ny × nx) from every worker's slab values, in rank order: the shared
 // planes summed.
 IVR_API std::vector<double> domain_join(int nx, int ny, int nz,

@@ -1,6 +1,6 @@
 // device_slabs.cpp — domain-parallel over several devices in one process: the volume's slabs, one
-// per device, each marched on a thread of its own, the devices meeting in-process (WorkerGather)
-// where MPI ranks would meet over the network (docs/scaling.md).
+// per device (render, gradient, tomography), each on a thread of its own, the devices meeting
+// in-process (WorkerGather) where MPI ranks would meet over the network (docs/scaling.md).
 #include <algorithm>
 
 #include "ivr/domain.hpp"
@@ -95,6 +95,37 @@ Gradient gradient_domain(const std::vector<Device*>& devices, const Scene& scene
   }
   out.devices = int(devices.size());
   if (domain) *domain = ds[0];
+  return out;
+}
+
+TomoResult tomo_domain(const std::vector<Device*>& devices, const Scene& scene,
+                       const std::vector<double>& lines, const TomoOptions& options,
+                       const TomoProgress& progress) {
+  std::vector<TomoResult> r(devices.size());
+  on_device_slabs(devices, scene, SlabMarch::states, [&](std::size_t i, const DomainPart& part) {
+    // Every device must stop at the same iteration (the next one's sums wait for all of them):
+    // device 0 asks `progress`, and one all-gather of its answer tells the others.
+    const TomoProgress agreed = [&, i](const TomoIteration& it) {
+      const unsigned char go = i == 0 ? (progress(it) ? 1 : 0) : 1;
+      return part.all_gather({go})[0][0] != 0;
+    };
+    r[i] = tomo_domain(*devices[i], scene, lines, part, options,
+                       progress ? agreed : TomoProgress{});
+  });
+  const int nx = scene.volume.nx, ny = scene.volume.ny, nz = scene.volume.nz;
+  std::vector<std::vector<double>> slabs, slabs_f64;
+  for (const TomoResult& one : r) {
+    slabs.emplace_back(one.volume.begin(), one.volume.end());
+    if (options.precision == Precision::f64) slabs_f64.push_back(one.volume_f64);
+  }
+  TomoResult out = std::move(r[0]);
+  const std::vector<double> joined = domain_assemble(nx, ny, nz, slabs);
+  out.volume.assign(joined.begin(), joined.end());
+  if (options.precision == Precision::f64) out.volume_f64 = domain_assemble(nx, ny, nz, slabs_f64);
+  for (std::size_t i = 1; i < r.size(); ++i) {
+    out.bricks += r[i].bricks;
+    out.setup_seconds = std::max(out.setup_seconds, r[i].setup_seconds);
+  }
   return out;
 }
 

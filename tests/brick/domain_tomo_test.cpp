@@ -1,7 +1,8 @@
 // domain_tomo_test.cpp — CGLS, SIRT and LSQR over slabs (tomo_domain, lib/brick/domain_tomo.cpp):
 // workers on threads, each solving for its slab of the volume, give one process's iterates
 // (assembled with domain_assemble), with non-negativity restarts, Tikhonov and TV, in both
-// precisions; the shared planes agree bit for bit between neighbours; bad input is refused.
+// precisions; the shared planes agree bit for bit between neighbours; bad input is refused; over
+// several devices of one process (each a slab) the whole iterate is one device's.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +11,7 @@
 #include <random>
 #include <sstream>
 
+#include "brick_support.hpp"
 #include "domain_support.hpp"
 #include "ivr/domain.hpp"
 #include "ivr/error.hpp"
@@ -228,6 +230,50 @@ TEST(DomainTomo, BadInputIsRefused) {
     EXPECT_TRUE(has(e.what(), "projections")) << e.what();
   }
   EXPECT_THROW(domain_assemble(10, 7, 12, {std::vector<double>(10 * 7 * 12 - 1)}), Error);
+}
+
+// Several devices of one process, each its slab (tomo_domain over devices; here contexts on the
+// test device): the whole iterate and the residuals are one device's; a progress that says stop
+// after iteration 3 is asked on one device and stops every device there.
+TEST(DomainTomo, SeveralDevicesEqualOneDevice) {
+  const Scene s = tomo_scene();
+  const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
+  const double tol = p == Precision::f64 ? 1e-10 : 1e-4;
+  const Projector N(device(), s, p);
+  const std::vector<double> lines = perturbed_lines(N, 9);
+  TomoOptions o;
+  o.precision = p;
+  o.iterations = 6;
+  o.nonneg = true;
+  const Solved one = solved(tomo(device(), s, lines, o));
+  for (int count : {2, 3}) {
+    const std::string what = std::to_string(count) + " devices";
+    const auto devices = device_contexts(count);
+    const TomoResult many = tomo_domain(pointers_to(devices), s, lines, o);
+    const Solved got = solved(many);
+    expect_close_values(one.volume, got.volume, tol, what);
+    ASSERT_EQ(got.residuals.size(), one.residuals.size()) << what;
+    for (std::size_t k = 0; k < got.residuals.size(); ++k)
+      EXPECT_NEAR(got.residuals[k], one.residuals[k], tol) << what << " iteration " << k + 1;
+    EXPECT_EQ(many.stop_reason, "iterations") << what;
+    EXPECT_GE(many.bricks, count) << what;
+  }
+  TomoOptions three = o;
+  three.iterations = 3;
+  const Solved want = solved(tomo(device(), s, lines, three));
+  int calls = 0;
+  const auto devices = device_contexts(3);
+  const TomoResult stopped =
+      tomo_domain(pointers_to(devices), s, lines, o, [&](const TomoIteration& it) {
+        ++calls;
+        return it.iteration < 3;
+      });
+  EXPECT_EQ(calls, 3);  // on device 0 alone
+  EXPECT_EQ(stopped.stop_reason, "interrupted");
+  EXPECT_EQ(stopped.history.size(), 3u);
+  expect_close_values(want.volume, solved(stopped).volume, tol, "stopped after 3");
+  expect_error([&] { tomo_domain(std::vector<Device*>{}, s, lines, o); }, Status::invalid_argument,
+               "none given");
 }
 
 }  // namespace

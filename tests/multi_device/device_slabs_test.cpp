@@ -1,11 +1,13 @@
 // device_slabs_test.cpp — one volume's slabs spread over several devices of one process
 // (lib/multi_device/device_slabs.cpp; here separate contexts on the test device): the render and
 // every gradient group equal one device's, fixed point gives the same bits twice, the command
-// line takes it with --device A,B --split, and bad input is refused before any work.
+// line takes it with --device A,B --split (render, gradient and tomo), and bad input is refused
+// before any work.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <thread>
@@ -197,6 +199,28 @@ TEST(DeviceSlabs, CommandLine) {
     expect_close_values(density, load_npy(dir + "/g2_density.npy").data, 1e-12,
                         std::string(split) + " density");
   }
+  // Tomography: each device a slab of the iterate; over views several devices are refused.
+  const std::string tomo_scene = write_file(dir + "/tomo.json", R"({
+    "volume": {"synthetic": "shepp_logan", "dims": [12, 11, 10]}, "model": "absorption",
+    "tf": {"type": "identity"},
+    "cameras": [{"orbit": {"views": 4, "axis": [0, 1, 0], "radius": 2.5, "fov_y": 40,
+                 "width": 10, "height": 9}}],
+    "integrator": {"scheme": "midpoint", "step": 0.5}})");
+  r = run_cli("project '" + tomo_scene + "' -o '" + dir + "/p.npy' --precision f64 --device " + d);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string tomo = "tomo '" + tomo_scene + "' --projections '" + dir +
+                           "/p.npy' --iterations 4 --precision f64 --device " + d;
+  r = run_cli(tomo + " -o '" + dir + "/x1.npy'");
+  ASSERT_EQ(r.status, 0) << r.err;
+  r = run_cli(tomo + "," + d + " -o '" + dir + "/x2.npy' --json --split slabs");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["devices"], 2) << r.out;
+  expect_close_values(load_npy(dir + "/x1.npy").data, load_npy(dir + "/x2.npy").data, 1e-10,
+                      "tomo over 2 devices' slabs");
+  r = run_cli(tomo + "," + d + " -o '" + dir + "/x3.npy'");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("--split slabs"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/x3.npy"));
 }
 
 }  // namespace

@@ -126,7 +126,8 @@ IVR_API Gradient gradient_domain(const std::vector<Device*>& devices, const Scen
 // of the volume (scene.volume.data is not read). Each iteration sums the workers' parts of N x over
 // the lines and joins the planes neighbours share; every worker's iterate equals one process's to
 // rounding on its planes (the shared ones on both workers alike). Returns this worker's planes
-// (planes × ny × nx) in volume (and volume_f64 in float64); domain_assemble() joins them.
+// (planes × ny × nx) in volume (and volume_f64 in float64); domain_assemble() joins them. Each
+// worker's `progress` (or none) is asked after every iteration and all stop where any says stop.
 IVR_API TomoResult tomo_domain(Device& device, const Scene& scene, const std::vector<double>& lines,
                                const DomainPart& part, const TomoOptions& options = {},
                                const TomoProgress& progress = {});
@@ -136,7 +137,7 @@ IVR_API TomoResult tomo_domain(Device& device, const Scene& scene, const std::ve
 // iterate (the slabs joined, domain_assemble()), equal to tomo_domain()'s over n workers and to
 // one process's to rounding; history and stop_reason are device 0's (every device's alike),
 // bricks summed, setup_seconds the slowest device's. `progress` is asked on device 0 and its
-// answer reaches every device (all stop at the same iteration). Throws Error(invalid_argument)
+// answer reaches every device (all stop after the same iteration). Throws Error(invalid_argument)
 // for no or null devices and for more devices than the volume has cells along z.
 IVR_API TomoResult tomo_domain(const std::vector<Device*>& devices, const Scene& scene,
                                const std::vector<double>& lines, const TomoOptions& options = {},

@@ -107,7 +107,9 @@ IVR_API TomoResult tomo(Device& device, const Scene& scene, const std::vector<do
 // One worker's part of a reconstruction spread over workers by views (MPI ranks; docs/scaling.md):
 // `share` holds this worker's views (scene_share()) and `lines` their projections; `sum` adds a
 // vector over the workers in place (every worker getting the sum; an MPI_Allreduce). CGLS, SIRT or
-// LSQR (with nonneg, Tikhonov or TV) on host vectors; every worker returns the same iterate.
+// LSQR (with nonneg, Tikhonov or TV) on host vectors; every worker returns the same iterate. Each
+// worker's `progress` (or none) is asked after every iteration and all stop where any says stop
+// (one more sum of one value per iteration).
 IVR_API TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<double>& lines,
                                const TomoOptions& options,
                                const std::function<void(std::vector<double>&)>& sum,

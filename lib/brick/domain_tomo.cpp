@@ -77,7 +77,9 @@ TomoResult tomo_domain(Device& device, const Scene& scene, const std::vector<dou
   result.bricks = P.bricks.total();
   result.setup_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  Monitor monitor(options, progress, std::sqrt(host_dot(lines, lines)), result);
+  const TomoProgress agreed = agreed_progress(
+      progress, [&](double v) { return sum_over(part, {v}, kWhat)[0]; });
+  Monitor monitor(options, agreed, std::sqrt(host_dot(lines, lines)), result);
   if (options.precision == Precision::f32) {  // float iterates, as the out-of-core solver's
     result.volume.assign(P.bricks.held(), 0.0f);
     solve(P, part, lines, options, monitor, result.volume);

@@ -103,14 +103,9 @@ TomoResult tomo_domain(const std::vector<Device*>& devices, const Scene& scene,
                        const TomoProgress& progress) {
   std::vector<TomoResult> r(devices.size());
   on_device_slabs(devices, scene, SlabMarch::states, [&](std::size_t i, const DomainPart& part) {
-    // Every device must stop at the same iteration (the next one's sums wait for all of them):
-    // device 0 asks `progress`, and one all-gather of its answer tells the others.
-    const TomoProgress agreed = [&, i](const TomoIteration& it) {
-      const unsigned char go = i == 0 ? (progress(it) ? 1 : 0) : 1;
-      return part.all_gather({go})[0][0] != 0;
-    };
+    // `progress` asked on device 0 alone; tomo_domain stops every worker where any says stop.
     r[i] = tomo_domain(*devices[i], scene, lines, part, options,
-                       progress ? agreed : TomoProgress{});
+                       i == 0 ? progress : TomoProgress{});
   });
   const int nx = scene.volume.nx, ny = scene.volume.ny, nz = scene.volume.nz;
   std::vector<std::vector<double>> slabs, slabs_f64;

@@ -48,6 +48,18 @@ class Monitor {
   std::chrono::steady_clock::time_point start_;
 };
 
+// A progress every worker answers alike: each asks its own (none given: go on) and all stop after
+// an iteration where any of them says stop — a worker that stopped alone would leave the others
+// waiting in the next iteration's sums. `total` sums one value over the workers (collective: one
+// per iteration on every worker, whether or not it has a progress).
+inline TomoProgress agreed_progress(const TomoProgress& progress,
+                                    std::function<double(double)> total) {
+  return [&progress, total = std::move(total)](const TomoIteration& it) {
+    const bool go = !progress || progress(it);
+    return total(go ? 0.0 : 1.0) == 0.0;
+  };
+}
+
 // The pieces the solvers on host vectors need, as one split provides them. T: the volume vectors' type —
 // float where the precision is float32 and the projector is in bricks (the device's iterates are
 // float32 then too; three float32 volumes are 12 GiB at 1024³ where double would take 24), double

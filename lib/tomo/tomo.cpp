@@ -403,7 +403,12 @@ TomoResult tomo_shared(Device& device, const Scene& share, const std::vector<dou
   std::vector<double> x(projector.voxel_count(), 0.0);
   result.setup_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  Monitor monitor(options, progress, std::sqrt(norm[0]), result);
+  const TomoProgress agreed = agreed_progress(progress, [&](double v) {
+    std::vector<double> t{v};
+    sum(t);
+    return t[0];
+  });
+  Monitor monitor(options, agreed, std::sqrt(norm[0]), result);
   solve_projector(projector, lines, x, options, monitor, sum);
   result.volume.assign(x.begin(), x.end());
   if (options.precision == Precision::f64) result.volume_f64 = std::move(x);

@@ -232,6 +232,41 @@ TEST(DomainTomo, BadInputIsRefused) {
   EXPECT_THROW(domain_assemble(10, 7, 12, {std::vector<double>(10 * 7 * 12 - 1)}), Error);
 }
 
+// A stop said by one worker alone (a signal seen by one MPI rank first) stops every worker after
+// the same iteration, over slabs and over views, instead of leaving the others waiting.
+TEST(DomainTomo, OneWorkersStopStopsEveryWorker) {
+  const Scene s = tomo_scene();
+  const Projector N(device(), s, Precision::f32);
+  const std::vector<double> lines = perturbed_lines(N, 9);
+  TomoOptions o;
+  o.iterations = 6;
+  const auto stop_on_last = [](int w, int ranks) {
+    return w == ranks - 1 ? TomoProgress([](const TomoIteration& it) { return it.iteration < 2; })
+                          : TomoProgress{};
+  };
+  const std::vector<TomoResult> slabs =
+      on_workers<TomoResult>(3, [&](int w, const DomainPart& part, Device& d) {
+        return tomo_domain(d, s, lines, part, o, stop_on_last(w, 3));
+      });
+  WorkerSum sums(2);  // (over views the workers meet in sums)
+  const std::vector<TomoResult> views =
+      on_workers<TomoResult>(2, [&](int w, const DomainPart&, Device& d) {
+        const auto [first, count] = view_shares(s.cameras.size(), 2)[std::size_t(w)];
+        const std::size_t per_view = lines.size() / s.cameras.size();
+        const std::vector<double> mine(lines.begin() + first * per_view,
+                                       lines.begin() + (first + count) * per_view);
+        return tomo_shared(d, scene_share(s, first, count), mine, o, sums.of(w),
+                           stop_on_last(w, 2));
+      });
+  for (const auto* run : {&slabs, &views})
+    for (std::size_t w = 0; w < run->size(); ++w) {
+      const std::string what = (run == &slabs ? "slabs, worker " : "views, worker ") +
+                               std::to_string(w);
+      EXPECT_EQ((*run)[w].history.size(), 2u) << what;
+      EXPECT_EQ((*run)[w].stop_reason, "interrupted") << what;
+    }
+}
+
 // Several devices of one process, each its slab (tomo_domain over devices; here contexts on the
 // test device): the whole iterate and the residuals are one device's; a progress that says stop
 // after iteration 3 is asked on one device and stops every device there.

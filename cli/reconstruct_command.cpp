@@ -233,14 +233,14 @@ class Progress {
 };
 
 // The scene's render at the reconstruction's precision and step; over slabs (o.slabs: the scene
-// holds this rank's planes) by every rank together, each getting the image; over several devices'
-// slabs (the scene whole) by the devices together.
+// holds this rank's planes) by every rank together, each getting the image; over several devices
+// (the scene whole) by the devices together, their slabs or their shares of the views.
 Image render_with(const std::vector<Device*>& devices, const Scene& scene,
                   const ReconstructOptions& o) {
   RenderOptions r;
   r.precision = o.precision;
   r.step = o.step;
-  if (!o.slabs) return render(*devices[0], scene, r);
+  if (!o.slabs) return devices.size() > 1 ? render(devices, scene, r) : render(*devices[0], scene, r);
   if (devices.size() > 1) return render_domain(devices, scene, o.slab_march, r);
   DomainPart part = domain_part();
   part.march = o.slab_march;
@@ -271,9 +271,9 @@ std::string csv_text(const std::vector<IterationRecord>& history) {
 // The loss plot's data: the image loss and the priors per iteration, each level by its grid.
 // The devices a reconstruction runs on (--json "devices").
 int devices_of(const Reconstruction&) { return 1; }
-int devices_of(const SlabsReconstruction& r) { return r.devices(); }
+int devices_of(const MultiDeviceReconstruction& r) { return r.devices(); }
 
-template <class AnyReconstruction>  // Reconstruction or SlabsReconstruction
+template <class AnyReconstruction>  // Reconstruction or MultiDeviceReconstruction
 LossCurve loss_curve(const AnyReconstruction& r, const ReconstructOptions& used) {
   LossCurve c;
   const std::vector<IterationRecord>& history = r.history();
@@ -358,7 +358,8 @@ Runner add_reconstruct_command(CLI::App& app) {
                   "The held-out views' images, .npy of that render's shape");
   cmd->add_option("--device", a.device,
                   "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE); "
-                  "with --split slabs|segments several, comma-separated: each a slab");
+                  "several, comma-separated: each a share of every batch's views (with "
+                  "--split slabs|segments: each a slab)");
   add_split_option(cmd, a.split);
   cmd->add_flag("--json", a.json, "Print one JSON object with timings, losses and outputs");
 
@@ -372,12 +373,10 @@ Runner add_reconstruct_command(CLI::App& app) {
     // slab of the densities, and its own checkpoint (PREFIX_rankR_checkpoint*).
     const World& w = world();
     const bool writer = w.rank == 0;
-    // Several devices in one process (--device A,B): each a slab of the densities.
+    // Several devices in one process (--device A,B): each a share of every batch's views, or
+    // with --split slabs|segments a slab of the densities.
     const int devices_asked = int(std::count(a.device.begin(), a.device.end(), ',')) + 1;
     const bool on_devices = devices_asked > 1;
-    if (on_devices && a.split == "views")
-      throw input_error("--device with " + std::to_string(devices_asked) +
-                        " devices: only with --split slabs or segments (each device a slab)");
     if (on_devices && w.size > 1)
       throw input_error("--device with " + std::to_string(devices_asked) +
                         " devices under mpirun: one device per rank");
@@ -396,7 +395,7 @@ Runner add_reconstruct_command(CLI::App& app) {
     const std::string checkpoint = saved + (on_devices ? "_device0" : "") + "_checkpoint.json";
     const auto remove_checkpoint = [&] {
       if (on_devices)
-        SlabsReconstruction::remove_checkpoint(saved, devices_asked);
+        MultiDeviceReconstruction::remove_checkpoint(saved, devices_asked);
       else
         Reconstruction::remove_checkpoint(saved);
     };
@@ -429,7 +428,7 @@ Runner add_reconstruct_command(CLI::App& app) {
     Device& device = *devices[0];
     // Signals from here on: construction compiles kernels, which may take a while.
     const InterruptGuard interrupt;
-    // The run, the same for one device (or rank) and for several devices' slabs.
+    // The run, the same for one device (or rank) and for several devices.
     const auto run = [&](auto& r) -> int {
       // The start at the full grid (the first level's coarse copy would blur it).
       Scene start = scene;
@@ -571,7 +570,7 @@ Runner add_reconstruct_command(CLI::App& app) {
     return 0;
     };
     if (on_devices) {
-      SlabsReconstruction r(devices, scene, targets, options);
+      MultiDeviceReconstruction r(devices, scene, targets, options);
       return run(r);
     }
     Reconstruction r(device, scene, targets, options);

@@ -155,22 +155,25 @@ class IVR_API Reconstruction {
   std::unique_ptr<Impl> impl_;
 };
 
-// A reconstruction over several devices' slabs in one process (docs/scaling.md): device i of n is
-// worker i of ReconstructOptions::slabs — it holds planes domain_slab(nz, i, n) of the densities
-// and their optimiser state — and runs its part of every step on a thread of its own, the devices'
-// sums and exchanges meeting in the process where MPI ranks' would meet over the network; so a
-// volume that fits no one device is reconstructed on all of them. Equal to the workers'
-// reconstruction over slabs (one process's to rounding). `scene` holds the whole volume (the
-// start with Init::scene); options.worker, workers, sum and all_gather must be left unset (they
-// are the devices'), options.slabs and slab_march are taken as given (slabs set). After a device
-// fails, the object refuses further steps.
-class IVR_API SlabsReconstruction {
+// A reconstruction over several devices of one process (docs/scaling.md), each device a worker
+// running its part of every step on a thread of its own, the devices' sums and exchanges meeting
+// in the process where MPI ranks' would meet over the network. options.slabs chooses the split:
+// - slabs (true): device i of n holds planes domain_slab(nz, i, n) of the densities and their
+//   optimiser state (ReconstructOptions::slabs, slab_march as given), so a volume that fits no
+//   one device is reconstructed on all of them;
+// - views (false): every device holds the whole volume and marches its share of each batch's
+//   views, the gradients summed (ReconstructOptions::workers; fixed point where `deterministic`,
+//   so the run is one device's bit for bit): several devices' speed on one volume.
+// Equal to the workers' reconstruction (one process's to rounding). `scene` holds the whole volume
+// (the start with Init::scene); options.worker, workers, sum and all_gather must be left unset
+// (they are the devices'). After a device fails, the object refuses further steps.
+class IVR_API MultiDeviceReconstruction {
  public:
-  SlabsReconstruction(const std::vector<Device*>& devices, const Scene& scene,
+  MultiDeviceReconstruction(const std::vector<Device*>& devices, const Scene& scene,
                       const Image& targets, const ReconstructOptions& options = {});
-  ~SlabsReconstruction();
-  SlabsReconstruction(SlabsReconstruction&&) noexcept;
-  SlabsReconstruction& operator=(SlabsReconstruction&&) noexcept;
+  ~MultiDeviceReconstruction();
+  MultiDeviceReconstruction(MultiDeviceReconstruction&&) noexcept;
+  MultiDeviceReconstruction& operator=(MultiDeviceReconstruction&&) noexcept;
 
   const IterationRecord& step();  // device 0's record (the loss and prior are every device's)
   bool done() const;
@@ -180,10 +183,11 @@ class IVR_API SlabsReconstruction {
   const ReconstructOptions& options() const;  // device 0's, with what automatic resolved to
   int levels() const;
   std::vector<int> level_dims(int level) const;  // (nx, ny, nz) of a level's whole grid
-  // The current level's grid, whole: every device's planes joined (domain_assemble); at the
-  // last level the full grid.
+  // The current level's grid, whole (slabs: every device's planes joined, domain_assemble;
+  // views: device 0's); at the last level the full grid.
   Scene result() const;
-  // Device i's checkpoint under PREFIX_deviceI (its planes and state; Reconstruction's files).
+  // Device i's checkpoint under PREFIX_deviceI (its planes or volume and state; Reconstruction's
+  // files).
   void save_checkpoint(const std::string& prefix) const;
   void resume(const std::string& prefix);
   // Deletes the checkpoint files of `prefix`'s `devices` devices (those that exist).

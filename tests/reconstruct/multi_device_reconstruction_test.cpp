@@ -1,7 +1,8 @@
-// slabs_reconstruction_test.cpp — a reconstruction over several devices' slabs in one process
-// (SlabsReconstruction; here separate contexts on the test device): it follows one process (the
-// losses, priors and the whole volume), coarse to fine included; its per-device checkpoints resume
-// bit for bit; bad options are refused before any work.
+// multi_device_reconstruction_test.cpp — a reconstruction over several devices of one process
+// (MultiDeviceReconstruction; here separate contexts on the test device), over their slabs or
+// their shares of the views: it follows one process (the losses, priors and the whole volume),
+// coarse to fine included; its per-device checkpoints resume bit for bit; bad options are refused
+// before any work.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -27,6 +28,7 @@ ReconstructOptions options(Precision precision) {
   o.init = Init::constant;
   o.precision = precision;
   o.deterministic = false;  // (float sums in both: fixed point out of core is not in core's bits)
+  o.slabs = true;
   o.tv = 0.05;
   // SGD keeps the gradients' agreement in the iterates (ReconstructDomain's slab_options).
   o.automatic_optimizer = false;
@@ -37,7 +39,7 @@ ReconstructOptions options(Precision precision) {
 
 // 2 and 3 devices against one process, float64: every iteration's loss and prior within 1e-12,
 // the whole volume within 1e-12 of the largest density.
-TEST(SlabsReconstruction, FollowsOneProcess) {
+TEST(MultiDeviceReconstruction, FollowsOneProcess) {
   if (!device().info().fp64) GTEST_SKIP() << "needs cl_khr_fp64";
   const Small p;
   const ReconstructOptions o = options(Precision::f64);
@@ -47,7 +49,7 @@ TEST(SlabsReconstruction, FollowsOneProcess) {
   for (int count : {2, 3}) {
     const std::string what = std::to_string(count) + " devices";
     const auto devices = test::device_contexts(count);
-    SlabsReconstruction many(test::pointers_to(devices), p.scene, p.targets, o);
+    MultiDeviceReconstruction many(test::pointers_to(devices), p.scene, p.targets, o);
     EXPECT_EQ(many.devices(), count);
     while (!many.done()) many.step();
     ASSERT_EQ(many.history().size(), one.history().size()) << what;
@@ -72,29 +74,29 @@ TEST(SlabsReconstruction, FollowsOneProcess) {
 
 // Stopped after 2 iterations, each device's checkpoint saved, resumed by a new object: the end is
 // the uninterrupted run's bit for bit (fixed point where the device has 64-bit integer atomics).
-TEST(SlabsReconstruction, ResumesFromItsDevicesCheckpoints) {
+TEST(MultiDeviceReconstruction, ResumesFromItsDevicesCheckpoints) {
   if (!has_int64_atomics(device().impl())) GTEST_SKIP() << "fixed point needs 64-bit atomics";
   const Small p;
   ReconstructOptions o = options(Precision::f32);
   o.levels = 1;
   o.deterministic = true;
   const auto devices = test::device_contexts(2);
-  SlabsReconstruction whole(test::pointers_to(devices), p.scene, p.targets, o);
+  MultiDeviceReconstruction whole(test::pointers_to(devices), p.scene, p.targets, o);
   while (!whole.done()) EXPECT_TRUE(whole.step().deterministic);
-  const std::string prefix = test::temp_dir("slabs_reconstruction") + "/run";
+  const std::string prefix = test::temp_dir("multi_device_reconstruction") + "/run";
   {
-    SlabsReconstruction first(test::pointers_to(devices), p.scene, p.targets, o);
+    MultiDeviceReconstruction first(test::pointers_to(devices), p.scene, p.targets, o);
     first.step();
     first.step();
     first.save_checkpoint(prefix);
   }
-  SlabsReconstruction resumed(test::pointers_to(devices), p.scene, p.targets, o);
+  MultiDeviceReconstruction resumed(test::pointers_to(devices), p.scene, p.targets, o);
   resumed.resume(prefix);
   EXPECT_EQ(resumed.iteration(), 2);
   while (!resumed.done()) resumed.step();
   EXPECT_EQ(resumed.result().volume.data, whole.result().volume.data);
   // A missing device checkpoint: refused, and the object then refuses to go on.
-  SlabsReconstruction missing(test::pointers_to(devices), p.scene, p.targets, o);
+  MultiDeviceReconstruction missing(test::pointers_to(devices), p.scene, p.targets, o);
   EXPECT_THROW(missing.resume(prefix + "_none"), Error);
   try {
     missing.step();
@@ -104,14 +106,34 @@ TEST(SlabsReconstruction, ResumesFromItsDevicesCheckpoints) {
   }
 }
 
-TEST(SlabsReconstruction, BadOptionsAreRefusedBeforeAnyWork) {
+// Over views (options.slabs false): every device the whole volume and a share of each batch's
+// views, the gradients summed in fixed point — the run is one device's bit for bit.
+TEST(MultiDeviceReconstruction, ViewsFollowOneDeviceBitForBit) {
+  if (!has_int64_atomics(device().impl())) GTEST_SKIP() << "fixed point needs 64-bit atomics";
+  const Small p;
+  ReconstructOptions o = options(Precision::f32);
+  o.slabs = false;
+  o.deterministic = true;
+  Reconstruction one(device(), p.scene, p.targets, o);
+  while (!one.done()) one.step();
+  const auto devices = test::device_contexts(2);
+  MultiDeviceReconstruction many(test::pointers_to(devices), p.scene, p.targets, o);
+  while (!many.done()) EXPECT_TRUE(many.step().deterministic);
+  ASSERT_EQ(many.history().size(), one.history().size());
+  for (std::size_t k = 0; k < one.history().size(); ++k)
+    EXPECT_NEAR(many.history()[k].loss, one.history()[k].loss, 1e-6 * one.history()[k].loss)
+        << "iteration " << k + 1;
+  EXPECT_EQ(many.result().volume.data, one.result().volume.data);
+}
+
+TEST(MultiDeviceReconstruction, BadOptionsAreRefusedBeforeAnyWork) {
   const Small p;  // 16 planes: 15 cells
   ReconstructOptions o = options(Precision::f32);
   o.levels = 1;
   auto expect_refused = [&](const std::vector<Device*>& devices, const ReconstructOptions& opt,
                             const std::string& part) {
     try {
-      SlabsReconstruction r(devices, p.scene, p.targets, opt);
+      MultiDeviceReconstruction r(devices, p.scene, p.targets, opt);
       ADD_FAILURE() << "no error; expected one naming '" << part << "'";
     } catch (const Error& e) {
       EXPECT_EQ(e.status(), Status::invalid_argument) << e.what();

@@ -1,6 +1,7 @@
-// slabs_reconstruction.cpp — a reconstruction over several devices' slabs in one process
-// (SlabsReconstruction, ivr/reconstruct.hpp): each device a slab worker of its own, every step run
-// on the devices' threads together, their sums and all-gathers meeting in the process.
+// multi_device_reconstruction.cpp — a reconstruction over several devices of one process
+// (MultiDeviceReconstruction, ivr/reconstruct.hpp): each device a worker of its own — a slab of
+// the volume, or a share of each batch's views — every step run on the devices' threads together,
+// their sums and all-gathers meeting in the process.
 #include <memory>
 
 #include "ivr/domain.hpp"
@@ -10,7 +11,7 @@
 
 namespace ivr {
 
-struct SlabsReconstruction::Impl {
+struct MultiDeviceReconstruction::Impl {
   std::vector<Device*> devices;
   WorkerSum sum;
   WorkerGather gather;
@@ -27,7 +28,7 @@ struct SlabsReconstruction::Impl {
   template <class Job>
   void each(const char* what, Job&& job) {
     if (failed)
-      throw Error(Status::invalid_argument, std::string("SlabsReconstruction::") + what +
+      throw Error(Status::invalid_argument, std::string("MultiDeviceReconstruction::") + what +
                                                 ": a device failed before; make a new one");
     try {
       run_shares(devices.size(), job, [this] {
@@ -41,54 +42,55 @@ struct SlabsReconstruction::Impl {
   }
 };
 
-SlabsReconstruction::SlabsReconstruction(const std::vector<Device*>& devices, const Scene& scene,
+MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>& devices, const Scene& scene,
                                          const Image& targets, const ReconstructOptions& options) {
   check_devices(devices);
   if (options.workers != 1 || options.worker != 0 || options.sum || options.all_gather)
     throw Error(Status::invalid_argument,
-                "SlabsReconstruction: options.worker, workers, sum and all_gather are the "
+                "MultiDeviceReconstruction: options.worker, workers, sum and all_gather are the "
                 "devices'; leave them unset");
   const int n = int(devices.size());
-  domain_slab(scene.volume.nz, 0, n);  // more devices than cells: said before any thread starts
+  // More devices than cells (slabs) or than views: said before any thread starts.
+  if (options.slabs) domain_slab(scene.volume.nz, 0, n);
   impl_ = std::make_unique<Impl>(devices);
   Impl& m = *impl_;
-  m.each("SlabsReconstruction", [&](std::size_t i) {
+  m.each("MultiDeviceReconstruction", [&](std::size_t i) {
     ReconstructOptions o = options;
-    o.slabs = true;
     o.worker = int(i), o.workers = n;
     o.sum = m.sum.of(int(i));
-    o.all_gather = m.gather.of(int(i));
-    m.workers[i] = std::make_unique<Reconstruction>(*devices[i], domain_share(scene, int(i), n),
-                                                    targets, o);
+    if (o.slabs) o.all_gather = m.gather.of(int(i));
+    m.workers[i] = std::make_unique<Reconstruction>(
+        *devices[i], o.slabs ? domain_share(scene, int(i), n) : scene, targets, o);
   });
 }
 
-SlabsReconstruction::~SlabsReconstruction() = default;
-SlabsReconstruction::SlabsReconstruction(SlabsReconstruction&&) noexcept = default;
-SlabsReconstruction& SlabsReconstruction::operator=(SlabsReconstruction&&) noexcept = default;
+MultiDeviceReconstruction::~MultiDeviceReconstruction() = default;
+MultiDeviceReconstruction::MultiDeviceReconstruction(MultiDeviceReconstruction&&) noexcept = default;
+MultiDeviceReconstruction& MultiDeviceReconstruction::operator=(MultiDeviceReconstruction&&) noexcept = default;
 
-const IterationRecord& SlabsReconstruction::step() {
+const IterationRecord& MultiDeviceReconstruction::step() {
   Impl& m = *impl_;
-  if (done()) throw Error(Status::invalid_argument, "SlabsReconstruction::step: already done");
+  if (done()) throw Error(Status::invalid_argument, "MultiDeviceReconstruction::step: already done");
   m.each("step", [&](std::size_t i) { m.records[i] = m.workers[i]->step(); });
   return m.workers[0]->history().back();
 }
 
-bool SlabsReconstruction::done() const { return impl_->workers[0]->done(); }
-int SlabsReconstruction::iteration() const { return impl_->workers[0]->iteration(); }
-const std::vector<IterationRecord>& SlabsReconstruction::history() const {
+bool MultiDeviceReconstruction::done() const { return impl_->workers[0]->done(); }
+int MultiDeviceReconstruction::iteration() const { return impl_->workers[0]->iteration(); }
+const std::vector<IterationRecord>& MultiDeviceReconstruction::history() const {
   return impl_->workers[0]->history();
 }
-int SlabsReconstruction::devices() const { return int(impl_->devices.size()); }
-const ReconstructOptions& SlabsReconstruction::options() const {
+int MultiDeviceReconstruction::devices() const { return int(impl_->devices.size()); }
+const ReconstructOptions& MultiDeviceReconstruction::options() const {
   return impl_->workers[0]->options();
 }
-int SlabsReconstruction::levels() const { return impl_->workers[0]->levels(); }
-std::vector<int> SlabsReconstruction::level_dims(int level) const {
+int MultiDeviceReconstruction::levels() const { return impl_->workers[0]->levels(); }
+std::vector<int> MultiDeviceReconstruction::level_dims(int level) const {
   return impl_->workers[0]->level_dims(level);
 }
 
-Scene SlabsReconstruction::result() const {
+Scene MultiDeviceReconstruction::result() const {
+  if (!impl_->workers[0]->options().slabs) return impl_->workers[0]->result();  // (all alike)
   std::vector<std::vector<double>> slabs;
   Scene out;
   for (const std::unique_ptr<Reconstruction>& w : impl_->workers) {
@@ -102,19 +104,19 @@ Scene SlabsReconstruction::result() const {
   return out;
 }
 
-void SlabsReconstruction::save_checkpoint(const std::string& prefix) const {
+void MultiDeviceReconstruction::save_checkpoint(const std::string& prefix) const {
   Impl& m = *impl_;
   run_shares(m.devices.size(), [&](std::size_t i) {
     m.workers[i]->save_checkpoint(prefix + "_device" + std::to_string(i));
   });
 }
 
-void SlabsReconstruction::remove_checkpoint(const std::string& prefix, int devices) {
+void MultiDeviceReconstruction::remove_checkpoint(const std::string& prefix, int devices) {
   for (int i = 0; i < devices; ++i)
     Reconstruction::remove_checkpoint(prefix + "_device" + std::to_string(i));
 }
 
-void SlabsReconstruction::resume(const std::string& prefix) {
+void MultiDeviceReconstruction::resume(const std::string& prefix) {
   Impl& m = *impl_;
   m.each("resume", [&](std::size_t i) {
     m.workers[i]->resume(prefix + "_device" + std::to_string(i));

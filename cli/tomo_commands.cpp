@@ -38,7 +38,8 @@ void add_common(CLI::App* cmd, CommonArgs& a, const std::string& output_help) {
   cmd->add_option("--precision", a.precision, "Arithmetic precision: f32 (default) or f64");
   cmd->add_option("--device", a.device,
                   "Device: index, P:D, cpu, gpu or a name substring (default: $IVR_DEVICE); "
-                  "tomo --split slabs: several, comma-separated, one slab each");
+                  "tomo: several, comma-separated, each a share of the views (with --split "
+                  "slabs: each a slab)");
   cmd->add_flag("--json", a.json, "Print one JSON object with timings and the output path");
 }
 
@@ -290,9 +291,9 @@ Runner add_tomo_command(CLI::App& app) {
     if (from_intensities) lines = lines_from_intensities(scene, lines, args->clamp);
     const std::vector<std::unique_ptr<Device>> opened = open_devices(c.device);
     Device& device = *opened[0];
-    if (opened.size() > 1 && args->split != "slabs")
-      throw input_error("--device: several devices take one slab each (--split slabs); over "
-                        "views, one device");
+    if (opened.size() > 1 && world().size > 1)
+      throw input_error("--device with " + std::to_string(opened.size()) +
+                        " devices under mpirun: one device per rank");
 
     const InterruptGuard interrupt;
     const int total = args->options.iterations;
@@ -310,6 +311,9 @@ Runner add_tomo_command(CLI::App& app) {
     if (args->split == "slabs" && opened.size() > 1 && world().size == 1) {
       // Each device its slab of the iterate, the whole iterate back (docs/scaling.md).
       r = tomo_domain(pointers(opened), scene, lines, args->options, progress);
+    } else if (opened.size() > 1) {
+      // Each device its share of the views and their projections, the whole iterate on each.
+      r = tomo(pointers(opened), scene, lines, args->options, progress);
     } else if (args->split == "slabs") {
       // Each rank its slab of the iterate (docs/scaling.md); rank 0 joins the slabs.
       r = tomo_domain(one_device_per_rank(pointers(opened)), scene, lines, domain_part(),

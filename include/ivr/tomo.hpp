@@ -104,6 +104,15 @@ IVR_API TomoResult tomo(Device& device, const Scene& scene, const std::vector<do
                         const TomoOptions& options, const TomoProgress& progress = {},
                         const std::vector<double>* x0 = nullptr);
 
+// The same over several devices of one process: device i of n takes share i of the views
+// (view_shares; a ray list: rays) and their lines, each a worker of tomo_shared() on a thread of
+// its own, the sums meeting in the process; every device holds the whole iterate, and device 0's
+// is returned (bricks: the largest device's). One process's to rounding. `progress` is asked on
+// device 0 and stops every device. Throws Error(invalid_argument) for no or null devices.
+IVR_API TomoResult tomo(const std::vector<Device*>& devices, const Scene& scene,
+                        const std::vector<double>& lines, const TomoOptions& options,
+                        const TomoProgress& progress = {});
+
 // One worker's part of a reconstruction spread over workers by views (MPI ranks; docs/scaling.md):
 // `share` holds this worker's views (scene_share()) and `lines` their projections; `sum` adds a
 // vector over the workers in place (every worker getting the sum; an MPI_Allreduce). CGLS, SIRT or

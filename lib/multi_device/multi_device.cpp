@@ -1,11 +1,13 @@
 // multi_device.cpp — several devices in one process: a scene's views (or a ray list's rays) split
-// into contiguous shares, one per device, each share rendered or differentiated on its device in a
-// thread of its own, and the results combined on the host in device order (docs/scaling.md).
+// into contiguous shares, one per device, each share rendered, differentiated or solved for
+// (tomography) on its device in a thread of its own, and the results combined on the host in
+// device order (docs/scaling.md).
 #include <algorithm>
 
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "ivr/render.hpp"
+#include "ivr/tomo.hpp"
 #include "multi_device/run_shares.hpp"
 
 namespace ivr {
@@ -124,6 +126,39 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
     out.bricks = std::max(out.bricks, g[i].bricks);
   }
   out.devices = int(workers);
+  return out;
+}
+
+TomoResult tomo(const std::vector<Device*>& devices, const Scene& scene,
+                const std::vector<double>& lines, const TomoOptions& options,
+                const TomoProgress& progress) {
+  check_devices(devices);
+  const std::size_t items = share_items(scene);
+  const std::size_t workers = std::min(devices.size(), items);
+  if (workers <= 1) return tomo(*devices[0], scene, lines, options, progress);
+  if (items == 0 || lines.size() % items != 0)
+    throw Error(Status::invalid_argument,
+                "projections: " + std::to_string(lines.size()) + " values for the scene's " +
+                    std::to_string(items) + (scene.has_ray_list() ? " rays" : " views"));
+  const std::size_t per_item = lines.size() / items;
+  const auto parts = view_shares(items, workers);
+  WorkerSum sum{int(workers)};
+  std::vector<TomoResult> r(workers);
+  run_shares(
+      workers,
+      [&](std::size_t i) {
+        const auto [first, count] = parts[i];
+        const std::vector<double> mine(lines.begin() + std::ptrdiff_t(first * per_item),
+                                       lines.begin() + std::ptrdiff_t((first + count) * per_item));
+        r[i] = tomo_shared(*devices[i], scene_share(scene, first, count), mine, options,
+                           sum.of(int(i)), i == 0 ? progress : TomoProgress{});
+      },
+      [&] { sum.abort(); });
+  TomoResult out = std::move(r[0]);  // (every device holds the whole iterate)
+  for (std::size_t i = 1; i < r.size(); ++i) {
+    out.bricks = std::max(out.bricks, r[i].bricks);
+    out.setup_seconds = std::max(out.setup_seconds, r[i].setup_seconds);
+  }
   return out;
 }
 

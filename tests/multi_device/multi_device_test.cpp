@@ -1,6 +1,7 @@
 // multi_device_test.cpp — several devices in one process (lib/multi_device/): the views or rays
 // split over devices (here: separate contexts on the test device) give the one-device render
-// exactly and the one-device gradients to rounding, in every group; the command line too.
+// exactly, the one-device gradients and tomography iterates to rounding, in every group; the
+// command line too.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -11,6 +12,7 @@
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "ivr/render.hpp"
+#include "ivr/tomo.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -102,6 +104,53 @@ TEST(MultiDevice, CommandLine) {
   r = run_cli("render '" + scene + "' -o '" + dir + "/c.npy' --device " + d + ",");
   EXPECT_NE(r.status, 0);
   EXPECT_TRUE(has(r.err, "empty selector")) << r.err;
+}
+
+// Tomography over the devices' views (each device a worker of tomo_shared): the iterate and the
+// residuals are one device's to rounding; a progress stopping after iteration 3 is asked on one
+// device and stops them all.
+TEST(MultiDevice, TomoOverViewsEqualsOneDevice) {
+  Scene s = five_views();
+  s.model = Model::absorption;
+  s.tf = TransferFunction{};  // (identity)
+  TomoOptions o;
+  o.precision = device().info().fp64 ? Precision::f64 : Precision::f32;
+  o.iterations = 5;
+  o.nonneg = true;
+  const double tol = o.precision == Precision::f64 ? 1e-10 : 1e-4;
+  const Projector N(device(), s, o.precision);
+  std::vector<double> truth(N.voxel_count());
+  for (std::size_t i = 0; i < truth.size(); ++i) truth[i] = 0.5 + 0.4 * std::sin(0.7 * double(i));
+  std::vector<double> lines = N.project(truth);
+  for (std::size_t i = 0; i < lines.size(); ++i) lines[i] *= 1.0 + 0.05 * std::cos(double(i));
+  const TomoResult one = tomo(device(), s, lines, o);
+  const auto values = [](const TomoResult& r) {
+    return r.volume_f64.empty() ? std::vector<double>(r.volume.begin(), r.volume.end())
+                                : r.volume_f64;
+  };
+  double scale = 0;
+  for (double v : values(one)) scale = std::max(scale, std::abs(v));
+  ASSERT_GT(scale, 0.0);
+  for (int count : {2, 3}) {
+    const auto devices = device_contexts(count);
+    const TomoResult many = tomo(pointers_to(devices), s, lines, o);
+    const std::vector<double> a = values(one), b = values(many);
+    ASSERT_EQ(a.size(), b.size()) << count;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      ASSERT_NEAR(b[i], a[i], tol * scale) << count << " devices, voxel " << i;
+    ASSERT_EQ(many.history.size(), one.history.size()) << count;
+    for (std::size_t k = 0; k < one.history.size(); ++k)
+      EXPECT_NEAR(many.history[k].residual, one.history[k].residual, tol) << count;
+  }
+  int calls = 0;
+  const auto devices = device_contexts(2);
+  const TomoResult stopped = tomo(pointers_to(devices), s, lines, o, [&](const TomoIteration& it) {
+    ++calls;
+    return it.iteration < 3;
+  });
+  EXPECT_EQ(calls, 3);
+  EXPECT_EQ(stopped.history.size(), 3u);
+  EXPECT_EQ(stopped.stop_reason, "interrupted");
 }
 
 }  // namespace

@@ -240,7 +240,7 @@ Image render_with(const std::vector<Device*>& devices, const Scene& scene,
   RenderOptions r;
   r.precision = o.precision;
   r.step = o.step;
-  if (!o.slabs) return devices.size() > 1 ? render(devices, scene, r) : render(*devices[0], scene, r);
+  if (!o.slabs) return render(devices, scene, r);  // (one device: that device's render)
   if (devices.size() > 1) return render_domain(devices, scene, o.slab_march, r);
   DomainPart part = domain_part();
   part.march = o.slab_march;

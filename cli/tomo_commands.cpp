@@ -308,7 +308,7 @@ Runner add_tomo_command(CLI::App& app) {
       return interrupt.signal() == 0;
     };
     TomoResult r;
-    if (args->split == "slabs" && opened.size() > 1 && world().size == 1) {
+    if (args->split == "slabs" && opened.size() > 1) {  // (several devices: no mpirun, above)
       // Each device its slab of the iterate, the whole iterate back (docs/scaling.md).
       r = tomo_domain(pointers(opened), scene, lines, args->options, progress);
     } else if (opened.size() > 1) {
@@ -316,8 +316,7 @@ Runner add_tomo_command(CLI::App& app) {
       r = tomo(pointers(opened), scene, lines, args->options, progress);
     } else if (args->split == "slabs") {
       // Each rank its slab of the iterate (docs/scaling.md); rank 0 joins the slabs.
-      r = tomo_domain(one_device_per_rank(pointers(opened)), scene, lines, domain_part(),
-                      args->options, progress);
+      r = tomo_domain(device, scene, lines, domain_part(), args->options, progress);
       const std::vector<std::vector<double>> slabs =
           gather_parts(std::vector<double>(r.volume.begin(), r.volume.end()));
       const std::vector<std::vector<double>> slabs_f64 = gather_parts(r.volume_f64);

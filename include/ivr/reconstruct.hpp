@@ -170,7 +170,7 @@ class IVR_API Reconstruction {
 class IVR_API MultiDeviceReconstruction {
  public:
   MultiDeviceReconstruction(const std::vector<Device*>& devices, const Scene& scene,
-                      const Image& targets, const ReconstructOptions& options = {});
+                            const Image& targets, const ReconstructOptions& options = {});
   ~MultiDeviceReconstruction();
   MultiDeviceReconstruction(MultiDeviceReconstruction&&) noexcept;
   MultiDeviceReconstruction& operator=(MultiDeviceReconstruction&&) noexcept;

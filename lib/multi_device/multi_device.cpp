@@ -136,7 +136,7 @@ TomoResult tomo(const std::vector<Device*>& devices, const Scene& scene,
   const std::size_t items = share_items(scene);
   const std::size_t workers = std::min(devices.size(), items);
   if (workers <= 1) return tomo(*devices[0], scene, lines, options, progress);
-  if (items == 0 || lines.size() % items != 0)
+  if (lines.size() % items != 0)
     throw Error(Status::invalid_argument,
                 "projections: " + std::to_string(lines.size()) + " values for the scene's " +
                     std::to_string(items) + (scene.has_ray_list() ? " rays" : " views"));

@@ -42,8 +42,9 @@ struct MultiDeviceReconstruction::Impl {
   }
 };
 
-MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>& devices, const Scene& scene,
-                                         const Image& targets, const ReconstructOptions& options) {
+MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>& devices,
+                                                     const Scene& scene, const Image& targets,
+                                                     const ReconstructOptions& options) {
   check_devices(devices);
   if (options.workers != 1 || options.worker != 0 || options.sum || options.all_gather)
     throw Error(Status::invalid_argument,
@@ -65,8 +66,10 @@ MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>&
 }
 
 MultiDeviceReconstruction::~MultiDeviceReconstruction() = default;
-MultiDeviceReconstruction::MultiDeviceReconstruction(MultiDeviceReconstruction&&) noexcept = default;
-MultiDeviceReconstruction& MultiDeviceReconstruction::operator=(MultiDeviceReconstruction&&) noexcept = default;
+MultiDeviceReconstruction::MultiDeviceReconstruction(MultiDeviceReconstruction&&) noexcept =
+    default;
+MultiDeviceReconstruction& MultiDeviceReconstruction::operator=(
+    MultiDeviceReconstruction&&) noexcept = default;
 
 const IterationRecord& MultiDeviceReconstruction::step() {
   Impl& m = *impl_;

@@ -10,6 +10,8 @@
 #include <limits>
 #include <sstream>
 
+#include "mpi_world.hpp"
+
 namespace fs = std::filesystem;
 
 namespace ivr::cli {
@@ -157,6 +159,28 @@ std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors) 
     start = comma + 1;
   }
   return out;
+}
+
+void add_shares_option(CLI::App* cmd, std::vector<double>& shares) {
+  cmd->add_option("--shares", shares,
+                  "Several --device: each device's weight, comma-separated, its share of the views "
+                  "in proportion (default: each device's speed, samples per second from `ivr "
+                  "calibrate` or estimated from its size; `ivr devices` shows it)")
+      ->delimiter(',');
+}
+
+std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
+                                        const std::vector<Device*>& devices, std::size_t items,
+                                        const std::string& split) {
+  if (!shares.empty() && world().size > 1)
+    throw input_error("--shares: under mpirun each rank takes an equal share (one device a rank)");
+  if (!shares.empty() && split != "views")
+    throw input_error("--shares: the views' shares; --split " + split + " cuts equal slabs");
+  const std::vector<double> weights = share_weights(devices, shares);  // (checks them)
+  if (devices.size() < 2 || split != "views" || world().size > 1) return {};
+  std::vector<std::size_t> counts;
+  for (const auto& part : view_shares(items, weights)) counts.push_back(part.second);
+  return counts;
 }
 
 std::vector<Device*> pointers(const std::vector<std::unique_ptr<Device>>& devices) {

@@ -58,6 +58,16 @@ struct MarchOptions {
 void add_march_options(CLI::App* cmd, MarchOptions& options);
 // --split views|slabs: how the ranks of an mpirun share the work (docs/scaling.md).
 void add_split_option(CLI::App* cmd, std::string& split);
+// --shares W,W,...: several --device's weights, each device's share of the views in proportion
+// (RenderOptions::shares and the others'; docs/scaling.md).
+void add_shares_option(CLI::App* cmd, std::vector<double>& shares);
+// Refuses --shares where nothing would follow it — under mpirun (each rank one device), over
+// slabs (equal slabs) — before any work; returns each device's count of the `items` views (or
+// rays) — what --json reports as "shares" — or nothing where the views are not shared by several
+// devices of this process.
+std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
+                                        const std::vector<Device*>& devices, std::size_t items,
+                                        const std::string& split);
 // The devices of a --device value: one, or several comma-separated (each a selector).
 std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors);
 std::vector<Device*> pointers(const std::vector<std::unique_ptr<Device>>& devices);

@@ -17,10 +17,15 @@ Runner add_devices_command(CLI::App& app) {
       std::cout << devices_json() << "\n";
       return 0;
     }
-    for (const DeviceInfo& d : devices)
+    for (const DeviceInfo& d : devices) {
+      // The speed several devices' shares of the views follow (--shares' default).
+      const CostModel model = load_cost_model(d);
       std::cout << "[" << d.index << "] " << d.name << "  (" << d.type << ", " << d.platform << ", "
                 << d.version << ", " << d.compute_units << " CUs, " << (d.global_memory >> 20)
-                << " MiB" << (d.fp64 ? ", fp64" : "") << ")\n";
+                << " MiB" << (d.fp64 ? ", fp64" : "") << "; "
+                << 1e-6 / model.seconds_per_sample << " M samples/s, "
+                << (model.source == "default" ? "estimated" : "calibrated") << ")\n";
+    }
     return 0;
   };
 }

@@ -28,6 +28,7 @@ struct GradientArgs {
   std::string scene, target, wrt, mode = "auto", loss = "mse", prefix, split = "views";
   MarchOptions march;
   bool json = false, deterministic = false;
+  std::vector<double> shares;
 };
 
 }  // namespace
@@ -102,6 +103,7 @@ Runner add_gradient_command(CLI::App& app) {
                 "devices the one process's bits");
   add_march_options(cmd, args->march);
   add_split_option(cmd, args->split);
+  add_shares_option(cmd, args->shares);
   cmd->add_option("-o,--output", args->prefix,
                   "Output prefix: writes PREFIX_<group>.npy for every group asked for (float32; "
                   "float64 with --precision f64)")
@@ -138,6 +140,9 @@ Runner add_gradient_command(CLI::App& app) {
     options.step = args->march.step;
     options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;
     options.deterministic = args->deterministic;
+    const std::vector<std::size_t> shares =
+        checked_shares(args->shares, pointers(devices), share_items(scene), args->split);
+    options.shares = args->shares;
     DomainStats domain;  // (over slabs: rank 0's exchanges of the rays' states or segments)
     const Gradient d =
         gradient_ranks(pointers(devices), scene, target, groups, options, args->split, &domain);
@@ -166,7 +171,7 @@ Runner add_gradient_command(CLI::App& app) {
                             {"parameters", d.parameters},
                             {"seconds", d.kernel_seconds},
                             {"device_bytes", d.device_bytes},
-                            {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices}, {"ranks", world().size}, {"split", args->split},
+                            {"device", device.info().name}, {"bricks", d.bricks}, {"devices", d.devices}, {"shares", shares}, {"ranks", world().size}, {"split", args->split},
                             {"exchanges", domain.exchanges},
                             {"exchanged_bytes", domain.sent_bytes},
                             {"precision", args->march.precision},

@@ -361,6 +361,7 @@ Runner add_reconstruct_command(CLI::App& app) {
                   "several, comma-separated: each a share of every batch's views (with "
                   "--split slabs|segments: each a slab)");
   add_split_option(cmd, a.split);
+  add_shares_option(cmd, a.options.shares);
   cmd->add_flag("--json", a.json, "Print one JSON object with timings, losses and outputs");
 
   return [args] {
@@ -426,6 +427,10 @@ Runner add_reconstruct_command(CLI::App& app) {
     const std::vector<std::unique_ptr<Device>> opened = open_devices(a.device);
     const std::vector<Device*> devices = pointers(opened);
     Device& device = *devices[0];
+    const int views = image_extent(scene).views;  // (each device's share of every batch)
+    const std::vector<std::size_t> shares = checked_shares(
+        options.shares, devices, std::size_t(options.batch > 0 ? std::min(options.batch, views) : views),
+        a.split);
     // Signals from here on: construction compiles kernels, which may take a while.
     const InterruptGuard interrupt;
     // The run, the same for one device (or rank) and for several devices.
@@ -539,7 +544,7 @@ Runner add_reconstruct_command(CLI::App& app) {
           {"loss_final", loss_final},      {"optimizer", optimizer_name(used.optimizer.kind)},
           {"lr", used.optimizer.lr},       {"levels", levels},
           {"device", device.info().name}, {"bricks", 1},  {"ranks", w.size}, {"split", a.split},
-          {"devices", devices_of(r)},
+          {"devices", devices_of(r)},     {"shares", shares},
           {"outputs", outputs}};
       if (!a.truth.empty()) j["volume_error"] = volume_error;
       if (!a.held_out.empty()) j["held_out_psnr"] = held_out_psnr;  // null where +infinity

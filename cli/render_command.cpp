@@ -23,6 +23,7 @@ struct RenderArgs {
   std::string empty_space = "auto";
   int volume_brick = 0;
   std::string split = "views";
+  std::vector<double> shares;
 };
 
 std::string lower_ext(const std::string& path) {
@@ -103,6 +104,7 @@ Runner add_render_command(CLI::App& app) {
                   "$IVR_DEVICE_MEMORY_LIMIT")
       ->check(CLI::PositiveNumber);
   add_split_option(cmd, args->split);
+  add_shares_option(cmd, args->shares);
   cmd->add_flag("--json", args->json,
                 "Print one JSON object with device, timings and sample counts");
   return [args] {
@@ -132,6 +134,9 @@ Runner add_render_command(CLI::App& app) {
                   "output '" + args->output +
                       "': a scene of rays renders one value per ray: write .npy (rays, C)");
     options.volume_brick = args->volume_brick;
+    const std::vector<std::size_t> shares =
+        checked_shares(args->shares, pointers(devices), share_items(scene), args->split);
+    options.shares = args->shares;
     RenderStats stats;
     DomainStats domain;
     const Image image =
@@ -175,6 +180,7 @@ Runner add_render_command(CLI::App& app) {
                               {"grid_seconds", stats.grid_seconds}}},
                             {"bricks", stats.bricks},
                             {"devices", stats.devices},
+                            {"shares", shares},
                             {"ranks", world().size},
                             {"split", args->split},
                             {"exchanges", domain.exchanges},

@@ -267,6 +267,7 @@ Runner add_tomo_command(CLI::App& app) {
                   "summed over the ranks; without mpirun, each --device one slab; "
                   "docs/scaling.md)")
       ->check(CLI::IsMember({"views", "slabs"}));
+  add_shares_option(cmd, args->options.shares);
   cmd->add_option("--iterations", o.iterations, "Most iterations")->capture_default_str();
   cmd->add_flag("--nonneg", o.nonneg, "Keep every voxel >= 0");
   cmd->add_option("--tv", o.tv, "Weight of the smoothed total variation (>= 0)");
@@ -294,6 +295,8 @@ Runner add_tomo_command(CLI::App& app) {
     if (opened.size() > 1 && world().size > 1)
       throw input_error("--device with " + std::to_string(opened.size()) +
                         " devices under mpirun: one device per rank");
+    const std::vector<std::size_t> shares =
+        checked_shares(args->options.shares, pointers(opened), share_items(scene), args->split);
 
     const InterruptGuard interrupt;
     const int total = args->options.iterations;
@@ -358,6 +361,7 @@ Runner add_tomo_command(CLI::App& app) {
                                   {"precision", c.precision},
                                   {"device", device.info().name}, {"bricks", r.bricks},
                                   {"devices", opened.size()},
+                                  {"shares", shares},
                                   {"ranks", world().size},
                                   {"split", args->split},
                                   {"iterations", r.history.size()},

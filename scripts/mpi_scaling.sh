@@ -1,28 +1,34 @@
 #!/usr/bin/env bash
-# mpi_scaling.sh — strong scaling of `mpirun -np N ivr render|gradient` on one machine's CPU cores.
+# mpi_scaling.sh — strong scaling of `mpirun -np N ivr render|gradient|reconstruct` on one machine's
+# CPU cores.
 #
 #   scripts/mpi_scaling.sh [-o DIR] [--ranks "1 2 4"] [--size 256] [--views 16] [--image 384]
 #                          [--reps 3] [--ivr build/ivr] [--mpirun mpirun] [--splits "views segments"]
+#                          [--ops "render gradient reconstruct"] [--iterations 8]
 #
 # The same problem (a SIZE³ Shepp–Logan phantom read from .npy, VIEWS orbit views of IMAGE², emission–absorption, midpoint,
 # step 0.5, early termination off so that every split marches the same samples) is rendered and
-# differentiated (`--wrt density`, adjoint) by 1, 2, 4 … ranks, data-parallel over views and
+# differentiated (`--wrt density`, adjoint) and reconstructed (`ivr reconstruct`, ITERATIONS steps
+# of Adam over every view at one level: a loop that pays the start-up once) by 1, 2, 4 … ranks,
+# data-parallel over views and
 # domain-parallel over independent segments (docs/scaling.md). Each rank's PoCL device gets
 # cores / N threads (POCL_CPU_MAX_CU_NUM, and POCL_MAX_PTHREAD_COUNT for older PoCL) and ranks are
 # not bound to cores (Open MPI binds each rank to one core by default), so N ranks share the same
 # cores one rank had. Times: the whole mpirun command's wall time (what a user waits for: launch,
-# scene, upload, march, gather) and rank 0's kernel seconds from --json, medians of REPS runs
+# scene, upload, march, gather) and rank 0's kernel seconds from --json (reconstruct: its loop's
+# seconds, start-up and writing excluded), medians of REPS runs
 # after one warm-up (kernel caches). Writes DIR/runs.csv (every run) and DIR/scaling.md (medians,
 # speed-up and efficiency against one rank). Needs numpy only for the result check (rank counts'
 # images against one rank's), skipped with a note where python3 lacks it.
 set -euo pipefail
 out=mpi-scaling ranks="1 2 4" size=256 views=16 image=384 reps=3 ivr=build/ivr
 mpirun=mpirun splits="views segments" python=${PYTHON:-python3}
+ops="render gradient reconstruct" iterations=8
 while [ $# -gt 0 ]; do
   case "$1" in
     -o) out=$2 ;; --ranks) ranks=$2 ;; --size) size=$2 ;; --views) views=$2 ;;
     --image) image=$2 ;; --reps) reps=$2 ;; --ivr) ivr=$2 ;; --mpirun) mpirun=$2 ;;
-    --splits) splits=$2 ;;
+    --splits) splits=$2 ;; --ops) ops=$2 ;; --iterations) iterations=$2 ;;
     *) echo "mpi_scaling.sh: unknown option '$1'" >&2; exit 2 ;;
   esac
   shift 2
@@ -64,6 +70,8 @@ run() {
   local args=(render scene.json -o "r_${split}_$n.npy")
   [ "$op" = gradient ] && args=(gradient scene.json --target target.npy --wrt density
     --mode adjoint -o "g_${split}_$n")
+  [ "$op" = reconstruct ] && args=(reconstruct scene.json --targets target.npy -o "c_${split}_$n"
+    --iterations "$iterations" --levels 1 --checkpoint-every 0)
   [ "$split" = views ] || args+=(--split "$split")
   local t0 t1 json
   t0=$(date +%s.%N)
@@ -79,7 +87,7 @@ echo "split,op,ranks,threads_per_rank,run,wall_s,kernel_s" > "$out/runs.csv"
 for split in $splits; do
   for n in $ranks; do
     [ "$split" != views ] && [ "$n" = 1 ] && continue  # one rank: no split (the views row)
-    for op in render gradient; do
+    for op in $ops; do
       run "$n" "$split" "$op" >/dev/null  # warm-up: PoCL's and ivr's kernel caches
       for r in $(seq 1 "$reps"); do
         read -r wall kern < <(run "$n" "$split" "$op")
@@ -98,8 +106,9 @@ rows = list(csv.DictReader(open(f"{out}/runs.csv")))
 check = []
 try:
     import numpy as np
-    for f in sorted(glob.glob("r_*.npy")) + sorted(glob.glob("g_*_density.npy")):
-        ref = "r_views_1.npy" if f.startswith("r_") else "g_views_1_density.npy"
+    for f in (sorted(glob.glob("r_*.npy")) + sorted(glob.glob("g_*_density.npy"))
+              + sorted(glob.glob("c_*_density.npy"))):
+        ref = {"r": "r_views_1.npy", "g": "g_views_1_density.npy", "c": "c_views_1_density.npy"}[f[0]]
         a, b = np.load(f).astype(np.float64), np.load(ref).astype(np.float64)
         check.append(f"{f}: max |difference| {np.abs(a - b).max() / max(np.abs(b).max(), 1e-300):.2e} of the largest")
 except ImportError:
@@ -107,11 +116,12 @@ except ImportError:
 groups = {}
 for r in rows:
     groups.setdefault((r["split"], r["op"], int(r["ranks"])), []).append(r)
+ops = ("render", "gradient", "reconstruct")
 base = {op: statistics.median(float(r["wall_s"]) for r in groups[("views", op, 1)])
-        for op in ("render", "gradient") if ("views", op, 1) in groups}
+        for op in ops if ("views", op, 1) in groups}
 kbase = {op: statistics.median(float(r["kernel_s"]) for r in groups[("views", op, 1)])
-         for op in ("render", "gradient") if ("views", op, 1) in groups}
-lines = ["| split | operation | ranks × threads | wall (median) | speed-up | efficiency | rank 0 kernels | kernel speed-up |",
+         for op in ops if ("views", op, 1) in groups}
+lines = ["| split | operation | ranks × threads | wall (median) | speed-up | efficiency | rank 0 kernels (reconstruct: loop) | its speed-up |",
          "|---|---|---|---|---|---|---|---|"]
 for (split, op, n), rs in sorted(groups.items(), key=lambda g: (g[0][1], g[0][0] != "views", g[0][0], g[0][2])):
     w = statistics.median(float(r["wall_s"]) for r in rs)

@@ -29,6 +29,7 @@ struct DeviceInfo {
   int nv_compute_capability = 0;
   std::uint64_t global_memory = 0, max_allocation = 0;
   int compute_units = 0;
+  int max_clock_mhz = 0;  // CL_DEVICE_MAX_CLOCK_FREQUENCY (0 where the driver does not say)
   // CL_DEVICE_HOST_UNIFIED_MEMORY: the device's memory is the host's (CPUs, integrated GPUs), so
   // DeviceArray::wrap and map() reach host memory without a copy.
   bool host_unified_memory = false;

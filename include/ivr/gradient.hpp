@@ -48,6 +48,10 @@ struct GradientOptions {
   // view for every worker) the density gradient is the one process's bit for bit.
   int worker = 0, workers = 1;
   std::function<void(std::vector<double>&)> sum;
+  // Each share's weight, its share of the views in proportion (view_shares): over several devices
+  // one a device (empty: share_weights(), their speeds); as worker of `workers`, one a worker,
+  // every worker passing the same (empty: equal shares).
+  std::vector<double> shares{};
 };
 
 struct Gradient {

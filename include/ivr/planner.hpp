@@ -39,10 +39,17 @@ IVR_API std::string cost_model_path(const DeviceInfo& device);
 // on a 2-core Skylake-AVX512 Xeon, where forward mode marches TF and background lanes in packets
 // of rays and the adjoint marches packets too: forward 1.1 + 0.08 · L renders (`ivr calibrate`,
 // 64³ → 128² and 128³ → 256²), with camera or voxel lanes 3.8 + 0.75 · L, adjoint 5.4 renders,
-// 3.1e-9 s per sample. Other devices: CostModel's defaults (forward
-// 1.5 + 0.16 · L whatever the lanes, adjoint 3), the one-ray-per-work-item kernels' figures on a
-// 2-core EPYC.
+// 3.2e-9 s per sample (6.4e-9 s over the compute units: a CPU of more threads is estimated
+// faster). Other devices: CostModel's defaults (forward 1.5 + 0.16 · L whatever the lanes,
+// adjoint 3), the one-ray-per-work-item kernels' figures on a 2-core EPYC, and where the driver
+// gives compute units and clock an estimate of seconds_per_sample from them: 950 cycles of a
+// float32 lane per sample (measured on an H200) over the device's lanes.
 IVR_API CostModel default_cost_model(const DeviceInfo& device);
+
+// A device's render speed, 1 / seconds_per_sample of load_cost_model(device): what several
+// devices' shares of the views are weighted by (share_weights, docs/scaling.md). Measured where
+// `ivr calibrate` has run on the device; else default_cost_model()'s estimate from its size.
+IVR_API double samples_per_second(const DeviceInfo& device);
 
 // The device's model: its calibration file where one exists, else default_cost_model(). A file that
 // exists but cannot be read or lacks a field is an error naming the file and the field (a file

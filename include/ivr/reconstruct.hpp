@@ -95,6 +95,11 @@ struct ReconstructOptions {
   // Over slabs: pass the rays' march states (exact, early termination included) or march each
   // worker's segments of every ray at once and composite them (ivr/domain.hpp, SlabMarch).
   SlabMarch slab_march = SlabMarch::states;
+  // Over views: each worker's weight, its share of each batch's views in proportion
+  // (view_shares; every worker passing the same; empty: equal shares). MultiDeviceReconstruction:
+  // one a device, empty taking share_weights() — their speeds; a device whose share of a batch
+  // would be empty does not take part. Over slabs the slabs are equal, whatever the weights.
+  std::vector<double> shares{};
 };
 
 // Throws ivr::Error(invalid_argument) naming the first bad option.
@@ -163,7 +168,10 @@ class IVR_API Reconstruction {
 //   one device is reconstructed on all of them;
 // - views (false): every device holds the whole volume and marches its share of each batch's
 //   views, the gradients summed (ReconstructOptions::workers; fixed point where `deterministic`,
-//   so the run is one device's bit for bit): several devices' speed on one volume.
+//   so the run is one device's bit for bit): several devices' speed on one volume. The shares
+//   follow options.shares, else share_weights() — the devices' speeds; a device whose share of a
+//   batch would be empty takes no part (devices() counts those that do, and checkpoints are
+//   theirs: resume with the same devices and shares).
 // Equal to the workers' reconstruction (one process's to rounding). `scene` holds the whole volume
 // (the start with Init::scene); options.worker, workers, sum and all_gather must be left unset
 // (they are the devices'). After a device fails, the object refuses further steps.
@@ -179,7 +187,7 @@ class IVR_API MultiDeviceReconstruction {
   bool done() const;
   int iteration() const;
   const std::vector<IterationRecord>& history() const;
-  int devices() const;
+  int devices() const;  // the devices taking part
   const ReconstructOptions& options() const;  // device 0's, with what automatic resolved to
   int levels() const;
   std::vector<int> level_dims(int level) const;  // (nx, ny, nz) of a level's whole grid

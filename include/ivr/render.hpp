@@ -28,6 +28,11 @@ struct RenderOptions {
   // device in; 0: in core where the volume and the render's buffers fit the device memory (or
   // $IVR_DEVICE_MEMORY_LIMIT), else bricks chosen to fit. $IVR_VOLUME_BRICK forces one as well.
   int volume_brick = 0;
+  // Several devices over views (render, gradient, tomo over a vector of devices;
+  // docs/scaling.md): each device's weight, its share of the views in proportion (view_shares);
+  // one a device, each > 0 and finite. Empty: each device's samples_per_second() (its
+  // calibration, else an estimate from its size), so a GPU beside the CPU takes most views.
+  std::vector<double> shares{};
 };
 
 // Images of shape (views, height, width, channels), float32, row 0 at the top.
@@ -74,11 +79,18 @@ IVR_API Image render(Device& device, const Scene& scene, const RenderOptions& op
                      RenderStats* stats = nullptr);
 
 // The same on several devices (docs/scaling.md): the views (a ray list's rays) split into
-// contiguous shares, one per device, rendered at once on threads of their own and joined in view
-// order — each view's pixels are the one-device render's. Stats: samples summed, the slowest
-// device's kernel time, the largest device's memory.
+// contiguous shares, one per device in proportion to share_weights(devices, options.shares) (a
+// device whose share is empty does not run), rendered at once on threads of their own and joined
+// in view order — each view's pixels are the one-device render's. Stats: samples summed, the
+// slowest device's kernel time, the largest device's memory, `devices` those that ran.
 IVR_API Image render(const std::vector<Device*>& devices, const Scene& scene,
                      const RenderOptions& options = {}, RenderStats* stats = nullptr);
+
+// The weights several devices' shares of the views take (the options' `shares`): `given` where
+// not empty, one a device, each > 0 and finite; else each device's samples_per_second(). Throws
+// Error(invalid_argument) naming a missing or bad weight.
+IVR_API std::vector<double> share_weights(const std::vector<Device*>& devices,
+                                          const std::vector<double>& given = {});
 
 // Writes the images as .npy (views, H, W, C): float64 when the image has pixels_f64, else float32.
 IVR_API void save_image_npy(const std::string& path, const Image& image);

@@ -146,6 +146,12 @@ IVR_API ImageExtent image_extent(const Scene& scene);
 // and the scene of views (a ray list: rays) [first, first + count).
 IVR_API std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
                                                                      std::size_t parts);
+// The same in proportion to `weights` (each > 0 and finite, else Error(invalid_argument)): one
+// share per weight, in order, empty ones kept (count 0) — share i holds n·wᵢ / Σw views, the
+// remainders going to the largest fractions (ties to the lower index), so that equal weights give
+// view_shares(n, parts)'s counts. The split depends on the weights alone, never on timing.
+IVR_API std::vector<std::pair<std::size_t, std::size_t>> view_shares(
+    std::size_t n, const std::vector<double>& weights);
 IVR_API Scene scene_share(const Scene& scene, std::size_t first, std::size_t count);
 // The views of a scene, or a ray list's rays: what view_shares() splits.
 IVR_API std::size_t share_items(const Scene& scene);

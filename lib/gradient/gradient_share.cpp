@@ -48,9 +48,13 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
   if (n == 0 || target.pixels.size() != n * per_item)
     throw bad(o, "the target holds " + std::to_string(target.pixels.size()) +
                      " values, the scene's images " + std::to_string(n * per_item));
-  const auto parts = view_shares(n, std::size_t(o.workers));
-  const bool active = std::size_t(o.worker) < parts.size();
-  const auto [first, count] = active ? parts[std::size_t(o.worker)] : std::pair<std::size_t, std::size_t>{0, 0};
+  if (!o.shares.empty() && o.shares.size() != std::size_t(o.workers))
+    throw bad(o, "shares: " + std::to_string(o.shares.size()) + " weights for " +
+                     std::to_string(o.workers) + " workers");
+  const auto [first, count] =
+      view_shares(n, o.shares.empty() ? std::vector<double>(std::size_t(o.workers), 1.0)
+                                      : o.shares)[std::size_t(o.worker)];
+  const bool active = count > 0;
 
   GradientOptions mine = o;
   mine.worker = 0, mine.workers = 1, mine.sum = {};

@@ -3,9 +3,11 @@
 // (tomography) on its device in a thread of its own, and the results combined on the host in
 // device order (docs/scaling.md).
 #include <algorithm>
+#include <cmath>
 
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
+#include "ivr/planner.hpp"
 #include "ivr/render.hpp"
 #include "ivr/tomo.hpp"
 #include "multi_device/run_shares.hpp"
@@ -21,6 +23,87 @@ std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n, std:
     first += count;
   }
   return out;
+}
+
+std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
+                                                             const std::vector<double>& weights) {
+  if (weights.empty()) throw Error(Status::invalid_argument, "shares: no weights");
+  double total = 0;
+  for (std::size_t i = 0; i < weights.size(); ++i) {
+    if (!(weights[i] > 0) || !std::isfinite(weights[i]))
+      throw Error(Status::invalid_argument, "shares[" + std::to_string(i) + "]: " +
+                                                std::to_string(weights[i]) +
+                                                " (a weight must be > 0 and finite)");
+    total += weights[i];
+  }
+  if (!std::isfinite(total)) throw Error(Status::invalid_argument, "shares: the weights' sum overflows");
+  std::vector<std::size_t> count(weights.size());
+  if (std::all_of(weights.begin(), weights.end(), [&](double w) { return w == weights[0]; })) {
+    for (std::size_t d = 0; d < weights.size(); ++d)  // (exactly view_shares(n, parts)'s counts)
+      count[d] = n / weights.size() + (d < n % weights.size() ? 1 : 0);
+  } else {
+    // Largest remainder: each share its quota's floor, the views left over to the largest
+    // fractions (ties to the lower index).
+    std::vector<double> fraction(weights.size());
+    std::size_t given = 0;
+    for (std::size_t d = 0; d < weights.size(); ++d) {
+      const double quota = double(n) * (weights[d] / total);
+      count[d] = std::min(n - given, std::size_t(std::floor(quota)));
+      fraction[d] = quota - std::floor(quota);
+      given += count[d];
+    }
+    std::vector<std::size_t> order(weights.size());
+    for (std::size_t d = 0; d < order.size(); ++d) order[d] = d;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return fraction[a] > fraction[b]; });
+    for (std::size_t k = 0; given < n; k = (k + 1) % order.size(), ++given) ++count[order[k]];
+  }
+  std::vector<std::pair<std::size_t, std::size_t>> out;
+  std::size_t first = 0;
+  for (std::size_t c : count) {
+    out.push_back({first, c});
+    first += c;
+  }
+  return out;
+}
+
+std::vector<double> share_weights(const std::vector<Device*>& devices,
+                                  const std::vector<double>& given) {
+  check_devices(devices);
+  if (!given.empty()) {
+    if (given.size() != devices.size())
+      throw Error(Status::invalid_argument, "shares: " + std::to_string(given.size()) +
+                                                " weights for " + std::to_string(devices.size()) +
+                                                " devices");
+    view_shares(0, given);  // (each weight checked)
+    return given;
+  }
+  std::vector<double> out;
+  for (const Device* d : devices) {
+    const double speed = samples_per_second(d->info());
+    if (!(speed > 0) || !std::isfinite(speed))
+      throw Error(Status::invalid_argument,
+                  "shares: device " + d->info().name + "'s cost model gives " +
+                      std::to_string(speed) + " samples per second (" +
+                      load_cost_model(d->info()).source + "); give the shares");
+    out.push_back(speed);
+  }
+  return out;
+}
+
+std::vector<std::size_t> active_shares(const std::vector<Device*>& devices, std::size_t n,
+                                       const std::vector<double>& given,
+                                       std::vector<std::pair<std::size_t, std::size_t>>& parts,
+                                       std::vector<double>* weights) {
+  const std::vector<double> w = share_weights(devices, given);
+  parts = view_shares(n, w);
+  std::vector<std::size_t> active;
+  for (std::size_t i = 0; i < parts.size(); ++i)
+    if (parts[i].second > 0) {
+      active.push_back(i);
+      if (weights) weights->push_back(w[i]);
+    }
+  return active;
 }
 
 Scene scene_share(const Scene& scene, std::size_t first, std::size_t count) {
@@ -67,13 +150,16 @@ bool per_view_group(const std::string& group) { return group == "camera" || grou
 
 Image render(const std::vector<Device*>& devices, const Scene& scene, const RenderOptions& options,
              RenderStats* stats) {
-  check_devices(devices);
-  if (devices.size() == 1) return render(*devices[0], scene, options, stats);
-  const auto parts = view_shares(share_items(scene), devices.size());
-  std::vector<Image> images(parts.size());
-  std::vector<RenderStats> st(parts.size());
-  run_shares(parts.size(), [&](std::size_t i) {
-    images[i] = render(*devices[i], scene_share(scene, parts[i].first, parts[i].second), options, &st[i]);
+  std::vector<std::pair<std::size_t, std::size_t>> parts;
+  const std::vector<std::size_t> active =
+      active_shares(devices, share_items(scene), options.shares, parts, nullptr);
+  if (active.size() <= 1)  // (no views at all: device 0 says what is wrong with the scene)
+    return render(*devices[active.empty() ? 0 : active[0]], scene, options, stats);
+  std::vector<Image> images(active.size());
+  std::vector<RenderStats> st(active.size());
+  run_shares(active.size(), [&](std::size_t i) {
+    const auto [first, count] = parts[active[i]];
+    images[i] = render(*devices[active[i]], scene_share(scene, first, count), options, &st[i]);
   });
   Image out = images[0];
   for (std::size_t i = 1; i < images.size(); ++i) {
@@ -93,7 +179,7 @@ Image render(const std::vector<Device*>& devices, const Scene& scene, const Rend
       stats->device_bytes = std::max(stats->device_bytes, st[i].device_bytes);
       stats->bricks = std::max(stats->bricks, st[i].bricks);
     }
-    stats->devices = int(parts.size());
+    stats->devices = int(active.size());
   }
   return out;
 }
@@ -101,13 +187,24 @@ Image render(const std::vector<Device*>& devices, const Scene& scene, const Rend
 Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
                   const std::vector<std::string>& groups, const GradientOptions& options) {
   check_devices(devices);
-  const std::size_t workers = std::min(devices.size(), share_items(scene));
-  if (workers <= 1) return gradient(*devices[0], scene, target, groups, options);
+  // (one device as a data-parallel worker: options.shares are the workers')
+  if (devices.size() == 1 && options.workers > 1)
+    return gradient(*devices[0], scene, target, groups, options);
   if (options.workers > 1)
     throw Error(Status::invalid_argument,
                 "gradient: " + std::to_string(devices.size()) + " devices for worker " +
                     std::to_string(options.worker) + " of " + std::to_string(options.workers) +
                     ": give each worker one device");
+  std::vector<std::pair<std::size_t, std::size_t>> parts;
+  std::vector<double> weights;
+  const std::vector<std::size_t> active =
+      active_shares(devices, share_items(scene), options.shares, parts, &weights);
+  const std::size_t workers = active.size();
+  if (workers <= 1) {
+    GradientOptions one = options;
+    one.shares.clear();
+    return gradient(*devices[active.empty() ? 0 : active[0]], scene, target, groups, one);
+  }
   // Each device a worker of its own (gradient_shared), summing through a rendezvous of threads.
   WorkerSum sum{int(workers)};
   std::vector<Gradient> g(workers);
@@ -116,7 +213,8 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
       [&](std::size_t i) {
         GradientOptions o = options;
         o.worker = int(i), o.workers = int(workers), o.sum = sum.of(int(i));
-        g[i] = gradient(*devices[i], scene, target, groups, o);
+        o.shares = weights;  // (the active devices' own: each its share of `parts`)
+        g[i] = gradient(*devices[active[i]], scene, target, groups, o);
       },
       [&] { sum.abort(); });
   Gradient out = g[0];  // (every worker holds the whole gradient)
@@ -132,25 +230,25 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
 TomoResult tomo(const std::vector<Device*>& devices, const Scene& scene,
                 const std::vector<double>& lines, const TomoOptions& options,
                 const TomoProgress& progress) {
-  check_devices(devices);
   const std::size_t items = share_items(scene);
-  const std::size_t workers = std::min(devices.size(), items);
-  if (workers <= 1) return tomo(*devices[0], scene, lines, options, progress);
+  std::vector<std::pair<std::size_t, std::size_t>> parts;
+  const std::vector<std::size_t> active = active_shares(devices, items, options.shares, parts, nullptr);
+  const std::size_t workers = active.size();
+  if (workers <= 1) return tomo(*devices[active.empty() ? 0 : active[0]], scene, lines, options, progress);
   if (lines.size() % items != 0)
     throw Error(Status::invalid_argument,
                 "projections: " + std::to_string(lines.size()) + " values for the scene's " +
                     std::to_string(items) + (scene.has_ray_list() ? " rays" : " views"));
   const std::size_t per_item = lines.size() / items;
-  const auto parts = view_shares(items, workers);
   WorkerSum sum{int(workers)};
   std::vector<TomoResult> r(workers);
   run_shares(
       workers,
       [&](std::size_t i) {
-        const auto [first, count] = parts[i];
+        const auto [first, count] = parts[active[i]];
         const std::vector<double> mine(lines.begin() + std::ptrdiff_t(first * per_item),
                                        lines.begin() + std::ptrdiff_t((first + count) * per_item));
-        r[i] = tomo_shared(*devices[i], scene_share(scene, first, count), mine, options,
+        r[i] = tomo_shared(*devices[active[i]], scene_share(scene, first, count), mine, options,
                            sum.of(int(i)), i == 0 ? progress : TomoProgress{});
       },
       [&] { sum.abort(); });

@@ -2,6 +2,7 @@
 // (MultiDeviceReconstruction, ivr/reconstruct.hpp): each device a worker of its own — a slab of
 // the volume, or a share of each batch's views — every step run on the devices' threads together,
 // their sums and all-gathers meeting in the process.
+#include <algorithm>
 #include <memory>
 
 #include "ivr/domain.hpp"
@@ -50,18 +51,33 @@ MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>&
     throw Error(Status::invalid_argument,
                 "MultiDeviceReconstruction: options.worker, workers, sum and all_gather are the "
                 "devices'; leave them unset");
-  const int n = int(devices.size());
+  // Over views, the devices whose share of a batch is not empty (by their weights), each with its
+  // weight; over slabs every device, in equal slabs.
+  std::vector<Device*> taking = devices;
+  std::vector<double> weights;
+  if (!options.slabs) {
+    const int views = image_extent(scene).views;
+    const int batch = options.batch > 0 ? std::min(options.batch, views) : views;
+    std::vector<std::pair<std::size_t, std::size_t>> parts;
+    taking.clear();
+    for (std::size_t i : active_shares(devices, std::size_t(std::max(batch, 0)), options.shares,
+                                       parts, &weights))
+      taking.push_back(devices[i]);
+    if (taking.empty()) taking.push_back(devices[0]);  // (no views: the worker says so)
+  }
+  const int n = int(taking.size());
   // More devices than cells (slabs) or than views: said before any thread starts.
   if (options.slabs) domain_slab(scene.volume.nz, 0, n);
-  impl_ = std::make_unique<Impl>(devices);
+  impl_ = std::make_unique<Impl>(taking);
   Impl& m = *impl_;
   m.each("MultiDeviceReconstruction", [&](std::size_t i) {
     ReconstructOptions o = options;
     o.worker = int(i), o.workers = n;
+    if (!o.slabs) o.shares = n > 1 ? weights : std::vector<double>{};
     o.sum = m.sum.of(int(i));
     if (o.slabs) o.all_gather = m.gather.of(int(i));
     m.workers[i] = std::make_unique<Reconstruction>(
-        *devices[i], o.slabs ? domain_share(scene, int(i), n) : scene, targets, o);
+        *taking[i], o.slabs ? domain_share(scene, int(i), n) : scene, targets, o);
   });
 }
 

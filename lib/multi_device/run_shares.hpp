@@ -47,4 +47,12 @@ inline void check_devices(const std::vector<Device*>& devices) {
       throw Error(Status::invalid_argument, "devices[" + std::to_string(i) + "]: null");
 }
 
+// Each device's share of n items in proportion to share_weights(devices, given) (`parts`, one a
+// device), and the devices whose share is not empty — those that run — in order, with their
+// weights in `weights` where asked for (multi_device.cpp).
+std::vector<std::size_t> active_shares(const std::vector<Device*>& devices, std::size_t n,
+                                       const std::vector<double>& given,
+                                       std::vector<std::pair<std::size_t, std::size_t>>& parts,
+                                       std::vector<double>* weights);
+
 }  // namespace ivr

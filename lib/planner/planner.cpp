@@ -89,6 +89,17 @@ CostModel read_cost_model(const std::string& path) {
   return m;
 }
 
+// Float32 lanes per compute unit of a GPU (CUDA cores per SM on NVIDIA, by compute capability:
+// 64 on sm_60, sm_70–sm_80, 128 on the others since sm_50; AMD 64 per CU; Intel 8 per EU).
+namespace {
+double gpu_lanes_per_unit(const DeviceInfo& d) {
+  const int cc = d.nv_compute_capability;
+  if (cc > 0) return (cc == 60 || (cc >= 70 && cc <= 80)) ? 64 : 128;
+  if (d.vendor.find("Intel") != std::string::npos) return 8;
+  return 64;
+}
+}  // namespace
+
 CostModel default_cost_model(const DeviceInfo& device) {
   CostModel m;
   if (device.type == "cpu") {
@@ -103,9 +114,24 @@ CostModel default_cost_model(const DeviceInfo& device) {
     m.forward_ray_base = 6.7;
     m.forward_ray_per_lane = 1.1;
     m.adjoint = 5.2;
-    m.seconds_per_sample = 3.2e-9;
+    // Per compute unit (PoCL: one a hardware thread) 6.4e-9 s, so a CPU of more threads is
+    // estimated faster (the H200 machine's 16-thread host: 4.0e-10 against 6.8e-10 measured).
+    m.seconds_per_sample = 6.4e-9 / std::max(device.compute_units, 1);
+  } else if (device.compute_units > 0 && device.max_clock_mhz > 0) {
+    // Without a calibration, an estimate from the device's size: ~950 cycles of one float32 lane
+    // per sample, over its lanes (compute units × lanes per unit) at its clock. 950: the render
+    // kernel's 2.85e-11 s per sample on an NVIDIA H200 (132 SMs of 128 lanes at 1980 MHz; ivr-bench
+    // v128_i256_s0.500 ivr-resident, bench/results/ivr_bench_h200_render_gradient.json). What it
+    // is for: the share of views each of several devices takes (share_weights) — a GPU beside the
+    // CPU an order of magnitude more than the CPU, not an equal share.
+    m.seconds_per_sample = 950.0 / (double(device.compute_units) * gpu_lanes_per_unit(device) *
+                                     double(device.max_clock_mhz) * 1e6);
   }
   return m;
+}
+
+double samples_per_second(const DeviceInfo& device) {
+  return 1.0 / load_cost_model(device).seconds_per_sample;
 }
 
 CostModel load_cost_model(const DeviceInfo& device) {

@@ -3,12 +3,24 @@
 #include <nlohmann/json.hpp>
 
 #include "ivr/device.hpp"
+#include "ivr/error.hpp"
+#include "ivr/planner.hpp"
 
 namespace ivr {
 
 std::string devices_json() {
   nlohmann::json list = nlohmann::json::array();
-  for (const DeviceInfo& d : list_devices())
+  for (const DeviceInfo& d : list_devices()) {
+    // The render speed several devices' shares of the views follow (share_weights): from the
+    // device's calibration file, else estimated; a file that cannot be read is said, not thrown.
+    nlohmann::json speed, model;
+    try {
+      const CostModel m = load_cost_model(d);
+      speed = 1.0 / m.seconds_per_sample;
+      model = m.source;
+    } catch (const Error& e) {
+      model = std::string("unreadable: ") + e.what();
+    }
     list.push_back({{"index", d.index},
                     {"platform_index", d.platform_index},
                     {"device_index", d.device_index},
@@ -25,7 +37,11 @@ std::string devices_json() {
                     {"global_memory", d.global_memory},
                     {"max_allocation", d.max_allocation},
                     {"compute_units", d.compute_units},
-                    {"host_unified_memory", d.host_unified_memory}});
+                    {"max_clock_mhz", d.max_clock_mhz},
+                    {"host_unified_memory", d.host_unified_memory},
+                    {"samples_per_second", speed},
+                    {"cost_model", model}});
+  }
   return nlohmann::json{{"devices", list}}.dump();
 }
 

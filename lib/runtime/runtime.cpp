@@ -203,6 +203,7 @@ std::vector<Found> discover() {
       info.global_memory = dev.getInfo<CL_DEVICE_GLOBAL_MEM_SIZE>();
       info.max_allocation = dev.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
       info.compute_units = int(dev.getInfo<CL_DEVICE_MAX_COMPUTE_UNITS>());
+      info.max_clock_mhz = int(dev.getInfo<CL_DEVICE_MAX_CLOCK_FREQUENCY>());
       info.host_unified_memory = dev.getInfo<CL_DEVICE_HOST_UNIFIED_MEMORY>() != 0;
       query_float_atomics(dev, info);
       info.nv_compute_capability = nv_compute_capability(dev);

@@ -117,13 +117,38 @@ TEST(MultiDeviceReconstruction, ViewsFollowOneDeviceBitForBit) {
   Reconstruction one(device(), p.scene, p.targets, o);
   while (!one.done()) one.step();
   const auto devices = test::device_contexts(2);
-  MultiDeviceReconstruction many(test::pointers_to(devices), p.scene, p.targets, o);
-  while (!many.done()) EXPECT_TRUE(many.step().deterministic);
-  ASSERT_EQ(many.history().size(), one.history().size());
-  for (std::size_t k = 0; k < one.history().size(); ++k)
-    EXPECT_NEAR(many.history()[k].loss, one.history()[k].loss, 1e-6 * one.history()[k].loss)
-        << "iteration " << k + 1;
-  EXPECT_EQ(many.result().volume.data, one.result().volume.data);
+  // Equal shares (equal speeds), 3 : 1 and 1 : 3 of each batch of 4, and a device whose share
+  // would be empty, which takes no part.
+  struct Case {
+    std::vector<double> shares;
+    int taking;
+  };
+  for (const Case& c : {Case{{}, 2}, Case{{3.0, 1.0}, 2}, Case{{1.0, 3.0}, 2}, Case{{1.0, 1e6}, 1}}) {
+    const std::string what = c.shares.empty() ? "equal shares"
+                                              : "shares " + std::to_string(c.shares[0]) + ":" +
+                                                    std::to_string(c.shares[1]);
+    ReconstructOptions weighted = o;
+    weighted.shares = c.shares;
+    MultiDeviceReconstruction many(test::pointers_to(devices), p.scene, p.targets, weighted);
+    EXPECT_EQ(many.devices(), c.taking) << what;
+    while (!many.done()) EXPECT_TRUE(many.step().deterministic) << what;
+    ASSERT_EQ(many.history().size(), one.history().size()) << what;
+    for (std::size_t k = 0; k < one.history().size(); ++k)
+      EXPECT_NEAR(many.history()[k].loss, one.history()[k].loss, 1e-6 * one.history()[k].loss)
+          << what << ", iteration " << k + 1;
+    EXPECT_EQ(many.result().volume.data, one.result().volume.data) << what;
+  }
+  // A worker's weighted share of a batch that would be empty is refused.
+  ReconstructOptions worker = o;
+  worker.workers = 2;
+  worker.sum = [](std::vector<double>&) {};
+  worker.shares = {1.0, 1e6};
+  try {
+    Reconstruction r(device(), p.scene, p.targets, worker);
+    ADD_FAILURE() << "an empty share";
+  } catch (const Error& e) {
+    EXPECT_TRUE(test::has(e.what(), "worker 0's share of a batch of 4 views is empty")) << e.what();
+  }
 }
 
 TEST(MultiDeviceReconstruction, BadOptionsAreRefusedBeforeAnyWork) {

@@ -7,7 +7,8 @@
 // final state into its pixel, its loss terms and the loss's derivatives (jacobian_pixel.cl, as
 // kernels/jacobian.cl does in core), summed per work-group. One ray per work-item: a ray's lanes
 // (TF, background, camera, voxel, a listed ray's columns) are per-ray state here, and the voxel
-// lanes are moved into the brick's voxels.
+// lanes are moved into the brick's voxels. On CPUs a pass of TF and background lanes marches a
+// tile of rays in vector lanes instead (bricked_tangent_packet, IVR_RAYS > 1, as in core).
 // The loss gradient, not the Jacobian (jacobian_pixel.cl's default is the Jacobian).
 #ifndef IVR_JACOBIAN
 #define IVR_JACOBIAN 0
@@ -22,9 +23,6 @@
 #include "jacobian_ray.cl"
 #include "march.cl"
 
-#if IVR_RAYS != 1
-#error "bricked_tangent.cl marches one ray per work-item"
-#endif
 #if IVR_JACOBIAN || !IVR_LOSS_GRADIENT
 #error "bricked_tangent.cl computes the loss gradient (no Jacobian out of core)"
 #endif
@@ -38,6 +36,18 @@
 #define IVR_TANGENT_SUMS 1
 #endif
 
+// The density's gradient is clamped at the volume's border only: at the brick's faces that are box
+// faces (±∞ planes), not at its inner ones.
+inline void brick_grid_clamps(TangentRay* tr, real4 brick_lo, real4 brick_hi, int4 dims) {
+  tr->grid_lo = (real4)(isinf(brick_lo.x) ? (real)0 : -(real)INFINITY,
+                        isinf(brick_lo.y) ? (real)0 : -(real)INFINITY,
+                        isinf(brick_lo.z) ? (real)0 : -(real)INFINITY, (real)0);
+  tr->grid_hi = (real4)(isinf(brick_hi.x) ? (real)(dims.x - 1) : (real)INFINITY,
+                        isinf(brick_hi.y) ? (real)(dims.y - 1) : (real)INFINITY,
+                        isinf(brick_hi.z) ? (real)(dims.z - 1) : (real)INFINITY, (real)0);
+}
+
+#if IVR_RAYS == 1
 inline void tangent_sums_load(__global const real* g, TangentRay* tr) {
   IVR_FOR_LANES(p) {
     __global const real* q = g + p * IVR_TANGENT_SUMS;
@@ -93,14 +103,7 @@ __kernel void bricked_tangent(
     TangentRay tr;
     tangent_ray_begin(&tr, lanes, cam, camera_params, view, x, y, width, height, ray, &m, box_min,
                       box_max, dims);
-    // The density's gradient is clamped at the volume's border only: at the brick's faces that are
-    // box faces (±∞ planes), not at its inner ones.
-    tr.grid_lo = (real4)(isinf(brick_lo.x) ? (real)0 : -(real)INFINITY,
-                         isinf(brick_lo.y) ? (real)0 : -(real)INFINITY,
-                         isinf(brick_lo.z) ? (real)0 : -(real)INFINITY, (real)0);
-    tr.grid_hi = (real4)(isinf(brick_hi.x) ? (real)(dims.x - 1) : (real)INFINITY,
-                         isinf(brick_hi.y) ? (real)(dims.y - 1) : (real)INFINITY,
-                         isinf(brick_hi.z) ? (real)(dims.z - 1) : (real)INFINITY, (real)0);
+    brick_grid_clamps(&tr, brick_lo, brick_hi, dims);
     IVR_FOR_LANES(p) {  // a voxel lane in the brick's voxels (outside them: weight 0)
       if (tr.lane[p].x == IVR_LANE_VOXEL) tr.lane[p].yzw -= (int3)(origin.x, origin.y, origin.z);
     }
@@ -146,3 +149,148 @@ __kernel void bricked_tangent(
   }
   tangent_group_sums(loss, dloss, scratch, partial);
 }
+#endif
+
+#if IVR_RAYS > 1
+#if IVR_TANGENT_CAMERA || IVR_TANGENT_VOXEL || IVR_RAY_GRADIENT
+#error "bricked_tangent_packet carries TF and background lanes (camera, voxel, ray lanes: one ray)"
+#endif
+#if IVR_SCHEME == IVR_SCHEME_EXACT
+#error "bricked_tangent_packet marches the fixed-step schemes (exact: one ray a work-item)"
+#endif
+// TANGENT_MARCH on CPUs for a tile of IVR_RAYS neighbouring pixels in vector lanes (as
+// kernels/bricked_packet.cl marches the render): each lane's ray takes its window in this brick
+// exactly as bricked_tangent does — the same state, tangents and in-core window march — so the
+// states and tangents it leaves, and the gradient, are the one-ray kernel's. The arguments are
+// bricked_tangent's (the host sets both alike; FINISH is bricked_tangent's); a work-item is the
+// tile with corner (IVR_PACKET_W · x, IVR_PACKET_H · y) of view z.
+__kernel void bricked_tangent_packet(
+    __global const real* restrict volume, const int4 dims, const real4 box_min, const real4 box_max,
+    const real4 inv_voxel, __global const real* restrict cameras, const int width, const int height,
+    __global const real* restrict tf, const int tf_count, const real4 tf_scalars,
+    const real4 background, const real step, const real min_transmittance, const int phase,
+    const real4 brick_lo, const real4 brick_hi, const int4 origin, __global real* restrict state,
+    __global uint* restrict state_u, __global real* restrict tangents,
+    __global const int4* restrict lanes, __global const real* restrict camera_params,
+    __global const real* restrict target, const real norm, __global real* restrict image,
+    __global real* restrict per_ray, __global real* restrict partial, __local real* scratch) {
+  (void)background, (void)step, (void)phase, (void)target, (void)norm, (void)image, (void)per_ray;
+  (void)partial, (void)scratch;
+  const int x0 = get_global_id(0) * IVR_PACKET_W, y0 = get_global_id(1) * IVR_PACKET_H;
+  const int view = get_global_id(2);
+  if (x0 >= width || y0 >= height) return;
+  LaneWindows w;
+  if (!brick_enter_lanes(state, state_u, x0, y0, view, width, height, brick_lo, brick_hi, origin,
+                         &w))
+    return;
+  real T[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS], kr[IVR_RAYS], kg[IVR_RAYS],
+      kb[IVR_RAYS], tau[IVR_RAYS], ktau[IVR_RAYS];
+  int next[IVR_RAYS], taken[IVR_RAYS], end[IVR_RAYS];
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    if (w.entered[l]) {
+      __global const real* s = state + w.pixel[l] * IVR_BRICK_REALS;
+      __global const uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
+      T[l] = s[BS_T], cr[l] = s[BS_CR], cg[l] = s[BS_CG], cb[l] = s[BS_CB];
+      kr[l] = s[BS_KR], kg[l] = s[BS_KG], kb[l] = s[BS_KB], tau[l] = s[BS_TAU],
+      ktau[l] = s[BS_KTAU];
+      next[l] = (int)su[BU_NEXT], taken[l] = (int)su[BU_SAMPLES], end[l] = (int)su[BU_END];
+    } else {  // (n = 0: marches nothing, stores nothing)
+      T[l] = (real)1;
+      cr[l] = cg[l] = cb[l] = kr[l] = kg[l] = kb[l] = tau[l] = ktau[l] = (real)0;
+      next[l] = taken[l] = end[l] = 0;
+    }
+  }
+  const March m = lanes_march(&w);
+  Radiance r;
+  r.transmittance = IVR_LOAD_RAYS(T);
+  r.cr = IVR_LOAD_RAYS(cr), r.cg = IVR_LOAD_RAYS(cg), r.cb = IVR_LOAD_RAYS(cb);
+  r.kr = IVR_LOAD_RAYS(kr), r.kg = IVR_LOAD_RAYS(kg), r.kb = IVR_LOAD_RAYS(kb);
+  r.tau = IVR_LOAD_RAYS(tau), r.ktau = IVR_LOAD_RAYS(ktau);
+  r.samples = IVR_LOAD_RAYS(taken), r.end = IVR_LOAD_RAYS(end);
+  // The lanes (TF and background: no geometry of their own) and each lane's carried tangents.
+  const Ray ray = {(real3)(real)0, (real3)(real)0};
+  TangentRay tr;
+  tangent_ray_begin(&tr, lanes, cameras + view * IVR_CAMERA_STRIDE, camera_params, view, x0, y0,
+                    width, height, ray, (const March*)0, box_min, box_max, dims);
+  brick_grid_clamps(&tr, brick_lo, brick_hi, dims);
+  IVR_FOR_LANES(p) {
+    real dT[IVR_RAYS], dcr[IVR_RAYS], dcg[IVR_RAYS], dcb[IVR_RAYS];
+    for (int l = 0; l < IVR_RAYS; ++l) {
+      __global const real* q =
+          tangents + w.pixel[l] * (IVR_LANES * IVR_TANGENT_SUMS) + p * IVR_TANGENT_SUMS;
+      dT[l] = w.entered[l] ? q[0] : (real)0;
+#if IVR_EMISSION
+      dcr[l] = w.entered[l] ? q[1] : (real)0, dcg[l] = w.entered[l] ? q[2] : (real)0;
+      dcb[l] = w.entered[l] ? q[3] : (real)0;
+#else
+      dcr[l] = dcg[l] = dcb[l] = (real)0;
+#endif
+    }
+    tr.dT[p] = IVR_LOAD_RAYS(dT), tr.dcr[p] = IVR_LOAD_RAYS(dcr);
+    tr.dcg[p] = IVR_LOAD_RAYS(dcg), tr.dcb[p] = IVR_LOAD_RAYS(dcb);
+  }
+  vint i = IVR_LOAD_RAYS(next);
+  const vreal window_end = IVR_LOAD_RAYS(w.tb1);
+#if IVR_SCHEME == IVR_SCHEME_MIDPOINT
+  tangent_march_midpoint_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars,
+                                min_transmittance, (__global const uchar*)0, (int4)0, &tr, &r,
+                                window_end, &i);
+#else
+  tangent_march_endpoints_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars,
+                                 min_transmittance, (__global const uchar*)0, (int4)0, &tr, &r,
+                                 window_end, &i);
+#endif
+  r.end = i;  // (as bricked_tangent: the march's end is where this window left it)
+#if IVR_EARLY_TERMINATION
+  int stopped[IVR_RAYS];
+  IVR_STORE_RAYS(march_stopped(&r, march_threshold(min_transmittance)), stopped);
+#endif
+  IVR_STORE_RAYS(r.transmittance, T);
+  IVR_STORE_RAYS(r.cr, cr);
+  IVR_STORE_RAYS(r.cg, cg);
+  IVR_STORE_RAYS(r.cb, cb);
+  IVR_STORE_RAYS(r.kr, kr);
+  IVR_STORE_RAYS(r.kg, kg);
+  IVR_STORE_RAYS(r.kb, kb);
+  IVR_STORE_RAYS(r.tau, tau);
+  IVR_STORE_RAYS(r.ktau, ktau);
+  IVR_STORE_RAYS(r.samples, taken);
+  IVR_STORE_RAYS(i, next);
+  IVR_FOR_LANES(p) {
+    real dT[IVR_RAYS], dcr[IVR_RAYS], dcg[IVR_RAYS], dcb[IVR_RAYS];
+    IVR_STORE_RAYS(tr.dT[p], dT);
+    IVR_STORE_RAYS(tr.dcr[p], dcr);
+    IVR_STORE_RAYS(tr.dcg[p], dcg);
+    IVR_STORE_RAYS(tr.dcb[p], dcb);
+    for (int l = 0; l < IVR_RAYS; ++l) {
+      if (!w.entered[l]) continue;
+      __global real* q =
+          tangents + w.pixel[l] * (IVR_LANES * IVR_TANGENT_SUMS) + p * IVR_TANGENT_SUMS;
+      q[0] = dT[l];
+#if IVR_EMISSION
+      q[1] = dcr[l], q[2] = dcg[l], q[3] = dcb[l];
+#else
+      (void)dcr, (void)dcg, (void)dcb;
+#endif
+    }
+  }
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    if (!w.entered[l]) continue;
+    __global real* s = state + w.pixel[l] * IVR_BRICK_REALS;
+    __global uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
+    s[BS_T] = T[l];
+    s[BS_CR] = cr[l], s[BS_CG] = cg[l], s[BS_CB] = cb[l];
+    s[BS_KR] = kr[l], s[BS_KG] = kg[l], s[BS_KB] = kb[l];
+    s[BS_TAU] = tau[l], s[BS_KTAU] = ktau[l];
+    su[BU_SAMPLES] = (uint)taken[l];
+    su[BU_END] = (uint)next[l];
+    su[BU_NEXT] = (uint)next[l];
+    s[BS_TNEXT] = w.tb1[l];
+#if IVR_EARLY_TERMINATION
+    if (stopped[l] || w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+#else
+    if (w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+#endif
+  }
+}
+#endif

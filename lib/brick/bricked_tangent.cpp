@@ -122,14 +122,38 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
       camera |= pass_lanes[k].s[0] == IVR_LANE_CAMERA;
       voxel |= pass_lanes[k].s[0] == IVR_LANE_VOXEL;
     }
-    KernelConfig config = base;
-    config.set(Switch::lanes, ps.lanes)
-        .set(Switch::tangent_tf, tf)
-        .set(Switch::tangent_camera, camera)
-        .set(Switch::tangent_voxel, voxel)
-        .set(Switch::ray_gradient, ps.rays);
+    const auto pass_config = [&](KernelConfig config) {
+      return config.set(Switch::lanes, ps.lanes)
+          .set(Switch::tangent_tf, tf)
+          .set(Switch::tangent_camera, camera)
+          .set(Switch::tangent_voxel, voxel)
+          .set(Switch::ray_gradient, ps.rays);
+    };
+    const KernelConfig config = pass_config(base);
     cl::Kernel& k = s.kernels.get(config, &march.op.stats.build_seconds);
     march.op.stats.variant = config.label();
+    // On CPUs a pass of TF and background lanes marches packets of rays in vector lanes, as in
+    // core (march.lanes(): the fixed-step schemes on CPUs); camera, voxel and ray lanes, whose
+    // geometry is per ray, one ray per work-item. FINISH is the one-ray kernel's either way.
+    cl::Kernel* packet = nullptr;
+    if (march.lanes() > 1 && !camera && !voxel && !ps.rays) {
+      const KernelConfig pc =
+          pass_config(march.variant.config("bricked_tangent.cl", "bricked_tangent_packet"))
+              .set(Switch::jacobian, false)
+              .set(Switch::loss_gradient, true)
+              .set(Switch::loss_l1, o.loss == Loss::l1)
+              .set(Switch::loss_dot, o.loss == Loss::dot)
+              .set(Switch::rays, march.lanes());
+      packet = &s.kernels.get(pc, &march.op.stats.build_seconds);
+      march.op.stats.variant = pc.label();
+    }
+    cl::Kernel& marching = packet ? *packet : k;
+    const auto sweep = [&] {
+      if (packet)
+        march.sweep(*packet, kTangentMarch, {}, "bricked_packet", march.tile());
+      else
+        march.sweep(k, kTangentMarch, {}, "bricked");
+    };
     const PixelLaunch finish = pixel_launch(dev, k, "jacobian", e.width, e.height, e.views, true);
     const std::size_t groups = finish.groups_per_view * std::size_t(e.views);
     const std::size_t row = std::size_t(ps.lanes) + 1;
@@ -141,32 +165,35 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
     const cl::Buffer lanes_buf =
         dev.buffer(CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, pass_lanes.size() * sizeof(cl_int4),
                    pass_lanes.data(), "the tangent lanes");
-    const int a0 = march.arguments(k);
-    cl_call("setting the bricked tangent's arguments", [&] {
-      int a = a0 + 6;
-      k.setArg(a++, tangents);
-      k.setArg(a++, lanes_buf);
-      k.setArg(a++, s.camera_params);
-      k.setArg(a++, buffer_of(s.target));
-      set_real(k, a++, s.f64, 1.0 / double(rays * scene.channels()));
-      k.setArg(a++, buffer_of(march.image));
-      k.setArg(a++, per_ray);
-      k.setArg(a++, partial);
-      k.setArg(a++, cl::Local(std::size_t(finish.group_x) * finish.group_y * row * s.real_size));
-    });
+    int a0 = 0;
+    for (cl::Kernel* kernel : {&marching, &k})
+      cl_call("setting the bricked tangent's arguments", [&] {
+        a0 = march.arguments(*kernel);
+        int a = a0 + 6;
+        kernel->setArg(a++, tangents);
+        kernel->setArg(a++, lanes_buf);
+        kernel->setArg(a++, s.camera_params);
+        kernel->setArg(a++, buffer_of(s.target));
+        set_real(*kernel, a++, s.f64, 1.0 / double(rays * scene.channels()));
+        kernel->setArg(a++, buffer_of(march.image));
+        kernel->setArg(a++, per_ray);
+        kernel->setArg(a++, partial);
+        kernel->setArg(a++, cl::Local(std::size_t(finish.group_x) * finish.group_y * row *
+                                      s.real_size));
+      });
     // The march restarted (BEGIN), the tangents zero, the sweeps, then each pixel's terms.
     dev.queue.enqueueFillBuffer(tangents, cl_uchar(0), 0, tangent_count * s.real_size);
     if (segments) {
       const SegmentTangents carried{&tangents, ps.lanes, sums,
                                     ps.rays ? kColumns : int(ps.count),
-                                    [&] { march.sweep(k, kTangentMarch, {}, "bricked"); }};
+                                    sweep};
       SegmentMarch composited(march, scene, *domain, domain_stats, &carried);
       composited.write_totals();
       composited.write_tangents();
     } else {
       march.begin();
       march.carried = {tangents};  // (over slabs: they move with the rays' states)
-      march.sweep(k, kTangentMarch, {}, "bricked");
+      sweep();
     }
     cl_call("running the bricked tangent's finish on " + dev.info.name, [&] {
       march.set_brick(k, 0, 0);

@@ -2,8 +2,8 @@
 // lib/brick/bricked_tangent.cpp): the loss gradient through tangent lanes carried brick by brick
 // equals the in-core forward mode's for every lane kind (TF, background, camera, voxels, TF points,
 // scales, a ray list's own columns), under both models and precisions, with rays that stop early
-// and passes of several lanes; the camera beside the adjoint's groups; what is not covered is
-// refused.
+// and passes of several lanes — TF and background lanes in packets of rays on CPUs; the camera
+// beside the adjoint's groups; what is not covered is refused.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -233,6 +233,52 @@ TEST(BrickedForward, EverySchemeEqualsTheInCoreForwardMode) {
   o.mode = Mode::automatic;
   expect_same_gradient(in_core, gradient(device(), s, target, groups, o),
                        f64 == Precision::f64 ? 1e-10 : 1e-4, "preintegrated automatic");
+}
+
+// A pass of TF and background lanes alone marches packets of rays on CPUs (as in core; the
+// camera's passes above march one ray a work-item): every fixed-step scheme under both models,
+// rays stopping early, bricks of 1 and 3 cells, float64 (and float32 once) — the in-core forward
+// mode's gradient, and the one-ray out-of-core march's ($IVR_PACKET=0).
+TEST(BrickedForward, TfLanesInPacketsEqualTheInCoreForwardMode) {
+  struct Case {
+    Scheme scheme;
+    Model model;
+    const char* edge;
+  };
+  const Precision f64 = device().info().fp64 ? Precision::f64 : Precision::f32;
+  struct Run {
+    Case c;
+    Precision p;
+  };
+  // (Few cases: each compiles four kernels.)
+  for (const Run& run : {Run{{Scheme::midpoint, Model::emission_absorption, "1"}, f64},
+                         Run{{Scheme::midpoint, Model::absorption, "3"}, f64},
+                         Run{{Scheme::trapezoid, Model::emission_absorption, "3"}, f64},
+                         Run{{Scheme::preintegrated, Model::emission_absorption, "3"}, f64},
+                         Run{{Scheme::midpoint, Model::emission_absorption, "3"}, Precision::f32}}) {
+    {
+      const Case& c = run.c;
+      const Precision p = run.p;
+      Scene s = bricked_scene(c.model, c.scheme);
+      s.integrator.min_transmittance = 0.05;  // (early termination: rays stop in a brick)
+      const Image target = target_of(s);
+      GradientOptions o;
+      o.precision = p;
+      o.mode = Mode::forward;
+      const std::vector<std::string> groups = {"tf", "background"};
+      const Gradient in_core = gradient(device(), s, target, groups, o);
+      const std::string what = std::string(scheme_name(c.scheme)) +
+                               (c.model == Model::absorption ? " absorption " : " emission ") +
+                               name(p) + " bricks of " + c.edge;
+      ScopedEnv brick("IVR_VOLUME_BRICK", c.edge);
+      const Gradient packets = gradient(device(), s, target, groups, o);
+      EXPECT_GT(packets.bricks, 1) << what;
+      expect_same_gradient(in_core, packets, tolerance(p), what);
+      ScopedEnv one_ray("IVR_PACKET", "0");
+      expect_same_gradient(gradient(device(), s, target, groups, o), packets, tolerance(p),
+                           what + " (one ray a work-item)");
+    }
+  }
 }
 
 }  // namespace

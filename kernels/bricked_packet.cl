@@ -37,41 +37,26 @@ __kernel void bricked_render_packet(
   if (!brick_enter_lanes(state, state_u, x0, y0, view, width, height, brick_lo, brick_hi, origin,
                          &w))
     return;
-  real T[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS], kr[IVR_RAYS], kg[IVR_RAYS],
-      kb[IVR_RAYS], tau[IVR_RAYS], ktau[IVR_RAYS];
-  int next[IVR_RAYS], taken[IVR_RAYS], end[IVR_RAYS];
   // The endpoint schemes' carried end sample, and whether the lane's march has taken sample 0.
   real ad[IVR_RAYS], asigma[IVR_RAYS], aer[IVR_RAYS], aeg[IVR_RAYS], aeb[IVR_RAYS];
   int started[IVR_RAYS];
   for (int l = 0; l < IVR_RAYS; ++l) {
     if (w.entered[l]) {
       __global const real* s = state + w.pixel[l] * IVR_BRICK_REALS;
-      __global const uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
-      T[l] = s[BS_T], cr[l] = s[BS_CR], cg[l] = s[BS_CG], cb[l] = s[BS_CB];
-      kr[l] = s[BS_KR], kg[l] = s[BS_KG], kb[l] = s[BS_KB], tau[l] = s[BS_TAU],
-      ktau[l] = s[BS_KTAU];
-      next[l] = (int)su[BU_NEXT], taken[l] = (int)su[BU_SAMPLES], end[l] = (int)su[BU_END];
       ad[l] = s[BS_AD], asigma[l] = s[BS_ASIGMA];
       aer[l] = s[BS_AER], aeg[l] = s[BS_AEG], aeb[l] = s[BS_AEB];
-      started[l] = (su[BU_FLAGS] & IVR_BRICK_STARTED) ? 1 : 0;
+      started[l] = (state_u[w.pixel[l] * IVR_BRICK_UINTS + BU_FLAGS] & IVR_BRICK_STARTED) ? 1 : 0;
     } else {
-      T[l] = (real)1;
-      cr[l] = cg[l] = cb[l] = kr[l] = kg[l] = kb[l] = tau[l] = ktau[l] = (real)0;
-      next[l] = taken[l] = end[l] = 0;
       ad[l] = asigma[l] = aer[l] = aeg[l] = aeb[l] = (real)0;
       started[l] = 1;
     }
   }
   const March m = lanes_march(&w);
-  Radiance r;
-  r.transmittance = IVR_LOAD_RAYS(T);
-  r.cr = IVR_LOAD_RAYS(cr), r.cg = IVR_LOAD_RAYS(cg), r.cb = IVR_LOAD_RAYS(cb);
-  r.kr = IVR_LOAD_RAYS(kr), r.kg = IVR_LOAD_RAYS(kg), r.kb = IVR_LOAD_RAYS(kb);
-  r.tau = IVR_LOAD_RAYS(tau), r.ktau = IVR_LOAD_RAYS(ktau);
-  r.samples = IVR_LOAD_RAYS(taken), r.end = IVR_LOAD_RAYS(end);
+  vint i;
+  Radiance r = brick_load_lanes(state, state_u, &w, &i);
   const vreal window_end = IVR_LOAD_RAYS(w.tb1);
-  vint i = IVR_LOAD_RAYS(next);
   const real threshold = march_threshold(min_transmittance);
+  (void)threshold;  // (early termination off)
   vint segment = (vint)0;  // the TF's search cursor (tf_sample)
   const vint entered = IVR_LOAD_RAYS(w.entered) != (vint)0;
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT
@@ -145,45 +130,14 @@ __kernel void bricked_render_packet(
   IVR_STORE_RAYS(a.eg, aeg);
   IVR_STORE_RAYS(a.eb, aeb);
 #endif
-#if IVR_EARLY_TERMINATION
-  int stopped[IVR_RAYS];
-  IVR_STORE_RAYS(march_stopped(&r, threshold), stopped);
-#else
-  (void)threshold;
-#endif
-  IVR_STORE_RAYS(r.transmittance, T);
-  IVR_STORE_RAYS(r.cr, cr);
-  IVR_STORE_RAYS(r.cg, cg);
-  IVR_STORE_RAYS(r.cb, cb);
-  IVR_STORE_RAYS(r.kr, kr);
-  IVR_STORE_RAYS(r.kg, kg);
-  IVR_STORE_RAYS(r.kb, kb);
-  IVR_STORE_RAYS(r.tau, tau);
-  IVR_STORE_RAYS(r.ktau, ktau);
-  IVR_STORE_RAYS(r.samples, taken);
-  IVR_STORE_RAYS(r.end, end);
-  IVR_STORE_RAYS(i, next);
+  brick_store_lanes(&r, i, min_transmittance, state, state_u, &w);
+#if IVR_ENDPOINT_SAMPLES
   for (int l = 0; l < IVR_RAYS; ++l) {
     if (!w.entered[l]) continue;
     __global real* s = state + w.pixel[l] * IVR_BRICK_REALS;
-    __global uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
-    s[BS_T] = T[l];
-    s[BS_CR] = cr[l], s[BS_CG] = cg[l], s[BS_CB] = cb[l];
-    s[BS_KR] = kr[l], s[BS_KG] = kg[l], s[BS_KB] = kb[l];
-    s[BS_TAU] = tau[l], s[BS_KTAU] = ktau[l];
-    su[BU_SAMPLES] = (uint)taken[l];
-    su[BU_END] = (uint)end[l];
-    su[BU_NEXT] = (uint)next[l];
-    s[BS_TNEXT] = w.tb1[l];
-#if IVR_ENDPOINT_SAMPLES
     s[BS_AD] = ad[l], s[BS_ASIGMA] = asigma[l];
     s[BS_AER] = aer[l], s[BS_AEG] = aeg[l], s[BS_AEB] = aeb[l];
-    su[BU_FLAGS] |= IVR_BRICK_STARTED;
-#endif
-#if IVR_EARLY_TERMINATION
-    if (stopped[l] || w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
-#else
-    if (w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
-#endif
+    state_u[w.pixel[l] * IVR_BRICK_UINTS + BU_FLAGS] |= IVR_BRICK_STARTED;
   }
+#endif
 }

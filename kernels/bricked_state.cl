@@ -117,6 +117,86 @@ inline March lanes_march(const LaneWindows* w) {
   return m;
 }
 
+#if IVR_RAYS > 1
+// The packet kernels' (bricked_packet.cl, bricked_tangent.cl): the lanes' radiance sums and sample
+// counters from their states — a lane that does not enter an empty march (T = 1) — and in *next
+// the sample each lane's march goes on from.
+inline Radiance brick_load_lanes(__global const real* state, __global const uint* state_u,
+                                 const LaneWindows* w, vint* next) {
+  real T[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS], kr[IVR_RAYS], kg[IVR_RAYS],
+      kb[IVR_RAYS], tau[IVR_RAYS], ktau[IVR_RAYS];
+  int at[IVR_RAYS], taken[IVR_RAYS], end[IVR_RAYS];
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    if (w->entered[l]) {
+      __global const real* s = state + w->pixel[l] * IVR_BRICK_REALS;
+      __global const uint* su = state_u + w->pixel[l] * IVR_BRICK_UINTS;
+      T[l] = s[BS_T], cr[l] = s[BS_CR], cg[l] = s[BS_CG], cb[l] = s[BS_CB];
+      kr[l] = s[BS_KR], kg[l] = s[BS_KG], kb[l] = s[BS_KB], tau[l] = s[BS_TAU],
+      ktau[l] = s[BS_KTAU];
+      at[l] = (int)su[BU_NEXT], taken[l] = (int)su[BU_SAMPLES], end[l] = (int)su[BU_END];
+    } else {
+      T[l] = (real)1;
+      cr[l] = cg[l] = cb[l] = kr[l] = kg[l] = kb[l] = tau[l] = ktau[l] = (real)0;
+      at[l] = taken[l] = end[l] = 0;
+    }
+  }
+  Radiance r;
+  r.transmittance = IVR_LOAD_RAYS(T);
+  r.cr = IVR_LOAD_RAYS(cr), r.cg = IVR_LOAD_RAYS(cg), r.cb = IVR_LOAD_RAYS(cb);
+  r.kr = IVR_LOAD_RAYS(kr), r.kg = IVR_LOAD_RAYS(kg), r.kb = IVR_LOAD_RAYS(kb);
+  r.tau = IVR_LOAD_RAYS(tau), r.ktau = IVR_LOAD_RAYS(ktau);
+  r.samples = IVR_LOAD_RAYS(taken), r.end = IVR_LOAD_RAYS(end);
+  *next = IVR_LOAD_RAYS(at);
+  return r;
+}
+
+// Back into the states of the lanes that entered: the sums, the counters, the next sample, and
+// where the next brick's window starts (this one's end); a lane whose march stopped early or
+// reached its end is done.
+inline void brick_store_lanes(const Radiance* r, vint next, real min_transmittance,
+                              __global real* state, __global uint* state_u, const LaneWindows* w) {
+  real T[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS], kr[IVR_RAYS], kg[IVR_RAYS],
+      kb[IVR_RAYS], tau[IVR_RAYS], ktau[IVR_RAYS];
+  int at[IVR_RAYS], taken[IVR_RAYS], end[IVR_RAYS];
+#if IVR_EARLY_TERMINATION
+  int stopped[IVR_RAYS];
+  IVR_STORE_RAYS(march_stopped(r, march_threshold(min_transmittance)), stopped);
+#else
+  (void)min_transmittance;
+#endif
+  IVR_STORE_RAYS(r->transmittance, T);
+  IVR_STORE_RAYS(r->cr, cr);
+  IVR_STORE_RAYS(r->cg, cg);
+  IVR_STORE_RAYS(r->cb, cb);
+  IVR_STORE_RAYS(r->kr, kr);
+  IVR_STORE_RAYS(r->kg, kg);
+  IVR_STORE_RAYS(r->kb, kb);
+  IVR_STORE_RAYS(r->tau, tau);
+  IVR_STORE_RAYS(r->ktau, ktau);
+  IVR_STORE_RAYS(r->samples, taken);
+  IVR_STORE_RAYS(r->end, end);
+  IVR_STORE_RAYS(next, at);
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    if (!w->entered[l]) continue;
+    __global real* s = state + w->pixel[l] * IVR_BRICK_REALS;
+    __global uint* su = state_u + w->pixel[l] * IVR_BRICK_UINTS;
+    s[BS_T] = T[l];
+    s[BS_CR] = cr[l], s[BS_CG] = cg[l], s[BS_CB] = cb[l];
+    s[BS_KR] = kr[l], s[BS_KG] = kg[l], s[BS_KB] = kb[l];
+    s[BS_TAU] = tau[l], s[BS_KTAU] = ktau[l];
+    su[BU_SAMPLES] = (uint)taken[l];
+    su[BU_END] = (uint)end[l];
+    su[BU_NEXT] = (uint)at[l];
+    s[BS_TNEXT] = w->tb1[l];
+#if IVR_EARLY_TERMINATION
+    if (stopped[l] || w->tb1[l] >= w->tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+#else
+    if (w->tb1[l] >= w->tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+#endif
+  }
+}
+#endif
+
 // One ray's Radiance sums from its state, and back (the one-ray kernels').
 #if IVR_RAYS == 1
 inline Radiance brick_load(__global const real* s, __global const uint* su) {

@@ -183,30 +183,9 @@ __kernel void bricked_tangent_packet(
   if (!brick_enter_lanes(state, state_u, x0, y0, view, width, height, brick_lo, brick_hi, origin,
                          &w))
     return;
-  real T[IVR_RAYS], cr[IVR_RAYS], cg[IVR_RAYS], cb[IVR_RAYS], kr[IVR_RAYS], kg[IVR_RAYS],
-      kb[IVR_RAYS], tau[IVR_RAYS], ktau[IVR_RAYS];
-  int next[IVR_RAYS], taken[IVR_RAYS], end[IVR_RAYS];
-  for (int l = 0; l < IVR_RAYS; ++l) {
-    if (w.entered[l]) {
-      __global const real* s = state + w.pixel[l] * IVR_BRICK_REALS;
-      __global const uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
-      T[l] = s[BS_T], cr[l] = s[BS_CR], cg[l] = s[BS_CG], cb[l] = s[BS_CB];
-      kr[l] = s[BS_KR], kg[l] = s[BS_KG], kb[l] = s[BS_KB], tau[l] = s[BS_TAU],
-      ktau[l] = s[BS_KTAU];
-      next[l] = (int)su[BU_NEXT], taken[l] = (int)su[BU_SAMPLES], end[l] = (int)su[BU_END];
-    } else {  // (n = 0: marches nothing, stores nothing)
-      T[l] = (real)1;
-      cr[l] = cg[l] = cb[l] = kr[l] = kg[l] = kb[l] = tau[l] = ktau[l] = (real)0;
-      next[l] = taken[l] = end[l] = 0;
-    }
-  }
   const March m = lanes_march(&w);
-  Radiance r;
-  r.transmittance = IVR_LOAD_RAYS(T);
-  r.cr = IVR_LOAD_RAYS(cr), r.cg = IVR_LOAD_RAYS(cg), r.cb = IVR_LOAD_RAYS(cb);
-  r.kr = IVR_LOAD_RAYS(kr), r.kg = IVR_LOAD_RAYS(kg), r.kb = IVR_LOAD_RAYS(kb);
-  r.tau = IVR_LOAD_RAYS(tau), r.ktau = IVR_LOAD_RAYS(ktau);
-  r.samples = IVR_LOAD_RAYS(taken), r.end = IVR_LOAD_RAYS(end);
+  vint i;
+  Radiance r = brick_load_lanes(state, state_u, &w, &i);
   // The lanes (TF and background: no geometry of their own) and each lane's carried tangents.
   const Ray ray = {(real3)(real)0, (real3)(real)0};
   TangentRay tr;
@@ -229,7 +208,6 @@ __kernel void bricked_tangent_packet(
     tr.dT[p] = IVR_LOAD_RAYS(dT), tr.dcr[p] = IVR_LOAD_RAYS(dcr);
     tr.dcg[p] = IVR_LOAD_RAYS(dcg), tr.dcb[p] = IVR_LOAD_RAYS(dcb);
   }
-  vint i = IVR_LOAD_RAYS(next);
   const vreal window_end = IVR_LOAD_RAYS(w.tb1);
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT
   tangent_march_midpoint_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars,
@@ -241,21 +219,7 @@ __kernel void bricked_tangent_packet(
                                  window_end, &i);
 #endif
   r.end = i;  // (as bricked_tangent: the march's end is where this window left it)
-#if IVR_EARLY_TERMINATION
-  int stopped[IVR_RAYS];
-  IVR_STORE_RAYS(march_stopped(&r, march_threshold(min_transmittance)), stopped);
-#endif
-  IVR_STORE_RAYS(r.transmittance, T);
-  IVR_STORE_RAYS(r.cr, cr);
-  IVR_STORE_RAYS(r.cg, cg);
-  IVR_STORE_RAYS(r.cb, cb);
-  IVR_STORE_RAYS(r.kr, kr);
-  IVR_STORE_RAYS(r.kg, kg);
-  IVR_STORE_RAYS(r.kb, kb);
-  IVR_STORE_RAYS(r.tau, tau);
-  IVR_STORE_RAYS(r.ktau, ktau);
-  IVR_STORE_RAYS(r.samples, taken);
-  IVR_STORE_RAYS(i, next);
+  brick_store_lanes(&r, i, min_transmittance, state, state_u, &w);
   IVR_FOR_LANES(p) {
     real dT[IVR_RAYS], dcr[IVR_RAYS], dcg[IVR_RAYS], dcb[IVR_RAYS];
     IVR_STORE_RAYS(tr.dT[p], dT);
@@ -273,24 +237,6 @@ __kernel void bricked_tangent_packet(
       (void)dcr, (void)dcg, (void)dcb;
 #endif
     }
-  }
-  for (int l = 0; l < IVR_RAYS; ++l) {
-    if (!w.entered[l]) continue;
-    __global real* s = state + w.pixel[l] * IVR_BRICK_REALS;
-    __global uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
-    s[BS_T] = T[l];
-    s[BS_CR] = cr[l], s[BS_CG] = cg[l], s[BS_CB] = cb[l];
-    s[BS_KR] = kr[l], s[BS_KG] = kg[l], s[BS_KB] = kb[l];
-    s[BS_TAU] = tau[l], s[BS_KTAU] = ktau[l];
-    su[BU_SAMPLES] = (uint)taken[l];
-    su[BU_END] = (uint)next[l];
-    su[BU_NEXT] = (uint)next[l];
-    s[BS_TNEXT] = w.tb1[l];
-#if IVR_EARLY_TERMINATION
-    if (stopped[l] || w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
-#else
-    if (w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
-#endif
   }
 }
 #endif

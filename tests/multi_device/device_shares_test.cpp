@@ -16,7 +16,9 @@
 #include "ivr/planner.hpp"
 #include "ivr/render.hpp"
 #include "ivr/tomo.hpp"
+#include "brick/brick_support.hpp"
 #include "test_support.hpp"
+#include "views_scene.hpp"
 
 namespace ivr::test {
 namespace {
@@ -132,36 +134,11 @@ TEST(DeviceShares, WeightsAreTheDevicesSpeeds) {
   EXPECT_EQ(share_weights(pointers_to(two)), (std::vector<double>{4e8, 4e8}));
 }
 
-Scene six_views() {
-  Scene s = constant_scene(0.5f, 6, 8);
-  std::mt19937 rng(6);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  for (float& v : s.volume.data) v = u(rng);
-  s.model = Model::emission_absorption;
-  s.tf.kind = TfKind::piecewise_linear;
-  s.tf.points = {{0.0, {0.1, 0.2, 0.3}, 0.5}, {0.6, {1.0, 0.6, 0.2}, 12.0}, {1.0, {0.3, 0.9, 0.4}, 4.0}};
-  s.background = {0.1, 0.2, 0.3};
-  s.cameras.clear();
-  for (int v = 0; v < 6; ++v) {
-    Camera c;
-    c.eye = {2 * std::sin(v * 1.1), 0.3, 2 * std::cos(v * 1.1)};
-    c.width = 8, c.height = 7;
-    s.cameras.push_back(c);
-  }
-  return s;
-}
-
-double largest(const std::vector<double>& v) {
-  double m = 1e-30;
-  for (double x : v) m = std::max(m, std::abs(x));
-  return m;
-}
-
 // Unequal shares over 2 and 3 contexts: the render is the one device's exactly; the gradients
 // (density, TF, background, camera) within rounding, the density in fixed point bit for bit; a
 // device whose share is empty does not run; tomography's iterate within rounding.
 TEST(DeviceShares, UnequalSharesEqualOneDevice) {
-  const Scene s = six_views();
+  const Scene s = views_scene(6);
   const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
   const double tol = p == Precision::f64 ? 1e-12 : 1e-5;
   RenderOptions ro;
@@ -255,7 +232,7 @@ TEST(DeviceShares, UnequalSharesEqualOneDevice) {
 // 1 : 5 over 6 views, its sum over the workers left as its own part (the other's zeros), holds
 // 1/6 of the loss of view 0 alone — with equal shares it would be half of views 0–2's.
 TEST(DeviceShares, AWorkerTakesItsWeightedShare) {
-  const Scene s = six_views();
+  const Scene s = views_scene(6);
   RenderOptions ro;
   const Image one = render(device(), s, ro);
   Image target = one;

@@ -14,31 +14,13 @@
 #include "ivr/render.hpp"
 #include "ivr/tomo.hpp"
 #include "test_support.hpp"
+#include "views_scene.hpp"
 
 namespace ivr::test {
 namespace {
 
-Scene five_views() {
-  Scene s = constant_scene(0.5f, 6, 8);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  for (float& v : s.volume.data) v = u(rng);
-  s.model = Model::emission_absorption;
-  s.tf.kind = TfKind::piecewise_linear;
-  s.tf.points = {{0.0, {0.1, 0.2, 0.3}, 0.5}, {0.6, {1.0, 0.6, 0.2}, 12.0}, {1.0, {0.3, 0.9, 0.4}, 4.0}};
-  s.background = {0.1, 0.2, 0.3};
-  s.cameras.clear();
-  for (int v = 0; v < 5; ++v) {
-    Camera c;
-    c.eye = {2 * std::sin(v * 1.3), 0.4, 2 * std::cos(v * 1.3)};
-    c.width = 8, c.height = 7;
-    s.cameras.push_back(c);
-  }
-  return s;
-}
-
 TEST(MultiDevice, RenderAndGradientsEqualOneDevice) {
-  const Scene s = five_views();
+  const Scene s = views_scene(5);
   const Precision p = device().info().fp64 ? Precision::f64 : Precision::f32;
   RenderOptions ro;
   ro.precision = p;
@@ -110,7 +92,7 @@ TEST(MultiDevice, CommandLine) {
 // residuals are one device's to rounding; a progress stopping after iteration 3 is asked on one
 // device and stops them all.
 TEST(MultiDevice, TomoOverViewsEqualsOneDevice) {
-  Scene s = five_views();
+  Scene s = views_scene(5);
   s.model = Model::absorption;
   s.tf = TransferFunction{};  // (identity)
   TomoOptions o;

@@ -176,10 +176,11 @@ std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
     throw input_error("--shares: under mpirun each rank takes an equal share (one device a rank)");
   if (!shares.empty() && split != "views")
     throw input_error("--shares: the views' shares; --split " + split + " cuts equal slabs");
-  const std::vector<double> weights = share_weights(devices, shares);  // (checks them)
+  if (!shares.empty()) share_weights(devices, shares);  // (checks them)
   if (devices.size() < 2 || split != "views" || world().size > 1) return {};
   std::vector<std::size_t> counts;
-  for (const auto& part : view_shares(items, weights)) counts.push_back(part.second);
+  for (const auto& part : view_shares(items, share_weights(devices, shares)))
+    counts.push_back(part.second);
   return counts;
 }
 

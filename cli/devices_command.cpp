@@ -18,13 +18,19 @@ Runner add_devices_command(CLI::App& app) {
       return 0;
     }
     for (const DeviceInfo& d : devices) {
-      // The speed several devices' shares of the views follow (--shares' default).
-      const CostModel model = load_cost_model(d);
+      // The speed several devices' shares of the views follow (--shares' default); a calibration
+      // file that cannot be read is said, and the other devices listed.
+      std::string speed;
+      try {
+        const CostModel model = load_cost_model(d);
+        speed = std::to_string(1e-6 / model.seconds_per_sample) + " M samples/s, " +
+                (model.source == "default" ? "estimated" : "calibrated");
+      } catch (const Error& e) {
+        speed = std::string("speed unknown: ") + e.what();
+      }
       std::cout << "[" << d.index << "] " << d.name << "  (" << d.type << ", " << d.platform << ", "
                 << d.version << ", " << d.compute_units << " CUs, " << (d.global_memory >> 20)
-                << " MiB" << (d.fp64 ? ", fp64" : "") << "; "
-                << 1e-6 / model.seconds_per_sample << " M samples/s, "
-                << (model.source == "default" ? "estimated" : "calibrated") << ")\n";
+                << " MiB" << (d.fp64 ? ", fp64" : "") << "; " << speed << ")\n";
     }
     return 0;
   };

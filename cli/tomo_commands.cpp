@@ -360,7 +360,10 @@ Runner add_tomo_command(CLI::App& app) {
       std::cout << nlohmann::json{{"solver", solver_name(args->options.solver)},
                                   {"precision", c.precision},
                                   {"device", device.info().name}, {"bricks", r.bricks},
-                                  {"devices", opened.size()},
+                                  {"devices", shares.empty() ? opened.size()
+                                                             : std::size_t(std::count_if(
+                                                                   shares.begin(), shares.end(),
+                                                                   [](std::size_t c) { return c > 0; }))},
                                   {"shares", shares},
                                   {"ranks", world().size},
                                   {"split", args->split},

@@ -56,7 +56,7 @@ __kernel void bricked_render_packet(
   Radiance r = brick_load_lanes(state, state_u, &w, &i);
   const vreal window_end = IVR_LOAD_RAYS(w.tb1);
   const real threshold = march_threshold(min_transmittance);
-  (void)threshold;  // (early termination off)
+  (void)threshold;  // (used where early termination is on)
   vint segment = (vint)0;  // the TF's search cursor (tf_sample)
   const vint entered = IVR_LOAD_RAYS(w.entered) != (vint)0;
 #if IVR_SCHEME == IVR_SCHEME_MIDPOINT

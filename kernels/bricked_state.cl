@@ -117,7 +117,6 @@ inline March lanes_march(const LaneWindows* w) {
   return m;
 }
 
-#if IVR_RAYS > 1
 // The packet kernels' (bricked_packet.cl, bricked_tangent.cl): the lanes' radiance sums and sample
 // counters from their states — a lane that does not enter an empty march (T = 1) — and in *next
 // the sample each lane's march goes on from.
@@ -195,7 +194,6 @@ inline void brick_store_lanes(const Radiance* r, vint next, real min_transmittan
 #endif
   }
 }
-#endif
 
 // One ray's Radiance sums from its state, and back (the one-ray kernels').
 #if IVR_RAYS == 1

@@ -47,7 +47,10 @@ std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
     std::vector<double> fraction(weights.size());
     std::size_t given = 0;
     for (std::size_t d = 0; d < weights.size(); ++d) {
-      const double quota = double(n) * (weights[d] / total);
+      // (n · w first: where the weights are counts summing to n, each quota is its count exactly,
+      // so a share's counts given back as weights split the same way)
+      double quota = double(n) * weights[d] / total;
+      if (!std::isfinite(quota)) quota = double(n) * (weights[d] / total);
       count[d] = std::min(n - given, std::size_t(std::floor(quota)));
       fraction[d] = quota - std::floor(quota);
       given += count[d];
@@ -78,6 +81,7 @@ std::vector<double> share_weights(const std::vector<Device*>& devices,
     view_shares(0, given);  // (each weight checked)
     return given;
   }
+  if (devices.size() == 1) return {1.0};  // (one device takes every view: no cost model read)
   std::vector<double> out;
   for (const Device* d : devices) {
     const double speed = samples_per_second(d->info());
@@ -97,11 +101,13 @@ std::vector<std::size_t> active_shares(const std::vector<Device*>& devices, std:
                                        std::vector<double>* weights) {
   const std::vector<double> w = share_weights(devices, given);
   parts = view_shares(n, w);
+  // The active devices' weights are their counts: a worker splitting the same n by them gets the
+  // same shares back (by the remaining weights alone the remainders could fall otherwise).
   std::vector<std::size_t> active;
   for (std::size_t i = 0; i < parts.size(); ++i)
     if (parts[i].second > 0) {
       active.push_back(i);
-      if (weights) weights->push_back(w[i]);
+      if (weights) weights->push_back(double(parts[i].second));
     }
   return active;
 }
@@ -213,7 +219,7 @@ Gradient gradient(const std::vector<Device*>& devices, const Scene& scene, const
       [&](std::size_t i) {
         GradientOptions o = options;
         o.worker = int(i), o.workers = int(workers), o.sum = sum.of(int(i));
-        o.shares = weights;  // (the active devices' own: each its share of `parts`)
+        o.shares = weights;  // (the active devices' counts: each its share of `parts`)
         g[i] = gradient(*devices[active[i]], scene, target, groups, o);
       },
       [&] { sum.abort(); });

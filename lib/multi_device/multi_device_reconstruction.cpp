@@ -55,7 +55,7 @@ MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>&
   // weight; over slabs every device, in equal slabs.
   std::vector<Device*> taking = devices;
   std::vector<double> weights;
-  if (!options.slabs) {
+  if (!options.slabs && !scene.has_ray_list()) {  // (a ray list: refused by the workers)
     const int views = image_extent(scene).views;
     const int batch = options.batch > 0 ? std::min(options.batch, views) : views;
     std::vector<std::pair<std::size_t, std::size_t>> parts;

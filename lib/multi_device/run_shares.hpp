@@ -49,7 +49,8 @@ inline void check_devices(const std::vector<Device*>& devices) {
 
 // Each device's share of n items in proportion to share_weights(devices, given) (`parts`, one a
 // device), and the devices whose share is not empty — those that run — in order, with their
-// weights in `weights` where asked for (multi_device.cpp).
+// counts as weights in `weights` where asked for: what their workers split n by to get the same
+// shares back (multi_device.cpp).
 std::vector<std::size_t> active_shares(const std::vector<Device*>& devices, std::size_t n,
                                        const std::vector<double>& given,
                                        std::vector<std::pair<std::size_t, std::size_t>>& parts,

@@ -161,7 +161,10 @@ TEST(DeviceShares, UnequalSharesEqualOneDevice) {
     int running;  // devices with views
   };
   for (const Case& c : {Case{{3.0, 1.0}, 2}, Case{{1.0, 4.0}, 2}, Case{{1.0, 5.0, 2.0}, 3},
-                        Case{{1.0, 1000.0}, 1}, Case{{1000.0, 1.0, 1000.0}, 2}}) {
+                        Case{{1.0, 1000.0}, 1}, Case{{1000.0, 1.0, 1000.0}, 2},
+                        // 1, 0, 5 views: by the running devices' weights alone (0.05 : 0.7) the
+                        // first would get none; they take their counts.
+                        Case{{0.05, 0.05, 0.7}, 2}}) {
     std::string what = "shares";
     for (double w : c.shares) what += " " + std::to_string(w);
     const auto devices = device_contexts(int(c.shares.size()));

@@ -116,20 +116,23 @@ TEST(MultiDeviceReconstruction, ViewsFollowOneDeviceBitForBit) {
   o.deterministic = true;
   Reconstruction one(device(), p.scene, p.targets, o);
   while (!one.done()) one.step();
-  const auto devices = test::device_contexts(2);
-  // Equal shares (equal speeds), 3 : 1 and 1 : 3 of each batch of 4, and a device whose share
-  // would be empty, which takes no part.
+  const auto contexts = test::device_contexts(3);
+  // Equal shares (equal speeds), 3 : 1 and 1 : 3 of each batch of 4, a device whose share would
+  // be empty, which takes no part, and 0.05 : 0.5 : 0.05 over 3 devices — 1, 3 and 0 views, which
+  // by the two running devices' weights alone would be 0 and 4.
   struct Case {
     std::vector<double> shares;
     int taking;
   };
-  for (const Case& c : {Case{{}, 2}, Case{{3.0, 1.0}, 2}, Case{{1.0, 3.0}, 2}, Case{{1.0, 1e6}, 1}}) {
-    const std::string what = c.shares.empty() ? "equal shares"
-                                              : "shares " + std::to_string(c.shares[0]) + ":" +
-                                                    std::to_string(c.shares[1]);
+  for (const Case& c : {Case{{}, 2}, Case{{3.0, 1.0}, 2}, Case{{1.0, 3.0}, 2}, Case{{1.0, 1e6}, 1},
+                        Case{{0.05, 0.5, 0.05}, 2}}) {
+    std::string what = "shares";
+    for (double w : c.shares) what += " " + std::to_string(w);
     ReconstructOptions weighted = o;
     weighted.shares = c.shares;
-    MultiDeviceReconstruction many(test::pointers_to(devices), p.scene, p.targets, weighted);
+    std::vector<Device*> devices = test::pointers_to(contexts);
+    devices.resize(std::max<std::size_t>(c.shares.size(), 2));
+    MultiDeviceReconstruction many(devices, p.scene, p.targets, weighted);
     EXPECT_EQ(many.devices(), c.taking) << what;
     while (!many.done()) EXPECT_TRUE(many.step().deterministic) << what;
     ASSERT_EQ(many.history().size(), one.history().size()) << what;

@@ -176,8 +176,10 @@ std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
     throw input_error("--shares: under mpirun each rank takes an equal share (one device a rank)");
   if (!shares.empty() && split != "views")
     throw input_error("--shares: the views' shares; --split " + split + " cuts equal slabs");
-  if (!shares.empty()) share_weights(devices, shares);  // (checks them)
-  if (devices.size() < 2 || split != "views" || world().size > 1) return {};
+  if (devices.size() < 2 || split != "views" || world().size > 1) {
+    if (!shares.empty()) share_weights(devices, shares);  // (one device: their count checked)
+    return {};
+  }
   std::vector<std::size_t> counts;
   for (const auto& part : view_shares(items, share_weights(devices, shares)))
     counts.push_back(part.second);

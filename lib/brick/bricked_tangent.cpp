@@ -105,11 +105,14 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
   const std::size_t per_ray_size = ray_lanes ? rays * kColumns : 1;
   const cl::Buffer per_ray =
       dev.buffer(CL_MEM_READ_WRITE, per_ray_size * s.real_size, nullptr, "the rays' gradients");
-  KernelConfig base = march.variant.config("bricked_tangent.cl", "bricked_tangent");
-  base.set(Switch::jacobian, false)
-      .set(Switch::loss_gradient, true)
-      .set(Switch::loss_l1, o.loss == Loss::l1)
-      .set(Switch::loss_dot, o.loss == Loss::dot);
+  // The loss gradient's kernel `name` (bricked_tangent, or its packets bricked_tangent_packet).
+  const auto loss_config = [&](const char* name) {
+    return march.variant.config("bricked_tangent.cl", name)
+        .set(Switch::jacobian, false)
+        .set(Switch::loss_gradient, true)
+        .set(Switch::loss_l1, o.loss == Loss::l1)
+        .set(Switch::loss_dot, o.loss == Loss::dot);
+  };
   for (std::size_t pass = 0; pass < passes.size(); ++pass) {
     const Pass& ps = passes[pass];
     std::vector<cl_int4> pass_lanes(std::size_t(ps.lanes), cl_int4{{IVR_LANE_NONE, 0, 0, 0}});
@@ -122,14 +125,15 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
       camera |= pass_lanes[k].s[0] == IVR_LANE_CAMERA;
       voxel |= pass_lanes[k].s[0] == IVR_LANE_VOXEL;
     }
-    const auto pass_config = [&](KernelConfig config) {
-      return config.set(Switch::lanes, ps.lanes)
+    const auto pass_config = [&](const char* name) {
+      return loss_config(name)
+          .set(Switch::lanes, ps.lanes)
           .set(Switch::tangent_tf, tf)
           .set(Switch::tangent_camera, camera)
           .set(Switch::tangent_voxel, voxel)
           .set(Switch::ray_gradient, ps.rays);
     };
-    const KernelConfig config = pass_config(base);
+    const KernelConfig config = pass_config("bricked_tangent");
     cl::Kernel& k = s.kernels.get(config, &march.op.stats.build_seconds);
     march.op.stats.variant = config.label();
     // On CPUs a pass of TF and background lanes marches packets of rays in vector lanes, as in
@@ -138,12 +142,7 @@ BrickedTangent tangent_bricked(Device& device, const Scene& scene, const Image& 
     cl::Kernel* packet = nullptr;
     if (march.lanes() > 1 && !camera && !voxel && !ps.rays) {
       const KernelConfig pc =
-          pass_config(march.variant.config("bricked_tangent.cl", "bricked_tangent_packet"))
-              .set(Switch::jacobian, false)
-              .set(Switch::loss_gradient, true)
-              .set(Switch::loss_l1, o.loss == Loss::l1)
-              .set(Switch::loss_dot, o.loss == Loss::dot)
-              .set(Switch::rays, march.lanes());
+          pass_config("bricked_tangent_packet").set(Switch::rays, march.lanes());
       packet = &s.kernels.get(pc, &march.op.stats.build_seconds);
       march.op.stats.variant = pc.label();
     }

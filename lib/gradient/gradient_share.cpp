@@ -8,6 +8,7 @@
 #include "gradient/gradient.hpp"
 #include "ivr/error.hpp"
 #include "ivr/tolerance.hpp"
+#include "multi_device/run_shares.hpp"
 #include "runtime/runtime.hpp"
 
 namespace ivr {
@@ -48,12 +49,7 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
   if (n == 0 || target.pixels.size() != n * per_item)
     throw bad(o, "the target holds " + std::to_string(target.pixels.size()) +
                      " values, the scene's images " + std::to_string(n * per_item));
-  if (!o.shares.empty() && o.shares.size() != std::size_t(o.workers))
-    throw bad(o, "shares: " + std::to_string(o.shares.size()) + " weights for " +
-                     std::to_string(o.workers) + " workers");
-  const auto [first, count] =
-      view_shares(n, o.shares.empty() ? std::vector<double>(std::size_t(o.workers), 1.0)
-                                      : o.shares)[std::size_t(o.worker)];
+  const auto [first, count] = worker_share(n, o.worker, o.workers, o.shares);
   const bool active = count > 0;
 
   GradientOptions mine = o;

@@ -15,13 +15,10 @@
 namespace ivr {
 
 std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n, std::size_t parts) {
+  if (parts == 0) return {};
   std::vector<std::pair<std::size_t, std::size_t>> out;
-  std::size_t first = 0;
-  for (std::size_t d = 0; d < parts; ++d) {
-    const std::size_t count = n / parts + (d < n % parts ? 1 : 0);
-    if (count) out.push_back({first, count});
-    first += count;
-  }
+  for (const auto& share : view_shares(n, std::vector<double>(parts, 1.0)))
+    if (share.second) out.push_back(share);  // (empty shares dropped)
   return out;
 }
 
@@ -39,7 +36,7 @@ std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
   if (!std::isfinite(total)) throw Error(Status::invalid_argument, "shares: the weights' sum overflows");
   std::vector<std::size_t> count(weights.size());
   if (std::all_of(weights.begin(), weights.end(), [&](double w) { return w == weights[0]; })) {
-    for (std::size_t d = 0; d < weights.size(); ++d)  // (exactly view_shares(n, parts)'s counts)
+    for (std::size_t d = 0; d < weights.size(); ++d)  // (as equal as can be, the first larger)
       count[d] = n / weights.size() + (d < n % weights.size() ? 1 : 0);
   } else {
     // Largest remainder: each share its quota's floor, the views left over to the largest
@@ -68,6 +65,16 @@ std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
     first += c;
   }
   return out;
+}
+
+std::pair<std::size_t, std::size_t> worker_share(std::size_t n, int worker, int workers,
+                                                 const std::vector<double>& shares) {
+  if (!shares.empty() && shares.size() != std::size_t(workers))
+    throw Error(Status::invalid_argument, "shares: " + std::to_string(shares.size()) +
+                                              " weights for " + std::to_string(workers) +
+                                              " workers");
+  return view_shares(n, shares.empty() ? std::vector<double>(std::size_t(workers), 1.0)
+                                       : shares)[std::size_t(worker)];
 }
 
 std::vector<double> share_weights(const std::vector<Device*>& devices,

@@ -47,6 +47,12 @@ inline void check_devices(const std::vector<Device*>& devices) {
       throw Error(Status::invalid_argument, "devices[" + std::to_string(i) + "]: null");
 }
 
+// Worker `worker` of `workers`' share (first, count) of n items: in proportion to `shares` (one a
+// worker, as GradientOptions::shares and ReconstructOptions::shares hold them), else equal.
+// Throws Error(invalid_argument) for a wrong count or a bad weight.
+std::pair<std::size_t, std::size_t> worker_share(std::size_t n, int worker, int workers,
+                                                 const std::vector<double>& shares);
+
 // Each device's share of n items in proportion to share_weights(devices, given) (`parts`, one a
 // device), and the devices whose share is not empty — those that run — in order, with their
 // counts as weights in `weights` where asked for: what their workers split n by to get the same

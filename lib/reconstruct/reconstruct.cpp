@@ -10,6 +10,7 @@
 
 #include "ivr/gradient.hpp"
 #include "ivr/error.hpp"
+#include "multi_device/run_shares.hpp"
 #include "reconstruct/optimize.hpp"
 #include "runtime/real_args.hpp"
 #include "reconstruct/reconstruct.hpp"
@@ -129,16 +130,11 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
   if (o.workers > 1 && !o.slabs && batch < o.workers)
     fail("data-parallel reconstruction: batches of " + std::to_string(batch) + " view(s) for " +
          std::to_string(o.workers) + " workers (each needs one)");
-  if (o.workers > 1 && !o.slabs && !o.shares.empty()) {
-    if (o.shares.size() != std::size_t(o.workers))
-      fail("shares: " + std::to_string(o.shares.size()) + " weights for " +
-           std::to_string(o.workers) + " workers");
-    const auto parts = view_shares(std::size_t(batch), o.shares);
-    for (std::size_t w = 0; w < parts.size(); ++w)
-      if (parts[w].second == 0)
+  if (o.workers > 1 && !o.slabs && !o.shares.empty())
+    for (int w = 0; w < o.workers; ++w)
+      if (worker_share(std::size_t(batch), w, o.workers, o.shares).second == 0)
         fail("shares: worker " + std::to_string(w) + "'s share of a batch of " +
              std::to_string(batch) + " views is empty (each needs one): raise its weight");
-  }
   if (o.automatic_optimizer)
     o.optimizer.kind = o.density ? OptimizerKind::adam : OptimizerKind::lbfgs;
   if (o.optimizer.kind == OptimizerKind::lbfgs && o.batch > 0 && o.batch < views)
@@ -354,9 +350,7 @@ const IterationRecord& Reconstruction::Impl::step() {
   double weight = 1;
   if (o.workers > 1 && !o.slabs) {  // (over slabs every worker marches the whole batch)
     if (o.density) share = batch_share(views);
-    const auto [first, count] =
-        o.shares.empty() ? view_shares(batch_size, std::size_t(o.workers))[std::size_t(o.worker)]
-                         : view_shares(batch_size, o.shares)[std::size_t(o.worker)];
+    const auto [first, count] = worker_share(batch_size, o.worker, o.workers, o.shares);
     views = std::vector<int>(views.begin() + std::ptrdiff_t(first),
                              views.begin() + std::ptrdiff_t(first + count));
     if (!o.density) weight = double(count) / double(batch_size);

@@ -163,46 +163,6 @@ def phantom(name, n, seed=1, supersample=1):
     return out
 
 
-# Module-level tomography: one context for the call (kernels come from the on-disk cache after
-# the first); use a Context's methods to keep one across calls.
-def project(scene, volume=None, precision="f32", device=None, base_dir=None):
-    """Line integrals N v, float32 (views, H, W, 1): see Context.project."""
-    with Context(device, precision) as c:
-        return c.project(scene, volume, base_dir=base_dir)
-
-
-def backproject(scene, lines, precision="f32", device=None, grid=None, base_dir=None):
-    """N^T p, float32 (Z, Y, X): see Context.backproject."""
-    with Context(device, precision) as c:
-        return c.backproject(scene, lines, grid=grid, base_dir=base_dir)
-
-
-def tomo(scene, lines, solver="cgls", iterations=50, nonneg=False, tv=0.0, tikhonov=0.0,
-         tolerance=0.0, precision="f32", progress=None, device=None, **options):
-    """(volume, history) reconstructed from line integrals: see Context.tomo."""
-    with Context(device, precision) as c:
-        return c.tomo(scene, lines, solver=solver, iterations=iterations, nonneg=nonneg, tv=tv,
-                      tikhonov=tikhonov, tolerance=tolerance, progress=progress, **options)
-
-
-def lines_from_intensities(scene, intensities, clamp=0.0, device=None, base_dir=None):
-    """Line integrals from intensities: see Context.lines_from_intensities."""
-    with Context(device) as c:
-        return c.lines_from_intensities(scene, intensities, clamp=clamp, base_dir=base_dir)
-
-
-def reconstruct(scene, targets, precision="f32", device=None, **options):
-    """{"volume", "tf", "history", ...} recovered from images: see Context.reconstruct."""
-    with Context(device, precision) as c:
-        return c.reconstruct(scene, targets, **options)
-
-
-def viewpoint(scene, precision="f32", device=None, **options):
-    """{"camera", "entropy_start", "entropy_best", "history"}: see Context.viewpoint."""
-    with Context(device, precision) as c:
-        return c.viewpoint(scene, **options)
-
-
 def image_entropy(image, background=1.0):
     """Normalised entropy in [0, 1] of view 0 of `image` ((views, H, W, C) or (H, W, C), C = 1
     or 4): pixel brightness q (mean of R, G, B; absorption 1 - I / background) + 1e-6,
@@ -590,6 +550,9 @@ class Context(_Owned):
 # Device-resident sessions (bindings/python/ivr/_session.py): imported last, as they build on the
 # names above.
 from ._session import DensityOptimizer, DeviceArray, Session  # noqa: E402
+# The one-shot functions, each opening a Context for the call (bindings/python/ivr/_oneshot.py).
+from ._oneshot import (backproject, lines_from_intensities, project, reconstruct,  # noqa: E402
+                       tomo, viewpoint)
 
 
 def _require_a_platform():
@@ -607,3 +570,4 @@ def _require_a_platform():
 
 
 _require_a_platform()
+

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <csignal>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <limits>
 #include <sstream>
 
+#include "ivr/planner.hpp"
 #include "mpi_world.hpp"
 
 namespace fs = std::filesystem;
@@ -163,27 +165,69 @@ std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors) 
 
 void add_shares_option(CLI::App* cmd, std::vector<double>& shares) {
   cmd->add_option("--shares", shares,
-                  "Several --device: each device's weight, comma-separated, its share of the views "
-                  "in proportion (default: each device's speed, samples per second from `ivr "
-                  "calibrate` or estimated from its size; `ivr devices` shows it)")
+                  "Each device's weight, comma-separated, its share of the views in proportion "
+                  "(several --device; under mpirun one a rank, every rank giving the same). "
+                  "Default: each device's speed, samples per second from `ivr calibrate` or "
+                  "estimated from its size (`ivr devices` shows it); a rank's, its devices' summed")
       ->delimiter(',');
 }
+
+namespace {
+
+// This rank's speed: its devices' samples per second summed (their cost models).
+double rank_speed(const std::vector<Device*>& devices) {
+  double total = 0;
+  for (const Device* d : devices) total += samples_per_second(d->info());
+  if (!(total > 0) || !std::isfinite(total))
+    throw input_error("rank " + std::to_string(world().rank) + ": its devices' cost models give " +
+                      std::to_string(total) + " samples per second; give --shares");
+  return total;
+}
+
+}  // namespace
 
 std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
                                         const std::vector<Device*>& devices, std::size_t items,
                                         const std::string& split) {
-  if (!shares.empty() && world().size > 1)
-    throw input_error("--shares: under mpirun each rank takes an equal share (one device a rank)");
   if (!shares.empty() && split != "views")
     throw input_error("--shares: the views' shares; --split " + split + " cuts equal slabs");
-  if (devices.size() < 2 || split != "views" || world().size > 1) {
+  std::vector<std::size_t> counts;
+  if (world().size > 1) {
+    if (split != "views") return {};
+    if (!shares.empty() && shares.size() != std::size_t(world().size))
+      throw input_error("--shares: " + std::to_string(shares.size()) + " weights for " +
+                        std::to_string(world().size) + " ranks (under mpirun, one a rank)");
+    // Every rank computes the same split from the same weights (its own speed gathered).
+    const std::vector<double> weights = shares.empty() ? every_rank(rank_speed(devices)) : shares;
+    for (const auto& part : view_shares_each(items, weights)) counts.push_back(part.second);
+    return counts;
+  }
+  if (devices.size() < 2 || split != "views") {
     if (!shares.empty()) share_weights(devices, shares);  // (one device: their count checked)
     return {};
   }
-  std::vector<std::size_t> counts;
   for (const auto& part : view_shares(items, share_weights(devices, shares)))
     counts.push_back(part.second);
   return counts;
+}
+
+std::pair<std::size_t, std::size_t> rank_part(const std::vector<std::size_t>& counts,
+                                              std::size_t items) {
+  if (world().size == 1 || counts.empty()) return {0, items};
+  std::size_t first = 0;
+  for (int r = 0; r < world().rank; ++r) first += counts[std::size_t(r)];
+  return {first, counts[std::size_t(world().rank)]};
+}
+
+std::vector<double> device_shares(const std::vector<double>& shares) {
+  return world().size > 1 ? std::vector<double>{} : shares;
+}
+
+std::vector<double> worker_weights(const std::vector<std::size_t>& counts) {
+  // A count of 0 only where there are fewer views than ranks: the first ones one each, which the
+  // equal split (no weights) gives too.
+  if (std::find(counts.begin(), counts.end(), std::size_t(0)) != counts.end()) return {};
+  return std::vector<double>(counts.begin(), counts.end());
 }
 
 std::vector<Device*> pointers(const std::vector<std::unique_ptr<Device>>& devices) {

@@ -59,15 +59,26 @@ void add_march_options(CLI::App* cmd, MarchOptions& options);
 // --split views|slabs: how the ranks of an mpirun share the work (docs/scaling.md).
 void add_split_option(CLI::App* cmd, std::string& split);
 // --shares W,W,...: several --device's weights, each device's share of the views in proportion
-// (RenderOptions::shares and the others'; docs/scaling.md).
+// (RenderOptions::shares and the others'); under mpirun one a rank (docs/scaling.md).
 void add_shares_option(CLI::App* cmd, std::vector<double>& shares);
-// Refuses --shares where nothing would follow it — under mpirun (each rank one device), over
-// slabs (equal slabs) — before any work; returns each device's count of the `items` views (or
-// rays) — what --json reports as "shares" — or nothing where the views are not shared by several
-// devices of this process.
+// Checks --shares before any work (refused over slabs: equal slabs) and returns what --json
+// reports as "shares": each device's count of the `items` views (or rays) where several devices
+// of one process share them; under mpirun over views each rank's count — a collective, every rank
+// calling it: in proportion to --shares (one a rank) or else to each rank's devices' speed summed
+// (its cost models'), every rank at least one view where there are as many (view_shares_each);
+// else nothing.
 std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
                                         const std::vector<Device*>& devices, std::size_t items,
                                         const std::string& split);
+// This rank's (first, count) of checked_shares' counts under mpirun; (0, items) in one process.
+std::pair<std::size_t, std::size_t> rank_part(const std::vector<std::size_t>& counts,
+                                              std::size_t items);
+// The options' `shares` for this process's devices: --shares in one process; under mpirun (where
+// --shares weighs the ranks) none, a rank's devices taking their speeds.
+std::vector<double> device_shares(const std::vector<double>& shares);
+// The ranks' counts as workers' weights (GradientOptions::shares, ReconstructOptions::shares):
+// view_shares splits the same n by them back into those counts exactly.
+std::vector<double> worker_weights(const std::vector<std::size_t>& counts);
 // The devices of a --device value: one, or several comma-separated (each a selector).
 std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors);
 std::vector<Device*> pointers(const std::vector<std::unique_ptr<Device>>& devices);

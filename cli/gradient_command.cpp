@@ -65,7 +65,8 @@ Gradient gradient_slabs(const std::vector<Device*>& devices, const Scene& scene,
 
 Gradient gradient_ranks(const std::vector<Device*>& devices, const Scene& scene, const Image& target,
                         const std::vector<std::string>& groups, GradientOptions options,
-                        const std::string& split, DomainStats* domain) {
+                        const std::string& split, DomainStats* domain,
+                        const std::vector<std::size_t>& rank_counts) {
   if (split != "views")
     return gradient_slabs(devices, scene, target, groups, options, split, domain);
   const World& w = world();
@@ -77,6 +78,7 @@ Gradient gradient_ranks(const std::vector<Device*>& devices, const Scene& scene,
     throw Error(Status::invalid_argument, "mpirun: one device per rank, not --device with " +
                                               std::to_string(devices.size()));
   options.worker = w.rank, options.workers = w.size;
+  options.shares = worker_weights(rank_counts);  // (the ranks' shares: checked_shares)
   options.sum = [](std::vector<double>& v) { sum_all(v); };
   return gradient(*devices[0], scene, target, groups, options);
 }
@@ -142,10 +144,10 @@ Runner add_gradient_command(CLI::App& app) {
     options.deterministic = args->deterministic;
     const std::vector<std::size_t> shares =
         checked_shares(args->shares, pointers(devices), share_items(scene), args->split);
-    options.shares = args->shares;
+    options.shares = device_shares(args->shares);
     DomainStats domain;  // (over slabs: rank 0's exchanges of the rays' states or segments)
-    const Gradient d =
-        gradient_ranks(pointers(devices), scene, target, groups, options, args->split, &domain);
+    const Gradient d = gradient_ranks(pointers(devices), scene, target, groups, options,
+                                      args->split, &domain, shares);
     if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
 
     std::vector<Output> outputs;

@@ -59,6 +59,13 @@ void sum_all(std::vector<double>& values) {
 #endif
 }
 
+std::vector<double> every_rank(double mine) {
+  std::vector<double> out(std::size_t(the_world.size), 0.0);
+  out[std::size_t(the_world.rank)] = mine;
+  sum_all(out);  // (x + 0 + ... + 0 = x exactly)
+  return out;
+}
+
 namespace {
 // Every rank's values joined in rank order on rank 0 (others: empty), and how many each sent.
 std::vector<double> gather_counted(const std::vector<double>& mine, std::vector<int>& counts) {

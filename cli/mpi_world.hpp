@@ -24,6 +24,8 @@ void mpi_end();
 
 // Σ over ranks, every rank getting the sum.
 void sum_all(std::vector<double>& values);
+// Every rank's `mine` by rank, on every rank (exact: each in its own slot of a sum).
+std::vector<double> every_rank(double mine);
 // Every rank's values joined in rank order, on rank 0 (others get an empty vector).
 std::vector<double> gather(const std::vector<double>& mine);
 // Every rank's values by rank, on rank 0 (others get an empty vector).

@@ -431,6 +431,7 @@ Runner add_reconstruct_command(CLI::App& app) {
     const std::vector<std::size_t> shares = checked_shares(
         options.shares, devices, std::size_t(options.batch > 0 ? std::min(options.batch, views) : views),
         a.split);
+    if (w.size > 1 && !options.slabs) options.shares = worker_weights(shares);  // (the ranks')
     // Signals from here on: construction compiles kernels, which may take a while.
     const InterruptGuard interrupt;
     // The run, the same for one device (or rank) and for several devices.

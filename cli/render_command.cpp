@@ -45,13 +45,14 @@ std::vector<std::string> output_paths(const std::string& out, int views) {
   return paths;
 }
 
-// Under mpirun, each rank renders its share of the views (a ray list: rays) and rank 0 gathers
+// Under mpirun, each rank renders its share of the views (a ray list: rays; `rank_counts`, from
+// checked_shares) and rank 0 gathers
 // the images in view order (the other ranks get an empty image); with --split slabs each rank its
 // slab, every rank getting the image (one process with several devices: each device a slab);
 // else the render itself.
 Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
                    const RenderOptions& options, RenderStats* stats, const std::string& split,
-                   DomainStats* domain) {
+                   DomainStats* domain, const std::vector<std::size_t>& rank_counts) {
   const World& w = world();
   if (split != "views") {
     if (w.size == 1 && devices.size() > 1)  // one process: its devices share the slabs
@@ -60,11 +61,9 @@ Image render_ranks(const std::vector<Device*>& devices, const Scene& scene,
                          domain_part(split), options, stats, domain);
   }
   if (w.size == 1) return render(devices, scene, options, stats);
-  const auto parts = view_shares(share_items(scene), std::size_t(w.size));
-  Image mine;
-  if (std::size_t(w.rank) < parts.size())
-    mine = render(devices, scene_share(scene, parts[w.rank].first, parts[w.rank].second), options,
-                  stats);
+  const auto [first, count] = rank_part(rank_counts, share_items(scene));
+  Image mine;  // (rank 0 always has a view: view_shares_each)
+  if (count) mine = render(devices, scene_share(scene, first, count), options, stats);
   const bool f64 = options.precision == Precision::f64;
   const std::vector<double> values =
       f64 ? mine.pixels_f64 : std::vector<double>(mine.pixels.begin(), mine.pixels.end());
@@ -136,11 +135,11 @@ Runner add_render_command(CLI::App& app) {
     options.volume_brick = args->volume_brick;
     const std::vector<std::size_t> shares =
         checked_shares(args->shares, pointers(devices), share_items(scene), args->split);
-    options.shares = args->shares;
+    options.shares = device_shares(args->shares);
     RenderStats stats;
     DomainStats domain;
     const Image image =
-        render_ranks(pointers(devices), scene, options, &stats, args->split, &domain);
+        render_ranks(pointers(devices), scene, options, &stats, args->split, &domain, shares);
     if (world().rank != 0) return 0;  // rank 0 writes (mpirun: docs/scaling.md)
 
     const std::vector<std::string> paths = output_paths(args->output, image.views);

@@ -129,13 +129,11 @@ void check_tomo_args(TomoArgs& a) {
 }
 
 // Under mpirun: this rank's contiguous share (first, count) of the scene's views (a ray list: its
-// rays) — count 0 where there are more ranks than views; the whole scene in one process.
-std::pair<std::size_t, std::size_t> rank_share(const Scene& scene) {
+// rays), in proportion to the ranks' devices' speeds (checked_shares: a collective) — count 0
+// where there are more ranks than views; the whole scene in one process.
+std::pair<std::size_t, std::size_t> rank_share(const Scene& scene, Device& device) {
   const std::size_t items = share_items(scene);
-  if (world().size == 1) return {0, items};
-  const auto shares = view_shares(items, std::size_t(world().size));
-  return std::size_t(world().rank) < shares.size() ? shares[std::size_t(world().rank)]
-                                                    : std::pair<std::size_t, std::size_t>{0, 0};
+  return rank_part(checked_shares({}, {&device}, items, "views"), items);
 }
 
 }  // namespace
@@ -151,7 +149,7 @@ Runner add_project_command(CLI::App& app) {
     const Precision precision = checked_common(*args);
     const Scene scene = load_scene(args->scene);
     Device device(args->device);
-    const auto [first, count] = rank_share(scene);
+    const auto [first, count] = rank_share(scene, device);
     std::vector<double> lines;
     std::unique_ptr<Projector> projector;  // none on a rank without views
     if (count) {
@@ -165,7 +163,7 @@ Runner add_project_command(CLI::App& app) {
     }
     const ImageExtent e = image_extent(scene);
     write_outputs({{args->output, ray_file_shapes(scene)[0], lines, precision == Precision::f64}});
-    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has views)
+    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has a view: view_shares_each)
     if (args->json) {
       std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector->bricks()},
                                   {"precision", args->precision},
@@ -208,7 +206,7 @@ Runner add_backproject_command(CLI::App& app) {
     const Scene scene = load_scene(c.scene);
     const std::vector<double> lines = load_rays(args->images, "--images", scene, true);
     Device device(c.device);
-    const auto [first, count] = rank_share(scene);
+    const auto [first, count] = rank_share(scene, device);
     std::vector<double> volume(scene.volume.voxel_count(), 0.0);
     std::unique_ptr<Projector> projector;  // none on a rank without views
     if (count) {
@@ -223,7 +221,7 @@ Runner add_backproject_command(CLI::App& app) {
       if (world().rank != 0) return 0;  // rank 0 writes
     }
     write_outputs({{c.output, volume_shape(scene), volume, precision == Precision::f64}});
-    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has views)
+    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has a view: view_shares_each)
     const std::size_t rays = image_extent(scene).pixels();
     if (c.json) {
       std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector->bricks()},
@@ -337,7 +335,7 @@ Runner add_tomo_command(CLI::App& app) {
                     std::to_string(world().size) + " ranks for " + std::to_string(items) +
                         (scene.has_ray_list() ? " rays" : " views") + ": at most one rank each");
       const std::size_t per_item = lines.size() / items;
-      const auto [first, count] = rank_share(scene);
+      const auto [first, count] = rank_part(shares, items);
       const std::vector<double> mine(lines.begin() + first * per_item,
                                      lines.begin() + (first + count) * per_item);
       r = tomo_shared(device, scene_share(scene, first, count), mine, args->options, sum_all,
@@ -360,7 +358,8 @@ Runner add_tomo_command(CLI::App& app) {
       std::cout << nlohmann::json{{"solver", solver_name(args->options.solver)},
                                   {"precision", c.precision},
                                   {"device", device.info().name}, {"bricks", r.bricks},
-                                  {"devices", shares.empty() ? opened.size()
+                                  {"devices", shares.empty() || world().size > 1
+                                                  ? opened.size()
                                                              : std::size_t(std::count_if(
                                                                    shares.begin(), shares.end(),
                                                                    [](std::size_t c) { return c > 0; }))},

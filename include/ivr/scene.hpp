@@ -152,6 +152,12 @@ IVR_API std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t
 // view_shares(n, parts)'s counts. The split depends on the weights alone, never on timing.
 IVR_API std::vector<std::pair<std::size_t, std::size_t>> view_shares(
     std::size_t n, const std::vector<double>& weights);
+// The same where every share must hold a view (MPI ranks: each rank takes part in every
+// collective of the operation): view_shares(n, weights), or where that leaves a share empty and
+// n >= weights.size(), one view each and the other n - weights.size() in proportion to the
+// weights. n < weights.size(): one view each to the first n, the others empty (the equal split's).
+IVR_API std::vector<std::pair<std::size_t, std::size_t>> view_shares_each(
+    std::size_t n, const std::vector<double>& weights);
 IVR_API Scene scene_share(const Scene& scene, std::size_t first, std::size_t count);
 // The views of a scene, or a ray list's rays: what view_shares() splits.
 IVR_API std::size_t share_items(const Scene& scene);

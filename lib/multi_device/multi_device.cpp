@@ -67,6 +67,25 @@ std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
   return out;
 }
 
+std::vector<std::pair<std::size_t, std::size_t>> view_shares_each(
+    std::size_t n, const std::vector<double>& weights) {
+  std::vector<std::pair<std::size_t, std::size_t>> out = view_shares(n, weights);
+  if (n < weights.size()) {  // one view each to the first n (the equal split's)
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = {std::min(i, n), i < n ? 1 : 0};
+    return out;
+  }
+  const bool empty = std::any_of(out.begin(), out.end(), [](const auto& s) { return s.second == 0; });
+  if (!empty) return out;
+  // One view each first, the rest by the weights (their split of n - parts, shifted).
+  const auto rest = view_shares(n - weights.size(), weights);
+  std::size_t first = 0;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i] = {first, rest[i].second + 1};
+    first += out[i].second;
+  }
+  return out;
+}
+
 std::pair<std::size_t, std::size_t> worker_share(std::size_t n, int worker, int workers,
                                                  const std::vector<double>& shares) {
   if (!shares.empty() && shares.size() != std::size_t(workers))

@@ -10,7 +10,7 @@
 # its losses and priors within 1e-12, as `ivr gradient --deterministic` gives one process's
 # density gradient bit for bit (float32); over independent segments (--split segments, early
 # termination off) the render, the density and TF gradients and the reconstruction's losses within
-# 1e-12, in one exchange; an error in the
+# 1e-12, in one exchange; the ranks' shares by --shares and by each rank's speed alike; an error in the
 # ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
@@ -99,6 +99,40 @@ for np in 2 4; do
   echo "$out" | grep -q '"levels":\[\[8,8,8\],\[16,16,16\]\]' || { echo "reconstruct --split slabs -np $np: $out"; exit 1; }
   ! ls srec"$np"_*checkpoint* 2>/dev/null || { echo "reconstruct --split slabs left checkpoints"; exit 1; }
 done
+# The ranks' shares by weight (docs/scaling.md): --shares, one a rank; else each rank's devices'
+# speed from its own cost model (here two files, one a rank: rank 0 nine times slower), every rank
+# keeping at least one view of each batch. The results stay one process's.
+run 2 "$ivr" render scene.json -o w2.npy --precision f64 --shares 1,4 --json > w2.json
+grep -q '"shares":\[1,4\]' w2.json || { echo "render --shares 1,4: $(cat w2.json)"; exit 1; }
+out=$(run 2 "$ivr" gradient scene.json "${det[@]}" -o dw2 --shares 4,1)
+echo "$out" | grep -q '"deterministic":true' || { echo "gradient --shares 4,1: $out"; exit 1; }
+cost='{"forward_base": 1.5, "forward_per_lane": 0.16, "adjoint": 3, "seconds_per_sample": '
+echo "${cost}9e-9}" > slow.json
+echo "${cost}1e-9}" > fast.json
+mpmd() { "$mpiexec" --oversubscribe -np 1 env IVR_COST_MODEL=slow.json "$ivr" "$@" : \
+  -np 1 env IVR_COST_MODEL=fast.json "$ivr" "$@"; }
+mpmd reconstruct scene.json "${rec[@]}" -o recw2 --json 2>/dev/null > recw2.json
+grep -q '"shares":\[1,3\]' recw2.json || { echo "reconstruct by speed: $(cat recw2.json)"; exit 1; }
+mpmd tomo scene.json --projections p.npy --iterations 5 -o xw2.npy --precision f64 --json \
+  2>/dev/null > xw2.json
+grep -q '"shares":\[1,4\]' xw2.json || { echo "tomo by speed: $(cat xw2.json)"; exit 1; }
+mpmd project scene.json -o pw2.npy --precision f64 >/dev/null
+"$python" - <<'PY'
+import numpy as np
+assert np.array_equal(np.load("w2.npy"), np.load("one.npy")), "render --shares 1,4"
+assert np.array_equal(np.load("dw2_density.npy"), np.load("d1_density.npy")), "gradient --shares 4,1"
+assert np.array_equal(np.load("recw2_density.npy"), np.load("rec1_density.npy")), "reconstruct by speed"
+for one, many in (("x1.npy", "xw2.npy"), ("p.npy", "pw2.npy")):
+    a, b = np.load(one), np.load(many)
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert a.shape == b.shape and err <= 1e-12, f"{many} by speed: {err}"
+print("-np 2 shares by weight and by speed: render, deterministic density and reconstruction identical")
+PY
+if run 2 "$ivr" render scene.json -o bad.npy --shares 1,2,3 2>err.txt; then
+  echo "--shares with 3 weights for 2 ranks succeeded"; exit 1
+fi
+grep -q "3 weights for 2 ranks" err.txt || { echo "no error naming the ranks:"; cat err.txt; exit 1; }
+[ ! -e bad.npy ] || { echo "bad.npy written"; exit 1; }
 "$python" - <<'PY'
 import numpy as np
 one = np.load("one.npy")

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -89,6 +90,37 @@ TEST(DeviceShares, WeightedSharesFollowTheWeights) {
   expect_refused({1.0, std::numeric_limits<double>::quiet_NaN()}, "shares[1]");
   expect_refused({1.0, std::numeric_limits<double>::infinity()}, "shares[1]");
   expect_refused({1e308, 1e308}, "overflows");
+}
+
+// Shares that must each hold a view (MPI ranks): the weighted split where no share is empty; else
+// one view each and the rest by the weights; fewer views than shares: one each to the first.
+TEST(DeviceShares, SharesEachHoldAViewWhereThereAreEnough) {
+  using V = std::vector<std::size_t>;
+  EXPECT_EQ(counts(view_shares_each(8, {3.0, 1.0})), (V{6, 2}));  // (none empty: as weighted)
+  EXPECT_EQ(counts(view_shares_each(4, {1.0, 9.0})), (V{1, 3}));  // (weighted: 0, 4)
+  EXPECT_EQ(counts(view_shares_each(8, {1.0, 24.0})), (V{1, 7}));
+  EXPECT_EQ(counts(view_shares_each(5, {1000.0, 1.0, 1000.0})), (V{2, 1, 2}));
+  EXPECT_EQ(counts(view_shares_each(3, {1.0, 1e6, 1.0})), (V{1, 1, 1}));
+  EXPECT_EQ(counts(view_shares_each(2, {1.0, 5.0, 9.0})), (V{1, 1, 0}));  // (n < parts)
+  EXPECT_EQ(counts(view_shares_each(0, {1.0, 2.0})), (V{0, 0}));
+  std::mt19937 rng(25);
+  std::uniform_real_distribution<double> u(0.001, 50.0);
+  for (int trial = 0; trial < 200; ++trial) {
+    const std::size_t n = rng() % 40;
+    std::vector<double> w(1 + rng() % 6);
+    for (double& x : w) x = u(rng);
+    const std::vector<std::size_t> c = counts(view_shares_each(n, w));
+    const std::vector<std::size_t> weighted = counts(view_shares(n, w));
+    std::size_t sum = 0;
+    for (std::size_t d = 0; d < w.size(); ++d) {
+      sum += c[d];
+      if (n >= w.size()) EXPECT_GE(c[d], 1u) << "trial " << trial << ", share " << d;
+    }
+    EXPECT_EQ(sum, n) << "trial " << trial;
+    if (std::find(weighted.begin(), weighted.end(), 0u) == weighted.end())
+      EXPECT_EQ(c, weighted) << "trial " << trial;
+  }
+  EXPECT_THROW(view_shares_each(4, {1.0, 0.0}), Error);
 }
 
 // The default weights: each device's samples per second from its cost model — a calibration

@@ -24,6 +24,29 @@ IVR_API ivr_status ivr_gradient_shared(ivr_context* context, const ivr_scene* sc
                                        ivr_mode mode, ivr_loss loss, ivr_precision precision,
                                        double step, int deterministic, int rank, int ranks,
                                        ivr_sum_fn sum, void* sum_user, ivr_result** result);
+/* ivr_gradient_shared with the workers' shares of the views in proportion to `shares` (`ranks`
+ * weights, each > 0 and finite, the same on every worker; NULL: equal shares, as
+ * ivr_gradient_shared): ivr_view_shares(n, shares, ranks, 0, …)'s counts. A worker whose share is
+ * empty adds zeros (and the density gradient is then not summed in fixed point). */
+IVR_API ivr_status ivr_gradient_shared_weighted(ivr_context* context, const ivr_scene* scene,
+                                                const float* target, size_t count,
+                                                const char* wrt, ivr_mode mode, ivr_loss loss,
+                                                ivr_precision precision, double step,
+                                                int deterministic, int rank, int ranks,
+                                                const double* shares, ivr_sum_fn sum,
+                                                void* sum_user, ivr_result** result);
+/* Contiguous shares of n views (or rays) over `parts` workers in proportion to `weights` (`parts`
+ * of them, each > 0 and finite; NULL: equal): counts[i] (parts of them) the ith worker's views,
+ * share i holding about n·wᵢ/Σw, the remainders to the largest fractions (ties to the lower
+ * index). `each` non-zero: every worker at least one view where n >= parts (where the weighted
+ * split leaves one empty: one view each, the rest by the weights; n < parts: one each to the
+ * first n) — what `mpirun ivr` gives the ranks. The split depends on the weights alone. */
+IVR_API ivr_status ivr_view_shares(size_t n, const double* weights, size_t parts, int each,
+                                   size_t* counts);
+/* The context's device's render speed, samples per second, from its cost model (`ivr
+ * calibrate`'s file where there is one, else estimated from the device's size): the default
+ * weight of its share of the views (docs/scaling.md). */
+IVR_API ivr_status ivr_context_samples_per_second(const ivr_context* context, double* speed);
 /* How a split operation shares the work among its workers. */
 typedef enum ivr_split {
   IVR_SPLIT_VIEWS = 0, /* each worker its share of the views (or rays) and the whole volume */
@@ -123,6 +146,18 @@ IVR_API ivr_status ivr_reconstruction_create_split(ivr_context* context, const i
                                                    ivr_split split, int worker, int workers,
                                                    ivr_sum_fn sum, void* sum_user,
                                                    ivr_reconstruction** reconstruction);
+/* ivr_reconstruction_create_split with, over views, each batch's shares in proportion to `shares`
+ * (`workers` weights, each > 0 and finite, the same on every worker; NULL: equal shares); every
+ * worker's share of a batch must hold a view (pass ivr_view_shares(batch, …, each = 1)'s counts
+ * as the weights: they split the batch into exactly those counts). Over slabs `shares` is NULL. */
+IVR_API ivr_status ivr_reconstruction_create_weighted(ivr_context* context,
+                                                      const ivr_scene* scene,
+                                                      const float* targets, size_t count,
+                                                      const ivr_reconstruct_options* options,
+                                                      ivr_split split, int worker, int workers,
+                                                      const double* shares, ivr_sum_fn sum,
+                                                      void* sum_user,
+                                                      ivr_reconstruction** reconstruction);
 
 #ifdef __cplusplus
 }

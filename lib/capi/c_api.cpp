@@ -4,6 +4,7 @@
 
 #include "capi/c_api_handles.hpp"
 #include "ivr/domain.hpp"
+#include "ivr/planner.hpp"
 #include "ivr/tolerance.hpp"
 
 using namespace ivr::capi;
@@ -243,7 +244,7 @@ ivr::Image checked_gradient_call(ivr_context* c, const ivr_scene* s, const float
 void gradient_call(ivr_context* c, const ivr_scene* s, const float* target, size_t count,
                    const char* wrt, ivr_mode mode, ivr_loss loss, ivr_precision precision,
                    double step, bool deterministic, int rank, int ranks, ivr_sum_fn sum,
-                   void* sum_user, ivr_result** out) {
+                   void* sum_user, ivr_result** out, const double* shares = nullptr) {
   const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out);
   check_worker(rank, ranks);
   if (ranks > 1 && !sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
@@ -254,6 +255,7 @@ void gradient_call(ivr_context* c, const ivr_scene* s, const float* target, size
   o.step = step;
   o.deterministic = deterministic;
   if (ranks > 1) o.worker = rank, o.workers = ranks, o.sum = sum_of(sum, sum_user);
+  if (shares) o.shares.assign(shares, shares + ranks);  // (each weight checked by the core)
   *out = gradient_result(c, ivr::gradient(c->device, s->scene, t, ivr::parse_groups(wrt), o));
 }
 }  // namespace
@@ -274,6 +276,37 @@ ivr_status ivr_gradient_shared(ivr_context* c, const ivr_scene* s, const float* 
   return guarded(c, "ivr_gradient_shared", [&] {
     gradient_call(c, s, target, count, wrt, mode, loss, precision, step, deterministic != 0, rank,
                   ranks, sum, sum_user, out);
+  });
+}
+
+ivr_status ivr_gradient_shared_weighted(ivr_context* c, const ivr_scene* s, const float* target,
+                                        size_t count, const char* wrt, ivr_mode mode,
+                                        ivr_loss loss, ivr_precision precision, double step,
+                                        int deterministic, int rank, int ranks,
+                                        const double* shares, ivr_sum_fn sum, void* sum_user,
+                                        ivr_result** out) {
+  return guarded(c, "ivr_gradient_shared_weighted", [&] {
+    gradient_call(c, s, target, count, wrt, mode, loss, precision, step, deterministic != 0, rank,
+                  ranks, sum, sum_user, out, shares);
+  });
+}
+
+ivr_status ivr_view_shares(size_t n, const double* weights, size_t parts, int each,
+                           size_t* counts) {
+  return guarded(nullptr, "ivr_view_shares", [&] {
+    not_null(counts, "counts");
+    if (parts == 0) throw CError{IVR_ERROR_INVALID_ARGUMENT, "parts is 0"};
+    const std::vector<double> w =
+        weights ? std::vector<double>(weights, weights + parts) : std::vector<double>(parts, 1.0);
+    const auto split = each ? ivr::view_shares_each(n, w) : ivr::view_shares(n, w);
+    for (size_t i = 0; i < parts; ++i) counts[i] = split[i].second;
+  });
+}
+
+ivr_status ivr_context_samples_per_second(const ivr_context* c, double* speed) {
+  return guarded(context_of(c), "ivr_context_samples_per_second", [&] {
+    checked(c, Kind::context, "context");
+    *not_null(speed, "speed") = ivr::samples_per_second(c->device.info());
   });
 }
 

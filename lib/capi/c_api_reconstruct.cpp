@@ -121,8 +121,19 @@ ivr_status ivr_reconstruction_create_split(ivr_context* c, const ivr_scene* s,
                                            const ivr_reconstruct_options* options, ivr_split split,
                                            int worker, int workers, ivr_sum_fn sum, void* sum_user,
                                            ivr_reconstruction** out) {
-  return guarded(c, split != IVR_SPLIT_VIEWS ? "ivr_reconstruction_create_split"
-                                             : "ivr_reconstruction_create_shared",
+  return ivr_reconstruction_create_weighted(c, s, targets, count, options, split, worker, workers,
+                                            nullptr, sum, sum_user, out);
+}
+
+ivr_status ivr_reconstruction_create_weighted(ivr_context* c, const ivr_scene* s,
+                                              const float* targets, size_t count,
+                                              const ivr_reconstruct_options* options,
+                                              ivr_split split, int worker, int workers,
+                                              const double* shares, ivr_sum_fn sum,
+                                              void* sum_user, ivr_reconstruction** out) {
+  return guarded(c, shares ? "ivr_reconstruction_create_weighted"
+                 : split != IVR_SPLIT_VIEWS ? "ivr_reconstruction_create_split"
+                                            : "ivr_reconstruction_create_shared",
                  [&] {
     not_null(out, "reconstruction");
     *out = nullptr;
@@ -135,6 +146,8 @@ ivr_status ivr_reconstruction_create_split(ivr_context* c, const ivr_scene* s,
     o.sum = sum_of(sum, sum_user);
     o.slabs = split != IVR_SPLIT_VIEWS;
     if (split == IVR_SPLIT_SEGMENTS) o.slab_march = ivr::SlabMarch::segments;
+    if (shares && o.slabs) bad("shares: the views' shares; over slabs pass NULL (equal slabs)");
+    if (shares && workers > 0) o.shares.assign(shares, shares + workers);  // (checked by the core)
     *out = create_reconstruction(c, s, targets, count, o);
   });
 }

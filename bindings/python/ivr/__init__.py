@@ -77,9 +77,9 @@ def _volume_array(volume):
 
 def _slab_of(split):
     """(nz, rank, ranks) where a split call's volume is that rank's slab of nz planes, else None."""
-    if split is None or split[-1] is None:
+    if split is None or split[4] is None:  # ((split, rank, ranks, add, nz[, weights]))
         return None
-    return (split[-1], split[-4], split[-3])
+    return (split[4], split[1], split[2])
 
 
 class _Owned:
@@ -124,6 +124,25 @@ def devices():
     buf = ctypes.create_string_buffer(needed.value)
     _check(lib.ivr_devices_json(buf, needed.value, None))
     return json.loads(buf.value.decode())["devices"]
+
+
+def _doubles(values):
+    """A C array of doubles for the C API (None: NULL)."""
+    return None if values is None else (ctypes.c_double * len(values))(*map(float, values))
+
+
+def view_shares_by(n, weights, each=True):
+    """[(first, count)] for every weight, in order: n views (or rays) cut into contiguous shares in
+    proportion to `weights` (the C API's ivr_view_shares; empty ones kept). each=True: every
+    share at least one view where n >= len(weights) (as `mpirun ivr` gives the ranks)."""
+    counts = (ctypes.c_size_t * len(weights))()
+    _check(_library().ivr_view_shares(int(n), _doubles(weights), len(weights), 1 if each else 0,
+                                      counts))
+    out, first = [], 0
+    for c in counts:
+        out.append((first, c))
+        first += c
+    return out
 
 
 def loss(image, target, kind="mse"):
@@ -235,6 +254,14 @@ class Context(_Owned):
         name = ctypes.c_char_p()
         _check(self._lib.ivr_context_device_name(self._live(), ctypes.byref(name)))
         return name.value.decode()
+
+    @property
+    def samples_per_second(self):
+        """The device's render speed from its cost model (`ivr calibrate`'s file, else estimated
+        from its size): the default weight of its share of the views (ivr.mpi)."""
+        speed = ctypes.c_double()
+        _check(self._lib.ivr_context_samples_per_second(self._live(), ctypes.byref(speed)))
+        return speed.value
 
     def load_volume(self, source, base_dir=None):
         """A volume as float32 (Z, Y, X) densities, read as a scene would: `source` is a path
@@ -363,10 +390,12 @@ class Context(_Owned):
                 how = (_choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
                        _PRECISIONS[self.precision], step)
                 if deterministic or _shared is not None:
-                    # (rank, ranks, add): ivr.mpi's workers over views, every one the whole gradient
-                    rank, ranks, add = _shared if _shared is not None else (0, 1, None)
-                    status = self._lib.ivr_gradient_shared(
-                        *args, *how, 1 if deterministic else 0, rank, ranks,
+                    # (rank, ranks, add, weights): ivr.mpi's workers over views, every one the
+                    # whole gradient, their shares in proportion to the weights (None: equal)
+                    rank, ranks, add, weights = (_shared if _shared is not None
+                                                 else (0, 1, None, None))
+                    status = self._lib.ivr_gradient_shared_weighted(
+                        *args, *how, 1 if deterministic else 0, rank, ranks, _doubles(weights),
                         _capi.SUM_FN() if add is None else _sum_fn(add, failure), None,
                         ctypes.byref(r))
                 else:

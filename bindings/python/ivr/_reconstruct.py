@@ -5,7 +5,8 @@ import os
 
 import numpy as np
 
-from . import (Error, _capi, _check, _choice, _optional_choice, _slab_of, _sum_fn, _FLOAT_P,
+from . import (Error, _capi, _check, _choice, _doubles, _optional_choice, _slab_of, _sum_fn,
+               _FLOAT_P,
                _LOSSES, _MODES, _PRECISIONS)
 
 _OPTIMIZERS = {"auto": 0, "adam": 1, "sgd": 2, "lbfgs": 3}
@@ -75,12 +76,13 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
         if workers is None:
             _check(lib.ivr_reconstruction_create(ctx._live(), s, t.ctypes.data_as(_FLOAT_P),
                                                  t.size, ctypes.byref(o), ctypes.byref(r)))
-        else:  # (split, worker, workers, add): ivr.mpi.reconstruct; the sum lives as long as `r`
-            split, worker, count, add, _ = workers
+        else:  # (split, worker, workers, add, nz, weights): ivr.mpi.reconstruct; the sum lives
+            # as long as `r`; weights: the workers' shares of each batch (None: equal)
+            split, worker, count, add, _, weights = workers
             sum_fn = _sum_fn(add, failure)
-            _check(lib.ivr_reconstruction_create_split(
+            _check(lib.ivr_reconstruction_create_weighted(
                 ctx._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, ctypes.byref(o), split,
-                worker, count, sum_fn, None, ctypes.byref(r)))
+                worker, count, _doubles(weights), sum_fn, None, ctypes.byref(r)))
     finally:
         lib.ivr_scene_release(s)
     try:

@@ -15,6 +15,12 @@ the whole result, which equals one process's to rounding.
     ctx = ivr.Context(precision="f64")
     loss, grads = ivr.mpi.gradient(ctx, scene, volume, target, wrt=("density", "tf"))
 
+Over views each rank's share is in proportion to its device's speed (ctx.samples_per_second,
+gathered from every rank: ranks on one machine split equally), or to shares=[w0, w1, …] (one
+weight a rank, every rank passing the same), every rank at least one view where there are as many
+views as ranks (view_shares_by(each=True), as `mpirun ivr` splits them); over slabs the slabs are
+equal and shares= is refused.
+
 Run with `mpirun -np N python3 -m mpi4py script.py` (an exception on one rank then aborts every
 rank instead of leaving the others waiting in a collective); `comm` defaults to MPI.COMM_WORLD. The scene is a dict
 (or its JSON text) whose "cameras" list, or in-memory "rays" array, is shared out.
@@ -23,7 +29,7 @@ import json
 
 import numpy as np
 
-from . import Error, ray_array
+from . import Error, ray_array, view_shares_by
 
 
 def _comm(comm):
@@ -79,11 +85,37 @@ def scene_share(scene, first, count):
     return out
 
 
-def _mine(comm, n):
+def rank_weights(ctx, comm=None, shares=None):
+    """Every rank's weight, its share of the views in proportion (docs/scaling.md): `shares`, one a
+    rank (every rank passing the same), else each rank's ctx.samples_per_second — its device's
+    speed on its own machine — gathered from every rank."""
+    comm = _comm(comm)
+    if shares is None:
+        return comm.allgather(float(ctx.samples_per_second))
+    shares = [float(w) for w in shares]
+    if len(shares) != comm.Get_size():
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi: shares has {len(shares)} weights for {comm.Get_size()} ranks")
+    return shares
+
+
+def _counts(ctx, comm, n, shares):
+    """Every rank's count of n views by rank_weights, each at least one where n >= ranks (the
+    ranks' split of `mpirun ivr`)."""
+    return [c for _, c in view_shares_by(n, rank_weights(ctx, comm, shares), each=True)]
+
+
+def _mine(ctx, comm, n, shares):
     """This rank's (first, count), or None where it has no share (more ranks than views)."""
-    shares = view_shares(n, comm.Get_size())
+    counts = _counts(ctx, comm, n, shares)
     rank = comm.Get_rank()
-    return shares[rank] if rank < len(shares) else None
+    return (sum(counts[:rank]), counts[rank]) if counts[rank] else None
+
+
+def _worker_weights(counts):
+    """The ranks' counts as the workers' weights, which split the same n back into them exactly
+    (None: equal, which is what a count of 0 — fewer views than ranks — means)."""
+    return None if 0 in counts else [float(c) for c in counts]
 
 
 def slab(nz, comm=None):
@@ -97,6 +129,12 @@ def slab(nz, comm=None):
     _check(_library().ivr_domain_slab(int(nz), comm.Get_rank(), comm.Get_size(),
                                       ctypes.byref(first), ctypes.byref(last)))
     return first.value, last.value
+
+
+def _views_only(split, shares, where):
+    if split != "views" and shares is not None:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    f"ivr.mpi.{where}: shares are the views'; split={split!r} cuts equal slabs")
 
 
 def _slab_split(code, comm, nz):
@@ -143,7 +181,7 @@ def _check_split(split, where, allowed=("views", "slabs", "segments")):
     return _SPLITS[split]
 
 
-def render(ctx, scene, volume=None, comm=None, split="views", nz=None, **options):
+def render(ctx, scene, volume=None, comm=None, split="views", nz=None, shares=None, **options):
     """ctx.render of the whole scene, each rank rendering its share: every rank gets the images of
     every view (views, H, W, C) (a ray list: (rays, C)). split="slabs": each rank marches one slab
     of z planes of the volume on its device, the rays' march states passed between the ranks (the
@@ -155,25 +193,26 @@ def render(ctx, scene, volume=None, comm=None, split="views", nz=None, **options
     comm = _comm(comm)
     scene = _scene_dict(scene)
     code = _check_split(split, "render")
+    _views_only(split, shares, "render")
     if split != "views":
         return ctx.render(scene, volume, _split=_slab_split(code, comm, nz), **options)
     _whole_volume(nz, "render")
-    mine = _mine(comm, _items(scene))
+    mine = _mine(ctx, comm, _items(scene), shares)
     image = ctx.render(scene_share(scene, *mine), volume, **options) if mine else None
     return np.concatenate([p for p in comm.allgather(image) if p is not None], axis=0)
 
 
-def project(ctx, scene, volume=None, comm=None, **options):
+def project(ctx, scene, volume=None, comm=None, shares=None, **options):
     """ctx.project of the whole scene, each rank projecting its share of the views: every rank gets
     the line integrals of every view (views, H, W, 1) (a ray list: (rays, 1))."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
-    mine = _mine(comm, _items(scene))
+    mine = _mine(ctx, comm, _items(scene), shares)
     lines = ctx.project(scene_share(scene, *mine), volume, **options) if mine else None
     return np.concatenate([p for p in comm.allgather(lines) if p is not None], axis=0)
 
 
-def backproject(ctx, scene, lines, comm=None, **options):
+def backproject(ctx, scene, lines, comm=None, shares=None, **options):
     """ctx.backproject of the whole scene's `lines` (first axis: views, or a ray list's rays), each
     rank back-projecting its share: every rank gets N^T p (Z, Y, X), the parts summed in float64
     and rounded to float32 once, as ctx.backproject returns it."""
@@ -185,7 +224,7 @@ def backproject(ctx, scene, lines, comm=None, **options):
         raise Error("IVR_ERROR_INVALID_ARGUMENT",
                     f"ivr.mpi.backproject: lines has {lines.shape[0]} rows on its first axis but "
                     f"the scene has {n} views or rays")
-    mine = _mine(comm, n)
+    mine = _mine(ctx, comm, n, shares)
     first, count = mine if mine else (0, 1)  # (a rank without a share adds zeros)
     part = lines[first:first + count] if mine else np.zeros_like(lines[:1])
     volume = np.ascontiguousarray(
@@ -197,7 +236,7 @@ def backproject(ctx, scene, lines, comm=None, **options):
 
 
 def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None, split="views",
-             nz=None, gather=True, **options):
+             nz=None, gather=True, shares=None, **options):
     """ctx.gradient of the whole scene, each rank differentiating its share of the views (the
     target's first axis: views, or a ray list's rays): every rank gets (loss, {group: array}), one
     process's result to rounding. split="slabs" (every scheme): each rank differentiates over one
@@ -212,6 +251,7 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
     comm = _comm(comm)
     scene = _scene_dict(scene)
     code = _check_split(split, "gradient")
+    _views_only(split, shares, "gradient")
     if split != "views":
         value, arrays = ctx.gradient(scene, volume, target, wrt=wrt, loss=loss,
                                      _split=_slab_split(code, comm, nz), **options)
@@ -243,11 +283,13 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
                     f"the scene has {n} views or rays")
     # Every rank a worker of the data-parallel gradient (ivr_gradient_shared): its share of the
     # views differentiated, the shares combined through the communicator's sum.
+    weights = _worker_weights(_counts(ctx, comm, n, shares))
     return ctx.gradient(scene, volume, target, wrt=wrt, loss=loss,
-                        _shared=(comm.Get_rank(), comm.Get_size(), _summer(comm)), **options)
+                        _shared=(comm.Get_rank(), comm.Get_size(), _summer(comm), weights),
+                        **options)
 
 
-def tomo(ctx, scene, lines, comm=None, split="views", **options):
+def tomo(ctx, scene, lines, comm=None, split="views", shares=None, **options):
     """(volume, history): ctx.tomo (CGLS, with nonneg or tikhonov) of the whole scene's `lines`
     (first axis: views, or a ray list's rays) by every rank together; every rank gets the whole
     volume (Z, Y, X) float32, one process's to rounding. split="views": each rank its share of the
@@ -258,6 +300,7 @@ def tomo(ctx, scene, lines, comm=None, split="views", **options):
     comm = _comm(comm)
     scene = _scene_dict(scene)
     _check_split(split, "tomo", ("views", "slabs"))  # (a line's slab parts add: no segments)
+    _views_only(split, shares, "tomo")
     add = _summer(comm)
     rank, ranks = comm.Get_rank(), comm.Get_size()
     n = _items(scene)
@@ -273,13 +316,13 @@ def tomo(ctx, scene, lines, comm=None, split="views", **options):
     if n < ranks:
         raise Error("IVR_ERROR_INVALID_ARGUMENT",
                     f"ivr.mpi.tomo: {ranks} ranks for {n} views or rays: at most one rank each")
-    first, count = _mine(comm, n)
+    first, count = _mine(ctx, comm, n, shares)
     return ctx.tomo(scene_share(scene, first, count), lines[first:first + count],
                     _split=(0, rank, ranks, add), **options)
 
 
 def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", nz=None, gather=True,
-                **options):
+                shares=None, **options):
     """ctx.reconstruct with the ranks sharing out each batch's views (as `mpirun -np N ivr
     reconstruct`): every rank passes the whole scene and targets and the same options, draws the
     same batch, differentiates its share of its views, and the loss and gradients are summed over
@@ -302,10 +345,15 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", nz
         go = progress is None or progress(entry) is not False
         return comm.allreduce(0 if go else 1, op=MPI.SUM) == 0
 
+    weights = None
     if split == "views":
         _whole_volume(nz, "reconstruct")
-    out = ctx.reconstruct(scene, targets, progress=agreed, _workers=_slab_split(code, comm, nz),
-                          **options)
+        views = _items(scene)
+        batch = min(int(options.get("batch") or views), views)
+        weights = _worker_weights(_counts(ctx, comm, batch, shares))
+    _views_only(split, shares, "reconstruct")
+    out = ctx.reconstruct(scene, targets, progress=agreed,
+                          _workers=_slab_split(code, comm, nz) + (weights,), **options)
     if split != "views" and "volume" in out and gather:
         parts = comm.allgather(out["volume"])  # a shared plane once, from the lower rank
         out["volume"] = np.concatenate([parts[0]] + [p[1:] for p in parts[1:]], axis=0)

@@ -7,7 +7,9 @@ gradients over slabs (within 1e-12; the camera's, by forward lanes, 1e-10) and o
 segments (within 1e-12; the camera's 1e-10); CGLS over views and over slabs (the float32 volume within 1e-6, the
 residuals within 1e-10; CGLS, SIRT and LSQR); a reconstruction sharing each batch's views, and
 one over slabs and over segments (losses within 1e-10, a stop
-on one rank stopping all); more ranks than views; a ray list; bad input.
+on one rank stopping all); shares of the views by weight (render, projection, CGLS, the
+deterministic density gradient, a reconstruction whose batch keeps a view on every rank); more
+ranks than views; a ray list; bad input.
 Each rank also computes the one-process result itself, as the reference."""
 import copy
 import json
@@ -299,6 +301,51 @@ def test_ray_list(ctx):
     assert abs(ln - l1) <= 1e-12 * abs(l1)
     close(g1["density"], gn["density"], "ray-list density gradient")
     close(g1["rays"], gn["rays"], "ray-list ray gradient")
+
+
+def test_view_shares_by_weight():
+    assert ivr.view_shares_by(8, [3, 1]) == [(0, 6), (6, 2)]
+    assert ivr.view_shares_by(4, [1, 9]) == [(0, 1), (1, 3)]  # (each: the weighted split is 0, 4)
+    assert ivr.view_shares_by(4, [1, 9], each=False) == [(0, 0), (0, 4)]
+    assert ivr.view_shares_by(2, [1, 5, 9]) == [(0, 1), (1, 1), (2, 0)]
+    with pytest.raises(ivr.Error, match=r"shares\[1\]"):
+        ivr.view_shares_by(4, [1, 0])
+
+
+def test_shares_by_weight_equal_one_process(ctx):
+    # Unequal shares, one weight a rank (1 : 4 : 7; the last rank takes most views), and the
+    # default — each rank's speed, equal on one machine — give one process's results.
+    size, s, v = COMM.Get_size(), scene_of(5), volume()
+    shares = [1.0 + 3 * r for r in range(size)]
+    assert ivr.mpi.rank_weights(ctx) == [ctx.samples_per_second] * size
+    one = ctx.render(s, v)
+    assert np.array_equal(ivr.mpi.render(ctx, s, v, shares=shares), one), "render by weight"
+    lines = ctx.project(s, v)
+    close(lines, ivr.mpi.project(ctx, s, v, shares=shares), "projection by weight")
+    a = dict(s, model="absorption")
+    x1, _ = ctx.tomo(a, lines, iterations=3, grid=v.shape)
+    xn, _ = ivr.mpi.tomo(ctx, a, lines, iterations=3, grid=v.shape, shares=shares)
+    assert np.max(np.abs(xn.astype(np.float64) - x1)) <= 1e-6 * np.max(np.abs(x1)), "tomo"
+    with ivr.Context(precision="f32") as c:
+        target = 0.8 * c.render(s, v) + 0.05
+        g1 = c.gradient(s, v, target, mode="adjoint", deterministic=True)[1]
+        gn = ivr.mpi.gradient(c, s, v, target, mode="adjoint", deterministic=True,
+                              shares=shares[::-1])[1]
+    assert np.array_equal(g1["density"], gn["density"]), "deterministic density by weight"
+    # A batch of 3 over ranks weighted 1 : 1000 (: 1): every rank keeps a view of each batch.
+    targets = ctx.render(s, v)
+    options = dict(volume=np.zeros_like(v), wrt=("density", "tf"), iterations=4, batch=3,
+                   levels=1, init="constant", init_value=0.3, seed=5)
+    r1 = ctx.reconstruct(s, targets, **options)
+    rn = ivr.mpi.reconstruct(ctx, s, targets, shares=[1.0, 1000.0, 1.0][:size], **options)
+    for a, b in zip(rn["history"], r1["history"]):
+        assert a["views"] == b["views"] and abs(a["loss"] - b["loss"]) <= 1e-10 * b["loss"], (a, b)
+    err = np.max(np.abs(rn["volume"].astype(np.float64) - r1["volume"]))
+    assert err <= 1e-6 * np.max(np.abs(r1["volume"])), f"reconstruct by weight: {err}"
+    with pytest.raises(ivr.Error, match=f"shares has {size + 1} weights for {size} ranks"):
+        ivr.mpi.render(ctx, s, v, shares=[1.0] * (size + 1))
+    with pytest.raises(ivr.Error, match="cuts equal slabs"):
+        ivr.mpi.render(ctx, s, v, split="slabs", shares=shares)
 
 
 def test_bad_input_is_refused_clearly(ctx):

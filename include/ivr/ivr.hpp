@@ -272,6 +272,9 @@ struct Workers {
   ivr_split split = IVR_SPLIT_VIEWS;
   int rank = 0, ranks = 1;
   std::function<void(double* values, size_t count)> sum;
+  // Over views: each worker's weight, its share of the views in proportion (`ranks` of them, the
+  // same on every worker; ivr_view_shares); empty: equal shares.
+  std::vector<double> shares{};
 };
 
 // A device with its queue and kernel cache. One context serves one thread at a time; separate
@@ -356,7 +359,7 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                                ivr_precision(options.precision), options.step, &r));
     return Result(r);
   }
-  // Data-parallel over views (ivr_gradient_shared; `views.split` is not read): worker
+  // Data-parallel over views (ivr_gradient_shared_weighted; `views.split` is not read): worker
   // views.rank of views.ranks differentiates its share of the whole scene's views, every worker
   // calling together; every worker gets the whole loss and gradient (with options.deterministic
   // the density gradient is one process's bit for bit).
@@ -364,10 +367,11 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                          const GradientOptions& options, const Workers& views) {
     ivr_result* r = nullptr;
     detail::Sum sum{&views.sum, nullptr};
-    const ivr_status status = ivr_gradient_shared(
+    const ivr_status status = ivr_gradient_shared_weighted(
         get(), scene.get(), target, count, options.wrt.c_str(), ivr_mode(options.mode),
         ivr_loss(options.loss), ivr_precision(options.precision), options.step,
         options.deterministic ? 1 : 0, views.rank, views.ranks,
+        views.shares.empty() ? nullptr : views.shares.data(),
         views.sum ? &detail::Sum::call : nullptr, &sum, &r);
     if (sum.error) std::rethrow_exception(sum.error);
     detail::check(status);

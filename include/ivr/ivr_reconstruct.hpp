@@ -55,16 +55,17 @@ class Reconstruction : public detail::Handle<ivr_reconstruction, ivr_reconstruct
     detail::check(ivr_reconstruction_create(context.get(), scene.get(), targets.data(),
                                             targets.size(), &options, &handle_));
   }
-  // Worker workers.rank of workers.ranks sharing out each batch's views
-  // (ivr_reconstruction_create_shared; workers.split is not read): every step sums the loss and
-  // gradients over the workers through workers.sum, which this object (and its copies) keeps; what
-  // the sum throws is rethrown by the step that called it.
+  // Worker workers.rank of workers.ranks sharing out each batch's views in proportion to
+  // workers.shares (ivr_reconstruction_create_weighted; workers.split is not read): every step
+  // sums the loss and gradients over the workers through workers.sum, which this object (and its
+  // copies) keeps; what the sum throws is rethrown by the step that called it.
   Reconstruction(const Context& context, const Scene& scene, const std::vector<float>& targets,
                  const ReconstructOptions& options, const Workers& workers)
       : sum_(std::make_shared<OwnedSum>(workers.sum)) {
-    detail::check(ivr_reconstruction_create_shared(
-        context.get(), scene.get(), targets.data(), targets.size(), &options, workers.rank,
-        workers.ranks, workers.sum ? &detail::Sum::call : nullptr, &sum_->state, &handle_));
+    detail::check(ivr_reconstruction_create_weighted(
+        context.get(), scene.get(), targets.data(), targets.size(), &options, IVR_SPLIT_VIEWS,
+        workers.rank, workers.ranks, workers.shares.empty() ? nullptr : workers.shares.data(),
+        workers.sum ? &detail::Sum::call : nullptr, &sum_->state, &handle_));
   }
   // One iteration (throws once done()).
   ivr_reconstruct_iteration step() {

@@ -343,16 +343,17 @@ TEST(CApiTomoSplit, SharedGradientIsOneProcessBitForBit) {
   for (std::size_t i = 0; i < target.size(); ++i) target[i] = 0.4f + 0.3f * std::sin(0.37f * float(i));
   // Worker `rank` of `ranks` (ranks 1: no sum): its density gradient, its loss.
   auto run = [&](int rank, int ranks, Summit* summit, std::vector<double>& density, double& loss,
-                 std::string& error) {
+                 std::string& error, const double* shares) {
     ivr_context* ctx = nullptr;
     ivr_scene* scene = nullptr;
     ivr_result* result = nullptr;
     Worker w{summit, rank};
     if (ivr_context_create(nullptr, &ctx) != IVR_OK ||
         ivr_scene_from_json(ctx, json.c_str(), nullptr, &scene) != IVR_OK ||
-        ivr_gradient_shared(ctx, scene, target.data(), target.size(), "density", IVR_MODE_ADJOINT,
-                            IVR_LOSS_MSE, IVR_PRECISION_F32, 0, 1, rank, ranks,
-                            ranks > 1 ? summed : nullptr, &w, &result) != IVR_OK) {
+        ivr_gradient_shared_weighted(ctx, scene, target.data(), target.size(), "density",
+                                     IVR_MODE_ADJOINT, IVR_LOSS_MSE, IVR_PRECISION_F32, 0, 1, rank,
+                                     ranks, shares, ranks > 1 ? summed : nullptr, &w,
+                                     &result) != IVR_OK) {
       error = ivr_last_error();
     } else {
       ivr_mode mode = IVR_MODE_AUTO;
@@ -369,20 +370,24 @@ TEST(CApiTomoSplit, SharedGradientIsOneProcessBitForBit) {
   std::vector<double> one;
   double one_loss = 0;
   std::string error;
-  run(0, 1, nullptr, one, one_loss, error);
+  run(0, 1, nullptr, one, one_loss, error, nullptr);
   ASSERT_EQ(error, "");
-  Summit summit(2);
-  std::vector<std::vector<double>> density(2);
-  std::vector<double> loss(2);
-  std::vector<std::string> errors(2);
-  std::vector<std::thread> threads;
-  for (int r = 0; r < 2; ++r)
-    threads.emplace_back([&, r] { run(r, 2, &summit, density[r], loss[r], errors[r]); });
-  for (std::thread& t : threads) t.join();
-  for (int r = 0; r < 2; ++r) {
-    ASSERT_EQ(errors[r], "") << "worker " << r;
-    EXPECT_EQ(density[r], one) << "worker " << r << ": not one process's bits";
-    EXPECT_NEAR(loss[r], one_loss, 1e-6 * one_loss) << "worker " << r;
+  // Equal shares (2 and 1 views), and weighted 1 : 2 (ivr_gradient_shared_weighted: 1 and 2).
+  const double weights[] = {1.0, 2.0};
+  for (const double* shares : {static_cast<const double*>(nullptr), weights}) {
+    Summit summit(2);
+    std::vector<std::vector<double>> density(2);
+    std::vector<double> loss(2);
+    std::vector<std::string> errors(2);
+    std::vector<std::thread> threads;
+    for (int r = 0; r < 2; ++r)
+      threads.emplace_back([&, r] { run(r, 2, &summit, density[r], loss[r], errors[r], shares); });
+    for (std::thread& t : threads) t.join();
+    for (int r = 0; r < 2; ++r) {
+      ASSERT_EQ(errors[r], "") << "worker " << r;
+      EXPECT_EQ(density[r], one) << "worker " << r << ": not one process's bits";
+      EXPECT_NEAR(loss[r], one_loss, 1e-6 * one_loss) << "worker " << r;
+    }
   }
   ivr_context* ctx = nullptr;
   ivr_scene* scene = nullptr;
@@ -399,9 +404,40 @@ TEST(CApiTomoSplit, SharedGradientIsOneProcessBitForBit) {
                                 nullptr, nullptr, &result),
             IVR_ERROR_NULL_POINTER);
   EXPECT_TRUE(has(ivr_last_error(), "sum")) << ivr_last_error();
+  const double bad[] = {1.0, 0.0};
+  EXPECT_EQ(ivr_gradient_shared_weighted(ctx, scene, target.data(), target.size(), "density",
+                                         IVR_MODE_AUTO, IVR_LOSS_MSE, IVR_PRECISION_F32, 0, 1, 0,
+                                         2, bad, summed, nullptr, &result),
+            IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "shares[1]")) << ivr_last_error();
   EXPECT_EQ(result, nullptr);
+  double speed = 0;
+  ASSERT_EQ(ivr_context_samples_per_second(ctx, &speed), IVR_OK);
+  EXPECT_GT(speed, 0);
+  EXPECT_TRUE(std::isfinite(speed));
   ivr_scene_release(scene);
   ivr_context_release(ctx);
+}
+
+// ivr_view_shares: the weighted split, every worker at least one view with `each`; bad input.
+TEST(CApiTomoSplit, ViewSharesFollowTheWeights) {
+  std::size_t counts[3] = {9, 9, 9};
+  const double w19[] = {1.0, 9.0};
+  ASSERT_EQ(ivr_view_shares(4, w19, 2, 0, counts), IVR_OK);
+  EXPECT_EQ(counts[0], 0u);
+  EXPECT_EQ(counts[1], 4u);
+  ASSERT_EQ(ivr_view_shares(4, w19, 2, 1, counts), IVR_OK);
+  EXPECT_EQ(counts[0], 1u);
+  EXPECT_EQ(counts[1], 3u);
+  ASSERT_EQ(ivr_view_shares(7, nullptr, 3, 0, counts), IVR_OK);  // (equal: 3, 2, 2)
+  EXPECT_EQ(counts[0], 3u);
+  EXPECT_EQ(counts[1], 2u);
+  EXPECT_EQ(counts[2], 2u);
+  const double bad[] = {1.0, -1.0};
+  EXPECT_EQ(ivr_view_shares(4, bad, 2, 1, counts), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_TRUE(has(ivr_last_error(), "shares[1]")) << ivr_last_error();
+  EXPECT_EQ(ivr_view_shares(4, w19, 0, 1, counts), IVR_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(ivr_view_shares(4, w19, 2, 1, nullptr), IVR_ERROR_NULL_POINTER);
 }
 
 }  // namespace

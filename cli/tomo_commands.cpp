@@ -163,7 +163,7 @@ Runner add_project_command(CLI::App& app) {
     }
     const ImageExtent e = image_extent(scene);
     write_outputs({{args->output, ray_file_shapes(scene)[0], lines, precision == Precision::f64}});
-    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has a view: view_shares_each)
+    const double seconds = projector->last_kernel_seconds();  // (rank 0 has a view)
     if (args->json) {
       std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector->bricks()},
                                   {"precision", args->precision},
@@ -221,7 +221,7 @@ Runner add_backproject_command(CLI::App& app) {
       if (world().rank != 0) return 0;  // rank 0 writes
     }
     write_outputs({{c.output, volume_shape(scene), volume, precision == Precision::f64}});
-    const double seconds = projector->last_kernel_seconds();  // (rank 0 always has a view: view_shares_each)
+    const double seconds = projector->last_kernel_seconds();  // (rank 0 has a view)
     const std::size_t rays = image_extent(scene).pixels();
     if (c.json) {
       std::cout << nlohmann::json{{"device", device.info().name}, {"bricks", projector->bricks()},

@@ -87,6 +87,31 @@ ivr_reconstruction* create_reconstruction(ivr_context* c, const ivr_scene* s, co
   r->grid.nz = scene.volume.nz;
   return publish(std::move(r), c, Kind::reconstruction);
 }
+
+// A reconstruction as worker `worker` of `workers` (the shared, split and weighted entry points;
+// `name` the one called, for its errors).
+ivr_status create_workers(const char* name, ivr_context* c, const ivr_scene* s,
+                          const float* targets, size_t count,
+                          const ivr_reconstruct_options* options, ivr_split split, int worker,
+                          int workers, const double* shares, ivr_sum_fn sum, void* sum_user,
+                          ivr_reconstruction** out) {
+  return guarded(c, name, [&] {
+    not_null(out, "reconstruction");
+    *out = nullptr;
+    if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+    if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS && split != IVR_SPLIT_SEGMENTS)
+      bad("split " + std::to_string(int(split)) +
+          " (IVR_SPLIT_VIEWS, IVR_SPLIT_SLABS or IVR_SPLIT_SEGMENTS)");
+    ivr::ReconstructOptions o = core_options(options);
+    o.worker = worker, o.workers = workers;  // (their range: checked by the core, named)
+    o.sum = sum_of(sum, sum_user);
+    o.slabs = split != IVR_SPLIT_VIEWS;
+    if (split == IVR_SPLIT_SEGMENTS) o.slab_march = ivr::SlabMarch::segments;
+    if (shares && o.slabs) bad("shares: the views' shares; over slabs pass NULL (equal slabs)");
+    if (shares && workers > 0) o.shares.assign(shares, shares + workers);  // (checked by the core)
+    *out = create_reconstruction(c, s, targets, count, o);
+  });
+}
 }  // namespace
 
 extern "C" {
@@ -112,8 +137,8 @@ ivr_status ivr_reconstruction_create_shared(ivr_context* c, const ivr_scene* s,
                                             const ivr_reconstruct_options* options, int worker,
                                             int workers, ivr_sum_fn sum, void* sum_user,
                                             ivr_reconstruction** out) {
-  return ivr_reconstruction_create_split(c, s, targets, count, options, IVR_SPLIT_VIEWS, worker,
-                                         workers, sum, sum_user, out);
+  return create_workers("ivr_reconstruction_create_shared", c, s, targets, count, options,
+                        IVR_SPLIT_VIEWS, worker, workers, nullptr, sum, sum_user, out);
 }
 
 ivr_status ivr_reconstruction_create_split(ivr_context* c, const ivr_scene* s,
@@ -121,8 +146,10 @@ ivr_status ivr_reconstruction_create_split(ivr_context* c, const ivr_scene* s,
                                            const ivr_reconstruct_options* options, ivr_split split,
                                            int worker, int workers, ivr_sum_fn sum, void* sum_user,
                                            ivr_reconstruction** out) {
-  return ivr_reconstruction_create_weighted(c, s, targets, count, options, split, worker, workers,
-                                            nullptr, sum, sum_user, out);
+  return create_workers(split != IVR_SPLIT_VIEWS ? "ivr_reconstruction_create_split"
+                                                 : "ivr_reconstruction_create_shared",
+                        c, s, targets, count, options, split, worker, workers, nullptr, sum,
+                        sum_user, out);
 }
 
 ivr_status ivr_reconstruction_create_weighted(ivr_context* c, const ivr_scene* s,
@@ -131,25 +158,8 @@ ivr_status ivr_reconstruction_create_weighted(ivr_context* c, const ivr_scene* s
                                               ivr_split split, int worker, int workers,
                                               const double* shares, ivr_sum_fn sum,
                                               void* sum_user, ivr_reconstruction** out) {
-  return guarded(c, shares ? "ivr_reconstruction_create_weighted"
-                 : split != IVR_SPLIT_VIEWS ? "ivr_reconstruction_create_split"
-                                            : "ivr_reconstruction_create_shared",
-                 [&] {
-    not_null(out, "reconstruction");
-    *out = nullptr;
-    if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
-    if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS && split != IVR_SPLIT_SEGMENTS)
-      bad("split " + std::to_string(int(split)) +
-          " (IVR_SPLIT_VIEWS, IVR_SPLIT_SLABS or IVR_SPLIT_SEGMENTS)");
-    ivr::ReconstructOptions o = core_options(options);
-    o.worker = worker, o.workers = workers;  // (their range: checked by the core, named)
-    o.sum = sum_of(sum, sum_user);
-    o.slabs = split != IVR_SPLIT_VIEWS;
-    if (split == IVR_SPLIT_SEGMENTS) o.slab_march = ivr::SlabMarch::segments;
-    if (shares && o.slabs) bad("shares: the views' shares; over slabs pass NULL (equal slabs)");
-    if (shares && workers > 0) o.shares.assign(shares, shares + workers);  // (checked by the core)
-    *out = create_reconstruction(c, s, targets, count, o);
-  });
+  return create_workers("ivr_reconstruction_create_weighted", c, s, targets, count, options,
+                        split, worker, workers, shares, sum, sum_user, out);
 }
 
 ivr_status ivr_reconstruction_retain(ivr_reconstruction* r) {

@@ -69,11 +69,9 @@ std::vector<std::pair<std::size_t, std::size_t>> view_shares(std::size_t n,
 
 std::vector<std::pair<std::size_t, std::size_t>> view_shares_each(
     std::size_t n, const std::vector<double>& weights) {
-  std::vector<std::pair<std::size_t, std::size_t>> out = view_shares(n, weights);
-  if (n < weights.size()) {  // one view each to the first n (the equal split's)
-    for (std::size_t i = 0; i < out.size(); ++i) out[i] = {std::min(i, n), i < n ? 1 : 0};
-    return out;
-  }
+  std::vector<std::pair<std::size_t, std::size_t>> out = view_shares(n, weights);  // (checked)
+  if (n < weights.size())  // one view each to the first n: the equal split's
+    return view_shares(n, std::vector<double>(weights.size(), 1.0));
   const bool empty = std::any_of(out.begin(), out.end(), [](const auto& s) { return s.second == 0; });
   if (!empty) return out;
   // One view each first, the rest by the weights (their split of n - parts, shifted).

@@ -126,25 +126,6 @@ def devices():
     return json.loads(buf.value.decode())["devices"]
 
 
-def _doubles(values):
-    """A C array of doubles for the C API (None: NULL)."""
-    return None if values is None else (ctypes.c_double * len(values))(*map(float, values))
-
-
-def view_shares_by(n, weights, each=True):
-    """[(first, count)] for every weight, in order: n views (or rays) cut into contiguous shares in
-    proportion to `weights` (the C API's ivr_view_shares; empty ones kept). each=True: every
-    share at least one view where n >= len(weights) (as `mpirun ivr` gives the ranks)."""
-    counts = (ctypes.c_size_t * len(weights))()
-    _check(_library().ivr_view_shares(int(n), _doubles(weights), len(weights), 1 if each else 0,
-                                      counts))
-    out, first = [], 0
-    for c in counts:
-        out.append((first, c))
-        first += c
-    return out
-
-
 def loss(image, target, kind="mse"):
     """The loss (mean over every element) of `image` against `target` (same shape)."""
     a = np.ascontiguousarray(image, dtype=np.float32)
@@ -579,6 +560,8 @@ class Context(_Owned):
 # Device-resident sessions (bindings/python/ivr/_session.py): imported last, as they build on the
 # names above.
 from ._session import DensityOptimizer, DeviceArray, Session  # noqa: E402
+# The split of views among workers (bindings/python/ivr/_shares.py).
+from ._shares import _doubles, view_shares_by  # noqa: E402,F401
 # The one-shot functions, each opening a Context for the call (bindings/python/ivr/_oneshot.py).
 from ._oneshot import (backproject, lines_from_intensities, project, reconstruct,  # noqa: E402
                        tomo, viewpoint)

@@ -44,13 +44,7 @@ def view_shares(n, parts):
     n % parts one longer), as the C++ view_shares(); empty shares are left out."""
     if n < 0 or parts < 1:
         raise Error("IVR_ERROR_INVALID_ARGUMENT", f"view_shares: {n} views over {parts} parts")
-    out, first = [], 0
-    for d in range(parts):
-        count = n // parts + (1 if d < n % parts else 0)
-        if count:
-            out.append((first, count))
-        first += count
-    return out
+    return [s for s in view_shares_by(n, [1.0] * parts, each=False) if s[1]]
 
 
 def _scene_dict(scene):

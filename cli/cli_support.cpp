@@ -165,8 +165,9 @@ std::vector<std::unique_ptr<Device>> open_devices(const std::string& selectors) 
 
 void add_shares_option(CLI::App* cmd, std::vector<double>& shares) {
   cmd->add_option("--shares", shares,
-                  "Each device's weight, comma-separated, its share of the views in proportion "
-                  "(several --device; under mpirun one a rank, every rank giving the same). "
+                  "Each device's weight, comma-separated, its share of the views in proportion, "
+                  "or with --split slabs|segments of the volume's planes (several --device; "
+                  "under mpirun one a rank over views, every rank giving the same). "
                   "Default: each device's speed, samples per second from `ivr calibrate` or "
                   "estimated from its size (`ivr devices` shows it); a rank's, its devices' summed")
       ->delimiter(',');
@@ -189,8 +190,10 @@ double rank_speed(const std::vector<Device*>& devices) {
 std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
                                         const std::vector<Device*>& devices, std::size_t items,
                                         const std::string& split) {
-  if (!shares.empty() && split != "views")
-    throw input_error("--shares: the views' shares; --split " + split + " cuts equal slabs");
+  if (!shares.empty() && split != "views" && world().size > 1)
+    throw input_error("--shares: under mpirun --split " + split +
+                      " cuts equal slabs, one a rank (--shares weighs the ranks' views, or "
+                      "several --device's slabs in one process)");
   std::vector<std::size_t> counts;
   if (world().size > 1) {
     if (split != "views") return {};
@@ -217,6 +220,19 @@ std::pair<std::size_t, std::size_t> rank_part(const std::vector<std::size_t>& co
   std::size_t first = 0;
   for (int r = 0; r < world().rank; ++r) first += counts[std::size_t(r)];
   return {first, counts[std::size_t(world().rank)]};
+}
+
+std::vector<std::array<int, 2>> device_slabs(const std::vector<Device*>& devices, int nz,
+                                             const std::vector<double>& shares,
+                                             const std::string& split) {
+  if (world().size > 1 || devices.size() < 2 || split == "views") return {};
+  const std::vector<double> weights = share_weights(devices, shares);
+  std::vector<std::array<int, 2>> out;
+  for (int i = 0; i < int(devices.size()); ++i) {
+    const Slab s = domain_slab(nz, i, int(devices.size()), weights);
+    out.push_back({s.first, s.last});
+  }
+  return out;
 }
 
 std::vector<double> device_shares(const std::vector<double>& shares) {

@@ -180,6 +180,8 @@ Runner add_render_command(CLI::App& app) {
                             {"bricks", stats.bricks},
                             {"devices", stats.devices},
                             {"shares", shares},
+                            {"slabs", device_slabs(pointers(devices), scene.volume.nz,
+                                                   args->shares, args->split)},
                             {"ranks", world().size},
                             {"split", args->split},
                             {"exchanges", domain.exchanges},

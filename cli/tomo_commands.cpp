@@ -364,6 +364,8 @@ Runner add_tomo_command(CLI::App& app) {
                                                                    shares.begin(), shares.end(),
                                                                    [](std::size_t c) { return c > 0; }))},
                                   {"shares", shares},
+                                  {"slabs", device_slabs(pointers(opened), scene.volume.nz,
+                                                         args->options.shares, args->split)},
                                   {"ranks", world().size},
                                   {"split", args->split},
                                   {"iterations", r.history.size()},

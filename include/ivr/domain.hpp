@@ -26,9 +26,17 @@ struct Slab {
 // Throws Error(invalid_argument) where there are more workers than cells (ranks > nz − 1).
 IVR_API Slab domain_slab(int nz, int rank, int ranks);
 
+// The same with each worker's share of the cells in proportion to its weight in `shares` (one a
+// worker, each > 0 and finite; a device's speed, share_weights()): the largest-remainder split of
+// view_shares_each(), every worker at least one cell. Empty or all equal: the near-equal runs
+// above. A fast device's slab is longer, so that the workers' marches take about as long.
+IVR_API Slab domain_slab(int nz, int rank, int ranks, const std::vector<double>& shares);
+
 // `scene` with only worker rank's slab of its densities in volume.data (what render_domain() and
 // gradient_domain() take; a worker that loads the whole volume keeps only this).
 IVR_API Scene domain_share(const Scene& scene, int rank, int ranks);
+IVR_API Scene domain_share(const Scene& scene, int rank, int ranks,
+                           const std::vector<double>& shares);
 
 // Every worker's bytes, in rank order, handed to every worker (an MPI_Allgatherv); called by all
 // workers together.
@@ -64,6 +72,9 @@ struct DomainPart {
   int rank = 0, ranks = 1;
   AllGather all_gather;  // the exchange of the rays' states after each sweep over the slabs
   SlabMarch march = SlabMarch::states;  // (every worker the same)
+  // Each worker's weight, its slab domain_slab(nz, rank, ranks, shares) (every worker the same;
+  // empty: equal slabs). The worker's scene holds that slab (domain_share with the same shares).
+  std::vector<double> shares{};
 };
 
 // How a domain-parallel operation went, per worker.
@@ -100,10 +111,13 @@ IVR_API Gradient gradient_domain(Device& device, const Scene& scene, const Image
                                  const std::vector<std::string>& groups = {"density"});
 
 // The same over several devices in one process (docs/scaling.md): `scene` holds the whole
-// volume; device i of n takes its slab, domain_share(scene, i, n), and marches it on a thread of its
-// own, the devices meeting in this process where ranks would over MPI — so a volume that fits no
-// one device's memory is spread over all of theirs (and each slab is streamed in bricks where its
-// device needs it). The image equals render_domain()'s over n workers. Stats: samples summed, the
+// volume; device i of n takes its slab, domain_share(scene, i, n, w), and marches it on a thread of
+// its own, the devices meeting in this process where ranks would over MPI — so a volume that fits
+// no one device's memory is spread over all of theirs (and each slab is streamed in bricks where
+// its device needs it). The slabs follow the weights w = share_weights(devices, options.shares):
+// the options' shares, else each device's speed (samples_per_second), so that a GPU beside a CPU
+// takes the longer slab (equal speeds: equal slabs). The image equals render_domain()'s over n
+// workers with those shares. Stats: samples summed, the
 // slowest device's kernel time, the largest device's memory, bricks summed over the devices;
 // `domain` is device 0's. Throws Error(invalid_argument) for no or null devices and for more
 // devices than the volume has cells along z.
@@ -113,8 +127,9 @@ IVR_API Image render_domain(const std::vector<Device*>& devices, const Scene& sc
 
 // The gradient over several devices' slabs, as whole as one process's: "density" of the whole
 // volume (the slabs joined, domain_join()), "tf" summed over the devices in device order, the
-// other groups whole on every device and taken from device 0. options.workers must be 1 (a data-
-// parallel worker's devices are not split further).
+// other groups whole on every device and taken from device 0; the slabs as render_domain()'s, by
+// share_weights(devices, options.shares). options.workers must be 1 (a data-parallel worker's
+// devices are not split further).
 IVR_API Gradient gradient_domain(const std::vector<Device*>& devices, const Scene& scene,
                                  const Image& target, SlabMarch march = SlabMarch::states,
                                  const GradientOptions& options = {}, DomainStats* domain = nullptr,
@@ -133,7 +148,8 @@ IVR_API TomoResult tomo_domain(Device& device, const Scene& scene, const std::ve
                                const TomoProgress& progress = {});
 
 // The same over several devices in one process: device i of n solves for slab i on a thread of
-// its own, the devices meeting in this process where ranks would over MPI. Returns the whole
+// its own, the devices meeting in this process where ranks would over MPI, the slabs sized as
+// render_domain()'s by share_weights(devices, options.shares). Returns the whole
 // iterate (the slabs joined, domain_assemble()), equal to tomo_domain()'s over n workers and to
 // one process's to rounding; history and stop_reason are device 0's (every device's alike),
 // bricks summed, setup_seconds the slowest device's. `progress` is asked on device 0 and its
@@ -144,7 +160,9 @@ IVR_API TomoResult tomo_domain(const std::vector<Device*>& devices, const Scene&
                                const TomoProgress& progress = {});
 
 // The volume's values (nz × ny × nx) from every worker's slab values, in rank order: the shared
-// planes summed.
+// planes summed. Each slab's place follows from the sizes (consecutive slabs share one plane), so
+// equal and weighted slabs alike; slabs that are not whole planes, or do not cover the nz planes
+// exactly, are refused.
 IVR_API std::vector<double> domain_join(int nx, int ny, int nz,
                                         const std::vector<std::vector<double>>& slabs);
 // The volume (nz × ny × nx) from every worker's slab of one volume (tomo_domain's iterates), in rank

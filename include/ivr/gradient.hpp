@@ -49,8 +49,9 @@ struct GradientOptions {
   int worker = 0, workers = 1;
   std::function<void(std::vector<double>&)> sum;
   // Each share's weight, its share of the views in proportion (view_shares): over several devices
-  // one a device (empty: share_weights(), their speeds); as worker of `workers`, one a worker,
-  // every worker passing the same (empty: equal shares).
+  // one a device (empty: share_weights(), their speeds; gradient_domain over devices: their
+  // slabs' planes, domain_slab); as worker of `workers`, one a worker, every worker passing the
+  // same (empty: equal shares).
   std::vector<double> shares{};
 };
 

@@ -98,7 +98,9 @@ struct ReconstructOptions {
   // Over views: each worker's weight, its share of each batch's views in proportion
   // (view_shares; every worker passing the same; empty: equal shares). MultiDeviceReconstruction:
   // one a device, empty taking share_weights() — their speeds; a device whose share of a batch
-  // would be empty does not take part. Over slabs the slabs are equal, whatever the weights.
+  // would be empty does not take part. Over slabs (slabs): each worker's share of the volume's
+  // planes, domain_slab(nz, worker, workers, shares) at every level (empty: equal slabs; every
+  // worker passing the same); MultiDeviceReconstruction: share_weights(), every device a slab.
   std::vector<double> shares{};
 };
 

@@ -28,10 +28,11 @@ struct RenderOptions {
   // device in; 0: in core where the volume and the render's buffers fit the device memory (or
   // $IVR_DEVICE_MEMORY_LIMIT), else bricks chosen to fit. $IVR_VOLUME_BRICK forces one as well.
   int volume_brick = 0;
-  // Several devices over views (render, gradient, tomo over a vector of devices;
-  // docs/scaling.md): each device's weight, its share of the views in proportion (view_shares);
-  // one a device, each > 0 and finite. Empty: each device's samples_per_second() (its
-  // calibration, else an estimate from its size), so a GPU beside the CPU takes most views.
+  // Several devices (render, gradient, tomo over a vector of devices; docs/scaling.md): each
+  // device's weight, its share of the views in proportion (view_shares) — or over slabs
+  // (render_domain, tomo_domain over devices) of the volume's planes (domain_slab); one a device,
+  // each > 0 and finite. Empty: each device's samples_per_second() (its calibration, else an
+  // estimate from its size), so a GPU beside the CPU takes most views, or the longest slab.
   std::vector<double> shares{};
 };
 

@@ -77,10 +77,11 @@ struct TomoOptions {
   double tv_epsilon = 1e-3;  // ε > 0 of the smoothed TV
   int tv_reweight = 10;      // CGLS/LSQR iterations between re-weightings
   double relaxation = 1.0;   // SIRT's ω in (0, 2)
-  // Several devices over views (render, gradient, tomo over a vector of devices;
-  // docs/scaling.md): each device's weight, its share of the views in proportion (view_shares);
-  // one a device, each > 0 and finite. Empty: each device's samples_per_second() (its
-  // calibration, else an estimate from its size), so a GPU beside the CPU takes most views.
+  // Several devices (render, gradient, tomo over a vector of devices; docs/scaling.md): each
+  // device's weight, its share of the views in proportion (view_shares) — or over slabs
+  // (render_domain, tomo_domain over devices) of the volume's planes (domain_slab); one a device,
+  // each > 0 and finite. Empty: each device's samples_per_second() (its calibration, else an
+  // estimate from its size), so a GPU beside the CPU takes most views, or the longest slab.
   std::vector<double> shares{};
 };
 

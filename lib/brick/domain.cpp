@@ -21,6 +21,14 @@ void check_domain_part(const DomainPart& part) {
   if (part.ranks > 1 && !part.all_gather)
     throw Error(Status::invalid_argument,
                 "domain: " + std::to_string(part.ranks) + " workers need an all_gather");
+  if (!part.shares.empty() && part.shares.size() != std::size_t(part.ranks))
+    throw Error(Status::invalid_argument, "domain: " + std::to_string(part.shares.size()) +
+                                              " shares for " + std::to_string(part.ranks) +
+                                              " workers");
+}
+
+Slab part_slab(int nz, const DomainPart& part) {
+  return domain_slab(nz, part.rank, part.ranks, part.shares);
 }
 
 namespace {
@@ -329,8 +337,26 @@ Slab domain_slab(int nz, int rank, int ranks) {
   return Slab{int(std::int64_t(rank) * cells / ranks), int(std::int64_t(rank + 1) * cells / ranks)};
 }
 
+Slab domain_slab(int nz, int rank, int ranks, const std::vector<double>& shares) {
+  const Slab equal = domain_slab(nz, rank, ranks);  // (the worker and the cells checked)
+  if (shares.empty()) return equal;
+  if (shares.size() != std::size_t(ranks))
+    throw Error(Status::invalid_argument, "domain: " + std::to_string(shares.size()) +
+                                              " shares for " + std::to_string(ranks) + " workers");
+  // (each weight checked; at least a cell each, as there are at least as many cells as workers)
+  const auto parts = view_shares_each(std::size_t(nz - 1), shares);
+  if (std::all_of(shares.begin(), shares.end(), [&](double w) { return w == shares[0]; }))
+    return equal;
+  const auto [first, cells] = parts[std::size_t(rank)];
+  return Slab{int(first), int(first + cells)};
+}
+
 Scene domain_share(const Scene& scene, int rank, int ranks) {
-  const Slab slab = domain_slab(scene.volume.nz, rank, ranks);
+  return domain_share(scene, rank, ranks, {});
+}
+
+Scene domain_share(const Scene& scene, int rank, int ranks, const std::vector<double>& shares) {
+  const Slab slab = domain_slab(scene.volume.nz, rank, ranks, shares);
   if (scene.volume.data.size() != scene.volume.voxel_count())
     throw Error(Status::invalid_argument,
                 "volume: holds " + std::to_string(scene.volume.data.size()) +
@@ -380,7 +406,7 @@ void attach_exchange(BrickedMarch& march, const DomainPart& part, DomainStats* s
 Image render_domain(Device& device, const Scene& scene, const DomainPart& part,
                     const RenderOptions& options, RenderStats* stats, DomainStats* domain) {
   check_domain_part(part);
-  const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
+  const Slab slab = part_slab(scene.volume.nz, part);
   if (part.march == SlabMarch::states) {
     const BrickPlan plan =
         plan_domain(device, scene, options.precision, options.volume_brick, false, slab);
@@ -417,7 +443,7 @@ Gradient gradient_domain_values(Device& device, const Scene& scene, const Image&
     throw Error(Status::invalid_argument, "domain gradient: " + std::to_string(densities->size()) +
                                               " float64 densities for the slab's " +
                                               std::to_string(scene.volume.data.size()));
-  const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
+  const Slab slab = part_slab(scene.volume.nz, part);
   // The endpoint schemes' bricks hold a halo (brick_halo): at the slab's ends, planes of the
   // neighbours' slabs, fetched first; what the halo's voxels gather is sent back after.
   const int halo = brick_halo(scene, options.step != 0 ? options.step : scene.integrator.step);
@@ -450,15 +476,28 @@ std::vector<double> join_slabs(int nx, int ny, int nz,
                                const std::vector<std::vector<double>>& slabs, bool sum,
                                const char* what) {
   const std::size_t plane = std::size_t(nx) * ny;
+  if (plane == 0 || nz < 2 || slabs.empty() || int(slabs.size()) > nz - 1)
+    throw Error(Status::invalid_argument, std::string(what) + ": " +
+                                              std::to_string(slabs.size()) +
+                                              " slabs of a volume of " + std::to_string(nx) + "×" +
+                                              std::to_string(ny) + "×" + std::to_string(nz));
   std::vector<double> out(plane * nz, 0.0);
+  int first = 0;  // each slab's first plane: the one before it ends on (equal or weighted slabs)
   for (int r = 0; r < int(slabs.size()); ++r) {
-    const Slab s = domain_slab(nz, r, int(slabs.size()));
-    if (slabs[r].size() != plane * s.planes())
-      throw Error(Status::invalid_argument, std::string(what) + ": worker " + std::to_string(r) +
-                                                "'s slab has " + std::to_string(slabs[r].size()) +
-                                                " values, planes " + std::to_string(s.first) +
-                                                ".." + std::to_string(s.last) + " need " +
-                                                std::to_string(plane * s.planes()));
+    const std::size_t planes = slabs[r].size() / plane;
+    const bool last = r + 1 == int(slabs.size());
+    // (planes from this slab's first on; a slab before the last leaves the next two at least)
+    const std::size_t left = std::size_t(nz - first);
+    if (slabs[r].size() % plane || planes < 2 || (last ? planes != left : planes + 1 > left))
+      throw Error(Status::invalid_argument,
+                  std::string(what) + ": worker " + std::to_string(r) + "'s slab has " +
+                      std::to_string(slabs[r].size()) + " values, not whole planes of " +
+                      std::to_string(plane) + " from plane " + std::to_string(first) +
+                      (last ? " to the volume's last, " +
+                                                        std::to_string(nz - 1)
+                                                  : " short of plane " + std::to_string(nz - 1)));
+    const Slab s{first, first + int(planes) - 1};
+    first = s.last;
     double* at = out.data() + plane * s.first;
     const std::size_t from = !sum && r > 0 ? plane : 0;
     for (std::size_t i = from; i < slabs[r].size(); ++i)

@@ -10,6 +10,8 @@ namespace ivr {
 // Error(invalid_argument) where `part` is not one worker of ranks ≥ 1, or several lack an
 // all_gather.
 void check_domain_part(const DomainPart& part);
+// The worker's slab: domain_slab(nz, rank, ranks, shares) of its part.
+Slab part_slab(int nz, const DomainPart& part);
 
 // The plan of worker part.rank's slab: its planes in bricks (forced_edge, else as its device's
 // memory needs, else one brick of the whole slab), each holding `halo` voxels more on every side

@@ -59,7 +59,7 @@ TomoResult tomo_domain(Device& device, const Scene& scene, const std::vector<dou
   check_domain_part(part);
   check_tomo_options(options);
   const auto t0 = std::chrono::steady_clock::now();
-  const Slab slab = domain_slab(scene.volume.nz, part.rank, part.ranks);
+  const Slab slab = part_slab(scene.volume.nz, part);
   Projector projector(device, description_of(scene), options.precision);
   Projector::Impl& P = projector.impl();
   if (lines.size() != P.rays)

@@ -13,18 +13,21 @@ namespace {
 
 // Runs job(i, part) for device i of n with its DomainPart, every device's collectives in this
 // process; a device that fails stops the others' collectives (its own error is the one thrown).
+// The slabs follow share_weights(devices, shares): the shares given, else the devices' speeds.
 template <class Job>
 void on_device_slabs(const std::vector<Device*>& devices, const Scene& scene, SlabMarch march,
-                     Job&& job) {
+                     const std::vector<double>& shares, Job&& job) {
   check_devices(devices);
   const int n = int(devices.size());
-  domain_slab(scene.volume.nz, 0, n);  // more devices than cells: said before any thread starts
+  const std::vector<double> weights = share_weights(devices, shares);
+  // More devices than cells, or a bad weight: said before any thread starts.
+  domain_slab(scene.volume.nz, 0, n, weights);
   WorkerGather meeting(n);
   run_shares(
       devices.size(),
       [&](std::size_t i) {
         DomainPart part;
-        part.rank = int(i), part.ranks = n, part.march = march;
+        part.rank = int(i), part.ranks = n, part.march = march, part.shares = weights;
         part.all_gather = meeting.of(int(i));
         job(i, part);
       },
@@ -38,8 +41,8 @@ Image render_domain(const std::vector<Device*>& devices, const Scene& scene, Sla
   std::vector<Image> images(devices.size());
   std::vector<RenderStats> st(devices.size());
   std::vector<DomainStats> ds(devices.size());
-  on_device_slabs(devices, scene, march, [&](std::size_t i, const DomainPart& part) {
-    images[i] = render_domain(*devices[i], domain_share(scene, part.rank, part.ranks), part,
+  on_device_slabs(devices, scene, march, options.shares, [&](std::size_t i, const DomainPart& part) {
+    images[i] = render_domain(*devices[i], domain_share(scene, part.rank, part.ranks, part.shares), part,
                               options, &st[i], &ds[i]);
   });
   if (stats) {
@@ -68,8 +71,8 @@ Gradient gradient_domain(const std::vector<Device*>& devices, const Scene& scene
                     ": give each worker one device");
   std::vector<Gradient> g(devices.size());
   std::vector<DomainStats> ds(devices.size());
-  on_device_slabs(devices, scene, march, [&](std::size_t i, const DomainPart& part) {
-    g[i] = gradient_domain(*devices[i], domain_share(scene, part.rank, part.ranks), target, part,
+  on_device_slabs(devices, scene, march, options.shares, [&](std::size_t i, const DomainPart& part) {
+    g[i] = gradient_domain(*devices[i], domain_share(scene, part.rank, part.ranks, part.shares), target, part,
                            options, &ds[i], groups);
   });
   Gradient out = std::move(g[0]);
@@ -102,7 +105,8 @@ TomoResult tomo_domain(const std::vector<Device*>& devices, const Scene& scene,
                        const std::vector<double>& lines, const TomoOptions& options,
                        const TomoProgress& progress) {
   std::vector<TomoResult> r(devices.size());
-  on_device_slabs(devices, scene, SlabMarch::states, [&](std::size_t i, const DomainPart& part) {
+  on_device_slabs(devices, scene, SlabMarch::states, options.shares,
+                  [&](std::size_t i, const DomainPart& part) {
     // `progress` asked on device 0 alone; tomo_domain stops every worker where any says stop.
     r[i] = tomo_domain(*devices[i], scene, lines, part, options,
                        i == 0 ? progress : TomoProgress{});

@@ -52,7 +52,7 @@ MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>&
                 "MultiDeviceReconstruction: options.worker, workers, sum and all_gather are the "
                 "devices'; leave them unset");
   // Over views, the devices whose share of a batch is not empty (by their weights), each with its
-  // weight; over slabs every device, in equal slabs.
+  // weight; over slabs every device, its slab by its weight.
   std::vector<Device*> taking = devices;
   std::vector<double> weights;
   if (!options.slabs && !scene.has_ray_list()) {  // (a ray list: refused by the workers)
@@ -66,18 +66,20 @@ MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>&
     if (taking.empty()) taking.push_back(devices[0]);  // (no views: the worker says so)
   }
   const int n = int(taking.size());
-  // More devices than cells (slabs) or than views: said before any thread starts.
-  if (options.slabs) domain_slab(scene.volume.nz, 0, n);
+  // Over slabs each device's share of the planes by its weight (equal speeds: equal slabs).
+  if (options.slabs) weights = share_weights(devices, options.shares);
+  // More devices than cells (slabs) or than views, or a bad weight: said before any thread starts.
+  if (options.slabs) domain_slab(scene.volume.nz, 0, n, weights);
   impl_ = std::make_unique<Impl>(taking);
   Impl& m = *impl_;
   m.each("MultiDeviceReconstruction", [&](std::size_t i) {
     ReconstructOptions o = options;
     o.worker = int(i), o.workers = n;
-    if (!o.slabs) o.shares = n > 1 ? weights : std::vector<double>{};
+    o.shares = n > 1 ? weights : std::vector<double>{};
     o.sum = m.sum.of(int(i));
     if (o.slabs) o.all_gather = m.gather.of(int(i));
     m.workers[i] = std::make_unique<Reconstruction>(
-        *taking[i], o.slabs ? domain_share(scene, int(i), n) : scene, targets, o);
+        *taking[i], o.slabs ? domain_share(scene, int(i), n, o.shares) : scene, targets, o);
   });
 }
 

@@ -219,7 +219,7 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
       start.assign(coarse.data.begin(), coarse.data.end());
     } else {
       const int planes =
-          o.slabs ? domain_slab(dims[0][2], o.worker, o.workers).planes() : dims[0][2];
+          o.slabs ? domain_slab(dims[0][2], o.worker, o.workers, o.shares).planes() : dims[0][2];
       start.assign(std::size_t(dims[0][0]) * std::size_t(dims[0][1]) * std::size_t(planes),
                    o.init == Init::zeros ? 0.0 : double(float(o.init_value)));
     }
@@ -253,7 +253,7 @@ void Reconstruction::Impl::enter_level(int l, const std::vector<double>& density
   grid.volume.nz = dims[std::size_t(l)][2];
   grid.volume.data.clear();
   if (o.slabs) {  // the slab's densities stay on the host, between the domain gradients
-    slab = domain_slab(grid.volume.nz, o.worker, o.workers);
+    slab = domain_slab(grid.volume.nz, o.worker, o.workers, o.shares);
     grid.volume.nz = slab.planes();
     level = l;
     level_scene = std::move(grid);

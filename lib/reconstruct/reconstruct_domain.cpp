@@ -32,9 +32,10 @@ void Reconstruction::Impl::setup_slabs() {
   part.rank = o.worker;
   part.ranks = o.workers;
   part.march = o.slab_march;
+  part.shares = o.shares;  // (over slabs: each worker's share of the planes)
   if (o.workers > 1)
     part.all_gather = o.all_gather ? o.all_gather : all_gather_by_sum(o.worker, o.workers, o.sum);
-  slab = domain_slab(scene.volume.nz, o.worker, o.workers);
+  slab = domain_slab(scene.volume.nz, o.worker, o.workers, o.shares);
   // The slab's values as a volume of its planes (finite, >= 0), with the scene's description.
   Scene held = scene;
   held.volume.nz = slab.planes();
@@ -122,7 +123,7 @@ Volume Reconstruction::Impl::gathered(int l, const std::vector<double>& mine) co
 }
 
 std::vector<double> Reconstruction::Impl::slab_of(const Volume& whole) const {
-  const Slab s = domain_slab(whole.nz, o.worker, o.workers);
+  const Slab s = domain_slab(whole.nz, o.worker, o.workers, o.shares);
   const std::size_t plane = std::size_t(whole.nx) * std::size_t(whole.ny);
   return std::vector<double>(whole.data.begin() + std::ptrdiff_t(plane * std::size_t(s.first)),
                              whole.data.begin() + std::ptrdiff_t(plane * std::size_t(s.last + 1)));
@@ -130,7 +131,7 @@ std::vector<double> Reconstruction::Impl::slab_of(const Volume& whole) const {
 
 std::size_t Reconstruction::Impl::held_voxels(int l) const {
   const std::vector<int>& d = dims[std::size_t(l)];
-  const int planes = o.slabs ? domain_slab(d[2], o.worker, o.workers).planes() : d[2];
+  const int planes = o.slabs ? domain_slab(d[2], o.worker, o.workers, o.shares).planes() : d[2];
   return std::size_t(d[0]) * std::size_t(d[1]) * std::size_t(planes);
 }
 

@@ -133,6 +133,12 @@ if run 2 "$ivr" render scene.json -o bad.npy --shares 1,2,3 2>err.txt; then
 fi
 grep -q "3 weights for 2 ranks" err.txt || { echo "no error naming the ranks:"; cat err.txt; exit 1; }
 [ ! -e bad.npy ] || { echo "bad.npy written"; exit 1; }
+# (Ranks' slabs stay equal: --shares over slabs weighs several devices of one process.)
+if run 2 "$ivr" render scene.json -o bad.npy --split slabs --shares 1,2 2>err.txt; then
+  echo "--split slabs --shares under mpirun succeeded"; exit 1
+fi
+grep -q "cuts equal slabs" err.txt || { echo "no error naming the equal slabs:"; cat err.txt; exit 1; }
+[ ! -e bad.npy ] || { echo "bad.npy written"; exit 1; }
 "$python" - <<'PY'
 import numpy as np
 one = np.load("one.npy")

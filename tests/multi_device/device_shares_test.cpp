@@ -17,6 +17,7 @@
 #include "ivr/planner.hpp"
 #include "ivr/render.hpp"
 #include "ivr/tomo.hpp"
+#include "ivr/volume_io.hpp"
 #include "brick/brick_support.hpp"
 #include "test_support.hpp"
 #include "views_scene.hpp"
@@ -292,8 +293,9 @@ TEST(DeviceShares, AWorkerTakesItsWeightedShare) {
   }
 }
 
-// The command line: --shares sizes the devices' shares (--json "shares": each device's views),
-// the image is the one device's, and a bad --shares is one line before any work.
+// The command line: --shares sizes the devices' shares (--json "shares": each device's views;
+// with --split slabs "slabs": each device's planes), the image is the one device's, and a bad
+// --shares is one line before any work.
 TEST(DeviceShares, CommandLine) {
   const std::string dir = temp_dir("device_shares_cli");
   const std::string scene = write_file(dir + "/scene.json", R"({
@@ -323,13 +325,22 @@ TEST(DeviceShares, CommandLine) {
               "/g' --json --shares 1,3" + two);
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["shares"], (std::vector<int>{1, 3})) << r.out;
+  // Over slabs: 11 cells weighted 1:3 (quotas 2.75 and 8.25), planes 0..3 and 3..11.
+  r = run_cli("render '" + scene + "' -o '" + dir + "/s.npy' --json --split slabs --shares 1,3" +
+              two);
+  ASSERT_EQ(r.status, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["slabs"], (std::vector<std::vector<int>>{{0, 3}, {3, 11}})) << r.out;
+  EXPECT_EQ(j["devices"], 2) << r.out;
+  expect_close_values(load_npy(dir + "/a.npy").data, load_npy(dir + "/s.npy").data, 1e-5,
+                      "slabs 1:3");
   struct Bad {
     std::string args, says;
   };
   for (const Bad& b : {Bad{"--shares 1,2,3" + two, "3 weights for 2 devices"},
                        Bad{"--shares 1,0" + two, "shares[1]"},
                        Bad{"--shares 1,x" + two, "--shares"},
-                       Bad{"--split slabs --shares 1,2" + two, "equal slabs"}}) {
+                       Bad{"--split slabs --shares 1,2,3" + two, "3 weights for 2 devices"}}) {
     r = run_cli("render '" + scene + "' -o '" + dir + "/bad.npy' " + b.args);
     EXPECT_NE(r.status, 0) << b.args;
     EXPECT_TRUE(has(r.err, b.says)) << b.args << ": " << r.err;

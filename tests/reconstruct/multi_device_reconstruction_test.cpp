@@ -46,10 +46,15 @@ TEST(MultiDeviceReconstruction, FollowsOneProcess) {
   Reconstruction one(device(), p.scene, p.targets, o);
   while (!one.done()) one.step();
   const Scene want = one.result();
-  for (int count : {2, 3}) {
-    const std::string what = std::to_string(count) + " devices";
+  // (and 2 devices weighted 1:3: each level's slabs in proportion, domain_slab)
+  for (const auto& [count, shares] : std::vector<std::pair<int, std::vector<double>>>{
+           {2, {}}, {3, {}}, {2, {1, 3}}}) {
+    const std::string what =
+        std::to_string(count) + " devices" + (shares.empty() ? "" : ", weighted 1:3");
     const auto devices = test::device_contexts(count);
-    MultiDeviceReconstruction many(test::pointers_to(devices), p.scene, p.targets, o);
+    ReconstructOptions weighted = o;
+    weighted.shares = shares;
+    MultiDeviceReconstruction many(test::pointers_to(devices), p.scene, p.targets, weighted);
     EXPECT_EQ(many.devices(), count);
     while (!many.done()) many.step();
     ASSERT_EQ(many.history().size(), one.history().size()) << what;

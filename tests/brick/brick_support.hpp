@@ -84,6 +84,14 @@ inline void expect_close_values(const std::vector<double>& want, const std::vect
     }
 }
 
+// A gradient test's target: `image` dimmed (0.8 v + 0.05), its float32 pixels alone.
+inline Image dimmed(const Image& image) {
+  Image target = image;
+  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+  target.pixels_f64.clear();
+  return target;
+}
+
 // Every pixel within tol × the largest |value| of the in-core image; none NaN/Inf.
 inline void expect_same(const Image& in_core, const Image& bricked, double tol,
                         const std::string& what) {

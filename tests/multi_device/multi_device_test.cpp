@@ -9,6 +9,7 @@
 #include <memory>
 #include <random>
 
+#include "brick/brick_support.hpp"
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "ivr/render.hpp"
@@ -25,9 +26,7 @@ TEST(MultiDevice, RenderAndGradientsEqualOneDevice) {
   RenderOptions ro;
   ro.precision = p;
   const Image one = render(device(), s, ro);
-  Image target = one;
-  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
-  target.pixels_f64.clear();
+  const Image target = dimmed(one);
   GradientOptions go;
   go.precision = p;
   go.mode = Mode::adjoint;

@@ -145,9 +145,7 @@ TEST(SlabShares, DevicesByWeightEqualOneDevice) {
     EXPECT_EQ(equal.bricks, 4 * (2 + 2)) << what;
     EXPECT_EQ(weighted.bricks, 4 * (1 + 2)) << what;
 
-    Image target = one;
-    for (float& v : target.pixels) v = 0.8f * v + 0.05f;
-    target.pixels_f64.clear();
+    const Image target = dimmed(one);
     GradientOptions go;
     go.precision = p;
     go.mode = Mode::adjoint;

@@ -167,7 +167,7 @@ void add_shares_option(CLI::App* cmd, std::vector<double>& shares) {
   cmd->add_option("--shares", shares,
                   "Each device's weight, comma-separated, its share of the views in proportion, "
                   "or with --split slabs|segments of the volume's planes (several --device; "
-                  "under mpirun one a rank over views, every rank giving the same). "
+                  "under mpirun one a rank, every rank giving the same). "
                   "Default: each device's speed, samples per second from `ivr calibrate` or "
                   "estimated from its size (`ivr devices` shows it); a rank's, its devices' summed")
       ->delimiter(',');
@@ -190,13 +190,9 @@ double rank_speed(const std::vector<Device*>& devices) {
 std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
                                         const std::vector<Device*>& devices, std::size_t items,
                                         const std::string& split) {
-  if (!shares.empty() && split != "views" && world().size > 1)
-    throw input_error("--shares: under mpirun --split " + split +
-                      " cuts equal slabs, one a rank (--shares weighs the ranks' views, or "
-                      "several --device's slabs in one process)");
   std::vector<std::size_t> counts;
   if (world().size > 1) {
-    if (split != "views") return {};
+    if (split != "views") return {};  // (the ranks' slabs: weigh_rank_slabs)
     if (!shares.empty() && shares.size() != std::size_t(world().size))
       throw input_error("--shares: " + std::to_string(shares.size()) + " weights for " +
                         std::to_string(world().size) + " ranks (under mpirun, one a rank)");
@@ -222,14 +218,27 @@ std::pair<std::size_t, std::size_t> rank_part(const std::vector<std::size_t>& co
   return {first, counts[std::size_t(world().rank)]};
 }
 
+void weigh_rank_slabs(const std::vector<double>& shares, const std::vector<Device*>& devices,
+                      const std::string& split) {
+  if (world().size == 1 || split == "views") return;
+  if (!shares.empty() && shares.size() != std::size_t(world().size))
+    throw input_error("--shares: " + std::to_string(shares.size()) + " weights for " +
+                      std::to_string(world().size) + " ranks (under mpirun, one a rank)");
+  if (!shares.empty()) view_shares(0, shares);  // (each weight checked, by name)
+  // Every rank the same weights (its own speed gathered), so the same slabs.
+  set_slab_shares(shares.empty() ? every_rank(rank_speed(devices)) : shares);
+}
+
 std::vector<std::array<int, 2>> device_slabs(const std::vector<Device*>& devices, int nz,
                                              const std::vector<double>& shares,
                                              const std::string& split) {
-  if (world().size > 1 || devices.size() < 2 || split == "views") return {};
-  const std::vector<double> weights = share_weights(devices, shares);
+  if (split == "views" || (world().size == 1 && devices.size() < 2)) return {};
+  const int n = world().size > 1 ? world().size : int(devices.size());
+  const std::vector<double> weights =
+      world().size > 1 ? world().slab_shares : share_weights(devices, shares);
   std::vector<std::array<int, 2>> out;
-  for (int i = 0; i < int(devices.size()); ++i) {
-    const Slab s = domain_slab(nz, i, int(devices.size()), weights);
+  for (int i = 0; i < n; ++i) {
+    const Slab s = domain_slab(nz, i, n, weights);
     out.push_back({s.first, s.last});
   }
   return out;

@@ -62,7 +62,7 @@ void add_split_option(CLI::App* cmd, std::string& split);
 // --shares W,W,...: several --device's weights, each device's share of the views in proportion
 // (RenderOptions::shares and the others'); under mpirun one a rank (docs/scaling.md).
 void add_shares_option(CLI::App* cmd, std::vector<double>& shares);
-// Checks --shares before any work (refused under mpirun over slabs: equal slabs) and returns what --json
+// Checks --shares before any work (under mpirun over slabs: weigh_rank_slabs') and returns what --json
 // reports as "shares": each device's count of the `items` views (or rays) where several devices
 // of one process share them; under mpirun over views each rank's count — a collective, every rank
 // calling it: in proportion to --shares (one a rank) or else to each rank's devices' speed summed
@@ -74,9 +74,14 @@ std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
 // This rank's (first, count) of checked_shares' counts under mpirun; (0, items) in one process.
 std::pair<std::size_t, std::size_t> rank_part(const std::vector<std::size_t>& counts,
                                               std::size_t items);
+// Under mpirun over slabs (a collective, every rank calling it before it loads its slab): sizes
+// the ranks' slabs by --shares (one a rank) or else by each rank's devices' speed summed, gathered
+// (set_slab_shares). Nothing in one process or over views.
+void weigh_rank_slabs(const std::vector<double>& shares, const std::vector<Device*>& devices,
+                      const std::string& split);
 // What --json reports as "slabs": each device's planes [first, last] where several devices of one
 // process share a volume of nz planes over --split slabs|segments (by --shares, else their
-// speeds: domain_slab); else nothing.
+// speeds: domain_slab), or under mpirun each rank's (weigh_rank_slabs); else nothing.
 std::vector<std::array<int, 2>> device_slabs(const std::vector<Device*>& devices, int nz,
                                              const std::vector<double>& shares,
                                              const std::string& split);

@@ -134,10 +134,12 @@ Runner add_gradient_command(CLI::App& app) {
     if (args->loss != "mse" && args->loss != "l1" && args->loss != "dot")
       throw input_error("--loss: unknown loss '" + args->loss + "' (known: mse, l1, dot)");
     const Precision precision = checked_precision(args->march);
-    const Scene scene = with_integrator(load_scene_for(args->scene, args->split), args->march);
-    const Image target = load_target(args->target, scene);
+    // (the devices first: under mpirun over slabs their speeds size the ranks' slabs, read next)
     const std::vector<std::unique_ptr<Device>> devices = open_devices(args->march.device);
     Device& device = *devices[0];
+    weigh_rank_slabs(args->shares, pointers(devices), args->split);
+    const Scene scene = with_integrator(load_scene_for(args->scene, args->split), args->march);
+    const Image target = load_target(args->target, scene);
     options.precision = precision;
     options.step = args->march.step;
     options.loss = args->loss == "l1" ? Loss::l1 : args->loss == "dot" ? Loss::dot : Loss::mse;

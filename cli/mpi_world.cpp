@@ -137,10 +137,12 @@ Device& one_device_per_rank(const std::vector<Device*>& devices) {
   return *devices[0];
 }
 
+void set_slab_shares(const std::vector<double>& shares) { the_world.slab_shares = shares; }
+
 Scene load_scene_for(const std::string& path, const std::string& split) {
   if (split == "views") return load_scene(path);
   return load_scene(path, [](int nz) {
-    const Slab slab = domain_slab(nz, the_world.rank, the_world.size);
+    const Slab slab = domain_slab(nz, the_world.rank, the_world.size, the_world.slab_shares);
     return std::pair<int, int>{slab.first, slab.last};
   });
 }
@@ -151,6 +153,7 @@ DomainPart domain_part(const std::string& split) {
   part.rank = the_world.rank;
   part.ranks = the_world.size;
   part.all_gather = [](const std::vector<unsigned char>& mine) { return all_gather(mine); };
+  part.shares = the_world.slab_shares;
   return part;
 }
 

@@ -13,6 +13,9 @@ namespace ivr::cli {
 
 struct World {
   int rank = 0, size = 1;
+  // Over slabs: the ranks' weights, each rank's slab of the planes in proportion
+  // (domain_slab; set by weigh_rank_slabs before a rank loads its slab); empty: equal slabs.
+  std::vector<double> slab_shares;
 };
 const World& world();
 
@@ -32,6 +35,9 @@ std::vector<double> gather(const std::vector<double>& mine);
 std::vector<std::vector<double>> gather_parts(const std::vector<double>& mine);
 // Every rank's bytes by rank, on every rank (MPI_Allgatherv).
 std::vector<std::vector<unsigned char>> all_gather(const std::vector<unsigned char>& mine);
+// The ranks' slabs under mpirun over slabs sized by `shares` from here on (load_scene_for,
+// domain_part): every rank passing the same.
+void set_slab_shares(const std::vector<double>& shares);
 // This rank's part of a domain-parallel operation over the world (--split slabs or segments:
 // SlabMarch::states or segments), and its one device (several are refused).
 DomainPart domain_part(const std::string& split = "slabs");

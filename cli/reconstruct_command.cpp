@@ -402,6 +402,11 @@ Runner add_reconstruct_command(CLI::App& app) {
     };
     if (a.resume && !fs::exists(checkpoint))
       throw input_error("--resume: no checkpoint '" + checkpoint + "' to continue from");
+    // (the devices first: under mpirun over slabs their speeds size the ranks' slabs, read next)
+    const std::vector<std::unique_ptr<Device>> opened = open_devices(a.device);
+    const std::vector<Device*> devices = pointers(opened);
+    Device& device = *devices[0];
+    weigh_rank_slabs(options.shares, devices, a.split);
     const Scene scene = load_scene_for(a.scene, a.split);
     const Image targets = load_images(a.targets, "--targets", scene);
     Volume truth;
@@ -424,14 +429,12 @@ Runner add_reconstruct_command(CLI::App& app) {
       held_out_targets = load_images(a.held_out_targets, "--held-out-targets", held_out);
     }
 
-    const std::vector<std::unique_ptr<Device>> opened = open_devices(a.device);
-    const std::vector<Device*> devices = pointers(opened);
-    Device& device = *devices[0];
     const int views = image_extent(scene).views;  // (each device's share of every batch)
     const std::vector<std::size_t> shares = checked_shares(
         options.shares, devices, std::size_t(options.batch > 0 ? std::min(options.batch, views) : views),
         a.split);
-    if (w.size > 1 && !options.slabs) options.shares = worker_weights(shares);  // (the ranks')
+    if (w.size > 1)  // (the ranks': their views' counts, or their slabs' weights)
+      options.shares = options.slabs ? world().slab_shares : worker_weights(shares);
     // Signals from here on: construction compiles kernels, which may take a while.
     const InterruptGuard interrupt;
     // The run, the same for one device (or rank) and for several devices.

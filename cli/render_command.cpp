@@ -119,9 +119,11 @@ Runner add_render_command(CLI::App& app) {
       throw Error(Status::io, "output folder '" + folder.string() + "' does not exist");
     const Precision precision = checked_precision(args->march);
 
-    const Scene scene = with_integrator(load_scene_for(args->scene, args->split), args->march);
+    // (the devices first: under mpirun over slabs their speeds size the ranks' slabs, read next)
     const std::vector<std::unique_ptr<Device>> devices = open_devices(args->march.device);
     Device& device = *devices[0];
+    weigh_rank_slabs(args->shares, pointers(devices), args->split);
+    const Scene scene = with_integrator(load_scene_for(args->scene, args->split), args->march);
     RenderOptions options;
     options.precision = precision;
     options.step = args->march.step;

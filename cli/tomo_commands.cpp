@@ -293,6 +293,7 @@ Runner add_tomo_command(CLI::App& app) {
     if (opened.size() > 1 && world().size > 1)
       throw input_error("--device with " + std::to_string(opened.size()) +
                         " devices under mpirun: one device per rank");
+    weigh_rank_slabs(args->options.shares, pointers(opened), args->split);
     const std::vector<std::size_t> shares =
         checked_shares(args->options.shares, pointers(opened), share_items(scene), args->split);
 

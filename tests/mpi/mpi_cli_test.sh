@@ -10,7 +10,8 @@
 # its losses and priors within 1e-12, as `ivr gradient --deterministic` gives one process's
 # density gradient bit for bit (float32); over independent segments (--split segments, early
 # termination off) the render, the density and TF gradients and the reconstruction's losses within
-# 1e-12, in one exchange; the ranks' shares by --shares and by each rank's speed alike; an error in the
+# 1e-12, in one exchange; the ranks' shares of the views and of the slabs' planes by --shares and by
+# each rank's speed alike; an error in the
 # ranks is one non-zero status with nothing written. CTest label `mpi`.
 # Usage: mpi_cli_test.sh IVR MPIEXEC PYTHON
 set -euo pipefail
@@ -133,12 +134,34 @@ if run 2 "$ivr" render scene.json -o bad.npy --shares 1,2,3 2>err.txt; then
 fi
 grep -q "3 weights for 2 ranks" err.txt || { echo "no error naming the ranks:"; cat err.txt; exit 1; }
 [ ! -e bad.npy ] || { echo "bad.npy written"; exit 1; }
-# (Ranks' slabs stay equal: --shares over slabs weighs several devices of one process.)
-if run 2 "$ivr" render scene.json -o bad.npy --split slabs --shares 1,2 2>err.txt; then
-  echo "--split slabs --shares under mpirun succeeded"; exit 1
+# The ranks' slabs by weight: --shares (15 cells 1:4, planes 0..3 and 3..15) and each rank's
+# speed (the MPMD cost models 1:9: rank 0's slab the shorter); the results one process's.
+run 2 "$ivr" render scene.json -o sw2.npy --precision f64 --split slabs --shares 1,4 --json > sw2.json
+grep -q '"slabs":\[\[0,3\],\[3,15\]\]' sw2.json || { echo "render --split slabs --shares 1,4: $(cat sw2.json)"; exit 1; }
+mpmd gradient scene.json --target target.npy --wrt density,tf,camera -o gsw2 --precision f64 \
+  --split slabs --json 2>/dev/null > gsw2.json
+mpmd reconstruct scene.json "${srec[@]}" -o srecw2 --split slabs --json 2>/dev/null > srecw2.json
+if run 2 "$ivr" render scene.json -o bad.npy --split slabs --shares 1,2,3 2>err.txt; then
+  echo "--split slabs --shares with 3 weights for 2 ranks succeeded"; exit 1
 fi
-grep -q "cuts equal slabs" err.txt || { echo "no error naming the equal slabs:"; cat err.txt; exit 1; }
+grep -q "3 weights for 2 ranks" err.txt || { echo "no error naming the ranks:"; cat err.txt; exit 1; }
 [ ! -e bad.npy ] || { echo "bad.npy written"; exit 1; }
+"$python" - <<'PY'
+import json
+import numpy as np
+slabs = json.load(open("gsw2.json"))["slabs"]
+assert len(slabs) == 2 and slabs[0][0] == 0 and slabs[1][1] == 15 and slabs[0][1] == slabs[1][0], slabs
+assert slabs[0][1] < 7, f"the slow rank's slab is not the shorter: {slabs}"
+def close(want, got, tol, what):
+    a, b = np.load(want), np.load(got)
+    err = np.max(np.abs(a - b)) / np.max(np.abs(a))
+    assert a.shape == b.shape and err <= tol, f"{what}: {err}"
+close("one.npy", "sw2.npy", 1e-12, "render --split slabs --shares 1,4")
+for g in ("density", "tf", "camera"):
+    close(f"g1_{g}.npy", f"gsw2_{g}.npy", 1e-10, f"gradient over slabs by speed: {g}")
+close("srec1_density.npy", "srecw2_density.npy", 1e-7, "reconstruct over slabs by speed")
+print(f"-np 2 slabs by weight and by speed {slabs}: render, gradient and reconstruction one process's")
+PY
 "$python" - <<'PY'
 import numpy as np
 one = np.load("one.npy")

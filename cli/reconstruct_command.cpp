@@ -240,6 +240,9 @@ Image render_with(const std::vector<Device*>& devices, const Scene& scene,
   RenderOptions r;
   r.precision = o.precision;
   r.step = o.step;
+  // (several devices of one process: the reconstruction's own shares of the views or slabs;
+  // under mpirun o.shares weighs the ranks, not this rank's one device)
+  if (devices.size() > 1) r.shares = o.shares;
   if (!o.slabs) return render(devices, scene, r);  // (one device: that device's render)
   if (devices.size() > 1) return render_domain(devices, scene, o.slab_march, r);
   DomainPart part = domain_part();
@@ -549,6 +552,7 @@ Runner add_reconstruct_command(CLI::App& app) {
           {"lr", used.optimizer.lr},       {"levels", levels},
           {"device", device.info().name}, {"bricks", 1},  {"ranks", w.size}, {"split", a.split},
           {"devices", devices_of(r)},     {"shares", shares},
+          {"slabs", device_slabs(devices, scene.volume.nz, a.options.shares, a.split)},
           {"outputs", outputs}};
       if (!a.truth.empty()) j["volume_error"] = volume_error;
       if (!a.held_out.empty()) j["held_out_psnr"] = held_out_psnr;  // null where +infinity

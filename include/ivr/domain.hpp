@@ -85,7 +85,7 @@ struct DomainStats {
 };
 
 // The scene's description (dims, box, cameras, TF, integrator) and, in scene.volume.data, only
-// this worker's slab: planes domain_slab(nz, rank, ranks) of the densities (x fastest,
+// this worker's slab: planes domain_slab(nz, rank, ranks, part.shares) of the densities (x fastest,
 // planes × ny × nx values). Every worker gets the whole image. The midpoint, trapezoid,
 // preintegrated and exact schemes; the step must be given (integrator.step or options.step) where
 // integrator.tolerance is set. options.volume_brick cuts the slab further (else as its device
@@ -137,8 +137,8 @@ IVR_API Gradient gradient_domain(const std::vector<Device*>& devices, const Scen
 
 // CGLS, SIRT or LSQR (with nonneg, Tikhonov or TV: each worker holds the TV rows of the planes it
 // owns, their parts of a shared plane joined) over slabs: the projections `lines` (every worker passes all of
-// them) of `scene`'s rays, this worker holding and solving for planes domain_slab(nz, rank, ranks)
-// of the volume (scene.volume.data is not read). Each iteration sums the workers' parts of N x over
+// them) of `scene`'s rays, this worker holding and solving for planes
+// domain_slab(nz, rank, ranks, part.shares) of the volume (scene.volume.data is not read). Each iteration sums the workers' parts of N x over
 // the lines and joins the planes neighbours share; every worker's iterate equals one process's to
 // rounding on its planes (the shared ones on both workers alike). Returns this worker's planes
 // (planes × ny × nx) in volume (and volume_f64 in float64); domain_assemble() joins them. Each

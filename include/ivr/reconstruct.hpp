@@ -76,7 +76,7 @@ struct ReconstructOptions {
   int worker = 0, workers = 1;
   std::function<void(std::vector<double>&)> sum;
   // Domain-parallel over slabs of z planes instead (mpirun -np N ivr reconstruct --split slabs;
-  // docs/scaling.md): worker `worker` holds only planes domain_slab(nz, worker, workers) of the
+  // docs/scaling.md): worker `worker` holds only planes domain_slab(nz, worker, workers, shares) of the
   // densities (scene.volume.data holds just those: domain_share(), load_scene(path, planes)) and
   // their optimiser state; every worker marches every view of each batch through its slab
   // (gradient_domain: the rays' states pass between the workers), the planes neighbours share are
@@ -165,8 +165,8 @@ class IVR_API Reconstruction {
 // A reconstruction over several devices of one process (docs/scaling.md), each device a worker
 // running its part of every step on a thread of its own, the devices' sums and exchanges meeting
 // in the process where MPI ranks' would meet over the network. options.slabs chooses the split:
-// - slabs (true): device i of n holds planes domain_slab(nz, i, n) of the densities and their
-//   optimiser state (ReconstructOptions::slabs, slab_march as given), so a volume that fits no
+// - slabs (true): device i of n holds planes domain_slab(nz, i, n, w) of the densities and their
+//   optimiser state (w = share_weights(devices, options.shares); slab_march as given), so a volume that fits no
 //   one device is reconstructed on all of them;
 // - views (false): every device holds the whole volume and marches its share of each batch's
 //   views, the gradients summed (ReconstructOptions::workers; fixed point where `deterministic`,

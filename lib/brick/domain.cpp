@@ -491,11 +491,12 @@ std::vector<double> join_slabs(int nx, int ny, int nz,
     if (slabs[r].size() % plane || planes < 2 || (last ? planes != left : planes + 1 > left))
       throw Error(Status::invalid_argument,
                   std::string(what) + ": worker " + std::to_string(r) + "'s slab has " +
-                      std::to_string(slabs[r].size()) + " values, not whole planes of " +
-                      std::to_string(plane) + " from plane " + std::to_string(first) +
-                      (last ? " to the volume's last, " +
-                                                        std::to_string(nz - 1)
-                                                  : " short of plane " + std::to_string(nz - 1)));
+                      std::to_string(slabs[r].size()) + " values; from plane " +
+                      std::to_string(first) + " it needs " +
+                      (last ? std::to_string(left) + " planes of " + std::to_string(plane) +
+                                  " values (to the last, " + std::to_string(nz - 1) + ")"
+                            : "2 to " + std::to_string(left - 1) + " whole planes of " +
+                                  std::to_string(plane) + " values (the slabs after it 2 at least)"));
     const Slab s{first, first + int(planes) - 1};
     first = s.last;
     double* at = out.data() + plane * s.first;

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/files.hpp"
+#include "ivr/domain.hpp"
 #include "ivr/error.hpp"
 #include "ivr/volume_io.hpp"
 #include "reconstruct/optimize.hpp"
@@ -66,7 +67,14 @@ json fingerprint(const Reconstruction::Impl& p) {
           {"grid", {p.scene.volume.nx, p.scene.volume.ny, p.scene.volume.nz}},
           {"targets", {t.views, t.height, t.width, t.channels}},
           {"tf_parameters", p.o.tf ? p.u.size() : 0}};
-  if (o.slabs) j["slab"] = {o.worker, o.workers};  // each worker's own planes and state
+  if (o.slabs) {
+    j["slab"] = {o.worker, o.workers};  // each worker's own planes and state
+    // Slabs by weight: the worker's planes of the grid (equal slabs: none, as before them).
+    if (std::any_of(o.shares.begin(), o.shares.end(), [&](double w) { return w != o.shares[0]; })) {
+      const Slab s = domain_slab(p.scene.volume.nz, o.worker, o.workers, o.shares);
+      j["slab_planes"] = {s.first, s.last};
+    }
+  }
   return j;
 }
 
@@ -229,6 +237,11 @@ CheckpointData read_checkpoint(const std::string& prefix, const CheckpointShape&
                     "resume: the checkpoint '" + path + "' was written with " + it.key() + " = " +
                         (theirs.contains(it.key()) ? theirs[it.key()].dump() : "nothing") +
                         ", this run has " + it.value().dump());
+    if (theirs.contains("slab_planes") && !shape.fingerprint.contains("slab_planes"))
+      throw Error(Status::invalid_argument, "resume: the checkpoint '" + path +
+                                                "' was written with slab_planes = " +
+                                                theirs["slab_planes"].dump() +
+                                                ", this run has equal slabs");
     c.iteration = j.at("iteration").get<int>();
     c.level = j.at("level").get<int>();
     const bool density = !shape.voxels.empty();

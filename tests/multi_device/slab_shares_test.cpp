@@ -118,7 +118,7 @@ TEST(SlabShares, SharesJoinByTheirSizes) {
   expect_error([&] { domain_join(3, 2, 13, {std::vector<double>(13 * plane), slabs[1]}); },
                Status::invalid_argument, "worker 0");  // the first takes every plane
   expect_error([&] { domain_join(3, 2, 13, {std::vector<double>(4 * plane + 1), slabs[1]}); },
-               Status::invalid_argument, "not whole planes");
+               Status::invalid_argument, "it needs 2 to 12 whole planes of 6 values");
 }
 
 // Two devices weighted 1:5 (slabs of 2 and 10 of the 12 cells) against one device: the image and

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "adjoint/adjoint.hpp"
+#include "brick/domain_support.hpp"
 #include "reconstruct/reconstruct_support.hpp"
 
 namespace ivr {
@@ -205,6 +206,35 @@ TEST(ReconstructDomain, EachWorkerResumesFromItsOwnCheckpoint) {
       worst = std::max(worst, std::abs(a[i] - b[i])), scale = std::max(scale, std::abs(a[i]));
     EXPECT_LE(worst, 1e-12 * scale) << "worker " << w;
   }
+}
+
+// A worker's checkpoint over slabs by weight records its planes: resumed over equal slabs, or
+// over other weights, it is refused by name (not by a size mismatch further on). (Saved before
+// any step: construction and resume take no collective.)
+TEST(ReconstructDomain, WeightedSlabCheckpointNamesItsPlanes) {
+  const Small p;  // 16 planes: 15 cells, 1:3 gives worker 0 planes 0..4
+  ReconstructOptions o = slab_options(Precision::f32);
+  o.slabs = true;
+  o.worker = 0, o.workers = 2;
+  o.sum = [](std::vector<double>&) {};
+  o.shares = {1, 3};
+  const std::string path = test::temp_dir("slab_planes") + "/w0";
+  {
+    Reconstruction r(device(), domain_share(p.scene, 0, 2, o.shares), p.targets, o);
+    r.save_checkpoint(path);
+  }
+  ReconstructOptions equal = o;
+  equal.shares.clear();
+  Reconstruction e(device(), domain_share(p.scene, 0, 2), p.targets, equal);
+  test::expect_error([&] { e.resume(path); }, Status::invalid_argument,
+               "written with slab_planes = [0,4], this run has equal slabs");
+  ReconstructOptions other = o;
+  other.shares = {1, 1.5};
+  Reconstruction w(device(), domain_share(p.scene, 0, 2, other.shares), p.targets, other);
+  test::expect_error([&] { w.resume(path); }, Status::invalid_argument, "slab_planes");
+  Reconstruction same(device(), domain_share(p.scene, 0, 2, o.shares), p.targets, o);
+  same.resume(path);
+  EXPECT_EQ(same.iteration(), 0);
 }
 
 TEST(ReconstructDomain, RefusalsNameWhatIsMissing) {

@@ -185,6 +185,18 @@ double rank_speed(const std::vector<Device*>& devices) {
   return total;
 }
 
+// The ranks' weights under mpirun (a collective): --shares, one a rank (each checked), or else
+// each rank's speed, gathered; every rank gets the same.
+std::vector<double> rank_weights(const std::vector<double>& shares,
+                                 const std::vector<Device*>& devices) {
+  if (shares.empty()) return every_rank(rank_speed(devices));
+  if (shares.size() != std::size_t(world().size))
+    throw input_error("--shares: " + std::to_string(shares.size()) + " weights for " +
+                      std::to_string(world().size) + " ranks (under mpirun, one a rank)");
+  view_shares(0, shares);  // (each weight checked, by name)
+  return shares;
+}
+
 }  // namespace
 
 std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
@@ -193,12 +205,9 @@ std::vector<std::size_t> checked_shares(const std::vector<double>& shares,
   std::vector<std::size_t> counts;
   if (world().size > 1) {
     if (split != "views") return {};  // (the ranks' slabs: weigh_rank_slabs)
-    if (!shares.empty() && shares.size() != std::size_t(world().size))
-      throw input_error("--shares: " + std::to_string(shares.size()) + " weights for " +
-                        std::to_string(world().size) + " ranks (under mpirun, one a rank)");
-    // Every rank computes the same split from the same weights (its own speed gathered).
-    const std::vector<double> weights = shares.empty() ? every_rank(rank_speed(devices)) : shares;
-    for (const auto& part : view_shares_each(items, weights)) counts.push_back(part.second);
+    // Every rank computes the same split from the same weights.
+    for (const auto& part : view_shares_each(items, rank_weights(shares, devices)))
+      counts.push_back(part.second);
     return counts;
   }
   if (devices.size() < 2 || split != "views") {
@@ -221,12 +230,7 @@ std::pair<std::size_t, std::size_t> rank_part(const std::vector<std::size_t>& co
 void weigh_rank_slabs(const std::vector<double>& shares, const std::vector<Device*>& devices,
                       const std::string& split) {
   if (world().size == 1 || split == "views") return;
-  if (!shares.empty() && shares.size() != std::size_t(world().size))
-    throw input_error("--shares: " + std::to_string(shares.size()) + " weights for " +
-                      std::to_string(world().size) + " ranks (under mpirun, one a rank)");
-  if (!shares.empty()) view_shares(0, shares);  // (each weight checked, by name)
-  // Every rank the same weights (its own speed gathered), so the same slabs.
-  set_slab_shares(shares.empty() ? every_rank(rank_speed(devices)) : shares);
+  set_slab_shares(rank_weights(shares, devices));  // (every rank the same, so the same slabs)
 }
 
 std::vector<std::array<int, 2>> device_slabs(const std::vector<Device*>& devices, int nz,

@@ -21,10 +21,6 @@ void check_domain_part(const DomainPart& part) {
   if (part.ranks > 1 && !part.all_gather)
     throw Error(Status::invalid_argument,
                 "domain: " + std::to_string(part.ranks) + " workers need an all_gather");
-  if (!part.shares.empty() && part.shares.size() != std::size_t(part.ranks))
-    throw Error(Status::invalid_argument, "domain: " + std::to_string(part.shares.size()) +
-                                              " shares for " + std::to_string(part.ranks) +
-                                              " workers");
 }
 
 Slab part_slab(int nz, const DomainPart& part) {

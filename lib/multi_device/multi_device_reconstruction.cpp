@@ -66,10 +66,12 @@ MultiDeviceReconstruction::MultiDeviceReconstruction(const std::vector<Device*>&
     if (taking.empty()) taking.push_back(devices[0]);  // (no views: the worker says so)
   }
   const int n = int(taking.size());
-  // Over slabs each device's share of the planes by its weight (equal speeds: equal slabs).
-  if (options.slabs) weights = share_weights(devices, options.shares);
-  // More devices than cells (slabs) or than views, or a bad weight: said before any thread starts.
-  if (options.slabs) domain_slab(scene.volume.nz, 0, n, weights);
+  // Over slabs each device's share of the planes by its weight (equal speeds: equal slabs); more
+  // devices than cells, or a bad weight, said before any thread starts.
+  if (options.slabs) {
+    weights = share_weights(devices, options.shares);
+    domain_slab(scene.volume.nz, 0, n, weights);
+  }
   impl_ = std::make_unique<Impl>(taking);
   Impl& m = *impl_;
   m.each("MultiDeviceReconstruction", [&](std::size_t i) {

@@ -69,11 +69,12 @@ json fingerprint(const Reconstruction::Impl& p) {
           {"tf_parameters", p.o.tf ? p.u.size() : 0}};
   if (o.slabs) {
     j["slab"] = {o.worker, o.workers};  // each worker's own planes and state
-    // Slabs by weight: the worker's planes of the grid (equal slabs: none, as before them).
-    if (std::any_of(o.shares.begin(), o.shares.end(), [&](double w) { return w != o.shares[0]; })) {
-      const Slab s = domain_slab(p.scene.volume.nz, o.worker, o.workers, o.shares);
-      j["slab_planes"] = {s.first, s.last};
-    }
+    // Slabs by weight: the worker's planes of the grid where they are not the equal split's
+    // (which leaves checkpoints of equal slabs as they were).
+    const int nz = p.scene.volume.nz;
+    const Slab s = domain_slab(nz, o.worker, o.workers, o.shares);
+    const Slab equal = domain_slab(nz, o.worker, o.workers);
+    if (s.first != equal.first || s.last != equal.last) j["slab_planes"] = {s.first, s.last};
   }
   return j;
 }

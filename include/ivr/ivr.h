@@ -124,6 +124,13 @@ IVR_API ivr_status ivr_scene_set_volume(ivr_scene* scene, const void* data, ivr_
 IVR_API ivr_status ivr_scene_set_volume_slab(ivr_scene* scene, const void* data, ivr_dtype dtype,
                                              const int64_t shape[3], int64_t nz, int rank,
                                              int ranks);
+/* The same for the weighted slabs (`shares`: `ranks` weights, NULL: equal): `data` holds planes
+ * ivr_domain_slab_weighted(nz, rank, ranks, shares); the scene serves ivr_render_split_weighted,
+ * ivr_gradient_split_weighted and ivr_reconstruction_create_weighted with the same shares. */
+IVR_API ivr_status ivr_scene_set_volume_slab_weighted(ivr_scene* scene, const void* data,
+                                                      ivr_dtype dtype, const int64_t shape[3],
+                                                      int64_t nz, int rank, int ranks,
+                                                      const double* shares);
 /* Volumes and transfer functions of their own, made once and set on any scene of the context
  * (the scene takes a copy: later changes to one do not reach the other). */
 /* A volume from caller memory, copied (dtypes as ivr_scene_set_volume), spacing 1. */

@@ -272,9 +272,12 @@ struct Workers {
   ivr_split split = IVR_SPLIT_VIEWS;
   int rank = 0, ranks = 1;
   std::function<void(double* values, size_t count)> sum;
-  // Over views: each worker's weight, its share of the views in proportion (`ranks` of them, the
-  // same on every worker; ivr_view_shares); empty: equal shares.
+  // Each worker's weight (`ranks` of them, each > 0, the same on every worker; a device's speed,
+  // Context::samples_per_second): over views its share of the views in proportion
+  // (ivr_view_shares), over slabs its share of the planes (ivr_domain_slab_weighted); empty:
+  // equal shares.
   std::vector<double> shares{};
+  const double* shares_or_null() const { return shares.empty() ? nullptr : shares.data(); }
 };
 
 // A device with its queue and kernel cache. One context serves one thread at a time; separate
@@ -382,17 +385,18 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
     return gradient(scene, target.data(), target.size(), options);
   }
   // Over slabs (ivr_render_split, ivr_gradient_split): worker slabs.rank of slabs.ranks marches
-  // only its slab of the scene's volume, every worker calling together; the image is the whole
-  // render, the gradient (density, tf) this worker's parts. slabs.split IVR_SPLIT_SEGMENTS marches
-  // each ray's segments independently; any other value passes the rays' march states.
+  // only its slab of the scene's volume (cut by slabs.shares), every worker calling together; the
+  // image is the whole render, the gradient (density, tf) this worker's parts. slabs.split
+  // IVR_SPLIT_SEGMENTS marches each ray's segments independently; any other value passes the
+  // rays' march states.
   Array<float> render(const Scene& scene, const Options& options, const Workers& slabs) {
     Array<float> image{scene.image_shape(), {}};
     image.values.resize(detail::product(image.shape));
     detail::Sum sum{&slabs.sum, nullptr};
-    const ivr_status status = ivr_render_split(
+    const ivr_status status = ivr_render_split_weighted(
         get(), scene.get(), ivr_precision(options.precision), options.step, slab_march(slabs),
-        slabs.rank, slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum,
-        image.values.data(), image.size());
+        slabs.rank, slabs.ranks, slabs.shares_or_null(), slabs.sum ? &detail::Sum::call : nullptr,
+        &sum, image.values.data(), image.size());
     if (sum.error) std::rethrow_exception(sum.error);
     detail::check(status);
     return image;
@@ -401,10 +405,11 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                   const GradientOptions& options, const Workers& slabs) {
     ivr_result* r = nullptr;
     detail::Sum sum{&slabs.sum, nullptr};
-    const ivr_status status = ivr_gradient_split(
+    const ivr_status status = ivr_gradient_split_weighted(
         get(), scene.get(), target.data(), target.size(), options.wrt.c_str(),
         ivr_loss(options.loss), ivr_precision(options.precision), options.step, slab_march(slabs),
-        slabs.rank, slabs.ranks, slabs.sum ? &detail::Sum::call : nullptr, &sum, &r);
+        slabs.rank, slabs.ranks, slabs.shares_or_null(),
+        slabs.sum ? &detail::Sum::call : nullptr, &sum, &r);
     if (sum.error) std::rethrow_exception(sum.error);
     detail::check(status);
     return Result(r);
@@ -435,18 +440,20 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
     return volume;
   }
   // Reconstructs the scene's grid from line integrals (views * H * W values). With `workers`
-  // (ivr_tomo_split): this worker's share of the views and their lines (the whole grid out), or
-  // over slabs the whole scene's lines and this worker's planes (planes, ny, nx) out.
+  // (ivr_tomo_split_weighted): this worker's share of the views and their lines (the whole grid
+  // out), or over slabs the whole scene's lines and this worker's planes (planes, ny, nx; cut by
+  // workers->shares) out.
   TomoResult tomo(const Scene& scene, const std::vector<float>& lines,
                   const TomoOptions& options = {}, const TomoProgress& progress = {},
                   const Workers* workers = nullptr) {
     const ivr_tomo_options& o = options;
     TomoResult r;
     r.volume.shape = scene.volume_shape();
-    if (workers && workers->split == IVR_SPLIT_SLABS) {
+    const bool slabs = workers && workers->split == IVR_SPLIT_SLABS;
+    if (slabs) {
       int first = 0, last = 0;
-      detail::check(ivr_domain_slab(int(r.volume.shape[0]), workers->rank, workers->ranks, &first,
-                                    &last));
+      detail::check(ivr_domain_slab_weighted(int(r.volume.shape[0]), workers->rank, workers->ranks,
+                                             workers->shares_or_null(), &first, &last));
       r.volume.shape[0] = last - first + 1;
     }
     r.volume.values.resize(detail::product(r.volume.shape));
@@ -457,11 +464,12 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
     ivr_tomo_progress call = progress ? &detail::Progress::call : nullptr;
     detail::Sum sum{workers ? &workers->sum : nullptr, nullptr};
     const ivr_status status =
-        workers ? ivr_tomo_split(get(), scene.get(), &o, workers->split, workers->rank,
-                                 workers->ranks, workers->sum ? &detail::Sum::call : nullptr, &sum,
-                                 lines.data(), lines.size(), r.volume.values.data(),
-                                 r.volume.size(), call, &state, history, r.history.size(),
-                                 &summary)
+        workers ? ivr_tomo_split_weighted(
+                      get(), scene.get(), &o, workers->split, workers->rank, workers->ranks,
+                      slabs ? workers->shares_or_null() : nullptr,
+                      workers->sum ? &detail::Sum::call : nullptr, &sum, lines.data(),
+                      lines.size(), r.volume.values.data(), r.volume.size(), call, &state,
+                      history, r.history.size(), &summary)
                 : ivr_tomo(get(), scene.get(), &o, lines.data(), lines.size(),
                            r.volume.values.data(), r.volume.size(), call, &state, history,
                            r.history.size(), &summary);

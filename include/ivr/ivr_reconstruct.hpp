@@ -55,16 +55,18 @@ class Reconstruction : public detail::Handle<ivr_reconstruction, ivr_reconstruct
     detail::check(ivr_reconstruction_create(context.get(), scene.get(), targets.data(),
                                             targets.size(), &options, &handle_));
   }
-  // Worker workers.rank of workers.ranks sharing out each batch's views in proportion to
-  // workers.shares (ivr_reconstruction_create_weighted; workers.split is not read): every step
-  // sums the loss and gradients over the workers through workers.sum, which this object (and its
-  // copies) keeps; what the sum throws is rethrown by the step that called it.
+  // Worker workers.rank of workers.ranks (ivr_reconstruction_create_weighted): over views
+  // (workers.split IVR_SPLIT_VIEWS) sharing out each batch's views in proportion to
+  // workers.shares; over slabs or segments holding its planes of the densities, cut by
+  // workers.shares. Every step sums the loss and gradients over the workers through workers.sum,
+  // which this object (and its copies) keeps; what the sum throws is rethrown by the step that
+  // called it.
   Reconstruction(const Context& context, const Scene& scene, const std::vector<float>& targets,
                  const ReconstructOptions& options, const Workers& workers)
       : sum_(std::make_shared<OwnedSum>(workers.sum)) {
     detail::check(ivr_reconstruction_create_weighted(
-        context.get(), scene.get(), targets.data(), targets.size(), &options, IVR_SPLIT_VIEWS,
-        workers.rank, workers.ranks, workers.shares.empty() ? nullptr : workers.shares.data(),
+        context.get(), scene.get(), targets.data(), targets.size(), &options, workers.split,
+        workers.rank, workers.ranks, workers.shares_or_null(),
         workers.sum ? &detail::Sum::call : nullptr, &sum_->state, &handle_));
   }
   // One iteration (throws once done()).

@@ -93,6 +93,24 @@ IVR_API ivr_status ivr_gradient_split(ivr_context* context, const ivr_scene* sce
                                       ivr_loss loss, ivr_precision precision, double step,
                                       ivr_split split, int rank, int ranks, ivr_sum_fn sum,
                                       void* sum_user, ivr_result** result);
+/* ivr_render_split and ivr_gradient_split with each worker's slab in proportion to its weight
+ * (`shares`: `ranks` weights, each > 0 and finite, the same on every worker — a device's speed,
+ * ivr_context_samples_per_second —; NULL or all equal: the equal slabs): worker `rank` marches
+ * planes ivr_domain_slab_weighted(nz, rank, ranks, shares), so that a fast device's longer slab
+ * takes about as long as a slow one's short slab. A scene holding one slab
+ * (ivr_scene_set_volume_slab_weighted) must have been given the same shares. */
+IVR_API ivr_status ivr_render_split_weighted(ivr_context* context, const ivr_scene* scene,
+                                             ivr_precision precision, double step,
+                                             ivr_split split, int rank, int ranks,
+                                             const double* shares, ivr_sum_fn sum,
+                                             void* sum_user, float* image, size_t capacity);
+IVR_API ivr_status ivr_gradient_split_weighted(ivr_context* context, const ivr_scene* scene,
+                                               const float* target, size_t count,
+                                               const char* wrt, ivr_loss loss,
+                                               ivr_precision precision, double step,
+                                               ivr_split split, int rank, int ranks,
+                                               const double* shares, ivr_sum_fn sum,
+                                               void* sum_user, ivr_result** result);
 
 /* --- Tomography (c_api_tomo.cpp) ------------------------------------------------------------ */
 
@@ -113,9 +131,25 @@ IVR_API ivr_status ivr_tomo_split(ivr_context* context, const ivr_scene* scene,
                                   ivr_tomo_progress progress, void* user,
                                   ivr_tomo_iteration* history, size_t history_capacity,
                                   ivr_tomo_summary* summary);
+/* ivr_tomo_split with, over slabs, each worker's planes ivr_domain_slab_weighted(nz, rank, ranks,
+ * shares) (`shares` as ivr_render_split_weighted's; NULL: equal slabs). Over views each worker
+ * passes its own views, so `shares` must be NULL there (ivr_view_shares cuts them). */
+IVR_API ivr_status ivr_tomo_split_weighted(ivr_context* context, const ivr_scene* scene,
+                                           const ivr_tomo_options* options, ivr_split split,
+                                           int rank, int ranks, const double* shares,
+                                           ivr_sum_fn sum, void* sum_user, const float* lines,
+                                           size_t count, float* volume, size_t capacity,
+                                           ivr_tomo_progress progress, void* user,
+                                           ivr_tomo_iteration* history, size_t history_capacity,
+                                           ivr_tomo_summary* summary);
 /* Worker `rank` of `ranks`' planes [*first, *last] of a volume of nz planes: its nz - 1 cells in
  * near-equal runs, neighbours sharing one plane (IVR_ERROR_INVALID_ARGUMENT where ranks > nz - 1). */
 IVR_API ivr_status ivr_domain_slab(int nz, int rank, int ranks, int* first, int* last);
+/* The same with the cells in proportion to `shares` (`ranks` weights, each > 0 and finite; NULL or
+ * all equal: ivr_domain_slab's runs): the largest-remainder split, every worker at least one
+ * cell. What the _weighted split operations march and ivr_scene_set_volume_slab_weighted takes. */
+IVR_API ivr_status ivr_domain_slab_weighted(int nz, int rank, int ranks, const double* shares,
+                                            int* first, int* last);
 
 /* --- Reconstruction (c_api_reconstruct.cpp) ------------------------------------------------- */
 /* ivr_reconstruction_create for worker `worker` of `workers` sharing out each batch's views
@@ -149,7 +183,9 @@ IVR_API ivr_status ivr_reconstruction_create_split(ivr_context* context, const i
 /* ivr_reconstruction_create_split with, over views, each batch's shares in proportion to `shares`
  * (`workers` weights, each > 0 and finite, the same on every worker; NULL: equal shares); every
  * worker's share of a batch must hold a view (pass ivr_view_shares(batch, …, each = 1)'s counts
- * as the weights: they split the batch into exactly those counts). Over slabs `shares` is NULL. */
+ * as the weights: they split the batch into exactly those counts). Over slabs and segments the
+ * worker holds planes ivr_domain_slab_weighted(nz, worker, workers, shares) of every level's
+ * grid (NULL: equal slabs). */
 IVR_API ivr_status ivr_reconstruction_create_weighted(ivr_context* context,
                                                       const ivr_scene* scene,
                                                       const float* targets, size_t count,

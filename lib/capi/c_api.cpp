@@ -311,9 +311,10 @@ ivr_status ivr_context_samples_per_second(const ivr_context* c, double* speed) {
 }
 
 namespace {
-// Worker `rank` of `ranks` over slabs, marching as `split` says (states passed or independent
-// segments), its collectives through the caller's sum.
-ivr::DomainPart slab_part(ivr_split split, int rank, int ranks, ivr_sum_fn sum, void* user) {
+// Worker `rank` of `ranks` over slabs cut by `shares`, marching as `split` says (states passed or
+// independent segments), its collectives through the caller's sum.
+ivr::DomainPart slab_part(ivr_split split, int rank, int ranks, const std::vector<double>& shares,
+                          ivr_sum_fn sum, void* user) {
   if (split != IVR_SPLIT_SLABS && split != IVR_SPLIT_SEGMENTS)
     throw CError{IVR_ERROR_INVALID_ARGUMENT,
                  "split " + std::to_string(int(split)) +
@@ -325,40 +326,44 @@ ivr::DomainPart slab_part(ivr_split split, int rank, int ranks, ivr_sum_fn sum, 
   part.rank = rank, part.ranks = ranks;
   part.all_gather = ivr::all_gather_by_sum(rank, ranks, sum_of(sum, user));
   part.march = split == IVR_SPLIT_SEGMENTS ? ivr::SlabMarch::segments : ivr::SlabMarch::states;
+  part.shares = shares;
   return part;
 }
 
 void render_split(ivr_context* c, const ivr_scene* s, ivr_precision precision, double step,
-                  ivr_split split, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
-                  float* image, size_t capacity) {
+                  ivr_split split, int rank, int ranks, const double* shares, ivr_sum_fn sum,
+                  void* sum_user, float* image, size_t capacity) {
   checked(c, Kind::context, "context");
   with_volume(checked(s, Kind::scene, "scene"), true);
   same_context(s->context, c, "scene");
   not_null(image, "image");
-  const ivr::DomainPart part = slab_part(split, rank, ranks, sum, sum_user);
+  const ivr::DomainPart part =
+      slab_part(split, rank, ranks, slab_weights(shares, ranks), sum, sum_user);
   const ivr::ImageExtent e = ivr::image_extent(s->scene);
   const size_t want = e.pixels() * size_t(s->scene.channels());
   if (capacity < want)
     throw CError{IVR_ERROR_BUFFER_TOO_SMALL, "image holds " + std::to_string(capacity) +
                                                  " floats; the render has " +
                                                  std::to_string(want)};
-  const ivr::Image out = ivr::render_domain(c->device, split_scene(s, rank, ranks), part,
+  const ivr::Image out = ivr::render_domain(c->device, split_scene(s, rank, ranks, part.shares), part,
                                             ivr::RenderOptions{precision_of(precision), step});
   std::memcpy(image, out.pixels.data(), out.pixels.size() * sizeof(float));
 }
 
 void gradient_split(ivr_context* c, const ivr_scene* s, const float* target, size_t count,
                     const char* wrt, ivr_loss loss, ivr_precision precision, double step,
-                    ivr_split split, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
-                    ivr_result** out) {
+                    ivr_split split, int rank, int ranks, const double* shares, ivr_sum_fn sum,
+                    void* sum_user, ivr_result** out) {
   const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out, true);
-  const ivr::DomainPart part = slab_part(split, rank, ranks, sum, sum_user);
+  const ivr::DomainPart part =
+      slab_part(split, rank, ranks, slab_weights(shares, ranks), sum, sum_user);
   ivr::GradientOptions o;  // (automatic: density, tf, background by the adjoint, others forward)
   o.loss = loss_of(loss);
   o.precision = precision_of(precision);
   o.step = step;
-  const ivr::Gradient d = ivr::gradient_domain(c->device, split_scene(s, rank, ranks), t, part, o,
-                                               nullptr, ivr::parse_groups(wrt));
+  const ivr::Gradient d =
+      ivr::gradient_domain(c->device, split_scene(s, rank, ranks, part.shares), t, part, o,
+                           nullptr, ivr::parse_groups(wrt));
   *out = gradient_result(c, d);
 }
 }  // namespace
@@ -367,8 +372,8 @@ ivr_status ivr_render_slabs(ivr_context* c, const ivr_scene* s, ivr_precision pr
                             double step, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
                             float* image, size_t capacity) {
   return guarded(c, "ivr_render_slabs", [&] {
-    render_split(c, s, precision, step, IVR_SPLIT_SLABS, rank, ranks, sum, sum_user, image,
-                 capacity);
+    render_split(c, s, precision, step, IVR_SPLIT_SLABS, rank, ranks, nullptr, sum, sum_user,
+                 image, capacity);
   });
 }
 
@@ -376,7 +381,18 @@ ivr_status ivr_render_split(ivr_context* c, const ivr_scene* s, ivr_precision pr
                             double step, ivr_split split, int rank, int ranks, ivr_sum_fn sum,
                             void* sum_user, float* image, size_t capacity) {
   return guarded(c, "ivr_render_split", [&] {
-    render_split(c, s, precision, step, split, rank, ranks, sum, sum_user, image, capacity);
+    render_split(c, s, precision, step, split, rank, ranks, nullptr, sum, sum_user, image,
+                 capacity);
+  });
+}
+
+ivr_status ivr_render_split_weighted(ivr_context* c, const ivr_scene* s, ivr_precision precision,
+                                     double step, ivr_split split, int rank, int ranks,
+                                     const double* shares, ivr_sum_fn sum, void* sum_user,
+                                     float* image, size_t capacity) {
+  return guarded(c, "ivr_render_split_weighted", [&] {
+    render_split(c, s, precision, step, split, rank, ranks, shares, sum, sum_user, image,
+                 capacity);
   });
 }
 
@@ -386,7 +402,7 @@ ivr_status ivr_gradient_slabs(ivr_context* c, const ivr_scene* s, const float* t
                               ivr_sum_fn sum, void* sum_user, ivr_result** out) {
   return guarded(c, "ivr_gradient_slabs", [&] {
     gradient_split(c, s, target, count, wrt, loss, precision, step, IVR_SPLIT_SLABS, rank, ranks,
-                   sum, sum_user, out);
+                   nullptr, sum, sum_user, out);
   });
 }
 
@@ -395,8 +411,19 @@ ivr_status ivr_gradient_split(ivr_context* c, const ivr_scene* s, const float* t
                               ivr_precision precision, double step, ivr_split split, int rank,
                               int ranks, ivr_sum_fn sum, void* sum_user, ivr_result** out) {
   return guarded(c, "ivr_gradient_split", [&] {
-    gradient_split(c, s, target, count, wrt, loss, precision, step, split, rank, ranks, sum,
-                   sum_user, out);
+    gradient_split(c, s, target, count, wrt, loss, precision, step, split, rank, ranks, nullptr,
+                   sum, sum_user, out);
+  });
+}
+
+ivr_status ivr_gradient_split_weighted(ivr_context* c, const ivr_scene* s, const float* target,
+                                       size_t count, const char* wrt, ivr_loss loss,
+                                       ivr_precision precision, double step, ivr_split split,
+                                       int rank, int ranks, const double* shares, ivr_sum_fn sum,
+                                       void* sum_user, ivr_result** out) {
+  return guarded(c, "ivr_gradient_split_weighted", [&] {
+    gradient_split(c, s, target, count, wrt, loss, precision, step, split, rank, ranks, shares,
+                   sum, sum_user, out);
   });
 }
 

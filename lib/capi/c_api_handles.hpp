@@ -32,9 +32,10 @@ struct ivr_scene {
   ivr::Scene scene;
   bool explicit_box = false;  // the JSON gave a box: kept when the volume is replaced
   bool has_volume = true;     // false until ivr_scene_set_volume for JSON without "volume"
-  // ivr_scene_set_volume_slab: the volume holds only worker slab_rank of slab_ranks' planes
-  // (slab_ranks 0: the whole volume).
+  // ivr_scene_set_volume_slab(_weighted): the volume holds only worker slab_rank of slab_ranks'
+  // planes, cut by the weights slab_shares (empty: equal slabs; slab_ranks 0: the whole volume).
   int slab_rank = 0, slab_ranks = 0;
+  std::vector<double> slab_shares;
 };
 
 // A volume or transfer function of its own, copied into the scenes it is set on.
@@ -311,16 +312,34 @@ inline const ivr_scene* with_volume(const ivr_scene* s, bool slab_allowed = fals
   return s;
 }
 
-// Worker `rank` of `ranks`' part of the scene over slabs: its planes cut from the whole volume, or
-// the slab the scene holds (which must be this worker's).
-inline ivr::Scene split_scene(const ivr_scene* s, int rank, int ranks) {
+// The C API's slab weights (`ranks` of them, or none for NULL: equal slabs; each checked by the
+// core).
+inline std::vector<double> slab_weights(const double* shares, int ranks) {
+  return shares && ranks > 0 ? std::vector<double>(shares, shares + ranks) : std::vector<double>{};
+}
+
+// Worker `rank` of `ranks`' part of the scene over slabs cut by `shares`: its planes cut from the
+// whole volume, or the slab the scene holds (which must be this worker's, by the same shares).
+inline ivr::Scene split_scene(const ivr_scene* s, int rank, int ranks,
+                              const std::vector<double>& shares = {}) {
   with_volume(s, true);
-  if (s->slab_ranks == 0) return ivr::domain_share(s->scene, rank, ranks);
+  if (s->slab_ranks == 0) return ivr::domain_share(s->scene, rank, ranks, shares);
   if (s->slab_rank != rank || s->slab_ranks != ranks)
     throw CError{IVR_ERROR_INVALID_ARGUMENT,
                  "the scene holds worker " + std::to_string(s->slab_rank) + " of " +
                      std::to_string(s->slab_ranks) + "'s slab, not worker " +
                      std::to_string(rank) + " of " + std::to_string(ranks) + "'s"};
+  // Planes, not weights, must agree: weights in proportion cut the same slabs.
+  const int nz = s->scene.volume.nz;
+  const ivr::Slab held = ivr::domain_slab(nz, rank, ranks, s->slab_shares);
+  const ivr::Slab wanted = ivr::domain_slab(nz, rank, ranks, shares);
+  if (held.first != wanted.first || held.last != wanted.last)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "shares: worker " + std::to_string(rank) + "'s slab by these shares is planes " +
+                     std::to_string(wanted.first) + ".." + std::to_string(wanted.last) +
+                     "; the scene holds planes " + std::to_string(held.first) + ".." +
+                     std::to_string(held.last) +
+                     " (ivr_scene_set_volume_slab_weighted: pass the same shares)"};
   return s->scene;
 }
 

@@ -69,7 +69,7 @@ ivr_reconstruction* create_reconstruction(ivr_context* c, const ivr_scene* s, co
   same_context(s->context, c, "scene");
   not_null(targets, "targets");
   // Over slabs this worker's planes of the densities (the grid its volume calls return).
-  const ivr::Scene scene = o.slabs ? split_scene(s, o.worker, o.workers) : s->scene;
+  const ivr::Scene scene = o.slabs ? split_scene(s, o.worker, o.workers, o.shares) : s->scene;
   const ivr::ImageExtent cam = ivr::image_extent(scene);
   ivr::Image t{cam.views, cam.height, cam.width, scene.channels(), {}};
   const size_t want = size_t(t.views) * size_t(t.height) * size_t(t.width) * size_t(t.channels);
@@ -107,8 +107,8 @@ ivr_status create_workers(const char* name, ivr_context* c, const ivr_scene* s,
     o.sum = sum_of(sum, sum_user);
     o.slabs = split != IVR_SPLIT_VIEWS;
     if (split == IVR_SPLIT_SEGMENTS) o.slab_march = ivr::SlabMarch::segments;
-    if (shares && o.slabs) bad("shares: the views' shares; over slabs pass NULL (equal slabs)");
-    if (shares && workers > 0) o.shares.assign(shares, shares + workers);  // (checked by the core)
+    // (checked by the core; over slabs they cut the slabs, over views the batches)
+    if (shares && workers > 0) o.shares.assign(shares, shares + workers);
     *out = create_reconstruction(c, s, targets, count, o);
   });
 }

@@ -107,6 +107,44 @@ struct TomoCall {
   }
 };
 
+// ivr_tomo_split(_weighted): worker `rank` of `ranks` over views or over slabs cut by `shares`.
+void tomo_split(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* options,
+                ivr_split split, int rank, int ranks, const double* shares, ivr_sum_fn sum,
+                void* sum_user, const float* lines, size_t count, float* volume, size_t capacity,
+                ivr_tomo_progress progress, void* user, ivr_tomo_iteration* history,
+                size_t history_capacity, ivr_tomo_summary* summary) {
+  if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+  if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "split " + std::to_string(int(split)) +
+                     " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS; a line integral's slab parts add "
+                     "in one sum already, so tomography has no IVR_SPLIT_SEGMENTS)"};
+  check_worker(rank, ranks);
+  if (split == IVR_SPLIT_VIEWS && shares)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "shares: over views each worker passes its own views (ivr_view_shares cuts "
+                 "them); pass NULL"};
+  const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
+                      history_capacity);
+  const ivr::Scene& scene = s->scene;
+  const std::function<void(std::vector<double>&)> add = sum_of(sum, sum_user);
+  if (split == IVR_SPLIT_VIEWS) {
+    check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
+    call.finish(ivr::tomo_shared(c->device, scene, call.lines, call.options, add, call.callback),
+                volume, history, history_capacity, summary);
+    return;
+  }
+  ivr::DomainPart part;
+  part.rank = rank, part.ranks = ranks;
+  part.shares = slab_weights(shares, ranks);
+  const ivr::Slab slab = ivr::domain_slab(scene.volume.nz, rank, ranks, part.shares);
+  check_capacity(capacity, std::size_t(scene.volume.nx) * scene.volume.ny * slab.planes(),
+                 "volume", "this worker's slab", "voxels");
+  part.all_gather = ivr::all_gather_by_sum(rank, ranks, add);
+  call.finish(ivr::tomo_domain(c->device, scene, call.lines, part, call.options, call.callback),
+              volume, history, history_capacity, summary);
+}
+
 }  // namespace
 
 extern "C" {
@@ -169,31 +207,21 @@ ivr_status ivr_tomo_split(ivr_context* c, const ivr_scene* s, const ivr_tomo_opt
                           ivr_tomo_progress progress, void* user, ivr_tomo_iteration* history,
                           size_t history_capacity, ivr_tomo_summary* summary) {
   return guarded(c, "ivr_tomo_split", [&] {
-    if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
-    if (split != IVR_SPLIT_VIEWS && split != IVR_SPLIT_SLABS)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                   "split " + std::to_string(int(split)) +
-                       " (IVR_SPLIT_VIEWS or IVR_SPLIT_SLABS; a line integral's slab parts add "
-                       "in one sum already, so tomography has no IVR_SPLIT_SEGMENTS)"};
-    check_worker(rank, ranks);
-    const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
-                        history_capacity);
-    const ivr::Scene& scene = s->scene;
-    const std::function<void(std::vector<double>&)> add = sum_of(sum, sum_user);
-    if (split == IVR_SPLIT_VIEWS) {
-      check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
-      call.finish(ivr::tomo_shared(c->device, scene, call.lines, call.options, add, call.callback),
-                  volume, history, history_capacity, summary);
-      return;
-    }
-    const ivr::Slab slab = ivr::domain_slab(scene.volume.nz, rank, ranks);
-    check_capacity(capacity, std::size_t(scene.volume.nx) * scene.volume.ny * slab.planes(),
-                   "volume", "this worker's slab", "voxels");
-    ivr::DomainPart part;
-    part.rank = rank, part.ranks = ranks;
-    part.all_gather = ivr::all_gather_by_sum(rank, ranks, add);
-    call.finish(ivr::tomo_domain(c->device, scene, call.lines, part, call.options, call.callback),
-                volume, history, history_capacity, summary);
+    tomo_split(c, s, options, split, rank, ranks, nullptr, sum, sum_user, lines, count, volume,
+               capacity, progress, user, history, history_capacity, summary);
+  });
+}
+
+ivr_status ivr_tomo_split_weighted(ivr_context* c, const ivr_scene* s,
+                                   const ivr_tomo_options* options, ivr_split split, int rank,
+                                   int ranks, const double* shares, ivr_sum_fn sum,
+                                   void* sum_user, const float* lines, size_t count,
+                                   float* volume, size_t capacity, ivr_tomo_progress progress,
+                                   void* user, ivr_tomo_iteration* history,
+                                   size_t history_capacity, ivr_tomo_summary* summary) {
+  return guarded(c, "ivr_tomo_split_weighted", [&] {
+    tomo_split(c, s, options, split, rank, ranks, shares, sum, sum_user, lines, count, volume,
+               capacity, progress, user, history, history_capacity, summary);
   });
 }
 
@@ -202,6 +230,16 @@ ivr_status ivr_domain_slab(int nz, int rank, int ranks, int* first, int* last) {
     not_null(first, "first");
     not_null(last, "last");
     const ivr::Slab slab = ivr::domain_slab(nz, rank, ranks);
+    *first = slab.first, *last = slab.last;
+  });
+}
+
+ivr_status ivr_domain_slab_weighted(int nz, int rank, int ranks, const double* shares,
+                                    int* first, int* last) {
+  return guarded(nullptr, "ivr_domain_slab_weighted", [&] {
+    not_null(first, "first");
+    not_null(last, "last");
+    const ivr::Slab slab = ivr::domain_slab(nz, rank, ranks, slab_weights(shares, ranks));
     *first = slab.first, *last = slab.last;
   });
 }

@@ -11,7 +11,33 @@ void replace_volume(ivr_scene* s, ivr::Volume v) {
   s->scene.volume = std::move(v);
   s->has_volume = true;
   s->slab_rank = s->slab_ranks = 0;
+  s->slab_shares.clear();
   if (!s->explicit_box) ivr::set_default_box(s->scene);
+}
+
+// Worker `rank` of `ranks`' planes of a volume of nz planes (cut by `shares`; NULL: equal) as
+// the scene's volume.
+void set_volume_slab(ivr_scene* s, const void* data, ivr_dtype dtype, const int64_t shape[3],
+                     int64_t nz, int rank, int ranks, const double* shares) {
+  checked(s, Kind::scene, "scene");
+  if (nz < 2 || nz > INT32_MAX)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "nz " + std::to_string(nz) + " (the whole volume's planes: 2 or more)"};
+  std::vector<double> weights = slab_weights(shares, ranks);
+  // (names a bad worker or weight)
+  const ivr::Slab slab = ivr::domain_slab(int(nz), rank, ranks, weights);
+  ivr::Volume v = volume_from_memory(data, dtype, shape);
+  if (v.nz != slab.planes())
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "shape has " + std::to_string(v.nz) + " planes; worker " +
+                     std::to_string(rank) + " of " + std::to_string(ranks) + "'s slab of " +
+                     std::to_string(nz) + " is planes " + std::to_string(slab.first) + ".." +
+                     std::to_string(slab.last) + " (" + std::to_string(slab.planes()) + ")"};
+  v.nz = int(nz);  // the whole volume's dims (and box), the slab's values alone
+  v.spacing = s->scene.volume.spacing;
+  replace_volume(s, std::move(v));
+  s->slab_rank = rank, s->slab_ranks = ranks;
+  s->slab_shares = std::move(weights);
 }
 
 }  // namespace
@@ -28,26 +54,18 @@ ivr_status ivr_scene_set_volume(ivr_scene* s, const void* data, ivr_dtype dtype,
   });
 }
 
+
 ivr_status ivr_scene_set_volume_slab(ivr_scene* s, const void* data, ivr_dtype dtype,
                                      const int64_t shape[3], int64_t nz, int rank, int ranks) {
-  return guarded(context_of(s), "ivr_scene_set_volume_slab", [&] {
-    checked(s, Kind::scene, "scene");
-    if (nz < 2 || nz > INT32_MAX)
-      throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                   "nz " + std::to_string(nz) + " (the whole volume's planes: 2 or more)"};
-    const ivr::Slab slab = ivr::domain_slab(int(nz), rank, ranks);  // (names a bad worker)
-    ivr::Volume v = volume_from_memory(data, dtype, shape);
-    if (v.nz != slab.planes())
-      throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                   "shape has " + std::to_string(v.nz) + " planes; worker " +
-                       std::to_string(rank) + " of " + std::to_string(ranks) + "'s slab of " +
-                       std::to_string(nz) + " is planes " + std::to_string(slab.first) + ".." +
-                       std::to_string(slab.last) + " (" + std::to_string(slab.planes()) + ")"};
-    v.nz = int(nz);  // the whole volume's dims (and box), the slab's values alone
-    v.spacing = s->scene.volume.spacing;
-    replace_volume(s, std::move(v));
-    s->slab_rank = rank, s->slab_ranks = ranks;
-  });
+  return guarded(context_of(s), "ivr_scene_set_volume_slab",
+                 [&] { set_volume_slab(s, data, dtype, shape, nz, rank, ranks, nullptr); });
+}
+
+ivr_status ivr_scene_set_volume_slab_weighted(ivr_scene* s, const void* data, ivr_dtype dtype,
+                                              const int64_t shape[3], int64_t nz, int rank,
+                                              int ranks, const double* shares) {
+  return guarded(context_of(s), "ivr_scene_set_volume_slab_weighted",
+                 [&] { set_volume_slab(s, data, dtype, shape, nz, rank, ranks, shares); });
 }
 
 ivr_status ivr_volume_create(ivr_context* c, const void* data, ivr_dtype dtype,

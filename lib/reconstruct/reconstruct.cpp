@@ -144,7 +144,11 @@ Reconstruction::Impl::Impl(Device& d, const Scene& s, const Image& t, const Reco
   if (o.optimizer.lr == 0) o.optimizer.lr = o.optimizer.kind == OptimizerKind::lbfgs ? 0.05 : 0.025;
   if (o.optimizer.schedule == Schedule::cosine && o.optimizer.min_lr > o.optimizer.lr)
     fail("min_lr must be in [0, lr], got " + number_text(o.optimizer.min_lr));
-  scale = density_scale(scene);
+  // Over slabs each worker holds one slab: the identity TF's scale is the whole volume's largest
+  // density (every worker the same steps as one process), gathered once.
+  scale = o.slabs && o.workers > 1 && scene.tf.kind == TfKind::identity
+              ? density_scale(scene.tf, slabs_largest_density())
+              : density_scale(scene);
   // The TF alone: forward mode while one pass of lanes carries it (<= 32 parameters). Its loss
   // gradient is reduced in a fixed order, where the adjoint's atomic adds are not, so L-BFGS's
   // line searches see one consistent objective and a run repeats (and resumes) bit for bit; it

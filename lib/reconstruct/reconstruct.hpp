@@ -71,6 +71,7 @@ struct Reconstruction::Impl {
   // worker's planes of a volume of a level's grid.
   Volume gathered(int l, const std::vector<double>& mine) const;
   std::vector<double> slab_of(const Volume& whole) const;
+  double slabs_largest_density() const;  // the largest density over every worker's slab
   // Level l's voxels this worker holds: the grid's, or over slabs its planes'.
   std::size_t held_voxels(int l) const;
   // The batch `views`' loss and this worker's planes of the density gradient (the shared planes

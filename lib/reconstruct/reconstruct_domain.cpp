@@ -1,12 +1,14 @@
 // reconstruct_domain.cpp — the reconstruction over slabs of z planes (ReconstructOptions::slabs):
 // each worker's planes of the densities, their domain gradient, the priors counted once across
 // slabs, and the planes neighbours share joined before the step.
+#include <algorithm>
 #include <cstring>
 #include <string>
 
 #include "brick/domain.hpp"
 #include "ivr/error.hpp"
 #include "reconstruct/reconstruct.hpp"
+#include "reconstruct/reconstruct_params.hpp"
 #include "runtime/real_args.hpp"
 #include "scene/scene.hpp"
 #include "session/session.hpp"
@@ -127,6 +129,13 @@ std::vector<double> Reconstruction::Impl::slab_of(const Volume& whole) const {
   const std::size_t plane = std::size_t(whole.nx) * std::size_t(whole.ny);
   return std::vector<double>(whole.data.begin() + std::ptrdiff_t(plane * std::size_t(s.first)),
                              whole.data.begin() + std::ptrdiff_t(plane * std::size_t(s.last + 1)));
+}
+
+double Reconstruction::Impl::slabs_largest_density() const {
+  double largest = 0;
+  for (const std::vector<double>& w : gather_doubles(part, {largest_density(scene.volume)}, kWhat))
+    largest = std::max(largest, w[0]);
+  return largest;
 }
 
 std::size_t Reconstruction::Impl::held_voxels(int l) const {

@@ -48,13 +48,21 @@ TfBounds tf_bounds(const TransferFunction& tf, double density_scale) {
   return b;
 }
 
+double largest_density(const Volume& volume) {
+  double s = 0;
+  for (float d : volume.data) s = std::max(s, double(d));
+  return s;
+}
+
 double density_scale(const Scene& scene) {
-  const TransferFunction& tf = scene.tf;
+  return density_scale(scene.tf, largest_density(scene.volume));
+}
+
+double density_scale(const TransferFunction& tf, double largest) {
   double s = 0;
   switch (tf.kind) {
     case TfKind::identity:
-      for (float d : scene.volume.data) s = std::max(s, double(d));
-      if (!(s > 0)) s = 1;
+      s = largest > 0 ? largest : 1;
       break;
     case TfKind::piecewise_linear:
       for (const TfPoint& p : tf.points) s = std::max(s, std::abs(p.density));

@@ -19,5 +19,10 @@ TfBounds tf_bounds(const TransferFunction& tf, double density_scale);
 // The span of densities the TF distinguishes (its last control point, table end, Gaussians'
 // mean + 2 widths; identity: the volume's maximum), at least 1e-3: the unit of density steps.
 double density_scale(const Scene& scene);
+// The same with the identity TF's volume maximum given (`largest`: over slabs the whole volume's,
+// gathered from the workers, not one slab's).
+double density_scale(const TransferFunction& tf, double largest);
+// The largest of the volume's densities (0 for none).
+double largest_density(const Volume& volume);
 
 }  // namespace ivr

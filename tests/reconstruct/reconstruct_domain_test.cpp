@@ -102,6 +102,35 @@ TEST(ReconstructDomain, WorkersFollowOneProcessWithThePriors) {
   expect_slabs_follow_one_process(p.scene, p.targets, slab_options(Precision::f32), {2}, 1e-5);
 }
 
+// The identity TF's density scale (the unit of the steps) is the whole volume's largest density,
+// not each slab's: the densities rising along z give each slab another maximum, equal slabs and
+// weighted ones (1:3) alike, and the workers still follow one process to 1e-12 (with the scale
+// taken from each slab the lower worker's steps were smaller: 2·10⁻⁵ off after 2 iterations).
+// Absorption, one level.
+TEST(ReconstructDomain, IdentityTfScaleIsTheWholeVolumes) {
+  if (!device().info().fp64) GTEST_SKIP() << "needs cl_khr_fp64";
+  Scene scene = parse_scene(R"({"volume": {"synthetic": "zeros", "dims": [16, 16, 16]},
+      "model": "absorption", "tf": {"type": "identity", "extinction_scale": 2, "color_scale": 1},
+      "cameras": [)" + test::orbit(8, "[0.2, 0.1, 1]", 3, 24) + "]}",
+                              ".", "identity");
+  scene.volume = phantom("shepp-logan", 16, 1, 2);
+  const Volume& v = scene.volume;
+  Scene start = scene;
+  for (int z = 0; z < v.nz; ++z)
+    for (std::size_t i = 0; i < std::size_t(v.nx) * std::size_t(v.ny); ++i)
+      start.volume.data[std::size_t(z) * std::size_t(v.nx) * std::size_t(v.ny) + i] =
+          0.2f + 0.02f * float(z) * float(1 + i % 3);
+  const Image targets = render(device(), scene);
+  ReconstructOptions o = slab_options(Precision::f64);
+  o.init = Init::scene;
+  o.tv = o.smoothness = 0;
+  o.iterations = 2;
+  o.optimizer.lr = 0.1;  // (steps that stay clear of the bound at 0)
+  expect_slabs_follow_one_process(start, targets, o, {2}, 1e-12);
+  o.shares = {1, 3};
+  expect_slabs_follow_one_process(start, targets, o, {2}, 1e-12);
+}
+
 // Coarse to fine over 4³ (3 cells: one per worker), 8³ and 16³ grids, from the scene's densities:
 // the start gathered and resampled once, each coarse grid gathered when its level ends, each worker
 // keeping its planes of the next — one process's levels to 1e-12 (float64).

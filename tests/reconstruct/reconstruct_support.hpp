@@ -79,7 +79,8 @@ inline WorkerRuns run_workers(int workers, const Scene& scene, const Image& targ
         Device d(std::to_string(device().info().index));
         ReconstructOptions ow = o;
         ow.worker = w, ow.workers = workers, ow.sum = sum.of(w);
-        Reconstruction r(d, ow.slabs ? domain_share(scene, w, workers) : scene, targets, ow);
+        Reconstruction r(d, ow.slabs ? domain_share(scene, w, workers, ow.shares) : scene, targets,
+                         ow);
         while (!r.done()) r.step();
         out.histories[std::size_t(w)] = r.history();
         const std::vector<float>& v = r.result().volume.data;

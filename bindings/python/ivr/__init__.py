@@ -76,10 +76,11 @@ def _volume_array(volume):
 
 
 def _slab_of(split):
-    """(nz, rank, ranks) where a split call's volume is that rank's slab of nz planes, else None."""
-    if split is None or split[4] is None:  # ((split, rank, ranks, add, nz[, weights]))
+    """(nz, rank, ranks, weights) where a split call's volume is that rank's slab of nz planes (cut
+    by the ranks' weights, None: equal), else None."""
+    if split is None or split[4] is None:  # ((split, rank, ranks, add, nz, weights))
         return None
-    return (split[4], split[1], split[2])
+    return (split[4], split[1], split[2], split[5])
 
 
 class _Owned:
@@ -289,9 +290,10 @@ class Context(_Owned):
                     _check(self._lib.ivr_scene_set_volume(
                         handle, v.ctypes.data_as(ctypes.c_void_p), _DTYPES[v.dtype], shape))
                 else:
-                    _check(self._lib.ivr_scene_set_volume_slab(
+                    nz, rank, ranks, weights = slab
+                    _check(self._lib.ivr_scene_set_volume_slab_weighted(
                         handle, v.ctypes.data_as(ctypes.c_void_p), _DTYPES[v.dtype], shape,
-                        *slab))
+                        nz, rank, ranks, _doubles(weights)))
         except BaseException:
             self._lib.ivr_scene_release(handle)
             raise
@@ -328,11 +330,12 @@ class Context(_Owned):
             if _split is None:
                 _check(self._lib.ivr_render(self._live(), s, _PRECISIONS[self.precision], step,
                                             image, out.size))
-            else:  # (split, rank, ranks, add, nz): ivr.mpi's workers over slabs (1) or segments (2)
-                split, rank, ranks, add, _ = _split
-                status = self._lib.ivr_render_split(self._live(), s, _PRECISIONS[self.precision],
-                                                    step, split, rank, ranks,
-                                                    _sum_fn(add, failure), None, image, out.size)
+            else:  # (split, rank, ranks, add, nz, weights): ivr.mpi's workers over slabs (1) or
+                # segments (2), their slabs in proportion to the weights (None: equal)
+                split, rank, ranks, add, _, weights = _split
+                status = self._lib.ivr_render_split_weighted(
+                    self._live(), s, _PRECISIONS[self.precision], step, split, rank, ranks,
+                    _doubles(weights), _sum_fn(add, failure), None, image, out.size)
                 if failure:
                     raise failure[0]
                 _check(status)
@@ -362,11 +365,12 @@ class Context(_Owned):
             r = _capi.HANDLE()
             args = (self._live(), s, t.ctypes.data_as(_FLOAT_P), t.size, groups.encode())
             failure = []
-            if _split is not None:  # (split, rank, ranks, add, nz): ivr.mpi's workers over slabs
-                split, rank, ranks, add, _ = _split
-                status = self._lib.ivr_gradient_split(
+            if _split is not None:  # (split, rank, ranks, add, nz, weights): ivr.mpi's workers
+                split, rank, ranks, add, _, weights = _split  # over slabs
+                status = self._lib.ivr_gradient_split_weighted(
                     *args, _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision], step,
-                    split, rank, ranks, _sum_fn(add, failure), None, ctypes.byref(r))
+                    split, rank, ranks, _doubles(weights), _sum_fn(add, failure), None,
+                    ctypes.byref(r))
             else:
                 how = (_choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
                        _PRECISIONS[self.precision], step)

@@ -4,7 +4,8 @@ import ctypes
 
 import numpy as np
 
-from . import (_capi, _check, _optional_choice, _sum_fn, _FLOAT_P, _PRECISIONS, _SOLVERS)
+from . import (_capi, _check, _doubles, _optional_choice, _sum_fn, _FLOAT_P, _PRECISIONS,
+               _SOLVERS)
 
 
 def tomo(ctx, scene, lines, solver, iterations, nonneg, tv, tikhonov, tolerance, tv_epsilon,
@@ -40,17 +41,20 @@ def tomo(ctx, scene, lines, solver, iterations, nonneg, tv, tikhonov, tolerance,
                                         p.ctypes.data_as(_FLOAT_P), p.size,
                                         out.ctypes.data_as(_FLOAT_P), out.size, callback, None,
                                         history, len(history), ctypes.byref(summary))
-        else:  # (split, rank, ranks, add): ivr.mpi.tomo's workers, add(a) summing in place
-            split, rank, ranks, add = _split
+        else:  # (split, rank, ranks, add, weights): ivr.mpi.tomo's workers, add(a) summing in
+            # place; over slabs each worker's planes in proportion to its weight (None: equal)
+            split, rank, ranks, add, weights = _split
             sum_fn = _sum_fn(add, failure)
             if split == 1:  # this worker's planes of the grid
                 first, last = ctypes.c_int(), ctypes.c_int()
-                _check(ctx._lib.ivr_domain_slab(out.shape[0], rank, ranks,
-                                                 ctypes.byref(first), ctypes.byref(last)))
+                _check(ctx._lib.ivr_domain_slab_weighted(out.shape[0], rank, ranks,
+                                                          _doubles(weights), ctypes.byref(first),
+                                                          ctypes.byref(last)))
                 out = np.empty((last.value - first.value + 1,) + out.shape[1:],
                                dtype=np.float32)
-            status = ctx._lib.ivr_tomo_split(
-                ctx._live(), s, ctypes.byref(o), split, rank, ranks, sum_fn, None,
+            status = ctx._lib.ivr_tomo_split_weighted(
+                ctx._live(), s, ctypes.byref(o), split, rank, ranks,
+                _doubles(weights if split == 1 else None), sum_fn, None,
                 p.ctypes.data_as(_FLOAT_P), p.size, out.ctypes.data_as(_FLOAT_P), out.size,
                 callback, None, history, len(history), ctypes.byref(summary))
         if failure:

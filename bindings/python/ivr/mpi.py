@@ -18,8 +18,10 @@ the whole result, which equals one process's to rounding.
 Over views each rank's share is in proportion to its device's speed (ctx.samples_per_second,
 gathered from every rank: ranks on one machine split equally), or to shares=[w0, w1, …] (one
 weight a rank, every rank passing the same), every rank at least one view where there are as many
-views as ranks (view_shares_by(each=True), as `mpirun ivr` splits them); over slabs the slabs are
-equal and shares= is refused.
+views as ranks (view_shares_by(each=True), as `mpirun ivr` splits them). Over slabs and segments
+the same weights size each rank's slab of z planes (every rank at least one cell: the C API's
+ivr_domain_slab_weighted, as `mpirun ivr --split slabs`), so that a fast device's longer slab
+takes about as long as a slow one's; ivr.mpi.slab(nz, ctx=ctx, shares=…) gives a rank's planes.
 
 Run with `mpirun -np N python3 -m mpi4py script.py` (an exception on one rank then aborts every
 rank instead of leaving the others waiting in a collective); `comm` defaults to MPI.COMM_WORLD. The scene is a dict
@@ -112,27 +114,28 @@ def _worker_weights(counts):
     return None if 0 in counts else [float(c) for c in counts]
 
 
-def slab(nz, comm=None):
+def slab(nz, comm=None, ctx=None, shares=None):
     """(first, last): the z planes of a volume of nz planes that this rank holds over slabs (the C
-    API's ivr_domain_slab) — what to load and pass as `volume` with nz=… to render, gradient and
-    reconstruct over slabs or segments, so that no rank holds the whole volume."""
+    API's ivr_domain_slab_weighted) — what to load and pass as `volume` with nz=… to render,
+    gradient and reconstruct over slabs or segments, so that no rank holds the whole volume. The
+    planes follow the ranks' weights as those calls weigh them: pass the same ctx (each rank's
+    speed, gathered) or shares; with neither the slabs are equal. Collective where ctx is given."""
     import ctypes
-    from . import _check, _library
+    from . import _check, _doubles, _library
     comm = _comm(comm)
+    weights = rank_weights(ctx, comm, shares) if ctx is not None or shares is not None else None
     first, last = ctypes.c_int(), ctypes.c_int()
-    _check(_library().ivr_domain_slab(int(nz), comm.Get_rank(), comm.Get_size(),
-                                      ctypes.byref(first), ctypes.byref(last)))
+    _check(_library().ivr_domain_slab_weighted(int(nz), comm.Get_rank(), comm.Get_size(),
+                                               _doubles(weights), ctypes.byref(first),
+                                               ctypes.byref(last)))
     return first.value, last.value
 
 
-def _views_only(split, shares, where):
-    if split != "views" and shares is not None:
-        raise Error("IVR_ERROR_INVALID_ARGUMENT",
-                    f"ivr.mpi.{where}: shares are the views'; split={split!r} cuts equal slabs")
-
-
-def _slab_split(code, comm, nz):
-    return (code, comm.Get_rank(), comm.Get_size(), _summer(comm), None if nz is None else int(nz))
+def _slab_split(code, comm, nz, weights):
+    """(split, rank, ranks, add, nz, weights): a worker over slabs or segments (weights: the
+    ranks', sizing their slabs), or over views (weights: the batches' shares)."""
+    return (code, comm.Get_rank(), comm.Get_size(), _summer(comm), None if nz is None else int(nz),
+            weights)
 
 
 def _complete_shared_planes(comm, part):
@@ -182,14 +185,16 @@ def render(ctx, scene, volume=None, comm=None, split="views", nz=None, shares=No
     whole volume is given on every rank; the device holds its slab). split="segments": each rank
     marches its slab's segment of every ray at once, the segments exchanged once and composited in
     order (early termination then stops a segment only on its own transmittance: docs/scaling.md).
-    Over slabs or segments with nz=NZ, `volume` is this rank's planes ivr.mpi.slab(NZ) alone
-    (planes, ny, nx): no rank holds the whole volume. `options` are ctx.render's."""
+    Over slabs or segments with nz=NZ, `volume` is this rank's planes ivr.mpi.slab(NZ, ctx=ctx,
+    shares=shares) alone (planes, ny, nx): no rank holds the whole volume. Each rank's share of
+    the views, or of the planes, follows rank_weights(ctx, comm, shares). `options` are
+    ctx.render's."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
     code = _check_split(split, "render")
-    _views_only(split, shares, "render")
     if split != "views":
-        return ctx.render(scene, volume, _split=_slab_split(code, comm, nz), **options)
+        return ctx.render(scene, volume, **options,
+                          _split=_slab_split(code, comm, nz, rank_weights(ctx, comm, shares)))
     _whole_volume(nz, "render")
     mine = _mine(ctx, comm, _items(scene), shares)
     image = ctx.render(scene_share(scene, *mine), volume, **options) if mine else None
@@ -237,7 +242,8 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
     slab of z planes, the slabs' density parts joined (shared planes added) and the TF parts
     summed; background and the forward lanes' groups (camera, …) come whole on every rank.
     split="segments": the same over independent segments (the camera's tangents composited). Over
-    slabs or segments with nz=NZ, `volume` is this rank's planes ivr.mpi.slab(NZ) alone; with
+    slabs or segments each rank's planes follow rank_weights(ctx, comm, shares); with nz=NZ,
+    `volume` is this rank's planes ivr.mpi.slab(NZ, ctx=ctx, shares=shares) alone; with
     gather=False "density" is this rank's planes (the planes it shares with a neighbour complete)
     instead of the whole grid on every rank.
     `options` are ctx.gradient's (mode, step, base_dir, deterministic — over views, the density
@@ -245,10 +251,10 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
     comm = _comm(comm)
     scene = _scene_dict(scene)
     code = _check_split(split, "gradient")
-    _views_only(split, shares, "gradient")
     if split != "views":
+        weights = rank_weights(ctx, comm, shares)
         value, arrays = ctx.gradient(scene, volume, target, wrt=wrt, loss=loss,
-                                     _split=_slab_split(code, comm, nz), **options)
+                                     _split=_slab_split(code, comm, nz, weights), **options)
         out = {}
         for name, a in arrays.items():
             a = np.ascontiguousarray(a, dtype=np.float64)
@@ -289,12 +295,12 @@ def tomo(ctx, scene, lines, comm=None, split="views", shares=None, **options):
     volume (Z, Y, X) float32, one process's to rounding. split="views": each rank its share of the
     views and their lines, the volume whole on every rank (N^T r and the dot products over lines
     summed, MPI_Allreduce); split="slabs": each rank one slab of z planes of the iterate and every
-    line (N x summed over the ranks, the shared planes joined), the slabs gathered at the end.
+    line (N x summed over the ranks, the shared planes joined), the slabs gathered at the end. Each
+    rank's share of the views or of the planes follows rank_weights(ctx, comm, shares).
     `options` are ctx.tomo's (iterations, nonneg, tikhonov, tolerance, progress, grid, info)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
     _check_split(split, "tomo", ("views", "slabs"))  # (a line's slab parts add: no segments)
-    _views_only(split, shares, "tomo")
     add = _summer(comm)
     rank, ranks = comm.Get_rank(), comm.Get_size()
     n = _items(scene)
@@ -304,7 +310,8 @@ def tomo(ctx, scene, lines, comm=None, split="views", shares=None, **options):
                     f"ivr.mpi.tomo: lines has {lines.shape[0]} rows on its first axis but the "
                     f"scene has {n} views or rays")
     if split == "slabs":
-        volume, history = ctx.tomo(scene, lines, _split=(1, rank, ranks, add), **options)
+        weights = rank_weights(ctx, comm, shares)
+        volume, history = ctx.tomo(scene, lines, _split=(1, rank, ranks, add, weights), **options)
         parts = comm.allgather(volume)  # a shared plane once, from the lower rank
         return np.concatenate([parts[0]] + [p[1:] for p in parts[1:]], axis=0), history
     if n < ranks:
@@ -312,7 +319,7 @@ def tomo(ctx, scene, lines, comm=None, split="views", shares=None, **options):
                     f"ivr.mpi.tomo: {ranks} ranks for {n} views or rays: at most one rank each")
     first, count = _mine(ctx, comm, n, shares)
     return ctx.tomo(scene_share(scene, first, count), lines[first:first + count],
-                    _split=(0, rank, ranks, add), **options)
+                    _split=(0, rank, ranks, add, None), **options)
 
 
 def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", nz=None, gather=True,
@@ -325,7 +332,8 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", nz
     split="slabs" (as --split slabs): each rank holds one slab of z planes of the densities and
     marches every view through it (the densities, and the TF jointly), the slabs gathered
     at the end; split="segments" likewise, each ray's segments marched at once. Over slabs or
-    segments with nz=NZ, options["volume"] (the start) is this rank's planes ivr.mpi.slab(NZ)
+    segments each rank's planes follow rank_weights(ctx, comm, shares), and with nz=NZ,
+    options["volume"] (the start) is this rank's planes ivr.mpi.slab(NZ, ctx=ctx, shares=shares)
     alone, and with gather=False "volume" comes back as this rank's planes. progress(entry) is called on every rank; returning False on any rank
     stops every rank after the same iteration. Cameras only; over views every batch needs at least
     one view per rank. Returns ctx.reconstruct's dict on every rank, "volume" whole (checkpoint:
@@ -339,15 +347,15 @@ def reconstruct(ctx, scene, targets, comm=None, progress=None, split="views", nz
         go = progress is None or progress(entry) is not False
         return comm.allreduce(0 if go else 1, op=MPI.SUM) == 0
 
-    weights = None
     if split == "views":
         _whole_volume(nz, "reconstruct")
         views = _items(scene)
         batch = min(int(options.get("batch") or views), views)
         weights = _worker_weights(_counts(ctx, comm, batch, shares))
-    _views_only(split, shares, "reconstruct")
+    else:
+        weights = rank_weights(ctx, comm, shares)
     out = ctx.reconstruct(scene, targets, progress=agreed,
-                          _workers=_slab_split(code, comm, nz) + (weights,), **options)
+                          _workers=_slab_split(code, comm, nz, weights), **options)
     if split != "views" and "volume" in out and gather:
         parts = comm.allgather(out["volume"])  # a shared plane once, from the lower rank
         out["volume"] = np.concatenate([parts[0]] + [p[1:] for p in parts[1:]], axis=0)

@@ -8,7 +8,8 @@ segments (within 1e-12; the camera's 1e-10); CGLS over views and over slabs (the
 residuals within 1e-10; CGLS, SIRT and LSQR); a reconstruction sharing each batch's views, and
 one over slabs and over segments (losses within 1e-10, a stop
 on one rank stopping all); shares of the views by weight (render, projection, CGLS, the
-deterministic density gradient, a reconstruction whose batch keeps a view on every rank); more
+deterministic density gradient, a reconstruction whose batch keeps a view on every rank) and of
+the slabs (render, gradients, CGLS and a reconstruction over slabs sized by weight); more
 ranks than views; a ray list; bad input.
 Each rank also computes the one-process result itself, as the reference."""
 import copy
@@ -344,8 +345,59 @@ def test_shares_by_weight_equal_one_process(ctx):
     assert err <= 1e-6 * np.max(np.abs(r1["volume"])), f"reconstruct by weight: {err}"
     with pytest.raises(ivr.Error, match=f"shares has {size + 1} weights for {size} ranks"):
         ivr.mpi.render(ctx, s, v, shares=[1.0] * (size + 1))
-    with pytest.raises(ivr.Error, match="cuts equal slabs"):
-        ivr.mpi.render(ctx, s, v, split="slabs", shares=shares)
+
+
+def test_slabs_by_weight_equal_one_process(ctx):
+    # Each rank's slab of the 4 planes (3 cells) by weight — 4 : 1 with 2 ranks gives planes 0..2
+    # and 2..3 where equal slabs are 0..1 and 1..3 (3 ranks: a cell each, whatever the weights) —
+    # gives one process's render, gradients, CGLS and reconstruction, each rank holding its
+    # weighted planes; the default (each rank's speed, equal on one machine) the equal slabs.
+    size, rank = COMM.Get_size(), COMM.Get_rank()
+    s, v = scene_of(3), volume()
+    s["integrator"] = {"scheme": "midpoint", "step": 0.5, "min_transmittance": 0}
+    shares = [1.0 + 3 * (size - 1 - r) for r in range(size)]
+    first, last = ivr.mpi.slab(v.shape[0], shares=shares)
+    if size == 2:
+        assert (first, last) == ((0, 2), (2, 3))[rank]
+    assert ivr.mpi.slab(v.shape[0], ctx=ctx) == ivr.mpi.slab(v.shape[0])
+    one = ctx.render(s, v)
+    mine = v[first:last + 1].copy()
+    for split in ("slabs", "segments"):
+        close(one, ivr.mpi.render(ctx, s, v, split=split, shares=shares), f"render over {split}")
+        close(one, ivr.mpi.render(ctx, s, mine, split=split, nz=v.shape[0], shares=shares),
+              f"render over {split}, each rank its weighted planes")
+    target = 0.8 * one + 0.05
+    wrt = ("density", "tf", "background")
+    l1, g1 = ctx.gradient(s, v, target, wrt=wrt, mode="adjoint")
+    ln, gn = ivr.mpi.gradient(ctx, s, mine, target, wrt=wrt, split="slabs", nz=v.shape[0],
+                              shares=shares, gather=False)
+    assert abs(ln - l1) <= 1e-12 * abs(l1)
+    assert gn["density"].shape == mine.shape
+    close(g1["density"][first:last + 1], gn["density"], "density over weighted slabs, its planes")
+    close(g1["tf"], gn["tf"], "tf over weighted slabs")
+    close(g1["background"], gn["background"], "background over weighted slabs")
+    _, gw = ivr.mpi.gradient(ctx, s, v, target, wrt=wrt, split="segments", shares=shares)
+    close(g1["density"], gw["density"], "density over weighted segments, gathered")
+    a = dict(s, model="absorption")
+    lines = ctx.project(a, v)
+    x1, _ = ctx.tomo(a, lines, iterations=3, grid=v.shape)
+    xn, _ = ivr.mpi.tomo(ctx, a, lines, iterations=3, grid=v.shape, split="slabs", shares=shares)
+    assert np.max(np.abs(xn.astype(np.float64) - x1)) <= 1e-6 * np.max(np.abs(x1)), "tomo"
+    options = dict(volume=np.full_like(v, 0.3), wrt=("density",), iterations=3, batch=3,
+                   levels=1, optimizer="sgd", lr=1.0, seed=5)
+    r1 = ctx.reconstruct(s, one, **options)
+    rn = ivr.mpi.reconstruct(ctx, s, one, split="slabs", nz=v.shape[0], gather=False,
+                             shares=shares, **dict(options, volume=np.full_like(mine, 0.3)))
+    assert rn["volume"].shape == mine.shape
+    err = np.max(np.abs(rn["volume"] - r1["volume"][first:last + 1]))
+    assert err <= 1e-6 * np.max(np.abs(r1["volume"])), f"reconstruct over weighted slabs: {err}"
+    with pytest.raises(ivr.Error, match=f"shares has {size + 1} weights for {size} ranks"):
+        ivr.mpi.render(ctx, s, v, split="slabs", shares=[1.0] * (size + 1))
+    if size == 2:  # the equal split's planes under weights that cut others: named
+        equal = ivr.mpi.slab(v.shape[0])
+        with pytest.raises(ivr.Error, match="planes"):
+            ivr.mpi.render(ctx, s, v[equal[0]:equal[1] + 1].copy(), split="slabs",
+                           nz=v.shape[0], shares=shares)
 
 
 def test_bad_input_is_refused_clearly(ctx):

@@ -164,7 +164,9 @@ IVR_API ivr_status ivr_reconstruction_create_shared(ivr_context* context, const 
                                                     int worker, int workers, ivr_sum_fn sum,
                                                     void* sum_user,
                                                     ivr_reconstruction** reconstruction);
-/* ivr_reconstruction_create_shared with the work shared as `split` says: IVR_SPLIT_VIEWS is
+/* ivr_reconstruction_create_shared with the work shared as `split` says (every worker creating its
+ * reconstruction together: over slabs with an identity TF the creation sums over the workers):
+ * IVR_SPLIT_VIEWS is
  * ivr_reconstruction_create_shared; IVR_SPLIT_SLABS (mpirun ivr reconstruct --split slabs): every
  * worker passes the whole scene (its volume: the start with init scene) and targets, holds only
  * planes ivr_domain_slab(nz, worker, workers) of the densities and their optimiser state, and

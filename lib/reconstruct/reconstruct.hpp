@@ -22,7 +22,7 @@ struct Reconstruction::Impl {
   Image targets;
   ReconstructOptions o;  // resolved: optimiser kind and lr
   bool f64 = false;
-  double scale = 1;  // density_scale(scene): density steps are lr · scale
+  double scale = 1;  // density_scale(scene), over slabs the whole volume's: steps are lr · scale
 
   std::vector<std::vector<int>> dims;  // per level (nx, ny, nz)
   std::vector<int> level_end;          // completed iterations at the end of each level

@@ -239,7 +239,8 @@ TEST(ReconstructDomain, EachWorkerResumesFromItsOwnCheckpoint) {
 
 // A worker's checkpoint over slabs by weight records its planes: resumed over equal slabs, or
 // over other weights, it is refused by name (not by a size mismatch further on). (Saved before
-// any step: construction and resume take no collective.)
+// any step: construction and resume take no collective here — an identity TF's would gather the
+// workers' largest densities.)
 TEST(ReconstructDomain, WeightedSlabCheckpointNamesItsPlanes) {
   const Small p;  // 16 planes: 15 cells, 1:3 gives worker 0 planes 0..4
   ReconstructOptions o = slab_options(Precision::f32);

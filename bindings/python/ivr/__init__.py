@@ -266,7 +266,8 @@ class Context(_Owned):
 
     # One scene handle for the duration of a call.
     def _scene(self, scene, volume, base_dir, slab=None):
-        # slab (nz, rank, ranks): `volume` is that worker's planes of a volume of nz planes.
+        # slab (nz, rank, ranks, weights): `volume` is that worker's planes of a volume of nz
+        # planes, the workers' slabs cut by the weights (None: equal).
         rays = None
         if isinstance(scene, dict) and "rays" in scene and not isinstance(scene["rays"], dict):
             # A ray list in memory: the JSON holds a stand-in ray (so that the scene is whole),

@@ -67,7 +67,7 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
                     "reconstruct: resume=True needs checkpoint= (the prefix it was saved under)")
     prefix = os.fspath(checkpoint).encode() if checkpoint is not None else None
 
-    # (workers (split, worker, workers, add, nz): with nz the volume is the worker's slab)
+    # (workers (split, worker, workers, add, nz, weights): with nz the volume is the worker's slab)
     s = ctx._scene(scene, volume, base_dir, _slab_of(workers))
     try:
         t = _targets(ctx, s, targets)
@@ -77,7 +77,8 @@ def reconstruct(ctx, scene, targets, volume, wrt, iterations, lr, optimizer, sch
             _check(lib.ivr_reconstruction_create(ctx._live(), s, t.ctypes.data_as(_FLOAT_P),
                                                  t.size, ctypes.byref(o), ctypes.byref(r)))
         else:  # (split, worker, workers, add, nz, weights): ivr.mpi.reconstruct; the sum lives
-            # as long as `r`; weights: the workers' shares of each batch (None: equal)
+            # as long as `r`; weights: over views the workers' shares of each batch, over slabs
+            # their shares of the planes (None: equal)
             split, worker, count, add, _, weights = workers
             sum_fn = _sum_fn(add, failure)
             _check(lib.ivr_reconstruction_create_weighted(

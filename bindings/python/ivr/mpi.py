@@ -82,9 +82,10 @@ def scene_share(scene, first, count):
 
 
 def rank_weights(ctx, comm=None, shares=None):
-    """Every rank's weight, its share of the views in proportion (docs/scaling.md): `shares`, one a
-    rank (every rank passing the same), else each rank's ctx.samples_per_second — its device's
-    speed on its own machine — gathered from every rank."""
+    """Every rank's weight, its share of the views or of the planes in proportion
+    (docs/scaling.md): `shares`, one a rank (every rank passing the same), else each rank's
+    ctx.samples_per_second — its device's speed on its own machine — gathered from every rank
+    (collective)."""
     comm = _comm(comm)
     if shares is None:
         return comm.allgather(float(ctx.samples_per_second))
@@ -119,11 +120,15 @@ def slab(nz, comm=None, ctx=None, shares=None):
     API's ivr_domain_slab_weighted) — what to load and pass as `volume` with nz=… to render,
     gradient and reconstruct over slabs or segments, so that no rank holds the whole volume. The
     planes follow the ranks' weights as those calls weigh them: pass the same ctx (each rank's
-    speed, gathered) or shares; with neither the slabs are equal. Collective where ctx is given."""
+    speed, gathered: collective) or shares."""
     import ctypes
     from . import _check, _doubles, _library
     comm = _comm(comm)
-    weights = rank_weights(ctx, comm, shares) if ctx is not None or shares is not None else None
+    if ctx is None and shares is None:
+        raise Error("IVR_ERROR_INVALID_ARGUMENT",
+                    "ivr.mpi.slab: pass ctx= (the ranks' speeds, which render, gradient and "
+                    "reconstruct weigh the slabs by) or shares=")
+    weights = rank_weights(ctx, comm, shares)
     first, last = ctypes.c_int(), ctypes.c_int()
     _check(_library().ivr_domain_slab_weighted(int(nz), comm.Get_rank(), comm.Get_size(),
                                                _doubles(weights), ctypes.byref(first),

@@ -174,7 +174,7 @@ def test_each_rank_holding_only_its_slab_equals_the_whole_volume(ctx, split):
     # (ivr_scene_set_volume_slab: a rank's planes alone; the results those of the whole volume)
     s = dict(scene_of(3), integrator={"scheme": "midpoint", "step": 0.5, "min_transmittance": 0})
     v = volume()
-    first, last = ivr.mpi.slab(v.shape[0])
+    first, last = ivr.mpi.slab(v.shape[0], ctx=ctx)
     mine = v[first:last + 1].copy()
     whole = ivr.mpi.render(ctx, s, v, split=split)
     assert np.array_equal(ivr.mpi.render(ctx, s, mine, split=split, nz=v.shape[0]), whole)
@@ -359,7 +359,10 @@ def test_slabs_by_weight_equal_one_process(ctx):
     first, last = ivr.mpi.slab(v.shape[0], shares=shares)
     if size == 2:
         assert (first, last) == ((0, 2), (2, 3))[rank]
-    assert ivr.mpi.slab(v.shape[0], ctx=ctx) == ivr.mpi.slab(v.shape[0])
+    # (the default weights, each rank's speed: equal here, where every rank reads one cost model)
+    assert ivr.mpi.slab(v.shape[0], ctx=ctx) == ivr.mpi.slab(v.shape[0], shares=[1.0] * size)
+    with pytest.raises(ivr.Error, match="pass ctx="):
+        ivr.mpi.slab(v.shape[0])
     one = ctx.render(s, v)
     mine = v[first:last + 1].copy()
     for split in ("slabs", "segments"):
@@ -394,7 +397,7 @@ def test_slabs_by_weight_equal_one_process(ctx):
     with pytest.raises(ivr.Error, match=f"shares has {size + 1} weights for {size} ranks"):
         ivr.mpi.render(ctx, s, v, split="slabs", shares=[1.0] * (size + 1))
     if size == 2:  # the equal split's planes under weights that cut others: named
-        equal = ivr.mpi.slab(v.shape[0])
+        equal = ivr.mpi.slab(v.shape[0], shares=[1.0, 1.0])
         with pytest.raises(ivr.Error, match="planes"):
             ivr.mpi.render(ctx, s, v[equal[0]:equal[1] + 1].copy(), split="slabs",
                            nz=v.shape[0], shares=shares)

@@ -37,9 +37,9 @@ inline AdjointSample adjoint_sample(__global const real* volume, int4 dims, cons
 #if IVR_SCHEME == IVR_SCHEME_TRAPEZOID
   // As end_sample(), with the slopes: tf_sample_slope() computes σ and the emission exactly as
   // tf_sample() does, so the march below recovers what the primal march rendered.
-  a.s.ux = m->u0x + a.t * m->dux;
-  a.s.uy = m->u0y + a.t * m->duy;
-  a.s.uz = m->u0z + a.t * m->duz;
+  a.s.ux = IVR_POINT(m, a.t, x);
+  a.s.uy = IVR_POINT(m, a.t, y);
+  a.s.uz = IVR_POINT(m, a.t, z);
   a.s.d = trilinear_at(volume, dims, a.s.ux, a.s.uy, a.s.uz);
   a.s.sigma = tf_sample_slope(a.s.d, tf, tf_count, tf_scalars, cursor, &a.s.er, &a.s.eg, &a.s.eb,
                               &a.dsigma, &a.der, &a.deg, &a.deb, &a.point);

@@ -33,7 +33,7 @@ __attribute__((always_inline)) inline void adjoint_march_midpoint_window(
     const vreal t = sample_t(m, i);
     live = live && vmask_of(t < window_end);
     if (!vany(live)) break;
-    const vreal ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
+    const vreal ux = IVR_POINT(m, t, x), uy = IVR_POINT(m, t, y), uz = IVR_POINT(m, t, z);
 #if IVR_EMPTY_SPACE
     const vint take = midpoint_skip(&i, end, &live, ux, uy, uz, m, dims, occupied, bricks);
     if (!vany(take)) continue;

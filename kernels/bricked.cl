@@ -67,7 +67,7 @@ inline bool brick_march(__global const real* volume, int4 dims, const RayMarch* 
   while (i < m->n && !stopped) {
     const real t = sample_t(m, (int)i);
     if (!(t < tb1)) break;
-    const real ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
+    const real ux = IVR_POINT(m, t, x), uy = IVR_POINT(m, t, y), uz = IVR_POINT(m, t, z);
     const real d = trilinear_at(volume, dims, ux, uy, uz);
     real er, eg, eb;
     const real sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);

@@ -67,7 +67,7 @@ __kernel void bricked_render_packet(
     const vreal t = sample_t(&m, i);
     live = live && vmask_of(t < window_end);
     if (!vany(live)) break;
-    const vreal ux = m.u0x + t * m.dux, uy = m.u0y + t * m.duy, uz = m.u0z + t * m.duz;
+    const vreal ux = IVR_POINT(&m, t, x), uy = IVR_POINT(&m, t, y), uz = IVR_POINT(&m, t, z);
     const vreal d = trilinear_at(volume, dims, ux, uy, uz);
     vreal er, eg, eb;
     const vreal sigma = tf_sample(d, tf, tf_count, tf_scalars, &segment, &er, &eg, &eb);

@@ -59,7 +59,13 @@ inline bool brick_enter(__global const real* s, __global const uint* su, real4 b
   *tb1 = m->t1;
   brick_window(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, brick_lo, brick_hi, &tb0, tb1);
   if (!(*tb1 > tb0) || tb0 != s[BS_TNEXT]) return false;
+#if IVR_SCHEME == IVR_SCHEME_EXACT
+  // (the pieces' geometry reads u0 itself: moved into the brick's voxels)
   m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
+  m->ox = m->oy = m->oz = (real)0;
+#else
+  m->ox = (real)origin.x, m->oy = (real)origin.y, m->oz = (real)origin.z;
+#endif
   return true;
 }
 
@@ -72,6 +78,7 @@ typedef struct {
   real u0x[IVR_RAYS], u0y[IVR_RAYS], u0z[IVR_RAYS], dux[IVR_RAYS], duy[IVR_RAYS], duz[IVR_RAYS];
   int n[IVR_RAYS], entered[IVR_RAYS];
   size_t pixel[IVR_RAYS];
+  real ox, oy, oz;  // (brick_enter's: the brick's, every lane the same)
 } LaneWindows;
 
 // Fills *w; true where some lane enters.
@@ -79,6 +86,11 @@ inline bool brick_enter_lanes(__global const real* state, __global const uint* s
                               int y0, int view, int width, int height, real4 brick_lo,
                               real4 brick_hi, int4 origin, LaneWindows* w) {
   bool any = false;
+#if IVR_SCHEME == IVR_SCHEME_EXACT
+  w->ox = w->oy = w->oz = (real)0;  // (brick_enter moved u0)
+#else
+  w->ox = (real)origin.x, w->oy = (real)origin.y, w->oz = (real)origin.z;
+#endif
   for (int l = 0; l < IVR_RAYS; ++l) {
     const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
     RayMarch m;
@@ -114,6 +126,7 @@ inline March lanes_march(const LaneWindows* w) {
   m.n = IVR_LOAD_RAYS(w->n);
   m.u0x = IVR_LOAD_RAYS(w->u0x), m.u0y = IVR_LOAD_RAYS(w->u0y), m.u0z = IVR_LOAD_RAYS(w->u0z);
   m.dux = IVR_LOAD_RAYS(w->dux), m.duy = IVR_LOAD_RAYS(w->duy), m.duz = IVR_LOAD_RAYS(w->duz);
+  m.ox = w->ox, m.oy = w->oy, m.oz = w->oz;
   return m;
 }
 

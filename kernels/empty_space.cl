@@ -82,9 +82,9 @@ __attribute__((always_inline)) inline vint endpoint_skip(vint i, vint n, vreal u
   go = go && (k < n);
   while (vany(go)) {
     const vreal t = m->t0 + vto_real(k + 1) * m->dt;
-    const vint cx = brick_axis(m->u0x + t * m->dux, dims.x),
-               cy = brick_axis(m->u0y + t * m->duy, dims.y),
-               cz = brick_axis(m->u0z + t * m->duz, dims.z);
+    const vint cx = brick_axis(IVR_POINT(m, t, x), dims.x),
+               cy = brick_axis(IVR_POINT(m, t, y), dims.y),
+               cz = brick_axis(IVR_POINT(m, t, z), dims.z);
     go = go && !(abs(cx - bx) > 1u || abs(cy - by) > 1u || abs(cz - bz) > 1u ||
                  vgather_flag(occupied, (cz * bricks.y + cy) * bricks.x + cx));
     if (!vany(go)) break;

@@ -22,9 +22,9 @@ __attribute__((always_inline)) inline EndSample end_sample(__global const real* 
                                                            real4 tf_scalars, vint* cursor) {
   EndSample s;
   const vreal t = sample_t(m, i);
-  s.ux = m->u0x + t * m->dux;
-  s.uy = m->u0y + t * m->duy;
-  s.uz = m->u0z + t * m->duz;
+  s.ux = IVR_POINT(m, t, x);
+  s.uy = IVR_POINT(m, t, y);
+  s.uz = IVR_POINT(m, t, z);
   s.d = trilinear_at(volume, dims, s.ux, s.uy, s.uz);
 #if IVR_SCHEME == IVR_SCHEME_PREINTEGRATED
   // The segment integrates through the TF itself (kernels/preintegrated.cl).

@@ -26,9 +26,9 @@ inline void tangent_sample(TangentSample* a, __global const real* volume, int4 d
                            vint i, Ray ray, real4 inv_voxel, __global const real* tf, int tf_count,
                            real4 tf_scalars, vint* cursor, const TangentRay* tr) {
   const vreal t = sample_t(m, i);
-  a->s.ux = m->u0x + t * m->dux;
-  a->s.uy = m->u0y + t * m->duy;
-  a->s.uz = m->u0z + t * m->duz;
+  a->s.ux = IVR_POINT(m, t, x);
+  a->s.uy = IVR_POINT(m, t, y);
+  a->s.uz = IVR_POINT(m, t, z);
   a->s.d = trilinear_at(volume, dims, a->s.ux, a->s.uy, a->s.uz);
   vreal fx, fy, fz, gx, gy, gz;
   const vint ix = cell_axis(a->s.ux, dims.x, &fx), iy = cell_axis(a->s.uy, dims.y, &fy),

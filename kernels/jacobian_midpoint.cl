@@ -30,7 +30,7 @@ __attribute__((always_inline)) inline void tangent_march_midpoint_window(
     live = live && vmask_of(t < window_end);
     if (!vany(live)) break;
     const vreal mid = vto_real(i) + (real)0.5;
-    const vreal ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
+    const vreal ux = IVR_POINT(m, t, x), uy = IVR_POINT(m, t, y), uz = IVR_POINT(m, t, z);
 #if IVR_EMPTY_SPACE
     // Only where nothing differentiated can come from (lib/empty_space/empty_space.hpp,
     // gradient_may_skip).

@@ -15,6 +15,10 @@ typedef struct {
   real dt;      // segment length
   uint n;       // segments
   real u0x, u0y, u0z, dux, duy, duz;
+  // The first voxel of the brick whose voxels the march reads (0 in core): a sample's point is the
+  // global u0 + t·du less o (IVR_POINT), exact for an integer o, so a brick's march reads the
+  // in-core march's points bit for bit (the exact scheme's pieces move u0 instead: o = 0).
+  real ox, oy, oz;
 } RayMarch;
 
 // The march the integrators take: one ray's, or every ray's of a packet (kernels/rays.cl) in
@@ -26,8 +30,12 @@ typedef struct {
   vreal t0, t1, dt;
   vint n;
   vreal u0x, u0y, u0z, dux, duy, duz;
+  real ox, oy, oz;  // (as RayMarch's: one brick for every lane)
 } March;
 #endif
+
+// Axis a's coordinate of the point at t of march m (a pointer), in the voxels it reads.
+#define IVR_POINT(m, t, a) ((m)->u0##a + (t) * (m)->du##a - (m)->o##a)
 
 // Sets *m for `ray`, the ray of pixel (x, y) of camera `cam`; false where it misses the box
 // (then *m is unset). Whether it meets the box and its segment count n come from
@@ -49,6 +57,7 @@ inline bool march_begin(Ray ray, __global const real* cam, int x, int y, int wid
   m->dux = ray.dir.x * inv_voxel.x;
   m->duy = ray.dir.y * inv_voxel.y;
   m->duz = ray.dir.z * inv_voxel.z;
+  m->ox = m->oy = m->oz = (real)0;
   return true;
 }
 
@@ -80,6 +89,7 @@ inline bool march_begin_rays(__global const real* cam, int x0, int y0, int width
   m->n = IVR_VLOAD(0, n);
   m->u0x = IVR_VLOAD(0, u0x), m->u0y = IVR_VLOAD(0, u0y), m->u0z = IVR_VLOAD(0, u0z);
   m->dux = IVR_VLOAD(0, dux), m->duy = IVR_VLOAD(0, duy), m->duz = IVR_VLOAD(0, duz);
+  m->ox = m->oy = m->oz = (real)0;
   return any_hit;
 }
 #endif

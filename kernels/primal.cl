@@ -122,7 +122,7 @@ __attribute__((always_inline)) inline void primal_march(__global const real* vol
   vint live = (vint)0 < n;
   while (vany(live)) {
     const vreal t = sample_t(m, i);
-    const vreal ux = m->u0x + t * m->dux, uy = m->u0y + t * m->duy, uz = m->u0z + t * m->duz;
+    const vreal ux = IVR_POINT(m, t, x), uy = IVR_POINT(m, t, y), uz = IVR_POINT(m, t, z);
 #if IVR_EMPTY_SPACE
     // (Reading the grid at every sample measured faster on PoCL than tracking where the ray
     // leaves each occupied brick.)

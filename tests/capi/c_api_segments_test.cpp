@@ -13,7 +13,7 @@
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
 #include "ivr/ivr_session.h"
-#include "multi_device/worker_sum.hpp"
+#include "capi_workers.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -38,20 +38,8 @@ const char* const kScene = R"({
   "integrator": {"scheme": "trapezoid", "step": 0.4, "min_transmittance": 0}})";
 constexpr std::size_t kPlane = 8 * 10, kPlanes = 12, kPixels = 3 * 9 * 7 * 4;  // (RGBA)
 
-struct Worker {
-  WorkerSum* sum;
-  int rank;
-  int calls = 0;  // of the sum
-};
-
-int summed(double* values, size_t count, void* user) {
-  Worker* w = static_cast<Worker*>(user);
-  ++w->calls;
-  std::vector<double> v(values, values + count);
-  w->sum->sum(w->rank, v);
-  std::copy(v.begin(), v.end(), values);
-  return 1;
-}
+using Worker = CapiWorker;  // (its sum: capi_summed)
+constexpr ivr_sum_fn summed = capi_summed;
 
 // A worker's (or the one process's) image, loss and gradients "density" (its planes), "tf" (its
 // part) and "background".

@@ -13,7 +13,7 @@
 
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
-#include "multi_device/worker_sum.hpp"
+#include "capi_workers.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -39,18 +39,8 @@ constexpr std::size_t kPlane = 8 * 10, kVoxels = kPlane * 12, kViewRays = 9 * 7;
 // The workers' sum: every worker's values added in rank order, handed to every worker.
 using Summit = WorkerSum;
 
-struct Worker {
-  Summit* summit;
-  int rank;
-};
-
-int summed(double* values, size_t count, void* user) {
-  const Worker* w = static_cast<const Worker*>(user);
-  std::vector<double> v(values, values + count);
-  w->summit->sum(w->rank, v);
-  std::copy(v.begin(), v.end(), values);
-  return 1;
-}
+using Worker = CapiWorker;  // (its sum: capi_summed)
+constexpr ivr_sum_fn summed = capi_summed;
 
 int failing_sum(double*, size_t, void*) {
   return 0;

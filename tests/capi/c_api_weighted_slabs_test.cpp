@@ -14,7 +14,7 @@
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
 #include "ivr/ivr_reconstruct.hpp"
-#include "multi_device/worker_sum.hpp"
+#include "capi_workers.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -41,18 +41,8 @@ constexpr std::size_t kPlane = 8 * 10, kPixels = 2 * 9 * 7 * 4;  // (RGBA)
 const double kShares[2] = {1, 3};
 constexpr int kFirst[2] = {0, 3}, kLast[2] = {3, 11};
 
-struct Worker {
-  WorkerSum* sum;
-  int rank;
-};
-
-int summed(double* values, size_t count, void* user) {
-  const Worker* w = static_cast<const Worker*>(user);
-  std::vector<double> v(values, values + count);
-  w->sum->sum(w->rank, v);
-  std::copy(v.begin(), v.end(), values);
-  return 1;
-}
+using Worker = CapiWorker;  // (its sum: capi_summed)
+constexpr ivr_sum_fn summed = capi_summed;
 
 double worst_relative(const std::vector<double>& a, const std::vector<double>& b) {
   double worst = 0, scale = 0;

@@ -46,6 +46,17 @@
 #define IVR_BRICK_DONE 1u
 #define IVR_BRICK_STARTED 2u  // the endpoint schemes' sample 0 is taken
 
+// What a brick's march subtracts from its sample points (IVR_POINT): its first voxel; 0 for the
+// exact scheme, whose pieces' geometry reads u0 itself, moved into the brick's voxels instead.
+inline real4 point_origin(int4 origin) {
+#if IVR_SCHEME == IVR_SCHEME_EXACT
+  (void)origin;
+  return (real4)(real)0;
+#else
+  return (real4)((real)origin.x, (real)origin.y, (real)origin.z, (real)0);
+#endif
+}
+
 // The ray's global march from its state, moved to the brick's voxels, and the end *tb1 of its
 // window in the brick; false where the ray is done, misses the brick, or its march does not stand
 // at the window's start (met out of order: a later sweep takes it).
@@ -62,10 +73,9 @@ inline bool brick_enter(__global const real* s, __global const uint* su, real4 b
 #if IVR_SCHEME == IVR_SCHEME_EXACT
   // (the pieces' geometry reads u0 itself: moved into the brick's voxels)
   m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
-  m->ox = m->oy = m->oz = (real)0;
-#else
-  m->ox = (real)origin.x, m->oy = (real)origin.y, m->oz = (real)origin.z;
 #endif
+  const real4 o = point_origin(origin);
+  m->ox = o.x, m->oy = o.y, m->oz = o.z;
   return true;
 }
 
@@ -86,11 +96,8 @@ inline bool brick_enter_lanes(__global const real* state, __global const uint* s
                               int y0, int view, int width, int height, real4 brick_lo,
                               real4 brick_hi, int4 origin, LaneWindows* w) {
   bool any = false;
-#if IVR_SCHEME == IVR_SCHEME_EXACT
-  w->ox = w->oy = w->oz = (real)0;  // (brick_enter moved u0)
-#else
-  w->ox = (real)origin.x, w->oy = (real)origin.y, w->oz = (real)origin.z;
-#endif
+  const real4 o = point_origin(origin);
+  w->ox = o.x, w->oy = o.y, w->oz = o.z;
   for (int l = 0; l < IVR_RAYS; ++l) {
     const int x = x0 + IVR_LANE_X(l), y = y0 + IVR_LANE_Y(l);
     RayMarch m;

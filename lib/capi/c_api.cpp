@@ -311,24 +311,6 @@ ivr_status ivr_context_samples_per_second(const ivr_context* c, double* speed) {
 }
 
 namespace {
-// Worker `rank` of `ranks` over slabs cut by `shares`, marching as `split` says (states passed or
-// independent segments), its collectives through the caller's sum.
-ivr::DomainPart slab_part(ivr_split split, int rank, int ranks, const std::vector<double>& shares,
-                          ivr_sum_fn sum, void* user) {
-  if (split != IVR_SPLIT_SLABS && split != IVR_SPLIT_SEGMENTS)
-    throw CError{IVR_ERROR_INVALID_ARGUMENT,
-                 "split " + std::to_string(int(split)) +
-                     " (IVR_SPLIT_SLABS or IVR_SPLIT_SEGMENTS; over views each worker renders its "
-                     "own views: ivr_render, ivr_gradient_shared)"};
-  if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
-  check_worker(rank, ranks);
-  ivr::DomainPart part;
-  part.rank = rank, part.ranks = ranks;
-  part.all_gather = ivr::all_gather_by_sum(rank, ranks, sum_of(sum, user));
-  part.march = split == IVR_SPLIT_SEGMENTS ? ivr::SlabMarch::segments : ivr::SlabMarch::states;
-  part.shares = shares;
-  return part;
-}
 
 void render_split(ivr_context* c, const ivr_scene* s, ivr_precision precision, double step,
                   ivr_split split, int rank, int ranks, const double* shares, ivr_sum_fn sum,
@@ -337,8 +319,7 @@ void render_split(ivr_context* c, const ivr_scene* s, ivr_precision precision, d
   with_volume(checked(s, Kind::scene, "scene"), true);
   same_context(s->context, c, "scene");
   not_null(image, "image");
-  const ivr::DomainPart part =
-      slab_part(split, rank, ranks, slab_weights(shares, ranks), sum, sum_user);
+  const ivr::DomainPart part = slab_part(split, rank, ranks, shares, sum, sum_user);
   const ivr::ImageExtent e = ivr::image_extent(s->scene);
   const size_t want = e.pixels() * size_t(s->scene.channels());
   if (capacity < want)
@@ -355,8 +336,7 @@ void gradient_split(ivr_context* c, const ivr_scene* s, const float* target, siz
                     ivr_split split, int rank, int ranks, const double* shares, ivr_sum_fn sum,
                     void* sum_user, ivr_result** out) {
   const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out, true);
-  const ivr::DomainPart part =
-      slab_part(split, rank, ranks, slab_weights(shares, ranks), sum, sum_user);
+  const ivr::DomainPart part = slab_part(split, rank, ranks, shares, sum, sum_user);
   ivr::GradientOptions o;  // (automatic: density, tf, background by the adjoint, others forward)
   o.loss = loss_of(loss);
   o.precision = precision_of(precision);

@@ -318,6 +318,25 @@ inline std::vector<double> slab_weights(const double* shares, int ranks) {
   return shares && ranks > 0 ? std::vector<double>(shares, shares + ranks) : std::vector<double>{};
 }
 
+// Worker `rank` of `ranks` over slabs cut by `shares` (NULL: equal), marching as `split` says
+// (states passed or independent segments), its collectives through the caller's sum.
+inline ivr::DomainPart slab_part(ivr_split split, int rank, int ranks, const double* shares,
+                                 ivr_sum_fn sum, void* user) {
+  if (split != IVR_SPLIT_SLABS && split != IVR_SPLIT_SEGMENTS)
+    throw CError{IVR_ERROR_INVALID_ARGUMENT,
+                 "split " + std::to_string(int(split)) +
+                     " (IVR_SPLIT_SLABS or IVR_SPLIT_SEGMENTS; over views each worker renders its "
+                     "own views: ivr_render, ivr_gradient_shared)"};
+  if (!sum) throw CError{IVR_ERROR_NULL_POINTER, "sum is NULL"};
+  check_worker(rank, ranks);
+  ivr::DomainPart part;
+  part.rank = rank, part.ranks = ranks;
+  part.all_gather = ivr::all_gather_by_sum(rank, ranks, sum_of(sum, user));
+  part.march = split == IVR_SPLIT_SEGMENTS ? ivr::SlabMarch::segments : ivr::SlabMarch::states;
+  part.shares = slab_weights(shares, ranks);
+  return part;
+}
+
 // Worker `rank` of `ranks`' part of the scene over slabs cut by `shares`: its planes cut from the
 // whole volume, or the slab the scene holds (which must be this worker's, by the same shares).
 inline ivr::Scene split_scene(const ivr_scene* s, int rank, int ranks,

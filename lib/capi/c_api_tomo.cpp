@@ -127,20 +127,17 @@ void tomo_split(ivr_context* c, const ivr_scene* s, const ivr_tomo_options* opti
   const TomoCall call(c, s, options, lines, count, volume, progress, user, history,
                       history_capacity);
   const ivr::Scene& scene = s->scene;
-  const std::function<void(std::vector<double>&)> add = sum_of(sum, sum_user);
   if (split == IVR_SPLIT_VIEWS) {
     check_capacity(capacity, scene.volume.voxel_count(), "volume", "the scene's grid", "voxels");
-    call.finish(ivr::tomo_shared(c->device, scene, call.lines, call.options, add, call.callback),
+    call.finish(ivr::tomo_shared(c->device, scene, call.lines, call.options,
+                                 sum_of(sum, sum_user), call.callback),
                 volume, history, history_capacity, summary);
     return;
   }
-  ivr::DomainPart part;
-  part.rank = rank, part.ranks = ranks;
-  part.shares = slab_weights(shares, ranks);
+  const ivr::DomainPart part = slab_part(IVR_SPLIT_SLABS, rank, ranks, shares, sum, sum_user);
   const ivr::Slab slab = ivr::domain_slab(scene.volume.nz, rank, ranks, part.shares);
   check_capacity(capacity, std::size_t(scene.volume.nx) * scene.volume.ny * slab.planes(),
                  "volume", "this worker's slab", "voxels");
-  part.all_gather = ivr::all_gather_by_sum(rank, ranks, add);
   call.finish(ivr::tomo_domain(c->device, scene, call.lines, part, call.options, call.callback),
               volume, history, history_capacity, summary);
 }

@@ -55,7 +55,9 @@ double largest_density(const Volume& volume) {
 }
 
 double density_scale(const Scene& scene) {
-  return density_scale(scene.tf, largest_density(scene.volume));
+  // (the volume is read only where the TF's span is its maximum)
+  return density_scale(scene.tf,
+                       scene.tf.kind == TfKind::identity ? largest_density(scene.volume) : 0.0);
 }
 
 double density_scale(const TransferFunction& tf, double largest) {

@@ -13,7 +13,7 @@
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
 #include "ivr/ivr_session.h"
-#include "capi_workers.hpp"
+#include "capi_split_support.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -108,14 +108,6 @@ Outcome run(ivr_split split, int rank, int ranks, WorkerSum* sum, const std::vec
   return out;
 }
 
-double relative(const std::vector<double>& a, const std::vector<double>& b) {
-  double worst = 0, scale = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    worst = std::max(worst, std::abs(a[i] - b[i]));
-    scale = std::max(scale, std::abs(b[i]));
-  }
-  return worst / std::max(scale, 1e-300);
-}
 
 TEST(CApiSegments, WorkersGiveOneProcess) {
   if (!device().info().fp64) GTEST_SKIP() << "float64 needed for the comparison";
@@ -152,7 +144,7 @@ TEST(CApiSegments, WorkersGiveOneProcess) {
           worst = std::max(worst, std::abs(double(p.image[i]) - one.image[i]));
         EXPECT_LE(worst, 1e-6) << what << ", worker " << r << ": image (float32 of float64)";
         EXPECT_NEAR(p.loss, one.loss, 1e-12 * one.loss) << what << ", worker " << r;
-        EXPECT_LE(relative(p.background, one.background), 1e-12) << what << ", worker " << r;
+        EXPECT_LE(worst_relative(p.background, one.background), 1e-12) << what << ", worker " << r;
         // The slabs joined (a shared plane the two parts' sum), the TF parts summed.
         int first = 0, last = 0;
         ASSERT_EQ(ivr_domain_slab(int(kPlanes), r, ranks, &first, &last), IVR_OK);
@@ -163,8 +155,8 @@ TEST(CApiSegments, WorkersGiveOneProcess) {
         ASSERT_EQ(p.tf.size(), tf.size()) << what;
         for (std::size_t i = 0; i < tf.size(); ++i) tf[i] += p.tf[i];
       }
-      EXPECT_LE(relative(density, one.density), 1e-12) << what << ": density";
-      EXPECT_LE(relative(tf, one.tf), 1e-12) << what << ": tf";
+      EXPECT_LE(worst_relative(density, one.density), 1e-12) << what << ": density";
+      EXPECT_LE(worst_relative(tf, one.tf), 1e-12) << what << ": tf";
     }
 }
 

@@ -13,7 +13,7 @@
 
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
-#include "capi_workers.hpp"
+#include "capi_split_support.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {

@@ -14,7 +14,7 @@
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
 #include "ivr/ivr_reconstruct.hpp"
-#include "capi_workers.hpp"
+#include "capi_split_support.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -43,15 +43,6 @@ constexpr int kFirst[2] = {0, 3}, kLast[2] = {3, 11};
 
 using Worker = CapiWorker;  // (its sum: capi_summed)
 constexpr ivr_sum_fn summed = capi_summed;
-
-double worst_relative(const std::vector<double>& a, const std::vector<double>& b) {
-  double worst = 0, scale = 0;
-  for (std::size_t i = 0; i < b.size(); ++i) {
-    worst = std::max(worst, std::abs(a[i] - b[i]));
-    scale = std::max(scale, std::abs(b[i]));
-  }
-  return worst / std::max(scale, 1e-300);
-}
 
 // Two workers' slabs (planes × kPlane values each) as the whole volume, the shared plane's parts
 // added (a gradient) or taken once (values).

@@ -53,9 +53,8 @@ def tomo(ctx, scene, lines, solver, iterations, nonneg, tv, tikhonov, tolerance,
                 out = np.empty((last.value - first.value + 1,) + out.shape[1:],
                                dtype=np.float32)
             status = ctx._lib.ivr_tomo_split_weighted(
-                ctx._live(), s, ctypes.byref(o), split, rank, ranks,
-                _doubles(weights if split == 1 else None), sum_fn, None,
-                p.ctypes.data_as(_FLOAT_P), p.size, out.ctypes.data_as(_FLOAT_P), out.size,
+                ctx._live(), s, ctypes.byref(o), split, rank, ranks, _doubles(weights), sum_fn,
+                None, p.ctypes.data_as(_FLOAT_P), p.size, out.ctypes.data_as(_FLOAT_P), out.size,
                 callback, None, history, len(history), ctypes.byref(summary))
         if failure:
             raise failure[0]

@@ -109,28 +109,33 @@ inline void finish_sample(AdjointSample* a, vint done, CellCache* cell, __global
 
 // The segments from at->i on that belong to the window ending at `window_end` (segment_in_window;
 // in core: ∞) and lie before the primal march's end, from the prefix in *at; *at is left where the
-// march stopped. Each sample collects dL/d its density from the segments of the window it ends and
-// begins and is scattered once, at the window's end where it is still open: out of core
-// (kernels/bricked_adjoint.cl) a sample on the window's border is scattered twice, a part by each
-// brick, into the voxels around it that both bricks hold (the halo, lib/brick/brick_layout.hpp).
+// march stopped. Each sample collects dL/d its density from the segments it ends and begins and is
+// scattered once both are done. A sample on a window's border: in the rays of `carry` (out of
+// core, kernels/bricked_adjoint.cl: a ray whose march the next brick goes on with) what it has
+// collected is left in *at and the next window, which starts on it, adds its other segment and
+// scatters it — the in-core sums exactly; elsewhere (a slab's independent segment) it is scattered
+// at the window's end, a part by each window, into the voxels around it that both bricks hold (the
+// halo, lib/brick/brick_layout.hpp).
 __attribute__((always_inline)) inline void adjoint_march_endpoints_window(
     __global const real* volume, int4 dims, const March* m, Ray ray, real4 inv_voxel,
     __global const real* tf, int tf_count, real4 tf_scalars, const AdjointRay* ar,
     __global const uchar* occupied, int4 bricks, const ScatterSink grad_volume,
-    TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs, vreal window_end,
+    TfGradCache* tf_cache, __local real* tf_acc, CameraSums* cs, vreal window_end, vint carry,
     AdjointPrefix* at) {
   vreal transmittance = at->transmittance;
   // The emission prefix, summed exactly as the primal march summed C.
   vreal pr = at->pr, pg = at->pg, pb = at->pb, kr = at->kr, kg = at->kg, kb = at->kb;
   vint seg_value = (vint)0, seg_scatter = (vint)0;
   CellCache cell;
-  cell_init(&cell);
+  cell_init(&cell, grad_volume, at->flushed);
   real along = 0, indexed = 0, direct = 0;  // camera (one ray): fixed_step_ends()
   const vreal dt = m->dt;
   const vint end = ar->end;
   vint i = at->i;
   vint live = i < end;
   AdjointSample a = adjoint_sample(volume, dims, m, i, tf, tf_count, tf_scalars, &seg_value);
+  // (what the window before collected for it: 0 where none did)
+  a.gsigma = at->gsigma, a.ger = at->ger, a.geg = at->geg, a.geb = at->geb, a.gd = at->gd;
   vint open = live;  // a still waits for its scatter
   while (vany(live)) {
     live = live && segment_in_window(m, i, window_end);
@@ -206,9 +211,15 @@ __attribute__((always_inline)) inline void adjoint_march_endpoints_window(
     i += vcount(take);
     live = live && (i < end);
   }
-  finish_sample(&a, open, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count, tf_scalars,
-                &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);
-  cell_flush(&cell, grad_volume);
+  // (A ray that has segments left goes on with this sample in the next window.)
+  const vint kept = open && carry && (i < end);
+  finish_sample(&a, open && !kept, &cell, volume, dims, inv_voxel, ray.dir, tf, tf_count,
+                tf_scalars, &seg_scatter, grad_volume, tf_cache, tf_acc, cs, &along, &indexed);
+  const vreal none = (vreal)(real)0;
+  at->gsigma = vsel(none, a.gsigma, kept), at->ger = vsel(none, a.ger, kept);
+  at->geg = vsel(none, a.geg, kept), at->geb = vsel(none, a.geb, kept);
+  at->gd = vsel(none, a.gd, kept);
+  at->flushed = cell_flush(&cell, grad_volume);
 #if IVR_GRAD_CAMERA
   fixed_step_ends(cs, m, along, indexed, direct);
 #else
@@ -228,7 +239,8 @@ __attribute__((always_inline)) inline void adjoint_march_endpoints(
   AdjointPrefix at = adjoint_prefix_begin();
   adjoint_march_endpoints_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars, ar,
                                  occupied, bricks, grad_volume, tf_cache, tf_acc, cs,
-                                 (vreal)(real)INFINITY, &at);
+                                 (vreal)(real)INFINITY, (vint)0, &at);
+  adjoint_ray_end(grad_volume, at.flushed);
 }
 
 #endif

@@ -26,7 +26,7 @@ inline void adjoint_march_exact_window(__global const real* volume, int4 dims, c
                                        vreal window_end, AdjointPrefix* at) {
   const vreal gtau = -ar->intensity * ar->gi;  // dL/dτ, the same for every piece
   CellCache cell;
-  cell_init(&cell);
+  cell_init(&cell, grad_volume, at->flushed);
   March w = *m;
   w.t1 = window_end;
   Pieces p;
@@ -90,7 +90,7 @@ inline void adjoint_march_exact_window(__global const real* volume, int4 dims, c
 #endif
     }
   }
-  cell_flush(&cell, grad_volume);
+  at->flushed = cell_flush(&cell, grad_volume);
 #if IVR_GRAD_CAMERA
   // The ray's ends: dτ/dt0 = −σ(t0), dτ/dt_end = σ(t_end); t_end is the box (or, stopped early,
   // the centre plane that ended the last piece).
@@ -127,6 +127,7 @@ inline void adjoint_march_exact(__global const real* volume, int4 dims, const Ma
   adjoint_march_exact_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars, ar,
                              occupied, bricks, grad_volume, tf_cache, tf_acc, cs, m->t0, m->t1,
                              &at);
+  adjoint_ray_end(grad_volume, at.flushed);
 }
 
 #endif

@@ -22,7 +22,7 @@ __attribute__((always_inline)) inline void adjoint_march_midpoint_window(
   vreal pr = at->pr, pg = at->pg, pb = at->pb, kr = at->kr, kg = at->kg, kb = at->kb;
   vint seg_value = (vint)0, seg_scatter = (vint)0;
   CellCache cell;
-  cell_init(&cell);
+  cell_init(&cell, grad_volume, at->flushed);
 #if IVR_GRAD_CAMERA
   real along = 0, indexed = 0, direct = 0;  // camera: fixed_step_ends()
 #endif
@@ -96,7 +96,7 @@ __attribute__((always_inline)) inline void adjoint_march_midpoint_window(
     i += vcount(take);
     live = live && (i < end);
   }
-  cell_flush(&cell, grad_volume);
+  at->flushed = cell_flush(&cell, grad_volume);
 #if IVR_GRAD_CAMERA
   fixed_step_ends(cs, m, along, indexed, direct);
 #endif
@@ -115,6 +115,7 @@ __attribute__((always_inline)) inline void adjoint_march_midpoint(
   adjoint_march_midpoint_window(volume, dims, m, ray, inv_voxel, tf, tf_count, tf_scalars, ar,
                                 occupied, bricks, grad_volume, tf_cache, tf_acc, cs,
                                 (vreal)(real)INFINITY, &at);
+  adjoint_ray_end(grad_volume, at.flushed);
 }
 
 #endif

@@ -32,10 +32,16 @@ typedef struct {
 // primal march summed C) before sample i (midpoint) or segment i (trapezoid, preintegrated); exact: i counts the pieces
 // taken. In core a march starts at sample 0 with nothing in
 // front; out of core (kernels/bricked_adjoint.cl) each brick goes on from where the one before
-// left it.
+// left it. Carried with it, so that a ray's sums do not depend on where its march is cut: the
+// ray's Σ |density contribution| so far (the fixed-point gradient's cap, checked once at the ray's
+// end: adjoint_scatter.cl) and, for the endpoint schemes, what the sample the window ends on has
+// collected from the segments before it (its scatter then happens once, in the next window, from
+// all of its segments: adjoint_endpoints.cl).
 typedef struct {
   vreal transmittance, pr, pg, pb, kr, kg, kb;
   vint i;
+  vreal flushed;
+  vreal gsigma, ger, geg, geb, gd;  // the open sample's sums (AdjointSample's)
 } AdjointPrefix;
 
 inline AdjointPrefix adjoint_prefix_begin(void) {
@@ -43,6 +49,7 @@ inline AdjointPrefix adjoint_prefix_begin(void) {
   p.transmittance = (vreal)(real)1;
   p.pr = p.pg = p.pb = p.kr = p.kg = p.kb = (vreal)(real)0;
   p.i = (vint)0;
+  p.flushed = p.gsigma = p.ger = p.geg = p.geb = p.gd = (vreal)(real)0;
   return p;
 }
 

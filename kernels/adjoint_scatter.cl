@@ -21,38 +21,37 @@
 #if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
 #pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
 // The deterministic density gradient (lib/adjoint/adjoint.cpp): integer adds do not depend on their
-// order, so each contribution is scaled by 2^S, rounded to a long and added with atom_add. `grad`
-// then points at longs: [0] S (the host's, from an a-priori bound on one ray's Σ |contribution|:
-// lib/adjoint/adjoint_bound.hpp), [1] the cap on one ray's scaled Σ |contribution| (2^62 / rays: no
-// voxel's sum leaves the long range, whatever the bound said), [2] rays (or single
-// contributions) over the cap: the bound failed, the host runs again at a smaller S, [3] the
-// largest |contribution| and [4] the largest ray's Σ |contribution|, as float bits
-// (order-independent atomic_max: the bits S left, and the scale of a second pass), and voxel i at
-// [IVR_FIXED_HEADER + i] (kernels/ivr_constants.h).
+// order, so each contribution — each sample's part for each corner of its cell — is scaled by 2^S
+// and rounded to a long at once; the cell cache then sums longs and adds them with atom_add. How a
+// ray's march is cut (cell crossings, the bricks' windows out of core, the slabs' workers) thus
+// changes only when its integers are added, never their values: the gradient is the same bits in
+// core, out of core and over slabs. `grad` then points at longs: [0] S (the host's, from an
+// a-priori bound on one ray's Σ |contribution|: lib/adjoint/adjoint_bound.hpp), [1] the cap on
+// one ray's scaled Σ |contribution| (2^62 / rays: no voxel's sum leaves the long range, whatever
+// the bound said), [2] contributions or rays over the cap (the bound failed: the host runs again
+// at a smaller S), [3] the largest |contribution| and [4] the largest ray's Σ |contribution|, as
+// float bits (order-independent atomic_max: the bits S left, and the scale of a second pass), and
+// voxel i at [IVR_FIXED_HEADER + i] (kernels/ivr_constants.h).
+typedef long GradSum;
 inline void fixed_max(volatile __global long* slot, const real value) {
   volatile __global uint* largest = (volatile __global uint*)slot;
   const uint bits = as_uint((float)value);
   if (bits > *largest) atomic_max(largest, bits);  // the plain read only filters
 }
-// `flushed` sums the ray's |contributions| (cell_flush checks it at the ray's end).
-inline void fixed_add(__global real* grad, real* flushed, const int index, const real value) {
+// The check at a ray's true end (the in-core march's, or the last brick's: the sum is carried
+// across windows, AdjointPrefix.flushed) of its Σ |contribution| against the cap; every lane's.
+inline void fixed_ray_end(__global real* grad, const vreal flushed) {
   volatile __global long* fx = (volatile __global long*)grad;
-  fixed_max(fx + 3, fabs(value));
-  *flushed += fabs(value);
-  const real scaled = ldexp(value, (int)fx[0]);
-  if (!(fabs(scaled) <= (real)fx[1])) {  // over the ray's own cap already (or not finite)
-    atom_inc(fx + 2);
-    return;
+  real f[IVR_RAYS];
+  IVR_STORE_RAYS(flushed, f);
+  for (int l = 0; l < IVR_RAYS; ++l) {
+    if (f[l] == (real)0) continue;
+    fixed_max(fx + 4, f[l]);
+    if (!(ldexp(f[l], (int)fx[0]) <= (real)fx[1])) atom_inc(fx + 2);
   }
-  atom_add(fx + IVR_FIXED_HEADER + index, convert_long_rte(scaled));
 }
-inline void fixed_ray_end(__global real* grad, const real flushed) {
-  volatile __global long* fx = (volatile __global long*)grad;
-  fixed_max(fx + 4, flushed);
-  if (!(ldexp(flushed, (int)fx[0]) <= (real)fx[1])) atom_inc(fx + 2);
-}
-#define IVR_ADD_DENSITY_GRAD(c, index, value) fixed_add(grad.out, &(c)->flushed[l], index, value)
-
+#define IVR_ADD_DENSITY_GRAD(c, index, value) \
+  atom_add((volatile __global long*)grad.out + IVR_FIXED_HEADER + (index), (value))
 // The fixed-point sums back to reals: out[i] = fx[header + i]·2^−S.
 __kernel void fixed_to_real(const int n, __global const long* restrict fx,
                             __global real* restrict out) {
@@ -60,6 +59,7 @@ __kernel void fixed_to_real(const int n, __global const long* restrict fx,
   if (i < n) out[i] = ldexp((real)fx[IVR_FIXED_HEADER + i], -(int)fx[0]);
 }
 #else
+typedef real GradSum;
 // Through the work-group's table where the host turned it on (kernels/scatter_cache.cl).
 #define IVR_ADD_DENSITY_GRAD(c, index, value) scatter_add(grad, index, value)
 #endif
@@ -71,10 +71,12 @@ __kernel void fixed_to_real(const int n, __global const long* restrict fx,
 typedef struct {
   real v[8][IVR_RAYS];
 #if IVR_GRAD_DENSITY
-  real g[8][IVR_RAYS];
+  GradSum g[8][IVR_RAYS];
 #endif
 #if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
-  real flushed[IVR_RAYS];  // Σ |contribution| the ray has added so far
+  vreal flushed, largest;  // the ray's Σ |contribution| so far; its largest in this window
+  int exponent, over;      // S; the contributions found over the cap
+  real cap;
 #endif
   int base[IVR_RAYS], ox[IVR_RAYS], oy[IVR_RAYS], oz[IVR_RAYS];  // base < 0: no cell yet
   int ix[IVR_RAYS], iy[IVR_RAYS], iz[IVR_RAYS];
@@ -90,9 +92,9 @@ typedef struct {
 #if IVR_GRAD_DENSITY
 #define IVR_FLUSH(c, k)                                                               \
   do {                                                                                \
-    if ((c)->g[k][l] != (real)0)                                                      \
+    if ((c)->g[k][l] != (GradSum)0)                                                   \
       IVR_ADD_DENSITY_GRAD(c, (c)->base[l] + IVR_CORNER(c, k), (c)->g[k][l]);         \
-    (c)->g[k][l] = (real)0;                                                           \
+    (c)->g[k][l] = (GradSum)0;                                                        \
   } while (0)
 #define IVR_MOVE_GRAD(c, to, from)     \
   do {                                 \
@@ -154,12 +156,9 @@ inline void lane_cell_init(CellCache* c, int l) {
   for (int k = 0; k < 8; ++k) {
     c->v[k][l] = (real)0;
 #if IVR_GRAD_DENSITY
-    c->g[k][l] = (real)0;
+    c->g[k][l] = (GradSum)0;
 #endif
   }
-#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
-  c->flushed[l] = (real)0;
-#endif
 }
 
 // Makes (x, y, z) lane l's current cell. Into a neighbouring cell (across a face, an edge or a
@@ -195,13 +194,9 @@ __attribute__((always_inline)) inline void lane_cell_enter(CellCache* c, int l, 
   }
 }
 
-// Adds what lane l's corners still hold to global memory (the end of its ray); in fixed point,
-// checks the ray's Σ |contribution| against the cap.
+// Adds what lane l's corners still hold to global memory (the end of its ray or window).
 inline void lane_cell_flush(CellCache* c, int l, const ScatterSink grad) {
   if (c->base[l] >= 0) IVR_EACH_CORNER(IVR_FLUSH, c);
-#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
-  fixed_ray_end(grad.out, c->flushed[l]);
-#endif
 }
 
 // Corner k's values of every lane as one vreal, and back.
@@ -213,10 +208,21 @@ inline void lane_cell_flush(CellCache* c, int l, const ScatterSink grad) {
 #define IVR_SET_CORNER_LANES(a, x) IVR_VSTORE(x, 0, a)
 #endif
 
-inline void cell_init(CellCache* c) {
+// `flushed`: the ray's Σ |contribution| before this window (AdjointPrefix.flushed).
+inline void cell_init(CellCache* c, const ScatterSink grad, vreal flushed) {
   for (int l = 0; l < IVR_RAYS; ++l) lane_cell_init(c, l);
 #if IVR_RAYS > 1
   c->cx = c->cy = c->cz = (vint)-1;
+#endif
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+  __global const long* fx = (__global const long*)grad.out;
+  c->exponent = (int)fx[0];
+  c->cap = (real)fx[1];
+  c->over = 0;
+  c->flushed = flushed;
+  c->largest = (vreal)(real)0;
+#else
+  (void)grad, (void)flushed;
 #endif
 }
 
@@ -246,8 +252,33 @@ __attribute__((always_inline)) inline void cell_enter(CellCache* c, vint x, vint
 #endif
 }
 
-inline void cell_flush(CellCache* c, const ScatterSink grad) {
+// Every lane's corners into global memory at the end of a window; returns the rays' Σ
+// |contribution| so far (AdjointPrefix.flushed; 0 in float sums), whose check waits for the
+// ray's end (adjoint_ray_end).
+inline vreal cell_flush(CellCache* c, const ScatterSink grad) {
   for (int l = 0; l < IVR_RAYS; ++l) lane_cell_flush(c, l, grad);
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+  volatile __global long* fx = (volatile __global long*)grad.out;
+  real largest[IVR_RAYS];
+  IVR_STORE_RAYS(c->largest, largest);
+  for (int l = 0; l < IVR_RAYS; ++l)
+    if (largest[l] != (real)0) fixed_max(fx + 3, largest[l]);
+  if (c->over) atom_add(fx + 2, (long)c->over);
+  return c->flushed;
+#else
+  (void)grad;
+  return (vreal)(real)0;
+#endif
+}
+
+// The end of the rays' whole march (in core; out of core where the last brick leaves it): the
+// fixed-point cap's check of each ray's Σ |contribution|.
+inline void adjoint_ray_end(const ScatterSink grad, vreal flushed) {
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+  fixed_ray_end(grad.out, flushed);
+#else
+  (void)grad, (void)flushed;
+#endif
 }
 
 // trilinear_at()'s interpolation, from the cached corners (every lane of a packet).
@@ -259,6 +290,24 @@ __attribute__((always_inline)) inline vreal cell_density(const CellCache* c, vre
 #undef IVR_V
 }
 
+#if IVR_GRAD_DENSITY && IVR_DETERMINISTIC
+// One contribution of every lane as its integer, 2^S·w rounded to nearest; one over the cap (or
+// not finite) counts and adds nothing — the pass is run again at a smaller S.
+__attribute__((always_inline)) inline vlong fixed_of(CellCache* c, vreal w) {
+  const vreal a = fabs(w);
+  c->flushed += a;  // (a NaN or an infinity stays in it: the host's check of the largest ray)
+  c->largest = fmax(c->largest, a);
+  const vreal scaled = ldexp(w, c->exponent);
+  const vint fits = vmask_of(fabs(scaled) <= (vreal)c->cap);
+  if (!vall(fits)) {
+    int f[IVR_RAYS];
+    IVR_STORE_RAYS(fits, f);
+    for (int l = 0; l < IVR_RAYS; ++l) c->over += f[l] ? 0 : 1;
+  }
+  return vto_long_rte(vsel((vreal)(real)0, scaled, fits));
+}
+#endif
+
 // Adds gd = dL/d density at fractions (fx, fy, fz) of the current cell to its corners (every
 // lane of a packet; a lane that does not sample adds gd = 0).
 __attribute__((always_inline)) inline void cell_add(CellCache* c, vreal gd, vreal fx, vreal fy,
@@ -267,7 +316,11 @@ __attribute__((always_inline)) inline void cell_add(CellCache* c, vreal gd, vrea
   const vreal gx0 = gd * ((real)1 - fx), gx1 = gd * fx;
   const vreal wy0z0 = ((real)1 - fy) * ((real)1 - fz), wy1z0 = fy * ((real)1 - fz);
   const vreal wy0z1 = ((real)1 - fy) * fz, wy1z1 = fy * fz;
+#if IVR_DETERMINISTIC
+#define IVR_ADD(k, w) IVR_SET_CORNER_LANES(c->g[k], IVR_CORNER_LANES(c->g[k]) + fixed_of(c, w))
+#else
 #define IVR_ADD(k, w) IVR_SET_CORNER_LANES(c->g[k], IVR_CORNER_LANES(c->g[k]) + (w))
+#endif
   IVR_ADD(0, gx0 * wy0z0);
   IVR_ADD(1, gx1 * wy0z0);
   IVR_ADD(2, gx0 * wy1z0);

@@ -26,6 +26,15 @@
 
 #define IVR_BRICK_ADJOINT_BEGIN 3
 #define IVR_BRICK_ADJOINT_MARCH 4
+// The adjoint's own places in the march state, carried from brick to brick: the ray's Σ |density
+// contribution| so far and the open sample's sums (AdjointPrefix; the forward march's ktau and
+// carried end sample, which its pass no longer reads; ADJOINT_BEGIN zeroes them).
+#define BS_ADJ_FLUSHED BS_KTAU
+#define BS_ADJ_GSIGMA 9
+#define BS_ADJ_GER 10
+#define BS_ADJ_GEG 11
+#define BS_ADJ_GEB 12
+#define BS_ADJ_GD 13
 // Per ray, beside the march state: dL/d(r, g, b, alpha) (absorption: dL/dI in 0), the pixel's
 // radiance (r, g, b) and transmittance (absorption: its intensity in 4, unused 5–6).
 #define IVR_BRICK_ADJOINT_REALS 8
@@ -59,7 +68,7 @@ inline void brick_adjoint_begin(__global real* s, __global uint* su, __global re
 #endif
   terms[0] = loss;
   const uint end = su[BU_END];
-  for (int k = 0; k <= BS_KTAU; ++k) s[k] = (real)0;
+  for (int k = 0; k <= BS_ADJ_GD; ++k) s[k] = (real)0;
   s[BS_T] = (real)1;
   s[BS_TNEXT] = s[BS_T0];
   su[BU_SAMPLES] = end;  // the adjoint march's end
@@ -87,6 +96,10 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
       kb[IVR_RAYS];
   real a0[IVR_RAYS], a1[IVR_RAYS], a2[IVR_RAYS], a3[IVR_RAYS], a4[IVR_RAYS], a5[IVR_RAYS],
       a6[IVR_RAYS], a7[IVR_RAYS];
+  real flushed[IVR_RAYS], gsigma[IVR_RAYS], ger[IVR_RAYS], geg[IVR_RAYS], geb[IVR_RAYS],
+      gd[IVR_RAYS];
+  // A ray whose march goes on past this brick (not a slab's independent segment ending here).
+  int carry[IVR_RAYS];
   int next[IVR_RAYS], end[IVR_RAYS];
   for (int l = 0; l < IVR_RAYS; ++l) {
     if (w.entered[l]) {
@@ -98,11 +111,15 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
       a0[l] = a[0], a1[l] = a[1], a2[l] = a[2], a3[l] = a[3];
       a4[l] = a[4], a5[l] = a[5], a6[l] = a[6], a7[l] = a[7];
       next[l] = (int)su[BU_NEXT], end[l] = (int)su[BU_SAMPLES];
+      flushed[l] = s[BS_ADJ_FLUSHED], gsigma[l] = s[BS_ADJ_GSIGMA], ger[l] = s[BS_ADJ_GER];
+      geg[l] = s[BS_ADJ_GEG], geb[l] = s[BS_ADJ_GEB], gd[l] = s[BS_ADJ_GD];
+      carry[l] = w.tb1[l] < w.tend[l] ? (IVR_RAYS == 1 ? 1 : -1) : 0;
     } else {
       T[l] = (real)1;
       pr[l] = pg[l] = pb[l] = kr[l] = kg[l] = kb[l] = (real)0;
       a0[l] = a1[l] = a2[l] = a3[l] = a4[l] = a5[l] = a6[l] = a7[l] = (real)0;
-      next[l] = end[l] = 0;
+      flushed[l] = gsigma[l] = ger[l] = geg[l] = geb[l] = gd[l] = (real)0;
+      next[l] = end[l] = carry[l] = 0;
     }
   }
   const March m = lanes_march(&w);
@@ -124,6 +141,9 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
   at.pr = IVR_LOAD_RAYS(pr), at.pg = IVR_LOAD_RAYS(pg), at.pb = IVR_LOAD_RAYS(pb);
   at.kr = IVR_LOAD_RAYS(kr), at.kg = IVR_LOAD_RAYS(kg), at.kb = IVR_LOAD_RAYS(kb);
   at.i = IVR_LOAD_RAYS(next);
+  at.flushed = IVR_LOAD_RAYS(flushed);
+  at.gsigma = IVR_LOAD_RAYS(gsigma), at.ger = IVR_LOAD_RAYS(ger), at.geg = IVR_LOAD_RAYS(geg);
+  at.geb = IVR_LOAD_RAYS(geb), at.gd = IVR_LOAD_RAYS(gd);
 
   const Ray ray = {(real3)(real)0, (real3)(real)0};  // (the camera gradient's: not out of core)
   TfGradCache tf_cache;
@@ -137,7 +157,7 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
 #elif IVR_ENDPOINT_SAMPLES
   adjoint_march_endpoints_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar,
                                  (__global const uchar*)0, (int4)0, sink, &tf_cache, tf_acc, &cs,
-                                 IVR_LOAD_RAYS(w.tb1), &at);
+                                 IVR_LOAD_RAYS(w.tb1), IVR_LOAD_RAYS(carry), &at);
 #else
   adjoint_march_exact_window(volume, dims, &m, ray, inv_voxel, tf, tf_count, tf_scalars, &ar,
                              (__global const uchar*)0, (int4)0, sink, &tf_cache, tf_acc, &cs,
@@ -155,17 +175,31 @@ __attribute__((always_inline)) inline void brick_adjoint_tile(
   IVR_STORE_RAYS(at.kg, kg);
   IVR_STORE_RAYS(at.kb, kb);
   IVR_STORE_RAYS(at.i, next);
+  IVR_STORE_RAYS(at.flushed, flushed);
+  IVR_STORE_RAYS(at.gsigma, gsigma);
+  IVR_STORE_RAYS(at.ger, ger);
+  IVR_STORE_RAYS(at.geg, geg);
+  IVR_STORE_RAYS(at.geb, geb);
+  IVR_STORE_RAYS(at.gd, gd);
+  real ended[IVR_RAYS];  // the Σ |contribution| of the rays that end here (the cap's check)
   for (int l = 0; l < IVR_RAYS; ++l) {
+    ended[l] = (real)0;
     if (!w.entered[l]) continue;
     __global real* s = state + w.pixel[l] * IVR_BRICK_REALS;
     __global uint* su = state_u + w.pixel[l] * IVR_BRICK_UINTS;
     s[BS_T] = T[l];
     s[BS_CR] = pr[l], s[BS_CG] = pg[l], s[BS_CB] = pb[l];
     s[BS_KR] = kr[l], s[BS_KG] = kg[l], s[BS_KB] = kb[l];
+    s[BS_ADJ_FLUSHED] = flushed[l], s[BS_ADJ_GSIGMA] = gsigma[l], s[BS_ADJ_GER] = ger[l];
+    s[BS_ADJ_GEG] = geg[l], s[BS_ADJ_GEB] = geb[l], s[BS_ADJ_GD] = gd[l];
     su[BU_NEXT] = (uint)next[l];
     s[BS_TNEXT] = w.tb1[l];
-    if (next[l] >= end[l] || w.tb1[l] >= w.tend[l]) su[BU_FLAGS] |= IVR_BRICK_DONE;
+    if (next[l] >= end[l] || w.tb1[l] >= w.tend[l]) {
+      su[BU_FLAGS] |= IVR_BRICK_DONE;
+      ended[l] = flushed[l];
+    }
   }
+  adjoint_ray_end(sink, IVR_LOAD_RAYS(ended));
 }
 
 // The arguments are bricked_render's up to `pending`'s place (the host sets them alike), then the

@@ -30,6 +30,8 @@ typedef int vint;
 #define vmask_of(c) ((vint)((c) ? 1 : 0))  // a comparison of vreal as a mask
 #define vto_int(x) ((int)(x))              // truncation (x >= 0 where used: floor)
 #define vto_real(i) ((real)(i))
+typedef long vlong;
+#define vto_long_rte(x) convert_long_rte(x)  // to the nearest integer, ties to even
 #define vgather(p, i) ((p)[i])
 #define vgather_off(p, base, off) (((p) + (base))[off])  // one base address, as a scalar loop has
 #define vgather_flag(p, i) ((vint)((p)[i] ? 1 : 0))
@@ -46,11 +48,13 @@ typedef int vint;
 #define IVR_VLOAD vload16
 #define IVR_VSTORE vstore16
 #define vto_int(x) convert_int16_rtz(x)
+#define vto_long_rte(x) convert_long16_rte(x)
 #elif IVR_RAYS == 8
 #define IVR_VN(t) t##8
 #define IVR_VLOAD vload8
 #define IVR_VSTORE vstore8
 #define vto_int(x) convert_int8_rtz(x)
+#define vto_long_rte(x) convert_long8_rte(x)
 #else
 #error "IVR_RAYS must be 1, 8 or 16"
 #endif
@@ -68,6 +72,7 @@ typedef IVR_VN(float) vreal;
 #define vto_real(i) IVR_VN(convert_float)(i)
 #endif
 typedef IVR_VN(int) vint;
+typedef IVR_VN(long) vlong;
 // any() and all() as trees of lane-wise ORs and ANDs: PoCL's builtins test the lanes one after
 // another with a branch each (16 compare-and-branch pairs per call, several calls per sample),
 // where these are a few vector operations and one test of the sign bit.

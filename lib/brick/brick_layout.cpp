@@ -77,10 +77,10 @@ std::size_t BrickLayout::largest_voxels() const {
   return n;
 }
 
-int brick_halo(const Scene& scene, double step) {
+int brick_halo(const Scene& scene, double step, bool deterministic) {
   if (scene.integrator.scheme != Scheme::trapezoid &&
       scene.integrator.scheme != Scheme::preintegrated)
-    return 0;
+    return deterministic ? 1 : 0;
   const glm::dvec3 h = scene.voxel_size();
   const double finest = std::min({h.x, h.y, h.z});
   // (+1: the near sample's cell starts at floor(u), and the float32 sample count may round a

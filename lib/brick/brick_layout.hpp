@@ -58,8 +58,10 @@ BrickLayout brick_layout(int nx, int ny, int nz, int edge, int z_first = 0, int 
 // The halo the trapezoid and preintegrated gradients need out of core: a segment's near sample lies
 // less than one step (in voxels along any axis: step × the largest inverse voxel size) before the
 // window its far end lies in, and its trilinear cell starts up to one voxel lower; 0 for midpoint
-// and exact (each sample or piece lies in its window's brick).
-int brick_halo(const Scene& scene, double step);
+// and exact (each sample or piece lies in its window's brick). `deterministic` (the fixed-point
+// density gradient): at least 1, so that a sample whose point rounds a hair past its brick's plane
+// reads and scatters into the voxels beyond as in core, and the integers equal the in-core ones.
+int brick_halo(const Scene& scene, double step, bool deterministic = false);
 // Throws Error(unsupported) where the step a gradient's march takes (the session's: a tolerance
 // may have chosen it) needs a wider halo than `layout` holds.
 void check_brick_halo(const Scene& scene, double step, const BrickLayout& layout);

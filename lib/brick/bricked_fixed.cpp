@@ -14,6 +14,12 @@
 namespace ivr {
 
 namespace {
+// Two's complement addition without signed overflow: a pass over the cap (rerun, its sums
+// dropped) may wrap.
+std::int64_t wrapping_add(std::int64_t a, std::int64_t b) {
+  return std::int64_t(std::uint64_t(a) + std::uint64_t(b));
+}
+
 // Every worker's doubles, in rank order (one worker: its own).
 std::vector<std::vector<double>> gathered(const DomainPart* domain,
                                           const std::vector<double>& mine) {
@@ -21,13 +27,25 @@ std::vector<std::vector<double>> gathered(const DomainPart* domain,
   return gather_doubles(*domain, mine, "the fixed-point density gradient's scale");
 }
 
-// The most segments one ray can have: the bricks it may cross along each axis (a line meets at
-// most count_x + count_y + count_z − 2 cells of a grid), over slabs every worker's bricks along z.
-std::size_t segments_per_ray(const BrickLayout& l, const DomainPart* domain) {
-  const int ranks = domain ? domain->ranks : 1;
-  const std::size_t z_bricks = std::size_t((std::max(l.dims[2] - 1, 1) + l.edge - 1) / l.edge) +
-                               std::size_t(ranks);
-  return std::size_t(l.count[0]) + std::size_t(l.count[1]) + z_bricks;
+// The parts a ray's Σ |contribution| is checked in: 1 where its march state carries the sum from
+// brick to brick and slab to slab (kernels/bricked_adjoint.cl checks it at the ray's end, as in
+// core); over independent segments each slab's segment is checked alone, and a ray has at most
+// one a worker.
+std::size_t checked_parts(const DomainPart* domain) {
+  return domain && domain->march == SlabMarch::segments ? std::size_t(domain->ranks) : 1;
+}
+
+// Every worker's planes (BrickedFixed::WorkerPlanes), in rank order.
+std::vector<BrickedFixed::WorkerPlanes> worker_planes(const DomainPart& domain,
+                                                      const BrickLayout& l) {
+  std::vector<BrickedFixed::WorkerPlanes> out;
+  for (const std::vector<double>& w :
+       gather_doubles(domain,
+                      {double(l.z_first), double(l.z_last), double(l.data_first),
+                       double(l.data_last)},
+                      "the fixed-point density gradient's shared planes"))
+    out.push_back({int(w[0]), int(w[1]), int(w[2]), int(w[3])});
+  return out;
 }
 }  // namespace
 
@@ -43,33 +61,34 @@ BrickedFixed::BrickedFixed(const Scene& scene, const BrickLayout& layout, const 
                            const int* exponent)
     : domain_(domain), share_(share), sums_(layout.held(), 0) {
   const ImageExtent e = image_extent(scene);
-  // (A share: the batch's rays, the cap every share's segments must keep to.)
+  // The in-core cap (a share: the batch's rays, the cap every share's rays must keep to).
   const std::size_t rays = share ? share->rays : e.pixels();
-  cap_exponent_ = fixed_cap_exponent(rays * segments_per_ray(layout, domain));
+  cap_exponent_ = fixed_cap_exponent(rays * checked_parts(domain));
   if (exponent) {
     exponent_ = *exponent;
   } else {
-    // The bound on one ray's Σ |contribution| from this worker's densities (its slab: its
-    // segments' bound), the largest over the workers.
+    // The in-core bound on one ray's Σ |contribution|: from the whole volume's range of
+    // densities, gathered over the workers' slabs.
     double lo = std::numeric_limits<double>::infinity(), hi = -lo, target_max = 0;
     if (densities)
       for (double v : *densities) lo = std::min(lo, v), hi = std::max(hi, v);
     else
       for (float v : scene.volume.data) lo = std::min(lo, double(v)), hi = std::max(hi, double(v));
+    for (const std::vector<double>& w : gathered(domain, {lo, hi}))
+      lo = std::min(lo, w[0]), hi = std::max(hi, w[1]);
     if (!(lo <= hi)) lo = hi = 0;
     for (float v : target.pixels) target_max = std::max(target_max, std::abs(double(v)));
     for (double v : target.pixels_f64) target_max = std::max(target_max, std::abs(v));
     // (A share: the batch's target and mean, every share the same bound.)
     if (share) target_max = share->target_max;
-    const double mine = std::ldexp(
+    const double bound = std::ldexp(
         ray_gradient_bound(scene, tf_extremes(scene.tf, lo, hi), target_max, loss,
                            share ? share->elements : rays * std::size_t(scene.channels())),
         fixed_bound_shift());
-    double bound = 0;
-    for (const std::vector<double>& b : gathered(domain, {mine})) bound = std::max(bound, b[0]);
     exponent_ = fixed_exponent_from_bound(bound, cap_exponent_);
   }
   header_ = {cl_long(exponent_), cl_long(1) << cap_exponent_, 0, 0, 0};
+  if (domain && domain->ranks > 1) planes_ = worker_planes(*domain, layout), layout_ = layout;
 }
 
 void BrickedFixed::add(const std::vector<unsigned char>& slot, const BrickLayout& l, int b) {
@@ -96,7 +115,7 @@ void BrickedFixed::add(const std::vector<unsigned char>& slot, const BrickLayout
           (std::size_t(o[2] - l.data_first + z) * std::size_t(l.dims[1]) + std::size_t(o[1] + y)) *
               std::size_t(l.dims[0]) +
           std::size_t(o[0]);
-      for (int x = 0; x < ext[0]; ++x, ++at) row[x] += values[at];  // (bounded: the cap's rule)
+      for (int x = 0; x < ext[0]; ++x, ++at) row[x] = wrapping_add(row[x], values[at]);
     }
 }
 
@@ -126,8 +145,67 @@ int BrickedFixed::next() const {
   return fixed_exponent_after(exponent_, over, largest, largest_ray, cap_exponent_);
 }
 
-std::vector<double> BrickedFixed::values(bool f64) const {
+std::vector<std::int64_t> BrickedFixed::owned_sums() const {
   std::vector<std::int64_t> sums = sums_;
+  if (planes_.empty()) return sums;
+  const BrickLayout& l = layout_;
+  const std::size_t plane = std::size_t(l.dims[0]) * std::size_t(l.dims[1]);
+  const int me = domain_->rank;
+  auto holds = [&](int w, int z) { return planes_[w].data_first <= z && z <= planes_[w].data_last; };
+  auto owner = [&](int z) {  // the lowest worker whose slab has plane z
+    for (int w = 0; w < int(planes_.size()); ++w)
+      if (planes_[w].first <= z && z <= planes_[w].last) return w;
+    return -1;
+  };
+  // The planes another worker holds too: their sums to everyone (each plane its z, then its sums).
+  std::vector<unsigned char> mine;
+  for (int z = l.data_first; z <= l.data_last; ++z) {
+    bool shared = false;
+    for (int w = 0; w < int(planes_.size()); ++w) shared = shared || (w != me && holds(w, z));
+    if (!shared) continue;
+    const std::int64_t head = z;
+    const std::size_t at = mine.size();
+    mine.resize(at + sizeof head + plane * sizeof(std::int64_t));
+    std::memcpy(&mine[at], &head, sizeof head);
+    std::memcpy(&mine[at + sizeof head], &sums_[std::size_t(z - l.data_first) * plane],
+                plane * sizeof(std::int64_t));
+  }
+  const std::vector<std::vector<unsigned char>> all = domain_->all_gather(mine);
+  if (int(all.size()) != domain_->ranks)
+    throw Error(Status::invalid_argument,
+                "the fixed-point density gradient's shared planes: all_gather gave " +
+                    std::to_string(all.size()) + " parts for " +
+                    std::to_string(domain_->ranks) + " workers");
+  // A plane's owner takes every worker's integers for it; the others give it 0 — so the slabs'
+  // values, added where they overlap (domain_join, the halo sent back), are the one integer sum
+  // converted once, as in core.
+  for (int z = l.data_first; z <= l.data_last; ++z)
+    if (owner(z) != me)
+      std::fill_n(sums.begin() + std::ptrdiff_t(std::size_t(z - l.data_first) * plane), plane, 0);
+  const std::size_t record = sizeof(std::int64_t) + plane * sizeof(std::int64_t);
+  for (int w = 0; w < int(all.size()); ++w) {
+    if (w == me) continue;
+    if (all[w].size() % record != 0)
+      throw Error(Status::invalid_argument,
+                  "the fixed-point density gradient's shared planes: worker " + std::to_string(w) +
+                      " sent " + std::to_string(all[w].size()) + " bytes (do the workers share one scene?)");
+    for (std::size_t at = 0; at < all[w].size(); at += record) {
+      std::int64_t z = 0;
+      std::memcpy(&z, &all[w][at], sizeof z);
+      if (z < l.data_first || z > l.data_last || owner(int(z)) != me) continue;
+      std::int64_t* row = &sums[std::size_t(z - l.data_first) * plane];
+      for (std::size_t i = 0; i < plane; ++i) {
+        std::int64_t v = 0;
+        std::memcpy(&v, &all[w][at + sizeof z + i * sizeof v], sizeof v);
+        row[i] = wrapping_add(row[i], v);
+      }
+    }
+  }
+  return sums;
+}
+
+std::vector<double> BrickedFixed::values(bool f64) const {
+  std::vector<std::int64_t> sums = owned_sums();
   if (share_) share_->add(sums);  // (exact: the batch's integers, whatever the shares)
   std::vector<double> out(sums.size());
   for (std::size_t i = 0; i < sums.size(); ++i)

@@ -16,14 +16,17 @@
 namespace ivr {
 
 // Integer adds do not depend on their order: the same bits on every run, however the device
-// schedules the rays and the host the bricks. The scale 2^S is the in-core adjoint's rule
-// (lib/adjoint/adjoint_bound.hpp) applied to a ray's *segment* in a brick: the kernel checks each
-// segment's Σ |contribution| against a cap of 2^62 / (rays · segments a ray may have), so no
-// voxel's sum over every brick leaves the 64-bit range; the a-priori bound (on a whole ray's
-// Σ |contribution|, so on every segment's) sets the first scale, a second pass runs where it
-// failed or was far too loose. Over slabs every worker takes the same scale and the same
-// decision (all-gathered); a data-parallel share of a batch (FixedShare) takes the batch's scale
-// and, through the share's collectives, the batch's decision and the shares' summed integers.
+// schedules the rays and the host the bricks — and the same bits as in core. Each contribution
+// becomes its integer before any sum (kernels/adjoint_scatter.cl), the scale 2^S and its cap are
+// the in-core adjoint's (lib/adjoint/adjoint_bound.hpp: the bound from the whole volume's range
+// of densities, gathered over the slabs; a cap of 2^62 / rays on a ray's Σ |contribution|,
+// carried in its state from brick to brick and checked at its end), and a second pass runs where
+// the in-core one would, at the scale it would take. Over independent segments (SlabMarch::
+// segments) each worker's segment of a ray is checked alone, against 2^62 / (rays · workers).
+// Over slabs the planes two workers hold (the shared plane, the halo) are summed as integers by
+// their owner before the one conversion. A data-parallel share of a batch (FixedShare) takes the
+// batch's scale and, through the share's collectives, the batch's decision and the shares'
+// summed integers.
 class BrickedFixed {
  public:
   // Whether every worker's device has 64-bit integer atomics (`mine`: this one's); a collective
@@ -47,6 +50,11 @@ class BrickedFixed {
   // is float (as the in-core fixed_to_real); a share's after the shares' sums are added (a
   // collective).
   std::vector<double> values(bool f64) const;
+  // A worker's slab [first, last] (its bricks' planes) and the planes it holds values of
+  // [data_first, data_last] (the slab and its halo).
+  struct WorkerPlanes {
+    int first, last, data_first, data_last;
+  };
 
  private:
   const DomainPart* domain_;
@@ -57,6 +65,12 @@ class BrickedFixed {
   bool nonfinite_ = false;  // a slot's largest contribution or segment was not finite
   float largest_ = 0, largest_ray_ = 0;
   std::vector<std::int64_t> sums_;
+  // Over slabs: every worker's planes, and this worker's layout (owned_sums).
+  std::vector<WorkerPlanes> planes_;
+  BrickLayout layout_;
+  // The held planes' sums where this worker owns the plane (the lowest worker whose slab has it),
+  // every worker's integers for it added; 0 in the planes another worker owns (a collective).
+  std::vector<std::int64_t> owned_sums() const;
 };
 
 }  // namespace ivr

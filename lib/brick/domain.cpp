@@ -442,7 +442,8 @@ Gradient gradient_domain_values(Device& device, const Scene& scene, const Image&
   const Slab slab = part_slab(scene.volume.nz, part);
   // The endpoint schemes' bricks hold a halo (brick_halo): at the slab's ends, planes of the
   // neighbours' slabs, fetched first; what the halo's voxels gather is sent back after.
-  const int halo = brick_halo(scene, options.step != 0 ? options.step : scene.integrator.step);
+  const int halo = brick_halo(scene, options.step != 0 ? options.step : scene.integrator.step,
+                              options.deterministic);
   const BrickPlan plan = plan_domain(device, scene, options.precision, 0, true, slab, halo);
   if (!halo)
     return gradient_bricked(device, scene, target, groups, options, plan, &part, domain, densities);

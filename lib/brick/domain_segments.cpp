@@ -16,6 +16,8 @@ namespace ivr {
 namespace {
 // kernels/bricked_state.cl's places.
 constexpr int kT = 0, kC = 1, kK = 4, kTau = 7, kKTau = 8, kTNext = 14, kTEnd = 24;
+// The adjoint's carried sums (kernels/bricked_adjoint.cl, BS_ADJ_FLUSHED … BS_ADJ_GD).
+constexpr int kAdjointFirst = 8, kAdjointLast = 13;
 constexpr int kUSamples = 0, kUEnd = 1, kUNext = 2, kUFlags = 3;
 constexpr std::uint32_t kDone = 1;
 static_assert(kTEnd + 1 == kBrickStateReals, "the state's last real");
@@ -246,6 +248,8 @@ void SegmentMarch::seed_adjoint() {
     double* r = &s.reals[i * kBrickStateReals];
     std::uint32_t* u = &s.uints[i * kBrickStateUints];
     const double* f = &front_[i * 4];
+    // (the snapshot holds the forward march's values there: a segment's sums start at 0)
+    for (int k = kAdjointFirst; k <= kAdjointLast; ++k) r[k] = 0;
     if (emission_) {
       r[kT] = f[0];
       for (int c = 0; c < 3; ++c) r[kC + c] = f[1 + c];

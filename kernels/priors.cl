@@ -18,34 +18,35 @@ inline real3 forward_differences(const int4 dims, __global const real* restrict 
 // and dR/dx_j = Σ_i w_i (D x)_i · d(D x)_i/dx_j with w_i = (tv/φ_i + 2·smooth) / V: voxel j is the
 // lower end of its own differences and the upper end of its lower neighbours' ones. A grid-stride
 // loop; partial[g] receives work-item g's share of R (summed on the host in a fixed order).
-// inv_n = 1/V, V the whole volume's voxels (given by the host: no device division). The terms
-// counted are those of planes iz < dims.w: a slab of a volume split in z (lib/reconstruct/
-// reconstruct_domain.cpp) holds one plane more than it owns, the plane it shares with the next
-// slab, whose own terms are that slab's; its lower neighbour's term still reaches it.
-__kernel void density_prior(const int4 dims, const real tv, const real smooth, const real epsilon,
-                            const real inv_n, __global const real* restrict x,
+// inv_n = 1/V, V the whole volume's voxels (given by the host: no device division). Only the
+// voxels of planes first <= iz < dims.w get their gradient, and only their own terms count in R:
+// a slab of a volume split in z (lib/reconstruct/reconstruct_domain.cpp) holds the plane below
+// it (first = 1: its lower neighbours' terms reach its first plane) and the plane it shares with
+// the next slab (dims.w = dims.z − 1: that plane's terms and gradient are the next slab's), so each
+// voxel's gradient is summed whole, in one process's order, by one worker.
+__kernel void density_prior(const int4 dims, const int first, const real tv, const real smooth,
+                            const real epsilon, const real inv_n, __global const real* restrict x,
                             __global real* restrict grad, __global real* restrict partial) {
   const int g = get_global_id(0), stride = get_global_size(0);
   const int n = dims.x * dims.y * dims.z;
   real sum = (real)0;
   for (int j = g; j < n; j += stride) {
     const int ix = j % dims.x, iy = (j / dims.x) % dims.y, iz = j / (dims.x * dims.y);
-    real gj = (real)0;
-    if (iz < dims.w) {  // the terms of this plane: voxel j's own and its x, y neighbours'
-      const real3 d = forward_differences(dims, x, ix, iy, iz);
-      const real d2 = dot(d, d), phi = sqrt(d2 + epsilon * epsilon);
-      sum += tv * (phi - epsilon) + smooth * d2;
-      gj = -(tv / phi + (real)2 * smooth) * inv_n * (d.x + d.y + d.z);
-      if (ix > 0) {
-        const real3 e = forward_differences(dims, x, ix - 1, iy, iz);
-        gj += (tv / sqrt(dot(e, e) + epsilon * epsilon) + (real)2 * smooth) * inv_n * e.x;
-      }
-      if (iy > 0) {
-        const real3 e = forward_differences(dims, x, ix, iy - 1, iz);
-        gj += (tv / sqrt(dot(e, e) + epsilon * epsilon) + (real)2 * smooth) * inv_n * e.y;
-      }
+    if (iz < first || iz >= dims.w) continue;
+    // The terms of this voxel: its own and its x, y and z neighbours'.
+    const real3 d = forward_differences(dims, x, ix, iy, iz);
+    const real d2 = dot(d, d), phi = sqrt(d2 + epsilon * epsilon);
+    sum += tv * (phi - epsilon) + smooth * d2;
+    real gj = -(tv / phi + (real)2 * smooth) * inv_n * (d.x + d.y + d.z);
+    if (ix > 0) {
+      const real3 e = forward_differences(dims, x, ix - 1, iy, iz);
+      gj += (tv / sqrt(dot(e, e) + epsilon * epsilon) + (real)2 * smooth) * inv_n * e.x;
     }
-    if (iz > 0 && iz <= dims.w) {
+    if (iy > 0) {
+      const real3 e = forward_differences(dims, x, ix, iy - 1, iz);
+      gj += (tv / sqrt(dot(e, e) + epsilon * epsilon) + (real)2 * smooth) * inv_n * e.y;
+    }
+    if (iz > 0) {
       const real3 e = forward_differences(dims, x, ix, iy, iz - 1);
       gj += (tv / sqrt(dot(e, e) + epsilon * epsilon) + (real)2 * smooth) * inv_n * e.z;
     }

@@ -31,13 +31,14 @@ struct GradientOptions {
   double step = 0;  // > 0 overrides the scene's integrator step and tolerance (voxel units)
   Loss loss = Loss::mse;
   // The density gradient summed in fixed point where the device has 64-bit integer atomics
-  // (AdjointOptions::deterministic; adjoint mode): the same bits on every run, and over several
-  // devices or data-parallel workers in core the one process's bits. Out of core and over slabs
-  // (gradient_domain) the bricks' integer sums are added exactly on the host: the same bits on
-  // every run for the same bricks and workers, within the fixed-point rounding (not the bits) of
-  // the in-core gradient; data-parallel workers out of core, asking for the adjoint's groups
-  // alone (density, tf, background) over bricks of one edge, give the one process's bits over
-  // those bricks (docs/scaling.md).
+  // (AdjointOptions::deterministic; adjoint mode): the same bits on every run, and the one
+  // process's in-core bits over several devices or data-parallel workers, out of core (any
+  // bricks) and over slabs with the rays' states passed (gradient_domain, SlabMarch::states) —
+  // the midpoint, trapezoid and preintegrated schemes; the exact scheme's bricks and independent
+  // segments (SlabMarch::segments) repeat bit for bit and lie within the fixed-point rounding of
+  // the in-core gradient. Data-parallel workers out of core, asking for the adjoint's groups
+  // alone (density, tf, background) over bricks of one edge, give the one process's bits
+  // (docs/scaling.md).
   bool deterministic = false;
   // Data-parallel over views (docs/scaling.md): this call is worker `worker` of `workers` (> 1),
   // every worker passing the whole scene and target and calling together; each differentiates its

@@ -85,8 +85,10 @@ struct ReconstructOptions {
   // with Adam or SGD, cameras only; coarse-to-fine levels gather the coarse grid on every worker
   // when a level ends (and a scene start once, to resample it), each keeping its fine planes, and
   // have at least one cell per worker along z. With `deterministic` the slabs' bricks sum the
-  // density in fixed point where every worker's device has 64-bit integer atomics (the same
-  // bits on every run, so a resumed run equals an uninterrupted one; not one process's bits).
+  // density in fixed point where every worker's device has 64-bit integer atomics: one
+  // process's gradient bit for bit (slab_march states; the priors summed whole per voxel by its
+  // plane's owner), so the densities are one process's bits and a resumed run equals an
+  // uninterrupted one (independent segments: the same bits on every run).
   // result() holds this worker's planes of the current level's grid; checkpoints are each
   // worker's own (give each its own prefix). `all_gather` passes bytes between the
   // workers (an MPI_Allgatherv); empty: built from `sum` (all_gather_by_sum).

@@ -152,8 +152,8 @@ std::vector<std::int64_t> BrickedFixed::owned_sums() const {
   const std::size_t plane = std::size_t(l.dims[0]) * std::size_t(l.dims[1]);
   const int me = domain_->rank;
   auto holds = [&](int w, int z) { return planes_[w].data_first <= z && z <= planes_[w].data_last; };
-  auto owner = [&](int z) {  // the lowest worker whose slab has plane z
-    for (int w = 0; w < int(planes_.size()); ++w)
+  auto owner = [&](int z) {  // the highest worker whose slab has plane z
+    for (int w = int(planes_.size()) - 1; w >= 0; --w)
       if (planes_[w].first <= z && z <= planes_[w].last) return w;
     return -1;
   };
@@ -176,7 +176,8 @@ std::vector<std::int64_t> BrickedFixed::owned_sums() const {
                 "the fixed-point density gradient's shared planes: all_gather gave " +
                     std::to_string(all.size()) + " parts for " +
                     std::to_string(domain_->ranks) + " workers");
-  // A plane's owner takes every worker's integers for it; the others give it 0 — so the slabs'
+  // A plane's owner takes every worker's integers for it (a shared plane's: the upper worker,
+  // whose first plane it is, as the reconstruction's priors have it); the others give it 0 — so the slabs'
   // values, added where they overlap (domain_join, the halo sent back), are the one integer sum
   // converted once, as in core.
   for (int z = l.data_first; z <= l.data_last; ++z)

@@ -21,12 +21,12 @@ namespace ivr {
 // the in-core adjoint's (lib/adjoint/adjoint_bound.hpp: the bound from the whole volume's range
 // of densities, gathered over the slabs; a cap of 2^62 / rays on a ray's Σ |contribution|,
 // carried in its state from brick to brick and checked at its end), and a second pass runs where
-// the in-core one would, at the scale it would take. Over independent segments (SlabMarch::
-// segments) each worker's segment of a ray is checked alone, against 2^62 / (rays · workers).
-// Over slabs the planes two workers hold (the shared plane, the halo) are summed as integers by
-// their owner before the one conversion. A data-parallel share of a batch (FixedShare) takes the
-// batch's scale and, through the share's collectives, the batch's decision and the shares'
-// summed integers.
+// the in-core one would, at the scale it would take. Over independent segments
+// (SlabMarch::segments) each worker's segment of a ray is checked alone, against
+// 2^62 / (rays · workers). Over slabs the planes two workers hold (the shared plane, the halo) are
+// summed as integers by their owner (a shared plane's: the upper worker) before the one
+// conversion. A data-parallel share of a batch (FixedShare) takes the batch's scale and, through
+// the share's collectives, the batch's decision and the shares' summed integers.
 class BrickedFixed {
  public:
   // Whether every worker's device has 64-bit integer atomics (`mine`: this one's); a collective
@@ -68,7 +68,7 @@ class BrickedFixed {
   // Over slabs: every worker's planes, and this worker's layout (owned_sums).
   std::vector<WorkerPlanes> planes_;
   BrickLayout layout_;
-  // The held planes' sums where this worker owns the plane (the lowest worker whose slab has it),
+  // The held planes' sums where this worker owns the plane (the highest worker whose slab has it),
   // every worker's integers for it added; 0 in the planes another worker owns (a collective).
   std::vector<std::int64_t> owned_sums() const;
 };

@@ -71,6 +71,8 @@ struct Reconstruction::Impl {
   // worker's planes of a volume of a level's grid.
   Volume gathered(int l, const std::vector<double>& mine) const;
   std::vector<double> slab_of(const Volume& whole) const;
+  // The plane below this worker's slab (its lower neighbour's; none for worker 0): a collective.
+  std::vector<double> plane_below(std::size_t plane) const;
   double slabs_largest_density() const;  // the largest density over every worker's slab
   // Level l's voxels this worker holds: the grid's, or over slabs its planes'.
   std::size_t held_voxels(int l) const;

@@ -85,22 +85,52 @@ std::vector<double> Reconstruction::Impl::slab_gradient(const std::vector<int>& 
                                         (o.optimizer.kind == OptimizerKind::adam ? 2 : 1);
   if (o.tf) tf_grad = sum_over(part, g.groups[1].values, kWhat);  // each slab's samples' part
 
-  // The priors' terms of the planes this worker owns (a shared plane's are the upper worker's),
-  // as means over the whole volume; their value summed over the workers.
+  // The priors over the planes this worker owns — its slab less the plane it shares with the next
+  // worker, whose first plane it is (the fixed-point density gradient's owner there too) — each
+  // voxel's gradient whole and summed as one process sums it, from the slab and the plane below
+  // it (its lower neighbour's, fetched); means over the whole volume, the value summed over the
+  // workers.
   double prior_part = 0;
   if (o.tv > 0 || o.smoothness > 0) {
     const Volume& v = level_scene.volume;  // nx × ny × the slab's planes
-    const cl::Buffer x = upload_reals(dev, f64, slab_x, "the slab's densities");
-    const cl::Buffer gb = upload_reals(dev, f64, grad, "the slab's gradient");
-    const bool last = o.worker + 1 == o.workers;
-    prior_part = prior->add_gradient(v.nx, v.ny, v.nz, o.tv, o.smoothness, o.tv_epsilon, x, gb,
-                                     last ? v.nz : v.nz - 1,
+    const std::size_t plane = std::size_t(v.nx) * std::size_t(v.ny);
+    const bool first = o.worker == 0, last = o.worker + 1 == o.workers;
+    std::vector<double> below = plane_below(plane);
+    const int held = v.nz + (first ? 0 : 1);
+    below.insert(below.end(), slab_x.begin(), slab_x.end());
+    const cl::Buffer x = upload_reals(dev, f64, below, "the slab's densities");
+    std::vector<double> held_grad(first ? 0 : plane, 0.0);
+    held_grad.insert(held_grad.end(), grad.begin(), grad.end());
+    const cl::Buffer gb = upload_reals(dev, f64, held_grad, "the slab's gradient");
+    prior_part = prior->add_gradient(v.nx, v.ny, held, o.tv, o.smoothness, o.tv_epsilon, x, gb,
+                                     first ? 0 : 1, last ? held : held - 1,
                                      double(grid[0]) * double(grid[1]) * double(grid[2]));
-    grad = download_reals(dev, f64, gb, voxels);
+    held_grad = download_reals(dev, f64, gb, held_grad.size());
+    grad.assign(held_grad.begin() + std::ptrdiff_t(first ? 0 : plane), held_grad.end());
   }
   r.prior = sum_over(part, {prior_part}, kWhat)[0];
   join_shared_planes(part, std::size_t(grid[0]) * std::size_t(grid[1]), grad, kWhat);
   return grad;
+}
+
+std::vector<double> Reconstruction::Impl::plane_below(std::size_t plane) const {
+  // Every worker sends the plane below the one it shares with the next (a collective); each takes
+  // its lower neighbour's. (A slab has at least 2 planes: one cell.)
+  if (o.workers == 1) return {};
+  std::vector<unsigned char> bytes(plane * sizeof(double));
+  std::memcpy(bytes.data(), slab_x.data() + (slab_x.size() - 2 * plane), bytes.size());
+  const std::vector<std::vector<unsigned char>> all = part.all_gather(bytes);
+  if (o.worker == 0) return {};
+  const std::vector<unsigned char>& from = all.at(std::size_t(o.worker - 1));
+  if (from.size() != bytes.size())
+    throw Error(Status::invalid_argument, std::string(kWhat) + ": worker " +
+                                              std::to_string(o.worker - 1) + " sent " +
+                                              std::to_string(from.size()) +
+                                              " bytes for the plane below, not " +
+                                              std::to_string(bytes.size()));
+  std::vector<double> out(plane);
+  std::memcpy(out.data(), from.data(), from.size());
+  return out;
 }
 
 Volume Reconstruction::Impl::gathered(int l, const std::vector<double>& mine) const {

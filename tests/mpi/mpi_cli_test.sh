@@ -8,7 +8,7 @@
 # process's losses within 1e-10 and ends at its densities bit for bit (fixed-point gradients: the
 # shares' integer sums added exactly), over slabs (each rank its planes, both priors across them)
 # its losses and priors within 1e-12, as `ivr gradient --deterministic` gives one process's
-# density gradient bit for bit (float32); over independent segments (--split segments, early
+# density gradient bit for bit (float32), over views and over slabs alike; over independent segments (--split segments, early
 # termination off) the render, the density and TF gradients and the reconstruction's losses within
 # 1e-12, in one exchange; the ranks' shares of the views and of the slabs' planes by --shares and by
 # each rank's speed alike; an error in the
@@ -76,6 +76,8 @@ for np in 2 4; do
   echo "$out" | grep -q '"exchanged_bytes":0,' && { echo "render --split slabs -np $np exchanged nothing: $out"; exit 1; }
   run "$np" "$ivr" gradient scene.json --target target.npy --wrt density,tf,camera -o "sg$np" \
     --precision f64 --split slabs >/dev/null
+  out=$(run "$np" "$ivr" gradient scene.json "${det[@]}" --split slabs -o "ds$np")
+  echo "$out" | grep -q '"deterministic":true' || { echo "gradient --deterministic --split slabs -np $np: $out"; exit 1; }
   out=$(run "$np" "$ivr" render scene0.json -o "seg$np.npy" --precision f64 --split segments --json)
   echo "$out" | grep -q '"exchanges":1,' || { echo "render --split segments -np $np: $out"; exit 1; }
   run "$np" "$ivr" gradient scene0.json --target target.npy --wrt density,tf,background \
@@ -180,6 +182,10 @@ for n in (2, 4):
     err = np.max(np.abs(a - b)) / np.max(np.abs(a))
     assert err <= 1e-5, f"gradient --deterministic -np {n} tf: {err}"
     print(f"-np {n} gradient --deterministic: density identical, tf {err:.2e}")
+    a, b = np.load("d1_density.npy"), np.load(f"ds{n}_density.npy")
+    assert a.shape == b.shape and np.array_equal(a, b), \
+        f"gradient --deterministic --split slabs -np {n}: {np.count_nonzero(a != b)} voxels differ"
+    print(f"-np {n} gradient --deterministic --split slabs: density identical")
     s = np.load(f"s{n}.npy")
     err = np.max(np.abs(s - one)) / np.max(np.abs(one))
     assert s.shape == one.shape and err <= 1e-12, f"render --split slabs -np {n}: {err}"

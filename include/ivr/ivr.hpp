@@ -214,7 +214,8 @@ struct GradientOptions : Options {
   std::string wrt = "density";  // comma-separated groups, as `ivr gradient --wrt`
   Mode mode = Mode::automatic;
   Loss loss = Loss::mse;
-  bool deterministic = false;  // the density gradient in fixed point (ivr_gradient_shared)
+  // The density gradient in fixed point (ivr_gradient_shared, ivr_gradient_split_deterministic).
+  bool deterministic = false;
 };
 
 // What Context::tomo solves: ivr_tomo_options (its fields are documented in ivr.h) filled with
@@ -388,7 +389,8 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
   // only its slab of the scene's volume (cut by slabs.shares), every worker calling together; the
   // image is the whole render, the gradient (density, tf) this worker's parts. slabs.split
   // IVR_SPLIT_SEGMENTS marches each ray's segments independently; any other value passes the
-  // rays' march states.
+  // rays' march states. options.deterministic: the density in fixed point
+  // (ivr_gradient_split_deterministic: over states the parts add up to one process's bits).
   Array<float> render(const Scene& scene, const Options& options, const Workers& slabs) {
     Array<float> image{scene.image_shape(), {}};
     image.values.resize(detail::product(image.shape));
@@ -405,10 +407,10 @@ class Context : public detail::Handle<ivr_context, ivr_context_retain, ivr_conte
                   const GradientOptions& options, const Workers& slabs) {
     ivr_result* r = nullptr;
     detail::Sum sum{&slabs.sum, nullptr};
-    const ivr_status status = ivr_gradient_split_weighted(
+    const ivr_status status = ivr_gradient_split_deterministic(
         get(), scene.get(), target.data(), target.size(), options.wrt.c_str(),
         ivr_loss(options.loss), ivr_precision(options.precision), options.step, slab_march(slabs),
-        slabs.rank, slabs.ranks, slabs.shares_or_null(),
+        options.deterministic ? 1 : 0, slabs.rank, slabs.ranks, slabs.shares_or_null(),
         slabs.sum ? &detail::Sum::call : nullptr, &sum, &r);
     if (sum.error) std::rethrow_exception(sum.error);
     detail::check(status);

@@ -111,6 +111,17 @@ IVR_API ivr_status ivr_gradient_split_weighted(ivr_context* context, const ivr_s
                                                ivr_split split, int rank, int ranks,
                                                const double* shares, ivr_sum_fn sum,
                                                void* sum_user, ivr_result** result);
+/* ivr_gradient_split_weighted with the density gradient summed in fixed point where
+ * `deterministic` is non-zero (every worker passing the same flag) and every worker's device has
+ * 64-bit integer atomics: the same bits on every run and, over IVR_SPLIT_SLABS, one process's
+ * in-core gradient bit for bit once the workers' "density" parts are added — a plane two workers
+ * share is whole on the upper one, 0 on the lower (the midpoint, trapezoid and preintegrated
+ * schemes; docs/scaling.md). */
+IVR_API ivr_status ivr_gradient_split_deterministic(
+    ivr_context* context, const ivr_scene* scene, const float* target, size_t count,
+    const char* wrt, ivr_loss loss, ivr_precision precision, double step, ivr_split split,
+    int deterministic, int rank, int ranks, const double* shares, ivr_sum_fn sum, void* sum_user,
+    ivr_result** result);
 
 /* --- Tomography (c_api_tomo.cpp) ------------------------------------------------------------ */
 

@@ -334,13 +334,14 @@ void render_split(ivr_context* c, const ivr_scene* s, ivr_precision precision, d
 void gradient_split(ivr_context* c, const ivr_scene* s, const float* target, size_t count,
                     const char* wrt, ivr_loss loss, ivr_precision precision, double step,
                     ivr_split split, int rank, int ranks, const double* shares, ivr_sum_fn sum,
-                    void* sum_user, ivr_result** out) {
+                    void* sum_user, ivr_result** out, bool deterministic = false) {
   const ivr::Image t = checked_gradient_call(c, s, target, count, wrt, out, true);
   const ivr::DomainPart part = slab_part(split, rank, ranks, shares, sum, sum_user);
   ivr::GradientOptions o;  // (automatic: density, tf, background by the adjoint, others forward)
   o.loss = loss_of(loss);
   o.precision = precision_of(precision);
   o.step = step;
+  o.deterministic = deterministic;
   const ivr::Gradient d =
       ivr::gradient_domain(c->device, split_scene(s, rank, ranks, part.shares), t, part, o,
                            nullptr, ivr::parse_groups(wrt));
@@ -404,6 +405,18 @@ ivr_status ivr_gradient_split_weighted(ivr_context* c, const ivr_scene* s, const
   return guarded(c, "ivr_gradient_split_weighted", [&] {
     gradient_split(c, s, target, count, wrt, loss, precision, step, split, rank, ranks, shares,
                    sum, sum_user, out);
+  });
+}
+
+ivr_status ivr_gradient_split_deterministic(ivr_context* c, const ivr_scene* s,
+                                            const float* target, size_t count, const char* wrt,
+                                            ivr_loss loss, ivr_precision precision, double step,
+                                            ivr_split split, int deterministic, int rank,
+                                            int ranks, const double* shares, ivr_sum_fn sum,
+                                            void* sum_user, ivr_result** out) {
+  return guarded(c, "ivr_gradient_split_deterministic", [&] {
+    gradient_split(c, s, target, count, wrt, loss, precision, step, split, rank, ranks, shares,
+                   sum, sum_user, out, deterministic != 0);
   });
 }
 

@@ -1,8 +1,9 @@
 // c_api_weighted_slabs_test.cpp — slabs sized by weight through the C API and its C++ wrapper
-// (ivr_domain_slab_weighted, ivr_render_split_weighted, ivr_gradient_split_weighted,
-// ivr_tomo_split_weighted, ivr_scene_set_volume_slab_weighted, ivr_reconstruction_create_weighted
+// (ivr_domain_slab_weighted, ivr_render_split_weighted, ivr_gradient_split_weighted and
+// ivr_gradient_split_deterministic, ivr_tomo_split_weighted, ivr_scene_set_volume_slab_weighted, ivr_reconstruction_create_weighted
 // over slabs): two workers on threads weighted 1:3 hold the planes of the weighted split and give
-// one process's results; mismatched and bad weights are refused by name.
+// one process's results (the fixed-point density its bits); mismatched and bad weights are
+// refused by name.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
 #include "ivr/ivr_reconstruct.hpp"
+#include "adjoint/adjoint.hpp"
 #include "capi_split_support.hpp"
 #include "test_support.hpp"
 
@@ -117,8 +119,11 @@ std::vector<double> array_of(const ivr_result* r, const char* name) {
 
 // ranks 0: one process; else worker `rank` of 2 weighted kShares over `split`, its scene whole or
 // (slab_alone) holding its planes alone.
+// `deterministic`: the density gradient in fixed point (ivr_gradient_shared for one process,
+// ivr_gradient_split_deterministic for a worker) at `precision`.
 Outcome run(ivr_split split, int rank, int ranks, bool slab_alone, WorkerSum* sum,
-            const std::vector<float>& target) {
+            const std::vector<float>& target, bool deterministic = false,
+            ivr_precision precision = IVR_PRECISION_F64) {
   Outcome out;
   ivr_context* c = nullptr;
   ivr_scene* scene = nullptr;
@@ -138,16 +143,23 @@ Outcome run(ivr_split split, int rank, int ranks, bool slab_alone, WorkerSum* su
   else if (ok)
     ok = ivr_scene_set_volume(scene, values.data(), IVR_FLOAT32, shape) == IVR_OK;
   if (ranks == 0)
-    ok = ok && ivr_render(c, scene, IVR_PRECISION_F64, 0, out.image.data(), kPixels) == IVR_OK &&
-         ivr_gradient(c, scene, target.data(), kPixels, wrt, IVR_MODE_ADJOINT, IVR_LOSS_MSE,
-                      IVR_PRECISION_F64, 0, &result) == IVR_OK;
+    ok = ok && ivr_render(c, scene, precision, 0, out.image.data(), kPixels) == IVR_OK &&
+         (deterministic ? ivr_gradient_shared(c, scene, target.data(), kPixels, wrt,
+                                              IVR_MODE_ADJOINT, IVR_LOSS_MSE, precision, 0, 1, 0,
+                                              1, nullptr, nullptr, &result)
+                        : ivr_gradient(c, scene, target.data(), kPixels, wrt, IVR_MODE_ADJOINT,
+                                       IVR_LOSS_MSE, precision, 0, &result)) == IVR_OK;
   else
     ok = ok &&
-         ivr_render_split_weighted(c, scene, IVR_PRECISION_F64, 0, split, rank, ranks, kShares,
-                                   summed, &w, out.image.data(), kPixels) == IVR_OK &&
-         ivr_gradient_split_weighted(c, scene, target.data(), kPixels, wrt, IVR_LOSS_MSE,
-                                     IVR_PRECISION_F64, 0, split, rank, ranks, kShares, summed, &w,
-                                     &result) == IVR_OK;
+         ivr_render_split_weighted(c, scene, precision, 0, split, rank, ranks, kShares, summed,
+                                   &w, out.image.data(), kPixels) == IVR_OK &&
+         (deterministic
+              ? ivr_gradient_split_deterministic(c, scene, target.data(), kPixels, wrt,
+                                                 IVR_LOSS_MSE, precision, 0, split, 1, rank,
+                                                 ranks, kShares, summed, &w, &result)
+              : ivr_gradient_split_weighted(c, scene, target.data(), kPixels, wrt, IVR_LOSS_MSE,
+                                            precision, 0, split, rank, ranks, kShares, summed,
+                                            &w, &result)) == IVR_OK;
   if (ok) {
     out.density = array_of(result, "density");
     out.tf = array_of(result, "tf");
@@ -197,6 +209,38 @@ TEST(CApiWeightedSlabs, WorkersByWeightGiveOneProcess) {
       for (std::size_t i = 0; i < tf.size(); ++i) tf[i] += parts[1].tf[i];
       EXPECT_LE(worst_relative(tf, one.tf), 1e-10) << what;
     }
+}
+
+// ivr_gradient_split_deterministic over states: the workers' density parts (a shared plane whole
+// on the upper worker, 0 on the lower) add up to one process's fixed-point gradient bit for bit,
+// float32 and float64, whole scenes and slabs held alone.
+TEST(CApiWeightedSlabs, DeterministicSlabsAreOneProcesssBits) {
+  if (!has_int64_atomics(device().impl())) GTEST_SKIP() << "no 64-bit integer atomics";
+  std::vector<float> target(kPixels);
+  for (std::size_t i = 0; i < kPixels; ++i) target[i] = 0.3f + 0.2f * std::sin(0.7f * float(i));
+  for (ivr_precision precision : {IVR_PRECISION_F32, IVR_PRECISION_F64}) {
+    if (precision == IVR_PRECISION_F64 && !device().info().fp64) continue;
+    const Outcome one = run(IVR_SPLIT_SLABS, 0, 0, false, nullptr, target, true, precision);
+    ASSERT_EQ(one.error, "");
+    for (bool slab_alone : {false, true}) {
+      const std::string what = std::string(precision == IVR_PRECISION_F32 ? "f32" : "f64") +
+                               (slab_alone ? ", slabs held alone" : ", whole scenes");
+      WorkerSum sum(2);
+      Outcome parts[2];
+      std::thread other([&] {
+        parts[1] = run(IVR_SPLIT_SLABS, 1, 2, slab_alone, &sum, target, true, precision);
+      });
+      parts[0] = run(IVR_SPLIT_SLABS, 0, 2, slab_alone, &sum, target, true, precision);
+      other.join();
+      ASSERT_EQ(parts[0].error + parts[1].error, "") << what;
+      const std::vector<double>& lower = parts[0].density;
+      ASSERT_GE(lower.size(), kPlane) << what;
+      EXPECT_TRUE(std::all_of(lower.end() - std::ptrdiff_t(kPlane), lower.end(),
+                              [](double v) { return v == 0; }))
+          << what << ": the lower worker's part of the shared plane";
+      EXPECT_EQ(joined(parts[0].density, parts[1].density, true), one.density) << what;
+    }
+  }
 }
 
 // A slab held alone must be cut by the shares the call gives; a worker's scene of one split is

@@ -351,7 +351,8 @@ class Context(_Owned):
         camera, step, "voxels:3,17,40-45", rays: a ray list's (R, 8) origins, directions and
         ends); `info`, a dict, receives the mode that ran. `deterministic`: the density gradient
         summed in fixed point (adjoint mode, where the device has 64-bit integer atomics), the
-        same bits on every run (and under ivr.mpi.gradient one process's bits)."""
+        same bits on every run (and under ivr.mpi.gradient, over views or slabs, one process's
+        bits)."""
         groups = wrt if isinstance(wrt, str) else ",".join(wrt)
         s = self._scene(scene, volume, base_dir, _slab_of(_split))
         try:
@@ -368,10 +369,10 @@ class Context(_Owned):
             failure = []
             if _split is not None:  # (split, rank, ranks, add, nz, weights): ivr.mpi's workers
                 split, rank, ranks, add, _, weights = _split  # over slabs
-                status = self._lib.ivr_gradient_split_weighted(
+                status = self._lib.ivr_gradient_split_deterministic(
                     *args, _choice(_LOSSES, loss, "loss"), _PRECISIONS[self.precision], step,
-                    split, rank, ranks, _doubles(weights), _sum_fn(add, failure), None,
-                    ctypes.byref(r))
+                    split, 1 if deterministic else 0, rank, ranks, _doubles(weights),
+                    _sum_fn(add, failure), None, ctypes.byref(r))
             else:
                 how = (_choice(_MODES, mode, "mode"), _choice(_LOSSES, loss, "loss"),
                        _PRECISIONS[self.precision], step)

@@ -251,8 +251,10 @@ def gradient(ctx, scene, volume, target, wrt=("density",), loss="mse", comm=None
     `volume` is this rank's planes ivr.mpi.slab(NZ, ctx=ctx, shares=shares) alone; with
     gather=False "density" is this rank's planes (the planes it shares with a neighbour complete)
     instead of the whole grid on every rank.
-    `options` are ctx.gradient's (mode, step, base_dir, deterministic — over views, the density
-    gradient summed in fixed point: one process's bits; over slabs: step, base_dir)."""
+    `options` are ctx.gradient's (mode, step, base_dir, deterministic — the density gradient
+    summed in fixed point: one process's bits over views and over slabs (the midpoint, trapezoid
+    and preintegrated schemes); over slabs mode is not taken: density, tf and background by the
+    adjoint, the others forward)."""
     comm = _comm(comm)
     scene = _scene_dict(scene)
     code = _check_split(split, "gradient")

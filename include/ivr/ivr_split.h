@@ -117,11 +117,13 @@ IVR_API ivr_status ivr_gradient_split_weighted(ivr_context* context, const ivr_s
  * in-core gradient bit for bit once the workers' "density" parts are added — a plane two workers
  * share is whole on the upper one, 0 on the lower (the midpoint, trapezoid and preintegrated
  * schemes; docs/scaling.md). */
-IVR_API ivr_status ivr_gradient_split_deterministic(
-    ivr_context* context, const ivr_scene* scene, const float* target, size_t count,
-    const char* wrt, ivr_loss loss, ivr_precision precision, double step, ivr_split split,
-    int deterministic, int rank, int ranks, const double* shares, ivr_sum_fn sum, void* sum_user,
-    ivr_result** result);
+IVR_API ivr_status ivr_gradient_split_deterministic(ivr_context* context, const ivr_scene* scene,
+                                                    const float* target, size_t count,
+                                                    const char* wrt, ivr_loss loss,
+                                                    ivr_precision precision, double step,
+                                                    ivr_split split, int deterministic, int rank,
+                                                    int ranks, const double* shares, ivr_sum_fn sum,
+                                                    void* sum_user, ivr_result** result);
 
 /* --- Tomography (c_api_tomo.cpp) ------------------------------------------------------------ */
 

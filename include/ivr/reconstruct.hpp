@@ -76,9 +76,9 @@ struct ReconstructOptions {
   int worker = 0, workers = 1;
   std::function<void(std::vector<double>&)> sum;
   // Domain-parallel over slabs of z planes instead (mpirun -np N ivr reconstruct --split slabs;
-  // docs/scaling.md): worker `worker` holds only planes domain_slab(nz, worker, workers, shares) of the
-  // densities (scene.volume.data holds just those: domain_share(), load_scene(path, planes)) and
-  // their optimiser state; every worker marches every view of each batch through its slab
+  // docs/scaling.md): worker `worker` holds only planes domain_slab(nz, worker, workers, shares) of
+  // the densities (scene.volume.data holds just those: domain_share(), load_scene(path, planes))
+  // and their optimiser state; every worker marches every view of each batch through its slab
   // (gradient_domain: the rays' states pass between the workers), the planes neighbours share are
   // joined and the priors' differences across slabs counted once, so every worker's iterate is
   // one process's to rounding on its planes. Densities (and the TF jointly, its slab parts summed)

@@ -39,11 +39,9 @@ std::size_t checked_parts(const DomainPart* domain) {
 std::vector<BrickedFixed::WorkerPlanes> worker_planes(const DomainPart& domain,
                                                       const BrickLayout& l) {
   std::vector<BrickedFixed::WorkerPlanes> out;
-  for (const std::vector<double>& w :
-       gather_doubles(domain,
-                      {double(l.z_first), double(l.z_last), double(l.data_first),
-                       double(l.data_last)},
-                      "the fixed-point density gradient's shared planes"))
+  for (const std::vector<double>& w : gather_doubles(
+           domain, {double(l.z_first), double(l.z_last), double(l.data_first), double(l.data_last)},
+           "the fixed-point density gradient's shared planes"))
     out.push_back({int(w[0]), int(w[1]), int(w[2]), int(w[3])});
   return out;
 }
@@ -151,7 +149,9 @@ std::vector<std::int64_t> BrickedFixed::owned_sums() const {
   const BrickLayout& l = layout_;
   const std::size_t plane = std::size_t(l.dims[0]) * std::size_t(l.dims[1]);
   const int me = domain_->rank;
-  auto holds = [&](int w, int z) { return planes_[w].data_first <= z && z <= planes_[w].data_last; };
+  auto holds = [&](int w, int z) {
+    return planes_[w].data_first <= z && z <= planes_[w].data_last;
+  };
   auto owner = [&](int z) {  // the highest worker whose slab has plane z
     for (int w = int(planes_.size()) - 1; w >= 0; --w)
       if (planes_[w].first <= z && z <= planes_[w].last) return w;
@@ -174,12 +174,12 @@ std::vector<std::int64_t> BrickedFixed::owned_sums() const {
   if (int(all.size()) != domain_->ranks)
     throw Error(Status::invalid_argument,
                 "the fixed-point density gradient's shared planes: all_gather gave " +
-                    std::to_string(all.size()) + " parts for " +
-                    std::to_string(domain_->ranks) + " workers");
+                    std::to_string(all.size()) + " parts for " + std::to_string(domain_->ranks) +
+                    " workers");
   // A plane's owner takes every worker's integers for it (a shared plane's: the upper worker,
-  // whose first plane it is, as the reconstruction's priors have it); the others give it 0 — so the slabs'
-  // values, added where they overlap (domain_join, the halo sent back), are the one integer sum
-  // converted once, as in core.
+  // whose first plane it is, as the reconstruction's priors have it); the others give it 0 — so the
+  // slabs' values, added where they overlap (domain_join, the halo sent back), are the one integer
+  // sum converted once, as in core.
   for (int z = l.data_first; z <= l.data_last; ++z)
     if (owner(z) != me)
       std::fill_n(sums.begin() + std::ptrdiff_t(std::size_t(z - l.data_first) * plane), plane, 0);
@@ -189,7 +189,8 @@ std::vector<std::int64_t> BrickedFixed::owned_sums() const {
     if (all[w].size() % record != 0)
       throw Error(Status::invalid_argument,
                   "the fixed-point density gradient's shared planes: worker " + std::to_string(w) +
-                      " sent " + std::to_string(all[w].size()) + " bytes (do the workers share one scene?)");
+                      " sent " + std::to_string(all[w].size()) +
+                      " bytes (do the workers share one scene?)");
     for (std::size_t at = 0; at < all[w].size(); at += record) {
       std::int64_t z = 0;
       std::memcpy(&z, &all[w][at], sizeof z);

@@ -408,15 +408,15 @@ ivr_status ivr_gradient_split_weighted(ivr_context* c, const ivr_scene* s, const
   });
 }
 
-ivr_status ivr_gradient_split_deterministic(ivr_context* c, const ivr_scene* s,
-                                            const float* target, size_t count, const char* wrt,
-                                            ivr_loss loss, ivr_precision precision, double step,
-                                            ivr_split split, int deterministic, int rank,
-                                            int ranks, const double* shares, ivr_sum_fn sum,
-                                            void* sum_user, ivr_result** out) {
+ivr_status ivr_gradient_split_deterministic(ivr_context* c, const ivr_scene* s, const float* target,
+                                            size_t count, const char* wrt, ivr_loss loss,
+                                            ivr_precision precision, double step, ivr_split split,
+                                            int deterministic, int rank, int ranks,
+                                            const double* shares, ivr_sum_fn sum, void* sum_user,
+                                            ivr_result** out) {
   return guarded(c, "ivr_gradient_split_deterministic", [&] {
-    gradient_split(c, s, target, count, wrt, loss, precision, step, split, rank, ranks, shares,
-                   sum, sum_user, out, deterministic != 0);
+    gradient_split(c, s, target, count, wrt, loss, precision, step, split, rank, ranks, shares, sum,
+                   sum_user, out, deterministic != 0);
   });
 }
 

@@ -237,8 +237,7 @@ Gradient gradient_one(Device& device, const Scene& scene, const Image& target,
   // (Out of core the endpoint schemes' bricks hold a halo of a step: brick_halo.)
   const BrickPlan bricks =
       plan_render(device, scene, o.precision, 0, true,
-                  brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step,
-                             o.deterministic));
+                  brick_halo(scene, o.step != 0 ? o.step : scene.integrator.step, o.deterministic));
   if (bricks.layout.edge) {
     if (!share) return gradient_bricked(device, scene, target, groups, o, bricks);
     // A data-parallel worker out of core: fixed point where every worker runs the adjoint alone

@@ -20,8 +20,8 @@ DensityPrior::DensityPrior(Device::Impl& dev, bool f64) : dev_(dev), f64_(f64) {
 }
 
 double DensityPrior::add_gradient(int nx, int ny, int nz, double tv, double smooth, double epsilon,
-                                  const cl::Buffer& x, const cl::Buffer& grad, int first,
-                                  int end, double voxels) {
+                                  const cl::Buffer& x, const cl::Buffer& grad, int first, int end,
+                                  double voxels) {
   if (voxels <= 0) voxels = double(nx) * double(ny) * double(nz);
   cl_call("running the density prior on " + dev_.info.name, [&] {
     cl_uint a = 0;

@@ -123,11 +123,10 @@ std::vector<double> Reconstruction::Impl::plane_below(std::size_t plane) const {
   if (o.worker == 0) return {};
   const std::vector<unsigned char>& from = all.at(std::size_t(o.worker - 1));
   if (from.size() != bytes.size())
-    throw Error(Status::invalid_argument, std::string(kWhat) + ": worker " +
-                                              std::to_string(o.worker - 1) + " sent " +
-                                              std::to_string(from.size()) +
-                                              " bytes for the plane below, not " +
-                                              std::to_string(bytes.size()));
+    throw Error(Status::invalid_argument,
+                std::string(kWhat) + ": worker " + std::to_string(o.worker - 1) + " sent " +
+                    std::to_string(from.size()) + " bytes for the plane below, not " +
+                    std::to_string(bytes.size()));
   std::vector<double> out(plane);
   std::memcpy(out.data(), from.data(), from.size());
   return out;

@@ -47,7 +47,8 @@ Image target_of(const Scene& s) {
 std::size_t differing(const std::vector<double>& want, const std::vector<double>& got) {
   if (want.size() != got.size()) return std::max(want.size(), got.size());
   std::size_t n = 0;
-  for (std::size_t i = 0; i < want.size(); ++i) n += std::memcmp(&want[i], &got[i], sizeof(double)) != 0;
+  for (std::size_t i = 0; i < want.size(); ++i)
+    n += std::memcmp(&want[i], &got[i], sizeof(double)) != 0;
   return n;
 }
 
@@ -70,11 +71,12 @@ TEST(BrickedFixed, DensityGradientOutOfCoreIsTheInCoreOneBitForBit) {
         const Gradient in_core = gradient(device(), s, target, {"density", "tf"}, o);
         ASSERT_TRUE(in_core.deterministic);
         ASSERT_EQ(in_core.bricks, 1);
-        expect_close_values(floats.groups[0].values, in_core.groups[0].values,
-                            fixed_tolerance(p), "in core against the float sums");
+        expect_close_values(floats.groups[0].values, in_core.groups[0].values, fixed_tolerance(p),
+                            "in core against the float sums");
         for (const char* edge : {"1", "3", "4"}) {
-          const std::string what = std::string(model == Model::absorption ? "absorption " : "emission ") + scheme_name(scheme) +
-                                   " " + name(p) + ", bricks of " + edge;
+          const std::string what =
+              std::string(model == Model::absorption ? "absorption " : "emission ") +
+              scheme_name(scheme) + " " + name(p) + ", bricks of " + edge;
           ScopedEnv brick("IVR_VOLUME_BRICK", edge);
           const Gradient a = gradient(device(), s, target, {"density", "tf"}, o);
           EXPECT_GT(a.bricks, 1) << what;
@@ -133,12 +135,11 @@ TEST(BrickedFixed, OverSlabsIsOneProcesssBitForBit) {
                                  (march == SlabMarch::states ? " states" : " segments");
         std::vector<std::vector<double>> joined;
         for (int run = 0; run < 2; ++run) {
-          const std::vector<Gradient> parts =
-              on_workers<Gradient>(3, [&](int w, DomainPart part, Device& d) {
-                part.march = march;
-                return gradient_domain(d, domain_share(s, w, 3), target, part, o, nullptr,
-                                       {"density"});
-              });
+          const std::vector<Gradient> parts = on_workers<Gradient>(3, [&](int w, DomainPart part,
+                                                                          Device& d) {
+            part.march = march;
+            return gradient_domain(d, domain_share(s, w, 3), target, part, o, nullptr, {"density"});
+          });
           std::vector<std::vector<double>> slabs;
           for (const Gradient& g : parts) {
             EXPECT_TRUE(g.deterministic) << what;

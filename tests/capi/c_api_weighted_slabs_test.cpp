@@ -1,9 +1,9 @@
 // c_api_weighted_slabs_test.cpp — slabs sized by weight through the C API and its C++ wrapper
 // (ivr_domain_slab_weighted, ivr_render_split_weighted, ivr_gradient_split_weighted and
-// ivr_gradient_split_deterministic, ivr_tomo_split_weighted, ivr_scene_set_volume_slab_weighted, ivr_reconstruction_create_weighted
-// over slabs): two workers on threads weighted 1:3 hold the planes of the weighted split and give
-// one process's results (the fixed-point density its bits); mismatched and bad weights are
-// refused by name.
+// ivr_gradient_split_deterministic, ivr_tomo_split_weighted, ivr_scene_set_volume_slab_weighted,
+// ivr_reconstruction_create_weighted over slabs): two workers on threads weighted 1:3 hold the
+// planes of the weighted split and give one process's results (the fixed-point density its bits);
+// mismatched and bad weights are refused by name.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,11 +12,11 @@
 #include <thread>
 #include <vector>
 
+#include "adjoint/adjoint.hpp"
+#include "capi_split_support.hpp"
 #include "ivr/ivr.h"
 #include "ivr/ivr.hpp"
 #include "ivr/ivr_reconstruct.hpp"
-#include "adjoint/adjoint.hpp"
-#include "capi_split_support.hpp"
 #include "test_support.hpp"
 
 namespace ivr::test {
@@ -144,22 +144,21 @@ Outcome run(ivr_split split, int rank, int ranks, bool slab_alone, WorkerSum* su
     ok = ivr_scene_set_volume(scene, values.data(), IVR_FLOAT32, shape) == IVR_OK;
   if (ranks == 0)
     ok = ok && ivr_render(c, scene, precision, 0, out.image.data(), kPixels) == IVR_OK &&
-         (deterministic ? ivr_gradient_shared(c, scene, target.data(), kPixels, wrt,
-                                              IVR_MODE_ADJOINT, IVR_LOSS_MSE, precision, 0, 1, 0,
-                                              1, nullptr, nullptr, &result)
-                        : ivr_gradient(c, scene, target.data(), kPixels, wrt, IVR_MODE_ADJOINT,
-                                       IVR_LOSS_MSE, precision, 0, &result)) == IVR_OK;
+         (deterministic
+              ? ivr_gradient_shared(c, scene, target.data(), kPixels, wrt, IVR_MODE_ADJOINT,
+                                    IVR_LOSS_MSE, precision, 0, 1, 0, 1, nullptr, nullptr, &result)
+              : ivr_gradient(c, scene, target.data(), kPixels, wrt, IVR_MODE_ADJOINT, IVR_LOSS_MSE,
+                             precision, 0, &result)) == IVR_OK;
   else
     ok = ok &&
-         ivr_render_split_weighted(c, scene, precision, 0, split, rank, ranks, kShares, summed,
-                                   &w, out.image.data(), kPixels) == IVR_OK &&
-         (deterministic
-              ? ivr_gradient_split_deterministic(c, scene, target.data(), kPixels, wrt,
-                                                 IVR_LOSS_MSE, precision, 0, split, 1, rank,
-                                                 ranks, kShares, summed, &w, &result)
-              : ivr_gradient_split_weighted(c, scene, target.data(), kPixels, wrt, IVR_LOSS_MSE,
-                                            precision, 0, split, rank, ranks, kShares, summed,
-                                            &w, &result)) == IVR_OK;
+         ivr_render_split_weighted(c, scene, precision, 0, split, rank, ranks, kShares, summed, &w,
+                                   out.image.data(), kPixels) == IVR_OK &&
+         (deterministic ? ivr_gradient_split_deterministic(
+                              c, scene, target.data(), kPixels, wrt, IVR_LOSS_MSE, precision, 0,
+                              split, 1, rank, ranks, kShares, summed, &w, &result)
+                        : ivr_gradient_split_weighted(
+                              c, scene, target.data(), kPixels, wrt, IVR_LOSS_MSE, precision, 0,
+                              split, rank, ranks, kShares, summed, &w, &result)) == IVR_OK;
   if (ok) {
     out.density = array_of(result, "density");
     out.tf = array_of(result, "tf");

@@ -7,9 +7,11 @@
 // in core (docs/design.md), and the ray's cell cache adds dL/d density once per voxel it touches
 // into the brick's voxels (`grad`, zeroed per visit; the host adds it into the volume's gradient).
 // The endpoint schemes' bricks hold a halo that reaches a window's first segment's near sample
-// (lib/brick/brick_layout.hpp, brick_halo), whose part of the gradient this brick scatters there. A work-item is one pixel, or on
-// CPUs a tile of IVR_RAYS neighbouring pixels in vector lanes (kernels/rays.cl), each lane its own
-// ray's arithmetic.
+// (lib/brick/brick_layout.hpp, brick_halo): the sample a window ends on goes on to the next
+// brick with what it has collected (the state's BS_ADJ_* sums), which scatters it once, as in
+// core; where the ray's march ends there (a slab's independent segment) this brick scatters its
+// part. A work-item is one pixel, or on CPUs a tile of IVR_RAYS neighbouring pixels in vector
+// lanes (kernels/rays.cl), each lane its own ray's arithmetic.
 #include "adjoint_endpoints.cl"
 #include "adjoint_exact.cl"
 #include "adjoint_midpoint.cl"

@@ -26,8 +26,8 @@
 // IVR_SCATTER_CACHE (the host's, lib/adjoint/scatter_cache.hpp; $IVR_SCATTER_CACHE forces it) turns
 // the table on; off, scatter_add() is the plain global atomic add and nothing here takes memory or
 // a barrier. Float sums in the table change the order of the additions (results agree to rounding);
-// the deterministic fixed-point gradient does not use the table (its adds are fixed_add()'s,
-// kernels/adjoint_scatter.cl).
+// the deterministic fixed-point gradient does not use the table (its integer adds are
+// kernels/adjoint_scatter.cl's).
 #ifndef IVR_SCATTER_CACHE_CL
 #define IVR_SCATTER_CACHE_CL
 #include "atomics.cl"

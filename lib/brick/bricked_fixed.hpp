@@ -1,6 +1,6 @@
 // bricked_fixed.hpp — internal: the out-of-core adjoint's deterministic density gradient — each
 // brick's contributions summed in fixed point on the device (kernels/adjoint_scatter.cl's
-// fixed_add into the brick's slot), the slots' integer sums added on the host, one conversion.
+// integers into the brick's slot), the slots' integer sums added on the host, one conversion.
 #pragma once
 #include <array>
 #include <cstdint>

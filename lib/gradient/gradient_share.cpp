@@ -66,8 +66,9 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
   });
   bool fixed = false;
   // Fixed point where every worker votes for it and all run in core or all over bricks of one
-  // edge (the scale's cap counts a ray's segments): the edges' sum and sum of squares are those of
-  // `workers` equal edges only where all are equal.
+  // edge: the edges' sum and sum of squares are those of `workers` equal edges only where all are
+  // equal. (The out-of-core sums are now the in-core ones bit for bit, lib/brick/bricked_fixed.hpp,
+  // so mixed edges would agree too; the vote still asks for one edge, as tested.)
   const ShareDecision decide = [&](Mode planned, int brick_edge) -> const FixedShare* {
     const double edge = double(brick_edge);
     std::vector<double> votes{o.deterministic && active && density && planned == Mode::adjoint &&

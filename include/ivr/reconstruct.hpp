@@ -87,8 +87,9 @@ struct ReconstructOptions {
   // have at least one cell per worker along z. With `deterministic` the slabs' bricks sum the
   // density in fixed point where every worker's device has 64-bit integer atomics: one
   // process's gradient bit for bit (slab_march states; the priors summed whole per voxel by its
-  // plane's owner), so the densities are one process's bits and a resumed run equals an
-  // uninterrupted one (independent segments: the same bits on every run).
+  // plane's owner), so the densities are one process's bits (densities alone: a TF learnt jointly
+  // keeps float sums) and a resumed run equals an uninterrupted one (independent segments: the
+  // same bits on every run).
   // result() holds this worker's planes of the current level's grid; checkpoints are each
   // worker's own (give each its own prefix). `all_gather` passes bytes between the
   // workers (an MPI_Allgatherv); empty: built from `sum` (all_gather_by_sum).

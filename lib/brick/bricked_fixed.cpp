@@ -35,14 +35,17 @@ std::size_t checked_parts(const DomainPart* domain) {
   return domain && domain->march == SlabMarch::segments ? std::size_t(domain->ranks) : 1;
 }
 
-// Every worker's planes (BrickedFixed::WorkerPlanes), in rank order.
+// Every worker's planes (BrickedFixed::WorkerPlanes), in rank order: its slab (domain_slab) and
+// that slab with the layout's halo, as plan_domain holds it (every worker's layout has the halo).
 std::vector<BrickedFixed::WorkerPlanes> worker_planes(const DomainPart& domain,
                                                       const BrickLayout& l) {
   std::vector<BrickedFixed::WorkerPlanes> out;
-  for (const std::vector<double>& w : gather_doubles(
-           domain, {double(l.z_first), double(l.z_last), double(l.data_first), double(l.data_last)},
-           "the fixed-point density gradient's shared planes"))
-    out.push_back({int(w[0]), int(w[1]), int(w[2]), int(w[3])});
+  const int nz = l.dims[2];
+  for (int w = 0; w < domain.ranks; ++w) {
+    const Slab s = domain_slab(nz, w, domain.ranks, domain.shares);
+    out.push_back(
+        {s.first, s.last, std::max(s.first - l.halo, 0), std::min(s.last + l.halo, nz - 1)});
+  }
   return out;
 }
 }  // namespace

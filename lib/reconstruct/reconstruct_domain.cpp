@@ -117,19 +117,10 @@ std::vector<double> Reconstruction::Impl::plane_below(std::size_t plane) const {
   // Every worker sends the plane below the one it shares with the next (a collective); each takes
   // its lower neighbour's. (A slab has at least 2 planes: one cell.)
   if (o.workers == 1) return {};
-  std::vector<unsigned char> bytes(plane * sizeof(double));
-  std::memcpy(bytes.data(), slab_x.data() + (slab_x.size() - 2 * plane), bytes.size());
-  const std::vector<std::vector<unsigned char>> all = part.all_gather(bytes);
-  if (o.worker == 0) return {};
-  const std::vector<unsigned char>& from = all.at(std::size_t(o.worker - 1));
-  if (from.size() != bytes.size())
-    throw Error(Status::invalid_argument,
-                std::string(kWhat) + ": worker " + std::to_string(o.worker - 1) + " sent " +
-                    std::to_string(from.size()) + " bytes for the plane below, not " +
-                    std::to_string(bytes.size()));
-  std::vector<double> out(plane);
-  std::memcpy(out.data(), from.data(), from.size());
-  return out;
+  const std::vector<double> mine(slab_x.end() - std::ptrdiff_t(2 * plane),
+                                 slab_x.end() - std::ptrdiff_t(plane));
+  std::vector<std::vector<double>> all = gather_doubles(part, mine, kWhat);
+  return o.worker == 0 ? std::vector<double>{} : std::move(all[std::size_t(o.worker - 1)]);
 }
 
 Volume Reconstruction::Impl::gathered(int l, const std::vector<double>& mine) const {

@@ -98,13 +98,13 @@ inline void adjoint_march_exact_window(__global const real* volume, int4 dims, c
   real er, eg, eb;
   const real t0 = m->t0;
   const real sigma0 = tf_sample(
-      trilinear_at(volume, dims, m->u0x + t0 * m->dux, m->u0y + t0 * m->duy, m->u0z + t0 * m->duz),
+      trilinear_at(volume, dims, IVR_POINT(m, t0, x), IVR_POINT(m, t0, y), IVR_POINT(m, t0, z)),
       tf, tf_count, tf_scalars, &cursor, &er, &eg, &eb);
   // Stopped early where the walk has ray left (a jump over empty space to the end leaves none).
   const bool early = p.t < m->t1;
   const real t_end = early ? t_last : m->t1;
-  const real sigma1 = tf_sample(trilinear_at(volume, dims, m->u0x + t_end * m->dux,
-                                             m->u0y + t_end * m->duy, m->u0z + t_end * m->duz),
+  const real sigma1 = tf_sample(trilinear_at(volume, dims, IVR_POINT(m, t_end, x),
+                                             IVR_POINT(m, t_end, y), IVR_POINT(m, t_end, z)),
                                 tf, tf_count, tf_scalars, &cursor, &er, &eg, &eb);
   cs->dldt0 = -gtau * sigma0;
   cs->dldt1 = gtau * sigma1;

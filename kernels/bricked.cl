@@ -54,8 +54,8 @@ inline uint window_first(const RayMarch* m, real ta) {
 #endif
 }
 
-// Marches the ray's window [tb0, tb1] in this brick (m: the global march with u0 moved to the
-// brick's voxels); true where the ray stopped early.
+// Marches the ray's window [tb0, tb1] in this brick (m: the global march, reading the brick's
+// voxels from its origin o); true where the ray stopped early.
 inline bool brick_march(__global const real* volume, int4 dims, const RayMarch* m, real tb1,
                         __global const real* tf, int tf_count, real4 tf_scalars,
                         real min_transmittance, Radiance* r, __global real* s,

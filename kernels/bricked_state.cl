@@ -46,15 +46,10 @@
 #define IVR_BRICK_DONE 1u
 #define IVR_BRICK_STARTED 2u  // the endpoint schemes' sample 0 is taken
 
-// What a brick's march subtracts from its sample points (IVR_POINT): its first voxel; 0 for the
-// exact scheme, whose pieces' geometry reads u0 itself, moved into the brick's voxels instead.
+// What a brick's march subtracts from its points (IVR_POINT) and the origin of the exact scheme's
+// grid (kernels/exact.cl): its first voxel.
 inline real4 point_origin(int4 origin) {
-#if IVR_SCHEME == IVR_SCHEME_EXACT
-  (void)origin;
-  return (real4)(real)0;
-#else
   return (real4)((real)origin.x, (real)origin.y, (real)origin.z, (real)0);
-#endif
 }
 
 // The ray's global march from its state, moved to the brick's voxels, and the end *tb1 of its
@@ -70,10 +65,6 @@ inline bool brick_enter(__global const real* s, __global const uint* su, real4 b
   *tb1 = m->t1;
   brick_window(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, brick_lo, brick_hi, &tb0, tb1);
   if (!(*tb1 > tb0) || tb0 != s[BS_TNEXT]) return false;
-#if IVR_SCHEME == IVR_SCHEME_EXACT
-  // (the pieces' geometry reads u0 itself: moved into the brick's voxels)
-  m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
-#endif
   const real4 o = point_origin(origin);
   m->ox = o.x, m->oy = o.y, m->oz = o.z;
   return true;

@@ -17,6 +17,17 @@
 
 // --- Pieces: the ray between consecutive centre-plane crossings --------------------------------
 
+// Coordinates are global: u = u0 + t·du is the ray in the whole volume's voxel-centre coordinates,
+// in core and out of core alike, so a brick's march computes the in-core march's plane crossings,
+// cells and fractions bit for bit. The voxels a march reads are the grid origin … origin + dims − 1
+// (in core 0 … N − 1; out of core a brick's, origin = its first voxel: the march's o, kernels/
+// march.cl); planes and cells outside it are none, and a cell's index (PieceCell) is in it.
+
+// The march's grid origin (its first voxel read): exact, o holds an integer.
+inline int4 march_grid_origin(const March* m) {
+  return (int4)((int)m->ox, (int)m->oy, (int)m->oz, 0);
+}
+
 // The plane of axis index k (u = k) is crossed at t = (k − u0) / du.
 typedef struct {
   vreal t, t1;       // start of the next piece; the ray's end in the box
@@ -26,42 +37,49 @@ typedef struct {
   vint axis;         // axis of the plane that ended the last piece, -1: the box (or none)
 } Pieces;
 
-// The first plane crossed after u (moving with sign s) on an axis of n voxels, its index in *k.
-// (u is clamped to [-1, n] before its conversion: a plane beyond either end is none all the same.)
-inline vreal first_plane(vreal u0, vreal du, vreal u, int n, vint* k, vint* s) {
+// The first plane crossed after u (moving with sign s) on an axis whose grid holds the planes
+// o … o + n − 1, its index in *k. (u is clamped to [o − 1, o + n] before its conversion: a plane
+// beyond either end is none all the same.)
+inline vreal first_plane(vreal u0, vreal du, vreal u, int o, int n, vint* k, vint* s) {
   const vint up = vmask_of(du > (real)0), down = vmask_of(du < (real)0);
   *s = vseli(vseli((vint)0, (vint)-1, down), (vint)1, up);
-  const vint k_up = vseli(vto_int(floor(fmin(u, (real)n))) + 1, (vint)0, vmask_of(u < (real)0));
-  const vint k_down = vseli(vto_int(ceil(fmax(u, (real)-1))) - 1, (vint)(n - 1),
-                            vmask_of(u > (real)(n - 1)));
+  const vint k_up = vseli(vto_int(floor(fmin(u, (real)(o + n)))) + 1, (vint)o,
+                          vmask_of(u < (real)o));
+  const vint k_down = vseli(vto_int(ceil(fmax(u, (real)(o - 1)))) - 1, (vint)(o + n - 1),
+                            vmask_of(u > (real)(o + n - 1)));
   *k = vseli(k_down, k_up, up);
-  const vint inside = (up && *k <= n - 1) || (down && *k >= 0);
+  const vint inside = (up && *k <= o + n - 1) || (down && *k >= o);
   return vsel((vreal)(real)INFINITY, (vto_real(*k) - u0) / du, inside);
 }
 
 // The plane after *k, where m is true.
-inline vreal next_plane(vreal u0, vreal du, int n, vint* k, vint s, vint m) {
+inline vreal next_plane(vreal u0, vreal du, int o, int n, vint* k, vint s, vint m) {
   *k = vseli(*k, *k + s, m);
-  return vsel((vreal)(real)INFINITY, (vto_real(*k) - u0) / du, *k >= 0 && *k <= n - 1);
+  return vsel((vreal)(real)INFINITY, (vto_real(*k) - u0) / du, *k >= o && *k <= o + n - 1);
 }
 
-// Starts the pieces at ray parameter t (t0, or where a jump over empty space lands).
+// Starts the pieces at ray parameter t (t0, a brick window's start, or where a jump over empty
+// space lands).
 inline void pieces_begin(Pieces* p, const March* m, int4 dims, vreal t) {
+  const int4 o = march_grid_origin(m);
   p->t = t;
   p->t1 = m->t1;
   p->axis = (vint)-1;
-  p->tx = first_plane(m->u0x, m->dux, m->u0x + t * m->dux, dims.x, &p->kx, &p->sx);
-  p->ty = first_plane(m->u0y, m->duy, m->u0y + t * m->duy, dims.y, &p->ky, &p->sy);
-  p->tz = first_plane(m->u0z, m->duz, m->u0z + t * m->duz, dims.z, &p->kz, &p->sz);
+  p->tx = first_plane(m->u0x, m->dux, m->u0x + t * m->dux, o.x, dims.x, &p->kx, &p->sx);
+  p->ty = first_plane(m->u0y, m->duy, m->u0y + t * m->duy, o.y, dims.y, &p->ky, &p->sy);
+  p->tz = first_plane(m->u0z, m->duz, m->u0z + t * m->duz, o.z, dims.z, &p->kz, &p->sz);
 }
 
 // The next piece [*ta, *tb] (possibly of length 0 where planes meet) of the rays where `live` is
-// true and some ray is left; returns those rays.
+// true and some ray is left; returns those rays. A plane whose crossing rounds before the piece's
+// start (u(t) rounded to its near side where a walk begins at t: a brick's window, a jump) ends a
+// piece of length 0 there, never one that reaches back.
 inline vint pieces_next_where(Pieces* p, const March* m, int4 dims, vint live, vreal* ta,
                               vreal* tb) {
   const vint go = live && vmask_of(p->t < p->t1);
   if (!vany(go)) return go;
-  const vreal end = fmin(fmin(p->tx, p->ty), fmin(p->tz, p->t1));
+  const int4 o = march_grid_origin(m);
+  const vreal end = fmax(fmin(fmin(p->tx, p->ty), fmin(p->tz, p->t1)), p->t);
   *ta = p->t;
   *tb = end;
   p->axis = vseli(p->axis,
@@ -72,11 +90,11 @@ inline vint pieces_next_where(Pieces* p, const March* m, int4 dims, vint live, v
   // Every plane crossed at `end` (a ray through a line or a node crosses two or three at once).
   vint c;
   while (vany(c = go && vmask_of(p->tx <= end)))
-    p->tx = vsel(p->tx, next_plane(m->u0x, m->dux, dims.x, &p->kx, p->sx, c), c);
+    p->tx = vsel(p->tx, next_plane(m->u0x, m->dux, o.x, dims.x, &p->kx, p->sx, c), c);
   while (vany(c = go && vmask_of(p->ty <= end)))
-    p->ty = vsel(p->ty, next_plane(m->u0y, m->duy, dims.y, &p->ky, p->sy, c), c);
+    p->ty = vsel(p->ty, next_plane(m->u0y, m->duy, o.y, dims.y, &p->ky, p->sy, c), c);
   while (vany(c = go && vmask_of(p->tz <= end)))
-    p->tz = vsel(p->tz, next_plane(m->u0z, m->duz, dims.z, &p->kz, p->sz, c), c);
+    p->tz = vsel(p->tz, next_plane(m->u0z, m->duz, o.z, dims.z, &p->kz, p->sz, c), c);
   p->t = vsel(p->t, end, go);
   return go;
 }
@@ -115,7 +133,8 @@ inline vint pieces_skip_empty(Pieces* p, const March* m, int4 dims, vreal ta, vr
 // --- The density inside one piece: one cell, fractions linear in s ∈ [0, 1] ---------------------
 
 typedef struct {
-  vint ix, iy, iz;   // the cell (lower corner voxel), clamped as trilinear_at() clamps
+  vint ix, iy, iz;   // the cell (lower corner voxel) among the voxels read (index − the grid's
+                     // origin), clamped as trilinear_at() clamps
   vreal fx, fy, fz;  // fractions at s = 0
   vreal gx, gy, gz;  // their change over the piece (0 along clamped axes)
   vint cx, cy, cz;   // clamped along the axis: the density does not change with u there
@@ -123,46 +142,42 @@ typedef struct {
 
 // (The cell index is in range for any u, NaN included: the gathers of a packet's idle rays read
 // inside the volume.)
-// `open_lo`, `open_hi`: the grid's first or last centre plane on this axis is not the volume's
-// border (out of core: a brick's inner face), so a piece on it is not clamped.
-inline void piece_axis_within(vreal ua, vreal ub, int n, bool open_lo, bool open_hi, vint* i,
-                              vreal* f, vreal* g, vint* clamped) {
+// The grid holds the centre planes o … o + n − 1; `open_lo`, `open_hi`: its first or last plane
+// is not the volume's border (out of core: a brick's inner face), so a piece on it is not clamped.
+// *i is the cell less o; the fractions are the global u's, so a brick's are the in-core ones.
+inline void piece_axis_within(vreal ua, vreal ub, int o, int n, bool open_lo, bool open_hi,
+                              vint* i, vreal* f, vreal* g, vint* clamped) {
   const vreal mid = (real)0.5 * (ua + ub);
   // The border half-voxel below the first centre, and above the last.
-  const vint below = (open_lo ? (vint)0 : !vmask_of(mid > (real)0)) || n == 1;
-  const vint above = !below && (open_hi ? (vint)0 : vmask_of(mid >= (real)(n - 1)));
+  const vint below = (open_lo ? (vint)0 : !vmask_of(mid > (real)o)) || n == 1;
+  const vint above = !below && (open_hi ? (vint)0 : vmask_of(mid >= (real)(o + n - 1)));
   const vint inner = !below && !above;
-  const vint k = min(vto_int(fmin(fmax(mid, (real)0), (real)(n - 1))), n - 2);
-  *i = vseli(vseli(k, (vint)(n - 1), above), (vint)0, below);
-  *f = vsel((vreal)(real)0, ua - vto_real(*i), inner);
+  const vint k = min(vto_int(fmin(fmax(mid, (real)o), (real)(o + n - 1))), o + n - 2);
+  const vint cell = vseli(vseli(k, (vint)(o + n - 1), above), (vint)o, below);
+  *i = cell - o;
+  *f = vsel((vreal)(real)0, ua - vto_real(cell), inner);
   *g = vsel((vreal)(real)0, ub - ua, inner);
   *clamped = !inner;
-}
-
-inline void piece_axis(vreal ua, vreal ub, int n, vint* i, vreal* f, vreal* g, vint* clamped) {
-  piece_axis_within(ua, ub, n, false, false, i, f, g, clamped);
 }
 
 // The piece's cell, clamped at the grid's faces except where `lo`, `hi` are ∓∞ on an axis (the
 // out-of-core tangents' grid_lo, grid_hi: a brick's inner faces).
 inline PieceCell piece_cell_within(const March* m, int4 dims, vreal ta, vreal tb, real4 lo,
                                    real4 hi) {
+  const int4 o = march_grid_origin(m);
   PieceCell c;
-  piece_axis_within(m->u0x + ta * m->dux, m->u0x + tb * m->dux, dims.x, isinf(lo.x) != 0,
+  piece_axis_within(m->u0x + ta * m->dux, m->u0x + tb * m->dux, o.x, dims.x, isinf(lo.x) != 0,
                     isinf(hi.x) != 0, &c.ix, &c.fx, &c.gx, &c.cx);
-  piece_axis_within(m->u0y + ta * m->duy, m->u0y + tb * m->duy, dims.y, isinf(lo.y) != 0,
+  piece_axis_within(m->u0y + ta * m->duy, m->u0y + tb * m->duy, o.y, dims.y, isinf(lo.y) != 0,
                     isinf(hi.y) != 0, &c.iy, &c.fy, &c.gy, &c.cy);
-  piece_axis_within(m->u0z + ta * m->duz, m->u0z + tb * m->duz, dims.z, isinf(lo.z) != 0,
+  piece_axis_within(m->u0z + ta * m->duz, m->u0z + tb * m->duz, o.z, dims.z, isinf(lo.z) != 0,
                     isinf(hi.z) != 0, &c.iz, &c.fz, &c.gz, &c.cz);
   return c;
 }
 
 inline PieceCell piece_cell(const March* m, int4 dims, vreal ta, vreal tb) {
-  PieceCell c;
-  piece_axis(m->u0x + ta * m->dux, m->u0x + tb * m->dux, dims.x, &c.ix, &c.fx, &c.gx, &c.cx);
-  piece_axis(m->u0y + ta * m->duy, m->u0y + tb * m->duy, dims.y, &c.iy, &c.fy, &c.gy, &c.cy);
-  piece_axis(m->u0z + ta * m->duz, m->u0z + tb * m->duz, dims.z, &c.iz, &c.fz, &c.gz, &c.cz);
-  return c;
+  const real4 none = (real4)(real)0;  // (finite: every face of the grid clamps)
+  return piece_cell_within(m, dims, ta, tb, none, none);
 }
 
 // d density / d u at s inside the piece from the corners v (0 along clamped axes: one-sided at

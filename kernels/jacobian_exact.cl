@@ -115,13 +115,13 @@ inline void tangent_march_exact_window(__global const real* volume, int4 dims, c
   int cursor = 0;
   real er, eg, eb;
   const real sigma0 =
-      first ? tf_sample(trilinear_at(volume, dims, m->u0x + m->t0 * m->dux,
-                                     m->u0y + m->t0 * m->duy, m->u0z + m->t0 * m->duz),
+      first ? tf_sample(trilinear_at(volume, dims, IVR_POINT(m, m->t0, x),
+                                     IVR_POINT(m, m->t0, y), IVR_POINT(m, m->t0, z)),
                         tf, tf_count, tf_scalars, &cursor, &er, &eg, &eb)
             : (real)0;
   const real sigma1 =
-      last ? tf_sample(trilinear_at(volume, dims, m->u0x + t_end * m->dux,
-                                    m->u0y + t_end * m->duy, m->u0z + t_end * m->duz),
+      last ? tf_sample(trilinear_at(volume, dims, IVR_POINT(m, t_end, x),
+                                    IVR_POINT(m, t_end, y), IVR_POINT(m, t_end, z)),
                        tf, tf_count, tf_scalars, &cursor, &er, &eg, &eb)
            : (real)0;
   IVR_FOR_LANES(p) {

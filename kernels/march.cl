@@ -17,7 +17,7 @@ typedef struct {
   real u0x, u0y, u0z, dux, duy, duz;
   // The first voxel of the brick whose voxels the march reads (0 in core): a sample's point is the
   // global u0 + t·du less o (IVR_POINT), exact for an integer o, so a brick's march reads the
-  // in-core march's points bit for bit (the exact scheme's pieces move u0 instead: o = 0).
+  // in-core march's points bit for bit (the exact scheme's pieces: o is their grid's origin).
   real ox, oy, oz;
 } RayMarch;
 

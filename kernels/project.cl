@@ -173,8 +173,8 @@ __kernel void backproject(__global const real* restrict line, const int4 dims, c
 // faces are centre planes), so N = Σ_bricks N_brick and Nᵀ is each brick's Nᵀ added into the
 // volume (the host adds the shared planes from both sides).
 
-// The ray's window in the brick, with the march moved to the brick's voxels and its pieces
-// begun at the window's start; false where the ray misses the brick.
+// The ray's window in the brick, its march reading the brick's voxels (the grid's origin, kernels/
+// exact.cl) and its pieces begun at the window's start; false where the ray misses the brick.
 inline bool projector_brick_ray(__global const real* cameras, int x, int y, int view, int width,
                                 int height, int4 dims, real4 box_min, real4 box_max,
                                 real4 inv_voxel, real4 brick_lo, real4 brick_hi, int4 origin,
@@ -184,7 +184,7 @@ inline bool projector_brick_ray(__global const real* cameras, int x, int y, int 
   real ta = m->t0, tb = m->t1;
   brick_window(m->u0x, m->u0y, m->u0z, m->dux, m->duy, m->duz, brick_lo, brick_hi, &ta, &tb);
   if (!(tb > ta)) return false;
-  m->u0x -= (real)origin.x, m->u0y -= (real)origin.y, m->u0z -= (real)origin.z;
+  m->ox = (real)origin.x, m->oy = (real)origin.y, m->oz = (real)origin.z;
   m->t1 = tb;
   pieces_begin(p, m, dims, ta);
   return true;

@@ -53,16 +53,19 @@ std::size_t differing(const std::vector<double>& want, const std::vector<double>
 }
 
 // Each contribution is its integer before any sum, the scale and cap are the in-core ones and the
-// sums run on across the bricks (kernels/adjoint_scatter.cl): out of core the fixed-point
-// gradient is the in-core one bit for bit, for every fixed-step scheme, both models, bricks of
-// one cell to many, rays on the bricks' faces (bricked_scene's orthographic views).
+// sums run on across the bricks (kernels/adjoint_scatter.cl), and the exact scheme's pieces are cut
+// in the whole volume's coordinates (kernels/exact.cl): out of core the fixed-point gradient is
+// the in-core one bit for bit, for every scheme, both models, bricks of one cell to many, rays on
+// the bricks' faces (bricked_scene's orthographic views).
 TEST(BrickedFixed, DensityGradientOutOfCoreIsTheInCoreOneBitForBit) {
   if (!int64_atomics()) GTEST_SKIP() << "no cl_khr_int64_base_atomics: float sums";
   for (Model model : {Model::emission_absorption, Model::absorption})
-    for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated})
+    for (Scheme scheme :
+         {Scheme::midpoint, Scheme::trapezoid, Scheme::preintegrated, Scheme::exact})
       for (Precision p : {Precision::f64, Precision::f32}) {
         if (p == Precision::f64 && !device().info().fp64) continue;
         if (model == Model::absorption && scheme == Scheme::preintegrated) continue;
+        if (model == Model::emission_absorption && scheme == Scheme::exact) continue;
         const Scene s = bricked_scene(model, scheme);
         const Image target = target_of(s);
         GradientOptions o = adjoint_options(p);
@@ -115,15 +118,16 @@ TEST(BrickedFixed, SecondPassCorrectsTheScale) {
 
 // Over slabs every worker takes the in-core scale and the planes two workers hold are summed as
 // integers by their owner: with the rays' states passed, the joined gradient is one process's
-// in-core fixed point bit for bit (midpoint without a halo of its own, trapezoid with one; both
-// precisions). Over independent segments (each slab's segment of a ray from transmittance 1) it
+// in-core fixed point bit for bit (midpoint without a halo of its own, trapezoid with one, the
+// exact scheme's pieces in global coordinates; both precisions). Over independent segments (each slab's segment of a ray from transmittance 1) it
 // repeats bit for bit and lies near one process's.
 TEST(BrickedFixed, OverSlabsIsOneProcesssBitForBit) {
   if (!int64_atomics()) GTEST_SKIP() << "no cl_khr_int64_base_atomics: float sums";
-  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid})
+  for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::exact})
     for (Precision p : {Precision::f64, Precision::f32}) {
       if (p == Precision::f64 && !device().info().fp64) continue;
-      Scene s = bricked_scene(Model::emission_absorption, scheme);
+      Scene s = bricked_scene(
+          scheme == Scheme::exact ? Model::absorption : Model::emission_absorption, scheme);
       s.integrator.min_transmittance = 0;  // (segments: one process's march)
       const Image target = target_of(s);
       GradientOptions o = adjoint_options(p);

@@ -34,11 +34,10 @@ struct GradientOptions {
   // (AdjointOptions::deterministic; adjoint mode): the same bits on every run, and the one
   // process's in-core bits over several devices or data-parallel workers, out of core (any
   // bricks) and over slabs with the rays' states passed (gradient_domain, SlabMarch::states) —
-  // the midpoint, trapezoid and preintegrated schemes; the exact scheme's bricks and independent
-  // segments (SlabMarch::segments) repeat bit for bit and lie within the fixed-point rounding of
-  // the in-core gradient. Data-parallel workers out of core, asking for the adjoint's groups
-  // alone (density, tf, background) over bricks of one edge, give the one process's bits
-  // (docs/scaling.md).
+  // every scheme; independent segments (SlabMarch::segments) repeat bit for bit and lie within
+  // the fixed-point rounding of the in-core gradient. Data-parallel workers, in core or out of
+  // core over bricks of any edge (there asking for the adjoint's groups alone: density, tf,
+  // background), give the one process's bits (docs/scaling.md).
   bool deterministic = false;
   // Data-parallel over views (docs/scaling.md): this call is worker `worker` of `workers` (> 1),
   // every worker passing the whole scene and target and calling together; each differentiates its

@@ -146,7 +146,7 @@ SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
                     : std::max<std::size_t>(p.lanes, RayList::kColumns);
   }
   // A data-parallel worker: the fixed-point decision, agreed with the others (a collective).
-  const FixedShare* fixed_share = share ? share(out.plan.mode, 0) : nullptr;
+  const FixedShare* fixed_share = share ? share(out.plan.mode) : nullptr;
   OperationRecord& op = s.begin("gradient");
   cl_call("splitting the gradient into its groups", [&] {
     if (out.plan.mode == Mode::forward) {
@@ -241,14 +241,14 @@ Gradient gradient_one(Device& device, const Scene& scene, const Image& target,
   if (bricks.layout.edge) {
     if (!share) return gradient_bricked(device, scene, target, groups, o, bricks);
     // A data-parallel worker out of core: fixed point where every worker runs the adjoint alone
-    // (the forward lanes' groups would be the share's own means, not parts of the batch's) over
-    // bricks of one edge — each share then sums its rays' segments at the batch's scale, and the
-    // shares' integer sums are the one process's over those bricks.
+    // (the forward lanes' groups would be the share's own means, not parts of the batch's) — each
+    // share then sums its rays' segments at the batch's scale, and the shares' integer sums, over
+    // bricks of any edge or in core, are the one process's.
     bool adjoint_alone = o.mode != Mode::forward;
     for (const std::string& g : groups)
       adjoint_alone = adjoint_alone && (g == "density" || g == "tf" || g == "background");
     const FixedShare* fixed =
-        share(adjoint_alone ? Mode::adjoint : Mode::forward, bricks.layout.edge);
+        share(adjoint_alone ? Mode::adjoint : Mode::forward);
     GradientOptions mine = o;
     mine.deterministic = fixed != nullptr;
     return gradient_bricked(device, scene, target, groups, mine, bricks, nullptr, nullptr, nullptr,

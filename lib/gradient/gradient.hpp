@@ -10,12 +10,12 @@
 
 namespace ivr {
 
-// A data-parallel worker's run (gradient_shared): told the mode planned for this worker and its
-// out-of-core bricks' edge (0: in core), returns the batch's FixedShare where every worker sums
-// the density in fixed point over the same bricks (the density's adjoint then gives the whole
+// A data-parallel worker's run (gradient_shared): told the mode planned for this worker (in core
+// or over bricks of any edge: the fixed-point sums are the same), returns the batch's FixedShare
+// where every worker sums the density in fixed point (the density's adjoint then gives the whole
 // batch's gradient, the rest the batch's parts), else nullptr (the share's own means, weighted by
 // the caller).
-using ShareDecision = std::function<const FixedShare*(Mode planned, int brick_edge)>;
+using ShareDecision = std::function<const FixedShare*(Mode planned)>;
 
 SessionGradient session_gradient(Session::Impl& s, const DeviceArray& target,
                                  const GradientRequest& request,

@@ -65,20 +65,16 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
     return whole_when_fixed(g.substr(0, g.find(':')));  // (voxels:LIST)
   });
   bool fixed = false;
-  // Fixed point where every worker votes for it and all run in core or all over bricks of one
-  // edge: the edges' sum and sum of squares are those of `workers` equal edges only where all are
-  // equal. (The out-of-core sums are now the in-core ones bit for bit, lib/brick/bricked_fixed.hpp,
-  // so mixed edges would agree too; the vote still asks for one edge, as tested.)
-  const ShareDecision decide = [&](Mode planned, int brick_edge) -> const FixedShare* {
-    const double edge = double(brick_edge);
+  // Fixed point where every worker votes for it, in core or over bricks of any edge alike: the
+  // out-of-core integer sums are the in-core ones bit for bit (lib/brick/bricked_fixed.hpp), so
+  // the shares' sums are one process's whatever each worker's device holds.
+  const ShareDecision decide = [&](Mode planned) -> const FixedShare* {
     std::vector<double> votes{o.deterministic && active && density && planned == Mode::adjoint &&
                                       has_int64_atomics(device.impl())
                                   ? 1.0
-                                  : 0.0,
-                              edge, edge * edge};
+                                  : 0.0};
     o.sum(votes);
-    const double n = double(o.workers);
-    fixed = votes[0] == n && votes[1] == n * edge && votes[2] == n * edge * edge;
+    fixed = votes[0] == double(o.workers);
     return fixed ? &batch : nullptr;
   };
   Gradient out;
@@ -86,7 +82,7 @@ Gradient gradient_shared(Device& device, const Scene& scene, const Image& target
     out = gradient_one(device, scene_share(scene, first, count),
                        target_share(scene, target, first, count), groups, mine, decide);
   } else {  // no view for this worker: zeros of every group's shape, in every collective
-    decide(Mode::forward, 0);
+    decide(Mode::forward);
     for (std::size_t k = 0; k < groups.size(); ++k) {
       GroupGradient g;
       g.name = groups[k].substr(0, groups[k].find(':'));

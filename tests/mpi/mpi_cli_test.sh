@@ -9,7 +9,8 @@
 # shares' integer sums added exactly), over slabs (each rank its planes, both priors across them,
 # two levels; equal slabs and slabs by speed) its losses and priors within 1e-12 and its
 # densities bit for bit, as `ivr gradient --deterministic` gives one process's
-# density gradient bit for bit (float32), over views and over slabs alike; over independent segments (--split segments, early
+# density gradient bit for bit (float32), over views and over slabs alike, and with ranks in core
+# and out of core side by side; over independent segments (--split segments, early
 # termination off) the render, the density and TF gradients and the reconstruction's losses within
 # 1e-12, in one exchange; the ranks' shares of the views and of the slabs' planes by --shares and by
 # each rank's speed alike; an error in the
@@ -121,10 +122,23 @@ mpmd tomo scene.json --projections p.npy --iterations 5 -o xw2.npy --precision f
   2>/dev/null > xw2.json
 grep -q '"shares":\[1,4\]' xw2.json || { echo "tomo by speed: $(cat xw2.json)"; exit 1; }
 mpmd project scene.json -o pw2.npy --precision f64 >/dev/null
+# Ranks whose devices hold the volume differently (one in core, others over bricks of 3 and of 1
+# cell: IVR_VOLUME_BRICK a rank) still sum the density in fixed point: one process's bits.
+out=$("$mpiexec" --oversubscribe -np 1 "$ivr" gradient scene.json "${det[@]}" -o dmix2 : \
+  -np 1 env IVR_VOLUME_BRICK=3 "$ivr" gradient scene.json "${det[@]}" -o dmix2)
+echo "$out" | grep -q '"deterministic":true' || { echo "gradient, ranks in and out of core: $out"; exit 1; }
+out=$("$mpiexec" --oversubscribe -np 1 env IVR_VOLUME_BRICK=1 "$ivr" gradient scene.json \
+  "${det[@]}" -o dmix3 : -np 1 "$ivr" gradient scene.json "${det[@]}" -o dmix3 : \
+  -np 1 env IVR_VOLUME_BRICK=3 "$ivr" gradient scene.json "${det[@]}" -o dmix3)
+echo "$out" | grep -q '"deterministic":true' || { echo "gradient, 3 ranks mixed: $out"; exit 1; }
 "$python" - <<'PY'
 import numpy as np
 assert np.array_equal(np.load("w2.npy"), np.load("one.npy")), "render --shares 1,4"
 assert np.array_equal(np.load("dw2_density.npy"), np.load("d1_density.npy")), "gradient --shares 4,1"
+for f in ("dmix2", "dmix3"):
+    a, b = np.load("d1_density.npy"), np.load(f + "_density.npy")
+    assert np.array_equal(a, b), f"{f}: {np.count_nonzero(a != b)} voxels differ from one process's"
+print("ranks in core and over bricks of 1 and 3 cells: deterministic density identical")
 assert np.array_equal(np.load("recw2_density.npy"), np.load("rec1_density.npy")), "reconstruct by speed"
 for one, many in (("x1.npy", "xw2.npy"), ("p.npy", "pw2.npy")):
     a, b = np.load(one), np.load(many)

@@ -247,8 +247,7 @@ Gradient gradient_one(Device& device, const Scene& scene, const Image& target,
     bool adjoint_alone = o.mode != Mode::forward;
     for (const std::string& g : groups)
       adjoint_alone = adjoint_alone && (g == "density" || g == "tf" || g == "background");
-    const FixedShare* fixed =
-        share(adjoint_alone ? Mode::adjoint : Mode::forward);
+    const FixedShare* fixed = share(adjoint_alone ? Mode::adjoint : Mode::forward);
     GradientOptions mine = o;
     mine.deterministic = fixed != nullptr;
     return gradient_bricked(device, scene, target, groups, mine, bricks, nullptr, nullptr, nullptr,

@@ -119,8 +119,8 @@ TEST(BrickedFixed, SecondPassCorrectsTheScale) {
 // Over slabs every worker takes the in-core scale and the planes two workers hold are summed as
 // integers by their owner: with the rays' states passed, the joined gradient is one process's
 // in-core fixed point bit for bit (midpoint without a halo of its own, trapezoid with one, the
-// exact scheme's pieces in global coordinates; both precisions). Over independent segments (each slab's segment of a ray from transmittance 1) it
-// repeats bit for bit and lies near one process's.
+// exact scheme's pieces in global coordinates; both precisions). Over independent segments (each
+// slab's segment of a ray from transmittance 1) it repeats bit for bit and lies near one process's.
 TEST(BrickedFixed, OverSlabsIsOneProcesssBitForBit) {
   if (!int64_atomics()) GTEST_SKIP() << "no cl_khr_int64_base_atomics: float sums";
   for (Scheme scheme : {Scheme::midpoint, Scheme::trapezoid, Scheme::exact})

@@ -3,7 +3,9 @@
 #include "brick/bricked_gradient.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <array>
+#include <deque>
 #include <memory>
 #include <set>
 #include <string>
@@ -41,6 +43,40 @@ PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan,
   q.longest_edge = plan.layout.edge + 1;
   if (plan.budget) q.room = plan.budget > plan.bricked_bytes ? plan.budget - plan.bricked_bytes : 0;
   return private_sums_for(dev.info, q);
+}
+
+// At most this many slots of a brick's gradient (kernels' writes and the host's reads in flight),
+// or $IVR_GRADIENT_SLOTS (1–64).
+std::uint64_t most_gradient_slots() {
+  const char* env = std::getenv("IVR_GRADIENT_SLOTS");
+  if (!env || !*env) return 8;
+  char* end = nullptr;
+  const long v = std::strtol(env, &end, 10);
+  if (end == env || *end || v < 1 || v > 64)
+    throw Error(Status::invalid_argument,
+                std::string("IVR_GRADIENT_SLOTS: '") + env + "' is not a slot count (1 to 64)");
+  return std::uint64_t(v);
+}
+
+// The slots of a brick's gradient (adjoint_bricked's ring), `slot_bytes` each (0: no density
+// gradient, one slot of a real): the plan's room for two float slots (`float_slot` bytes each)
+// and what its budget leaves beside the private sums' copies; at most one a brick.
+std::vector<cl::Buffer> gradient_slots(Device::Impl& dev, const BrickPlan& plan,
+                                       std::size_t slot_bytes, std::size_t float_slot,
+                                       std::size_t private_bytes) {
+  const std::uint64_t most = most_gradient_slots();  // (checked whatever the groups)
+  if (slot_bytes == 0)
+    return {dev.buffer(CL_MEM_READ_WRITE, 8, nullptr, "a brick's density gradient")};
+  std::uint64_t room = 2 * std::uint64_t(float_slot);  // (no budget known: the plan's two)
+  if (plan.budget > plan.bricked_bytes + private_bytes)
+    room += plan.budget - plan.bricked_bytes - private_bytes;
+  const std::size_t slots = std::size_t(std::clamp<std::uint64_t>(
+      room / slot_bytes, 1,
+      std::min<std::uint64_t>(most, std::uint64_t(plan.layout.total()))));
+  std::vector<cl::Buffer> out;
+  for (std::size_t i = 0; i < slots; ++i)
+    out.push_back(dev.buffer(CL_MEM_READ_WRITE, slot_bytes, nullptr, "a brick's density gradient"));
+  return out;
 }
 
 }  // namespace
@@ -115,19 +151,18 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   // Per pixel: its loss and dL/dbackground terms (kernels/bricked_adjoint.cl).
   const cl::Buffer pixel_terms = dev.buffer(CL_MEM_READ_WRITE, rays * 4 * s.real_size, nullptr,
                                             "the per-pixel loss and background terms");
-  // Two slots for a brick's gradient: the host adds one brick's into the volume's while the
-  // device marches the next (the plan counts both). In fixed point a slot holds the header and a
-  // long a voxel: two with float64 reals, one with float32 (in the plan's room for two; the host
-  // then adds a brick's before the next is marched into it).
+  // Slots for a brick's gradient, taken in turn: the device marches a brick into one while the
+  // host adds the bricks before it, read back from the others, into the volume's. The plan
+  // counts two float slots; more where the budget leaves room (up to 8, $IVR_GRADIENT_SLOTS), so that
+  // the host waits for a brick's read only when its slot comes round again, not after every
+  // brick (on a GPU a brick's march is microseconds: waiting after each left the device idle
+  // while the host added). In fixed point a slot holds the header and a long a voxel.
   const std::size_t slot_bytes =
       fixed ? (BrickedFixed::kHeader + l.largest_voxels()) * sizeof(cl_long)
             : l.largest_voxels() * s.real_size;
-  const cl::Buffer slot0 = dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size,
-                                      nullptr, "a brick's density gradient");
-  const std::array<cl::Buffer, 2> grads = {
-      slot0, fixed && !s.f64 ? slot0
-                             : dev.buffer(CL_MEM_READ_WRITE, density ? slot_bytes : s.real_size,
-                                          nullptr, "a brick's density gradient")};
+  const std::vector<cl::Buffer> grads = gradient_slots(
+      dev, plan, density ? slot_bytes : 0, l.largest_voxels() * s.real_size,
+      priv.on ? priv.bytes(s.real_size) : 0);
   const std::size_t tf_bytes = std::max<std::size_t>(tf_size, 1) * s.real_size;
   const cl::Buffer grad_tf =
       dev.buffer(CL_MEM_READ_WRITE, tf_bytes, nullptr, "the transfer-function gradient");
@@ -166,15 +201,18 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
 
   const std::size_t planes = std::size_t(l.held_planes());  // all, or a worker's (with its halo)
   std::vector<double> gradient(density ? planes * l.dims[1] * l.dims[0] : 0, 0.0);
-  // Each slot's last brick read back (asynchronously) and not yet added.
+  // The bricks read back (asynchronously) and not yet added, oldest first: added in the order
+  // the bricks were marched (the float sums' order, whatever the reads' timing).
   struct Pending {
     int brick = -1;
     cl::Event read;
     std::vector<unsigned char> host;
   };
-  std::array<Pending, 2> pending;
-  auto add_pending = [&](Pending& p) {
-    if (p.brick < 0) return;
+  std::vector<Pending> pending(grads.size());
+  std::deque<int> unadded;  // slots, oldest first
+  auto add_oldest = [&] {
+    Pending& p = pending[std::size_t(unadded.front())];
+    unadded.pop_front();
     p.read.wait();
     if (fixed)
       fixed->add(p.host, l, p.brick);
@@ -182,13 +220,20 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
       add_brick(p.host, l, p.brick, s.f64, gradient.data());
     p.brick = -1;
   };
+  // Up to (and with) slot i's brick, in order.
+  auto add_through = [&](int i) {
+    if (pending[std::size_t(i)].brick < 0) return;
+    while (pending[std::size_t(i)].brick >= 0) add_oldest();
+  };
+  auto read_done = [](const cl::Event& e) {
+    return e.getInfo<CL_EVENT_COMMAND_EXECUTION_STATUS>() == CL_COMPLETE;
+  };
   int turn = 0;      // the slot of the brick being marched
   BrickHooks hooks;  // (the TF gradient alone has nothing to do per brick)
   cl::Kernel* sum = priv.on ? &s.kernels.get(packet.with_entry("sum_private_copies")) : nullptr;
   if (density) {
     hooks.before = [&](int b, std::vector<cl::Event>& wait) {
-      add_pending(pending[turn]);  // the slot's last brick, before the slot is written again
-      if (grads[0] == grads[1]) add_pending(pending[turn ^ 1]);  // (one slot: its other brick)
+      add_through(turn);    // the slot's last brick, before the slot is written again
       if (priv.on) return;  // (the sum of the copies overwrites the slot)
       marching->setArg(a_grad, grads[turn]);
       cl::Event zeroed;
@@ -237,15 +282,18 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
                                   &p.read);
       dev.queue.flush();
       p.brick = b;
-      turn ^= 1;
-      add_pending(pending[turn]);  // the brick before, while the device marches this one
+      unadded.push_back(turn);
+      turn = (turn + 1) % int(grads.size());
+      // The bricks whose reads are done already, while the device marches on.
+      while (unadded.size() > 1 && read_done(pending[std::size_t(unadded.front())].read))
+        add_oldest();
     };
   }
   if (marching == &k)
     march.sweep(k, kAdjointMarch, hooks, "bricked");
   else
     march.sweep(*marching, kAdjointMarch, hooks, "bricked_packet", march.tile());
-  for (Pending& p : pending) add_pending(p);
+  while (!unadded.empty()) add_oldest();
   if (fixed) {
     // Where the scale failed (a segment over the cap) or was far too loose: once more at the
     // scale the largest segment calls for (every worker alike).
@@ -287,7 +335,11 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   }
   const OperationStats st = march.session().last_stats();
   d.kernel_seconds = st.kernel_seconds;
-  d.device_bytes = plan.bricked_bytes + (priv.on ? priv.bytes(s.real_size) : 0);
+  // (The plan counts two float slots of a brick's gradient; the ring may hold more, or fewer.)
+  const std::uint64_t slots_bytes = density ? grads.size() * slot_bytes : 0;
+  const std::uint64_t planned_slots = 2 * std::uint64_t(l.largest_voxels()) * s.real_size;
+  d.device_bytes = plan.bricked_bytes - std::min(plan.bricked_bytes, planned_slots) + slots_bytes +
+                   (priv.on ? priv.bytes(s.real_size) : 0);
   d.bricks = plan.bricks();
   d.atomics = atomic_add_name(atomic_add_for(dev.info, s.f64));
   d.deterministic = bool(fixed);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 
+#include "adjoint/adjoint.hpp"
 #include "ivr/error.hpp"
 #include "ivr/gradient.hpp"
 #include "brick_support.hpp"
@@ -156,6 +157,7 @@ TEST(BrickedGradient, PrivateSumsKeepToTheMemoryCap) {
   GradientOptions o;
   o.mode = Mode::adjoint;
   ScopedEnv brick("IVR_VOLUME_BRICK", "4");
+  ScopedEnv slots("IVR_GRADIENT_SLOTS", "2");  // (the plan's two: no more where room is left)
   Gradient free;  // with atomic adds: the plan's bytes alone
   {
     ScopedEnv atomics("IVR_PRIVATE_SUMS", "0");
@@ -176,6 +178,56 @@ TEST(BrickedGradient, PrivateSumsKeepToTheMemoryCap) {
     EXPECT_EQ(e.status(), Status::invalid_argument) << e.what();
     EXPECT_TRUE(has(e.what(), "IVR_PRIVATE_SUMS=1")) << e.what();
     EXPECT_TRUE(has(e.what(), "budget")) << e.what();
+  }
+}
+
+// The ring of slots for a brick's gradient (the host adds a brick's while the device marches the
+// next ones): its size changes neither the bits (fixed point; the host adds the bricks in the
+// order they were marched, so float sums too) nor the memory cap it keeps to, and a bad
+// $IVR_GRADIENT_SLOTS is one clear error.
+TEST(BrickedGradient, GradientSlotsChangeNothingButTheWaits) {
+  const Scene s = gradient_scene(Model::emission_absorption);
+  Image target = render(device(), s);
+  for (float& v : target.pixels) v = 0.8f * v + 0.05f;
+  GradientOptions o;
+  o.mode = Mode::adjoint;
+  o.deterministic = has_int64_atomics(device().impl());
+  ScopedEnv brick("IVR_VOLUME_BRICK", "3");
+  ScopedEnv atomics("IVR_PRIVATE_SUMS", "0");  // (float sums: each brick's own, no copies)
+  std::vector<Gradient> got;
+  for (const char* slots : {"1", "2", "8"}) {
+    ScopedEnv ring("IVR_GRADIENT_SLOTS", slots);
+    got.push_back(gradient(device(), s, target, {"density", "tf"}, o));
+    EXPECT_GT(got.back().bricks, 8) << slots;
+    EXPECT_EQ(got.back().deterministic, o.deterministic) << slots;
+  }
+  for (std::size_t i = 1; i < got.size(); ++i) {
+    if (o.deterministic)
+      EXPECT_EQ(got[0].groups[0].values, got[i].groups[0].values) << "ring " << i;
+    else
+      expect_close_values(got[0].groups[0].values, got[i].groups[0].values, 1e-6, "density");
+    expect_close_values(got[0].groups[1].values, got[i].groups[1].values, 1e-6, "tf");
+  }
+  // Each slot more is counted; under a cap that leaves no room beyond the plan's two (float
+  // slots) the ring keeps to it.
+  EXPECT_GT(got[2].device_bytes, got[1].device_bytes);
+  EXPECT_GT(got[1].device_bytes, got[0].device_bytes - (o.deterministic ? 1 : 0));
+  {
+    ScopedEnv ring("IVR_GRADIENT_SLOTS", "8");
+    ScopedEnv cap("IVR_DEVICE_MEMORY_LIMIT", std::to_string(got[1].device_bytes + 64));
+    const Gradient capped = gradient(device(), s, target, {"density", "tf"}, o);
+    EXPECT_LE(capped.device_bytes, got[1].device_bytes + 64);
+    if (o.deterministic) EXPECT_EQ(capped.groups[0].values, got[0].groups[0].values);
+  }
+  for (const char* bad : {"0", "65", "two"}) {
+    ScopedEnv ring("IVR_GRADIENT_SLOTS", bad);
+    try {
+      gradient(device(), s, target, {"density"}, o);
+      ADD_FAILURE() << "IVR_GRADIENT_SLOTS=" << bad << " ran";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.status(), Status::invalid_argument) << e.what();
+      EXPECT_TRUE(has(e.what(), "IVR_GRADIENT_SLOTS")) << e.what();
+    }
   }
 }
 

@@ -7,14 +7,14 @@
 #   scripts/device_checks.sh [STAGE[:SECONDS] ...]     (default: suite out_of_core gradient mpi)
 #
 # Stages (seconds: the stage's limit; default in brackets):
-#   suite[200]        IVR_DEVICE=gpu ctest -L default: the failures' names and the summary
+#   suite[240]        IVR_DEVICE=gpu ctest -L default: the failures' names and the summary
 #   out_of_core[150]  ivr-bench --device gpu --suite out_of_core (64³ and 128³ → 256²: bricked
 #                     against in core, end to end and kernels; docs/scaling.md's GPU table)
-#   gradient[90]      ivr-bench --device gpu --suite render,gradient --quick
-#   mpi[150]          scripts/mpi_scaling.sh on the machine's CPU cores (1, 2, 4 ranks; views and
+#   gradient[60]      ivr-bench --device gpu --suite render,gradient --quick
+#   mpi[120]          scripts/mpi_scaling.sh on the machine's CPU cores (1, 2, 4 ranks; views and
 #                     segments; render, gradient and the reconstruction's loop)
 # A stage that runs out of time is stopped and named in $OUT/stages.txt; the next one runs. The
-# total of the defaults (590 s) fits one call of at most 600 s.
+# total of the defaults (570 s) fits one call of at most 600 s.
 #
 # Here (this machine: build, then bundle):
 #   ../shared/gpu/bundle.sh && scripts/gpu_carry_extras.sh
@@ -34,7 +34,7 @@ stages=("$@")
 : > "$out/stages.txt"
 
 default_limit() {
-  case "$1" in suite) echo 200 ;; out_of_core) echo 150 ;; gradient) echo 90 ;; mpi) echo 150 ;; *) echo 0 ;; esac
+  case "$1" in suite) echo 240 ;; out_of_core) echo 150 ;; gradient) echo 60 ;; mpi) echo 120 ;; *) echo 0 ;; esac
 }
 
 run_stage() {  # run_stage NAME LIMIT

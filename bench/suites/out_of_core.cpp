@@ -304,6 +304,12 @@ void out_of_core_suite(Context& ctx) {
     const Scene scene = bench_scene(n, ctx.quick ? 64 : 256);
     compare(ctx, base + "_b" + std::to_string(n / 2), scene, n / 2);
   }
+  // Many small bricks (64 of 8 cells, 32³ → 64²): each brick's march is short, so the per-brick
+  // work of the host and the queue shows — the regime a GPU's bricks are in at every size.
+  if (ctx.wants("v32_i64_many_bricks")) {
+    std::cerr << "ivr-bench: out_of_core/v32_i64_many_bricks...\n";
+    compare(ctx, "v32_i64_many_bricks_b8", bench_scene(32, 64), 8);
+  }
   // The trapezoid scheme: its gradients' bricks hold a halo of ⌈step⌉ + 1 voxels (brick_halo).
   {
     const int n = ctx.quick ? 32 : 64;

@@ -3,8 +3,8 @@
 #include "brick/bricked_gradient.hpp"
 
 #include <algorithm>
-#include <cstdlib>
 #include <array>
+#include <cstdlib>
 #include <deque>
 #include <memory>
 #include <set>
@@ -210,6 +210,16 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   };
   std::vector<Pending> pending(grads.size());
   std::deque<int> unadded;  // slots, oldest first
+  // Should anything throw with reads in flight, they finish before their host memory goes.
+  struct DrainReads {
+    std::vector<Pending>& pending;
+    ~DrainReads() {
+      for (Pending& p : pending) try {
+          if (p.brick >= 0) p.read.wait();
+        } catch (...) {  // (the error already thrown says why)
+        }
+    }
+  } drain{pending};
   auto add_oldest = [&] {
     Pending& p = pending[std::size_t(unadded.front())];
     unadded.pop_front();
@@ -285,7 +295,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
       unadded.push_back(turn);
       turn = (turn + 1) % int(grads.size());
       // The bricks whose reads are done already, while the device marches on.
-      while (unadded.size() > 1 && read_done(pending[std::size_t(unadded.front())].read))
+      while (!unadded.empty() && read_done(pending[std::size_t(unadded.front())].read))
         add_oldest();
     };
   }

@@ -115,8 +115,7 @@ IVR_API ivr_status ivr_gradient_split_weighted(ivr_context* context, const ivr_s
  * `deterministic` is non-zero (every worker passing the same flag) and every worker's device has
  * 64-bit integer atomics: the same bits on every run and, over IVR_SPLIT_SLABS, one process's
  * in-core gradient bit for bit once the workers' "density" parts are added — a plane two workers
- * share is whole on the upper one, 0 on the lower (the midpoint, trapezoid and preintegrated
- * schemes; docs/scaling.md). Where a worker's device lacks 64-bit integer atomics every worker
+ * share is whole on the upper one, 0 on the lower (every scheme; docs/scaling.md). Where a worker's device lacks 64-bit integer atomics every worker
  * sums in float instead, and a shared plane's parts lie on both. */
 IVR_API ivr_status ivr_gradient_split_deterministic(ivr_context* context, const ivr_scene* scene,
                                                     const float* target, size_t count,

@@ -199,6 +199,8 @@ ivr_status ivr_render(ivr_context* c, const ivr_scene* s, ivr_precision precisio
   });
 }
 
+}  // extern "C"
+
 namespace {
 // The caller's target (count floats) in the scene's image shape.
 ivr::Image target_image(const ivr::Scene& scene, const float* target, size_t count) {
@@ -223,9 +225,7 @@ ivr_result* gradient_result(ivr_context* c, const ivr::Gradient& d) {
     r->arrays.push_back({g.name, std::vector<int64_t>(g.shape.begin(), g.shape.end()), g.values});
   return r;
 }
-}  // namespace
 
-namespace {
 // The checks every gradient call makes of its handles and pointers; the target as an Image.
 ivr::Image checked_gradient_call(ivr_context* c, const ivr_scene* s, const float* target,
                                  size_t count, const char* wrt, ivr_result** out,
@@ -259,6 +259,8 @@ void gradient_call(ivr_context* c, const ivr_scene* s, const float* target, size
   *out = gradient_result(c, ivr::gradient(c->device, s->scene, t, ivr::parse_groups(wrt), o));
 }
 }  // namespace
+
+extern "C" {
 
 ivr_status ivr_gradient(ivr_context* c, const ivr_scene* s, const float* target, size_t count,
                         const char* wrt, ivr_mode mode, ivr_loss loss, ivr_precision precision,
@@ -310,6 +312,8 @@ ivr_status ivr_context_samples_per_second(const ivr_context* c, double* speed) {
   });
 }
 
+}  // extern "C"
+
 namespace {
 
 void render_split(ivr_context* c, const ivr_scene* s, ivr_precision precision, double step,
@@ -348,6 +352,8 @@ void gradient_split(ivr_context* c, const ivr_scene* s, const float* target, siz
   *out = gradient_result(c, d);
 }
 }  // namespace
+
+extern "C" {
 
 ivr_status ivr_render_slabs(ivr_context* c, const ivr_scene* s, ivr_precision precision,
                             double step, int rank, int ranks, ivr_sum_fn sum, void* sum_user,
@@ -487,6 +493,8 @@ ivr_status ivr_result_array_count(const ivr_result* r, size_t* count) {
   });
 }
 
+}  // extern "C"
+
 namespace {
 const ivr_result::Array& array_at(const ivr_result* r, size_t i) {
   checked(r, Kind::result, "result");
@@ -496,6 +504,8 @@ const ivr_result::Array& array_at(const ivr_result* r, size_t i) {
   return r->arrays[i];
 }
 }  // namespace
+
+extern "C" {
 
 ivr_status ivr_result_array_shape(const ivr_result* r, size_t i, const char** name, int* rank,
                                   int64_t shape[5]) {

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cstdlib>
 #include <deque>
 #include <memory>
 #include <set>
@@ -48,14 +47,8 @@ PrivateSums bricked_private_sums(const Device::Impl& dev, const BrickPlan& plan,
 // At most this many slots of a brick's gradient (kernels' writes and the host's reads in flight),
 // or $IVR_GRADIENT_SLOTS (1–64).
 std::uint64_t most_gradient_slots() {
-  const char* env = std::getenv("IVR_GRADIENT_SLOTS");
-  if (!env || !*env) return 8;
-  char* end = nullptr;
-  const long v = std::strtol(env, &end, 10);
-  if (end == env || *end || v < 1 || v > 64)
-    throw Error(Status::invalid_argument,
-                std::string("IVR_GRADIENT_SLOTS: '") + env + "' is not a slot count (1 to 64)");
-  return std::uint64_t(v);
+  const int v = count_from_env("IVR_GRADIENT_SLOTS", 64, "a slot count (1 to 64)");
+  return v ? std::uint64_t(v) : 8;
 }
 
 // The slots of a brick's gradient (adjoint_bricked's ring), `slot_bytes` each (0: no density
@@ -157,12 +150,11 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   // the host waits for a brick's read only when its slot comes round again, not after every
   // brick (on a GPU a brick's march is microseconds: waiting after each left the device idle
   // while the host added). In fixed point a slot holds the header and a long a voxel.
+  const std::size_t float_slot = l.largest_voxels() * s.real_size;  // (the plan's two)
   const std::size_t slot_bytes =
-      fixed ? (BrickedFixed::kHeader + l.largest_voxels()) * sizeof(cl_long)
-            : l.largest_voxels() * s.real_size;
+      fixed ? (BrickedFixed::kHeader + l.largest_voxels()) * sizeof(cl_long) : float_slot;
   const std::vector<cl::Buffer> grads = gradient_slots(
-      dev, plan, density ? slot_bytes : 0, l.largest_voxels() * s.real_size,
-      priv.on ? priv.bytes(s.real_size) : 0);
+      dev, plan, density ? slot_bytes : 0, float_slot, priv.on ? priv.bytes(s.real_size) : 0);
   const std::size_t tf_bytes = std::max<std::size_t>(tf_size, 1) * s.real_size;
   const cl::Buffer grad_tf =
       dev.buffer(CL_MEM_READ_WRITE, tf_bytes, nullptr, "the transfer-function gradient");
@@ -232,7 +224,6 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   };
   // Up to (and with) slot i's brick, in order.
   auto add_through = [&](int i) {
-    if (pending[std::size_t(i)].brick < 0) return;
     while (pending[std::size_t(i)].brick >= 0) add_oldest();
   };
   auto read_done = [](const cl::Event& e) {
@@ -347,7 +338,7 @@ static Gradient adjoint_bricked(Device& device, const Scene& scene, const Image&
   d.kernel_seconds = st.kernel_seconds;
   // (The plan counts two float slots of a brick's gradient; the ring may hold more, or fewer.)
   const std::uint64_t slots_bytes = density ? grads.size() * slot_bytes : 0;
-  const std::uint64_t planned_slots = 2 * std::uint64_t(l.largest_voxels()) * s.real_size;
+  const std::uint64_t planned_slots = 2 * std::uint64_t(float_slot);
   d.device_bytes = plan.bricked_bytes - std::min(plan.bricked_bytes, planned_slots) + slots_bytes +
                    (priv.on ? priv.bytes(s.real_size) : 0);
   d.bricks = plan.bricks();

@@ -153,15 +153,18 @@ PixelRect brick_pixels(const Scene& scene, const BrickLayout& l, int b, int view
 
 }  // namespace
 
-int volume_brick_from_env() {
-  const char* env = std::getenv("IVR_VOLUME_BRICK");
+int count_from_env(const char* name, int most, const char* what) {
+  const char* env = std::getenv(name);
   if (!env || !*env) return 0;
   char* end = nullptr;
   const long v = std::strtol(env, &end, 10);
-  if (end == env || *end || v < 1 || v > (1 << 24))
-    throw Error(Status::invalid_argument, std::string("IVR_VOLUME_BRICK: '") + env +
-                                              "' is not a brick edge (cells, an integer ≥ 1)");
+  if (end == env || *end || v < 1 || v > most)
+    throw Error(Status::invalid_argument, std::string(name) + ": '" + env + "' is not " + what);
   return int(v);
+}
+
+int volume_brick_from_env() {
+  return count_from_env("IVR_VOLUME_BRICK", 1 << 24, "a brick edge (cells, an integer ≥ 1)");
 }
 
 BrickPlan plan_render(Device& device, const Scene& scene, Precision precision, int forced_edge,

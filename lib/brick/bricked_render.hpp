@@ -148,6 +148,10 @@ class BrickedMarch {
 // (where given).
 void bricked_render_stats(BrickedMarch& march, const BrickPlan& plan, RenderStats* stats);
 
+// The count $`name` sets, an integer from 1 to `most` (0 when unset). Throws
+// Error(invalid_argument) on anything else: "NAME: 'value' is not `what`".
+int count_from_env(const char* name, int most, const char* what);
+
 // $IVR_VOLUME_BRICK (cells per brick edge; 0 when unset). Throws on a malformed value.
 int volume_brick_from_env();
 
